@@ -1,0 +1,54 @@
+#pragma once
+// Per-pixel body-part classification (eq. 2): every foreground pixel walks every tree, the
+// quantized leaf distributions are summed over trees (an exact integer average), and the most
+// likely part is taken. OpenMP across pixels.
+
+#include <cstdint>
+#include <vector>
+
+#include "runtime/core/depth_image.h"
+#include "runtime/core/forest.h"
+
+namespace poseforest::runtime {
+
+struct ClassifyOptions {
+  int num_threads = 0;             ///< OpenMP threads; 0 = all available
+  bool want_distributions = false; ///< also fill Classification::sums
+};
+
+/// Result for one depth image.
+struct Classification {
+  int width = 0, height = 0;
+  int num_parts = 0;
+  int num_trees = 0;
+  int stride = 0;  ///< entries per pixel in `sums` (Forest::leaf_stride())
+  /// Most likely part per pixel (ties: lowest part index); core::kBackgroundLabel where the
+  /// depth is 0.
+  core::LabelImage labels;
+  /// If requested: per pixel, `stride` sums of leaf numerators over trees; P(c|I,x) =
+  /// sums[pixel*stride + c] / (255 * num_trees). Zero for background pixels.
+  std::vector<uint16_t> sums;
+
+  float Probability(int x, int y, int part) const {
+    return float(sums[(size_t(y) * size_t(width) + size_t(x)) * size_t(stride) + size_t(part)]) /
+           float(core::kLeafTotal * num_trees);
+  }
+};
+
+/// Classifies depth images with one validated forest. The forest must outlive the classifier
+/// and must have passed core::ValidateForest (the loader guarantees it): the hot loop does no
+/// checks. Thread-safe: Classify may run concurrently on different outputs.
+class Classifier {
+ public:
+  explicit Classifier(const core::Forest& forest);
+
+  /// Classifies every foreground pixel of `depth` (any size) into `out` (reusing its storage).
+  void Classify(const core::DepthImage& depth, const ClassifyOptions& options, Classification* out) const;
+
+  const core::Forest& forest() const { return forest_; }
+
+ private:
+  const core::Forest& forest_;
+};
+
+}  // namespace poseforest::runtime

@@ -1,0 +1,16 @@
+#pragma once
+// The subcommands of the `poseforest` program. Each takes argv with argv[0] = the command
+// name and returns the process exit code (0 ok, 1 runtime failure, 2 usage error).
+
+namespace poseforest::cli {
+
+int InferMain(int argc, char** argv);    ///< runtime/cli/infer_command.cpp
+int InspectMain(int argc, char** argv);  ///< runtime/cli/inspect_command.cpp
+int ImportPclMain(int argc, char** argv);  ///< runtime/cli/import_pcl_command.cpp
+
+// Training side (only in builds with POSEFOREST_TRAINING=ON; see main.cpp).
+int RenderMain(int argc, char** argv);   ///< renderer: write a synthetic dataset + montage
+int TrainMain(int argc, char** argv);    ///< coordinator: train a forest from a job config
+int EvalMain(int argc, char** argv);     ///< coordinator: per-class accuracy on a test set
+
+}  // namespace poseforest::cli

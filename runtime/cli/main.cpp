@@ -1,0 +1,62 @@
+// poseforest: the one program users run. `poseforest help` lists the commands.
+#include <cstdio>
+#include <cstring>
+#include <string_view>
+
+#include "runtime/cli/commands.h"
+
+namespace {
+
+struct Command {
+  const char* name;
+  int (*main)(int, char**);
+  const char* summary;
+};
+
+const Command kCommands[] = {
+    {"infer", poseforest::cli::InferMain, "classify depth images into body parts with a forest"},
+    {"inspect", poseforest::cli::InspectMain, "print and validate a forest file"},
+    {"import-pcl", poseforest::cli::ImportPclMain, "convert PCL's trained people trees into a forest file"},
+#ifdef POSEFOREST_HAS_RENDER
+    {"render", poseforest::cli::RenderMain, "render a synthetic labelled depth dataset and a preview montage"},
+#endif
+#ifdef POSEFOREST_HAS_TRAIN
+    {"train", poseforest::cli::TrainMain, "train a forest from a job config (protobuf text format)"},
+    {"eval", poseforest::cli::EvalMain, "per-class accuracy of a forest on a held-out test set"},
+#endif
+};
+
+void Usage(FILE* out) {
+  std::fprintf(out,
+               "poseforest %s - human pose recognition in parts from single depth images\n"
+               "(Shotton et al. 2011)\n\n"
+               "usage: poseforest <command> [options]     poseforest <command> --help\n\ncommands:\n",
+               POSEFOREST_VERSION);
+  for (const Command& c : kCommands) std::fprintf(out, "  %-11s %s\n", c.name, c.summary);
+#ifndef POSEFOREST_WITH_TRAINING
+  std::fprintf(out, "\n(runtime-only build: training commands need -DPOSEFOREST_TRAINING=ON)\n");
+#endif
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    Usage(stderr);
+    return 2;
+  }
+  const std::string_view cmd = argv[1];
+  if (cmd == "help" || cmd == "--help" || cmd == "-h") {
+    Usage(stdout);
+    return 0;
+  }
+  if (cmd == "--version" || cmd == "version") {
+    std::printf("poseforest %s\n", POSEFOREST_VERSION);
+    return 0;
+  }
+  for (const Command& c : kCommands)
+    if (cmd == c.name) return c.main(argc - 1, argv + 1);
+  std::fprintf(stderr, "poseforest: unknown command '%s'\n\n", argv[1]);
+  Usage(stderr);
+  return 2;
+}

@@ -1,0 +1,37 @@
+#pragma once
+// Forest file format v1 (.pff, "poseforest forest"): reading and writing. The layout is
+// documented in runtime/FORMAT.md; keep the two in step.
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "runtime/core/forest.h"
+#include "runtime/core/result.h"
+
+namespace poseforest::core {
+
+inline constexpr uint16_t kFormatMajor = 1;
+inline constexpr uint16_t kFormatMinor = 0;
+
+/// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
+std::vector<uint8_t> SerializeForest(const Forest& forest);
+
+/// Parses and fully validates a forest from bytes. `source` names the file/message in errors.
+/// Never crashes on any input: every size, index and value is checked before use.
+Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& source);
+
+/// Reads and parses a forest file.
+Result<Forest> LoadForest(const std::string& path);
+
+/// Writes a forest file atomically (temporary file + rename), so a crash never leaves a
+/// half-written forest under `path`.
+Status SaveForest(const Forest& forest, const std::string& path);
+
+/// Reads a whole file into memory (error names the path).
+Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path);
+/// Writes bytes to `path` atomically (temporary file in the same folder + rename).
+Status WriteFileAtomic(const std::string& path, std::span<const uint8_t> bytes);
+
+}  // namespace poseforest::core

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs what poseforest needs on Debian 12 with apt-get, only if something is missing.
+# Idempotent and fast when everything is there (one dpkg query).
+#   scripts/setup.sh            everything (training + runtime + tests)
+#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen (+ Catch2 for its tests)
+set -euo pipefail
+
+runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2)
+training_pkgs=(
+  libprotobuf-dev protobuf-compiler         # job configs and wire messages
+  libfastrtps-dev fastdds-tools             # Fast DDS 2.9 (coordinator <-> workers)
+  libassimp-dev assimp-testmodels           # rigged meshes (+ CMU BVH test clips)
+  libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri  # headless EGL/GLES (Mesa llvmpipe on CPU)
+  python3 iproute2 bzip2 openssl            # test helpers, network namespaces, PCL trees, DDS-Security certs
+)
+
+pkgs=("${runtime_pkgs[@]}")
+if [[ "${1:-}" != "--runtime" ]]; then pkgs+=("${training_pkgs[@]}"); fi
+
+missing=()
+installed=$(dpkg-query -W -f='${db:Status-Status} ${Package}\n' "${pkgs[@]}" 2>/dev/null || true)
+for p in "${pkgs[@]}"; do
+  grep -qx "installed $p" <<<"$installed" || missing+=("$p")
+done
+
+if ((${#missing[@]} == 0)); then
+  echo "setup: all ${#pkgs[@]} packages present"
+  exit 0
+fi
+echo "setup: installing ${missing[*]}"
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then
+  command -v sudo >/dev/null || { echo "setup: need root (or sudo) to apt-get install: ${missing[*]}" >&2; exit 1; }
+  SUDO=sudo
+fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"

@@ -1,0 +1,156 @@
+// The `poseforest` program end to end, as a user runs it: real files, a real process.
+#include <catch2/catch.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <sys/wait.h>
+
+#include "runtime/classifier.h"
+#include "runtime/core/forest_format.h"
+#include "runtime/image_io.h"
+#include "tests/support/paths.h"
+#include "tests/support/synthetic.h"
+
+using namespace poseforest;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+  int exit_code;
+  std::string output;  // stdout + stderr
+};
+
+Run RunPoseforest(const std::string& args) {
+  const std::string cmd = (testing::BinDir() / "poseforest").string() + " " + args + " 2>&1";
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  REQUIRE(pipe != nullptr);
+  std::string out;
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
+  const int status = ::pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+}  // namespace
+
+TEST_CASE("poseforest help and unknown commands", "[cli]") {
+  auto help = RunPoseforest("help");
+  CHECK(help.exit_code == 0);
+  CHECK_THAT(help.output, Catch::Contains("infer") && Catch::Contains("inspect"));
+  auto bad = RunPoseforest("frobnicate");
+  CHECK(bad.exit_code == 2);
+  CHECK_THAT(bad.output, Catch::Contains("unknown command 'frobnicate'"));
+  auto infer_help = RunPoseforest("infer --help");
+  CHECK(infer_help.exit_code == 0);
+  CHECK_THAT(infer_help.output, Catch::Contains("--forest"));
+}
+
+TEST_CASE("infer classifies a depth PNG and writes the part picture, labels and probabilities", "[cli]") {
+  const auto dir = testing::ScratchDir("cli-infer");
+  testing::RandomForestSpec spec;
+  spec.nodes_per_tree = 3000;
+  spec.max_depth = 12;
+  const core::Forest forest = testing::MakeRandomForest(spec);
+  const std::string forest_path = (dir / "f.pff").string();
+  REQUIRE(core::SaveForest(forest, forest_path).ok());
+  const core::DepthImage depth = testing::MakePersonDepth(2.5);
+  const std::string depth_path = (dir / "frame.png").string();
+  REQUIRE(runtime::WriteDepthPng(depth_path, depth).ok());
+
+  auto run = RunPoseforest("infer --forest " + forest_path + " --labels --distributions --out-dir " +
+                           (dir / "out").string() + " " + depth_path);
+  INFO(run.output);
+  REQUIRE(run.exit_code == 0);
+  CHECK_THAT(run.output, Catch::Contains("foreground pixels"));
+
+  // The label PNG equals what the library computes in-process.
+  runtime::Classifier classifier(forest);
+  runtime::Classification expected;
+  classifier.Classify(depth, {}, &expected);
+  auto bytes = core::ReadFileBytes((dir / "out" / "frame.labels.png").string());
+  REQUIRE(bytes.ok());
+  auto png = runtime::DecodePng(*bytes, "frame.labels.png");
+  REQUIRE(png.ok());
+  CHECK(png->width == 640);
+  CHECK(png->channels == 1);
+  CHECK(png->samples8 == expected.labels.pixels);
+  auto colour = core::ReadFileBytes((dir / "out" / "frame.parts.png").string());
+  REQUIRE(colour.ok());
+  auto colour_png = runtime::DecodePng(*colour, "frame.parts.png");
+  REQUIRE(colour_png.ok());
+  CHECK(colour_png->channels == 3);
+  // The probabilities file is a float32 NumPy array [480, 640, 31].
+  const auto npy = fs::path(dir / "out" / "frame.probs.npy");
+  REQUIRE(fs::exists(npy));
+  std::ifstream in(npy, std::ios::binary);
+  std::string head(128, '\0');
+  in.read(head.data(), 128);
+  CHECK_THAT(head, Catch::Contains("'shape': (480, 640, 31)"));
+  CHECK(fs::file_size(npy) == 128 + size_t(480) * 640 * 31 * 4);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("infer reads raw Kinect frames from the shared data", "[cli][data]") {
+  const auto frames = testing::DataDir() / "real" / "skeltrack_kinect_depth";
+  REQUIRE(fs::exists(frames));  // CI and developers have ../shared/data
+  std::string first;
+  for (auto& e : fs::directory_iterator(frames))
+    if (e.is_regular_file() && e.path().filename().string().rfind("depth-data", 0) == 0) {
+      first = e.path().string();
+      break;
+    }
+  REQUIRE_FALSE(first.empty());
+  const auto dir = testing::ScratchDir("cli-raw");
+  const core::Forest forest = testing::MakeRandomForest({.nodes_per_tree = 500, .max_depth = 8});
+  REQUIRE(core::SaveForest(forest, (dir / "f.pff").string()).ok());
+  auto run = RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --out " + (dir / "p.png").string() + " " + first);
+  INFO(run.output);
+  CHECK(run.exit_code == 0);
+  CHECK(fs::exists(dir / "p.png"));
+  fs::remove_all(dir);
+}
+
+TEST_CASE("infer and inspect give clear errors on bad input and lose nothing", "[cli]") {
+  const auto dir = testing::ScratchDir("cli-bad");
+  const core::Forest forest = testing::MakeRandomForest({.nodes_per_tree = 200, .max_depth = 6});
+  const std::string good = (dir / "good.pff").string();
+  REQUIRE(core::SaveForest(forest, good).ok());
+  // A corrupt copy: one flipped byte in the middle.
+  auto bytes = core::ReadFileBytes(good);
+  REQUIRE(bytes.ok());
+  (*bytes)[bytes->size() / 2] ^= 0x10;
+  const std::string corrupt = (dir / "corrupt.pff").string();
+  REQUIRE(core::WriteFileAtomic(corrupt, *bytes).ok());
+  const std::string depth_path = (dir / "d.png").string();
+  REQUIRE(runtime::WriteDepthPng(depth_path, testing::MakePersonDepth(3.0)).ok());
+
+  auto r1 = RunPoseforest("infer --forest " + corrupt + " " + depth_path);
+  CHECK(r1.exit_code == 1);
+  CHECK_THAT(r1.output, Catch::Contains("corrupt.pff") && Catch::Contains("checksum"));
+  CHECK_FALSE(fs::exists(dir / "d.parts.png"));  // nothing written on failure
+
+  auto r2 = RunPoseforest("inspect " + good + " " + corrupt);
+  CHECK(r2.exit_code == 1);
+  CHECK_THAT(r2.output, Catch::Contains("good.pff: valid") && Catch::Contains("corrupt.pff"));
+
+  auto r3 = RunPoseforest("infer " + depth_path);
+  CHECK(r3.exit_code == 2);
+  CHECK_THAT(r3.output, Catch::Contains("--forest is required"));
+
+  // A depth file of the wrong size: named, with the sizes; other inputs still processed.
+  std::ofstream((dir / "short.raw").string(), std::ios::binary) << "12345";
+  auto r4 = RunPoseforest("infer --forest " + good + " --out-dir " + (dir / "o").string() + " " +
+                          (dir / "short.raw").string() + " " + depth_path);
+  CHECK(r4.exit_code == 1);
+  CHECK_THAT(r4.output, Catch::Contains("short.raw"));
+  CHECK(fs::exists(dir / "o" / "d.parts.png"));
+
+  auto r5 = RunPoseforest("infer --forest " + good + " --threads many " + depth_path);
+  CHECK(r5.exit_code == 2);
+  CHECK_THAT(r5.output, Catch::Contains("--threads"));
+  fs::remove_all(dir);
+}

@@ -1,0 +1,35 @@
+#pragma once
+// Where tests find things: the shared data set (one setting: POSEFOREST_DATA_DIR in the
+// environment, else the CMake cache value, which defaults to ../shared/data), the built
+// programs, and scratch folders.
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include <unistd.h>
+
+namespace poseforest::testing {
+
+/// The shared data folder (mocap, meshes, real frames).
+inline std::filesystem::path DataDir() {
+  if (const char* env = std::getenv("POSEFOREST_DATA_DIR"); env && *env) return env;
+  return POSEFOREST_DATA_DIR_DEFAULT;
+}
+
+/// The folder holding the built `poseforest` program.
+inline std::filesystem::path BinDir() {
+  if (const char* env = std::getenv("POSEFOREST_BIN_DIR"); env && *env) return env;
+  return std::filesystem::current_path();
+}
+
+/// A fresh empty scratch folder under the system temp dir, unique to this process and `name`.
+inline std::filesystem::path ScratchDir(const std::string& name) {
+  auto dir = std::filesystem::temp_directory_path() /
+             ("poseforest-test-" + name + "-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+}  // namespace poseforest::testing
