@@ -63,6 +63,18 @@ Status ValidateForest(const Forest& forest, const std::string& source) {
   if (!std::isfinite(forest.constants.offset_unit) || forest.constants.offset_unit <= 0 ||
       forest.constants.offset_unit > 64)
     return fail("offset unit " + std::to_string(forest.constants.offset_unit) + " is not in (0, 64] pixel*m");
+  if (forest.proposal_params) {
+    for (int j = 0; j < kNumJoints; ++j) {
+      const JointParams& p = (*forest.proposal_params)[size_t(j)];
+      const std::string joint(JointName(j));
+      if (!std::isfinite(p.bandwidth_m) || p.bandwidth_m <= 0 || p.bandwidth_m > 2)
+        return fail("joint " + joint + ": bandwidth " + std::to_string(p.bandwidth_m) + " m outside (0, 2]");
+      if (!std::isfinite(p.prob_threshold) || p.prob_threshold < 0 || p.prob_threshold > 1)
+        return fail("joint " + joint + ": probability threshold " + std::to_string(p.prob_threshold) + " outside [0, 1]");
+      if (!std::isfinite(p.z_offset_m) || std::abs(p.z_offset_m) > 1)
+        return fail("joint " + joint + ": z offset " + std::to_string(p.z_offset_m) + " m outside [-1, 1]");
+    }
+  }
   const int stride = forest.leaf_stride();
 
   for (size_t t = 0; t < forest.trees.size(); ++t) {

@@ -7,11 +7,13 @@
 #include <cstddef>
 #include <cstdint>
 #include <new>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "runtime/core/body_parts.h"
 #include "runtime/core/feature.h"
+#include "runtime/core/proposal_params.h"
 #include "runtime/core/result.h"
 
 namespace poseforest::core {
@@ -84,6 +86,8 @@ struct Forest {
   int num_parts = kNumParts;
   std::vector<std::string> part_names;  ///< num_parts names (the taxonomy's, by default)
   std::vector<Tree> trees;
+  /// Joint-proposal parameters learned for this forest (format >= 1.1), if any.
+  std::optional<ProposalParams> proposal_params;
 
   int leaf_stride() const { return LeafStride(num_parts); }
   /// Maximum depth over trees.

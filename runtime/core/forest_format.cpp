@@ -33,6 +33,7 @@ constexpr uint32_t Tag(const char (&s)[5]) {
 }
 constexpr uint32_t kTagMeta = Tag("META");
 constexpr uint32_t kTagTree = Tag("TREE");
+constexpr uint32_t kTagJointParams = Tag("JPAR");
 
 std::string TagName(uint32_t tag) {
   std::string s;
@@ -129,7 +130,7 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   w.U32(kEndianMarker);
   w.U64(0);  // file size, patched below
   w.U32(kHeaderSize);
-  const uint32_t section_count = 1 + uint32_t(forest.trees.size());
+  const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0);
   w.U32(section_count);
   while (w.size() < kHeaderSize) w.U8(0);
 
@@ -165,6 +166,18 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
       w.U32(n.child);
     }
     w.Bytes(tree.leaves.data(), tree.leaves.size());
+    EndSection(w, at);
+  }
+
+  if (forest.proposal_params) {
+    // Optional: a 1.0 reader skips it and proposes joints with default parameters.
+    at = BeginSection(w, kTagJointParams, 0);
+    w.U32(uint32_t(kNumJoints));
+    for (const JointParams& p : *forest.proposal_params) {
+      w.F32(p.bandwidth_m);
+      w.F32(p.prob_threshold);
+      w.F32(p.z_offset_m);
+    }
     EndSection(w, at);
   }
 
@@ -290,6 +303,20 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       }
       tree.leaves.assign(p.Ptr(), p.Ptr() + size_t(leaf_count) * stride);
       forest.trees.push_back(std::move(tree));
+    } else if (tag == kTagJointParams) {
+      if (forest.proposal_params) return loss(where + "second JPAR section");
+      if (!p.Has(4)) return loss(where + "JPAR section too short");
+      const uint32_t count = p.U32();
+      if (count != uint32_t(kNumJoints) || p.remaining() != size_t(count) * 12)
+        return loss(where + "JPAR holds " + std::to_string(p.remaining()) + " bytes for " + std::to_string(count) +
+                    " joints, expected " + std::to_string(kNumJoints) + " x 12");
+      ProposalParams params;
+      for (JointParams& jp : params) {
+        jp.bandwidth_m = p.F32();
+        jp.prob_threshold = p.F32();
+        jp.z_offset_m = p.F32();
+      }
+      forest.proposal_params = params;
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");

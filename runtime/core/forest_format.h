@@ -13,7 +13,8 @@
 namespace poseforest::core {
 
 inline constexpr uint16_t kFormatMajor = 1;
-inline constexpr uint16_t kFormatMinor = 0;
+/// 1.1 added the optional JPAR section (joint-proposal parameters); 1.0 readers skip it.
+inline constexpr uint16_t kFormatMinor = 1;
 
 /// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
 std::vector<uint8_t> SerializeForest(const Forest& forest);

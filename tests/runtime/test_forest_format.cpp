@@ -157,7 +157,7 @@ TEST_CASE("a later minor version's optional section is skipped, a required one r
   // Insert a 16-byte-payload section before the trailer and bump the section count + size.
   auto with_section = [&](uint32_t flags) {
     std::vector<uint8_t> out(bytes.begin(), bytes.end() - 8);
-    const uint8_t section[] = {'J', 'P', 'A', 'R', uint8_t(flags), 0, 0, 0, 16, 0, 0, 0, 0, 0, 0, 0};
+    const uint8_t section[] = {'X', 'T', 'R', 'A', uint8_t(flags), 0, 0, 0, 16, 0, 0, 0, 0, 0, 0, 0};
     out.insert(out.end(), section, section + sizeof section);
     for (int i = 0; i < 16; ++i) out.push_back(uint8_t(i));
     out.resize(out.size() + 8);
@@ -173,7 +173,37 @@ TEST_CASE("a later minor version's optional section is skipped, a required one r
   CHECK(SameForest(forest, *ok));
   auto refused = core::ParseForest(with_section(1), "newer.pff");
   REQUIRE_FALSE(refused.ok());
-  CHECK_THAT(refused.status().message(), Catch::Contains("JPAR") && Catch::Contains("newer"));
+  CHECK_THAT(refused.status().message(), Catch::Contains("XTRA") && Catch::Contains("newer"));
+}
+
+TEST_CASE("joint-proposal parameters (format 1.1) round trip and are validated", "[format]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(6));
+  CHECK_FALSE(core::ParseForest(core::SerializeForest(forest), "a").value().proposal_params.has_value());
+  core::ProposalParams params = core::DefaultProposalParams();
+  params[3].bandwidth_m = 0.08f;
+  params[7].z_offset_m = -0.01f;
+  forest.proposal_params = params;
+  const auto bytes = core::SerializeForest(forest);
+  CHECK(bytes[10] == core::kFormatMinor);
+  auto parsed = core::ParseForest(bytes, "b");
+  REQUIRE(parsed.ok());
+  REQUIRE(parsed->proposal_params.has_value());
+  CHECK(*parsed->proposal_params == params);
+  // Corruption inside the section behind a repaired checksum is still caught.
+  for (size_t i = bytes.size() - 8 - 16 * 12; i < bytes.size() - 8; ++i) {
+    auto bad = bytes;
+    bad[i] = 0xFF;
+    RepairChecksum(bad);
+    auto r = core::ParseForest(bad, "c");
+    if (r.ok()) REQUIRE(core::ValidateForest(*r, "c").ok());
+  }
+  params[0].bandwidth_m = -1;
+  forest.proposal_params = params;
+  CHECK_THAT(core::ValidateForest(forest, "d").message(), Catch::Contains("head") && Catch::Contains("bandwidth"));
+  params[0].bandwidth_m = 0.05f;
+  params[1].prob_threshold = std::numeric_limits<float>::infinity();
+  forest.proposal_params = params;
+  CHECK_THAT(core::ValidateForest(forest, "d").message(), Catch::Contains("neck") && Catch::Contains("threshold"));
 }
 
 TEST_CASE("ValidateForest names each broken invariant", "[format]") {

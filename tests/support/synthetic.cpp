@@ -86,13 +86,14 @@ namespace {
 // Distance from p to segment ab.
 double SegmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   const Eigen::Vector2d ab = b - a;
+  if (ab.squaredNorm() == 0) return (p - a).norm();  // a sphere
   const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
   return (p - (a + t * ab)).norm();
 }
 
 }  // namespace
 
-core::DepthImage MakePersonDepth(double distance_m, int width, int height, double lateral_m) {
+core::DepthImage MakePersonDepth(double distance_m, int width, int height, double lateral_m, double vertical_m) {
   core::CameraIntrinsics cam;
   cam.width = width;
   cam.height = height;
@@ -117,18 +118,26 @@ core::DepthImage MakePersonDepth(double distance_m, int width, int height, doubl
       {{-0.13, 0.50}, {-0.14, 0.92}, 0.06},
       {{0.13, 0.50}, {0.14, 0.92}, 0.06},
   };
+  // The body is a height field over the plane z = distance: surface z = distance - bulge(X, Y),
+  // bulge = max over capsules of sqrt(r^2 - dist^2). Each pixel's ray t * (dx, dy, 1) meets it
+  // where z = distance - bulge(z dx, z dy): a fixed point that a few iterations reach, so the
+  // depth and the pixel position agree (a physically consistent surface at any distance).
+  auto bulge = [&](double bx, double by) {
+    const Eigen::Vector2d p(bx - lateral_m, by - vertical_m);
+    double best = 0;
+    for (const Capsule& c : body) {
+      const double d = SegmentDistance(p, c.a, c.b);
+      if (d < c.r) best = std::max(best, std::sqrt(c.r * c.r - d * d));
+    }
+    return best;
+  };
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
-      // Ray through the pixel hits the body plane at z = distance; body surface bulges towards
-      // the camera by sqrt(r^2 - d^2) inside each capsule.
-      const Eigen::Vector3d ray = cam.Unproject(x, y, distance_m);
-      const Eigen::Vector2d p(ray.x() - lateral_m, ray.y());
-      double best = 0;
-      for (const Capsule& c : body) {
-        const double d = SegmentDistance(p, c.a, c.b);
-        if (d < c.r) best = std::max(best, std::sqrt(c.r * c.r - d * d));
-      }
-      if (best > 0) img.at(x, y) = uint16_t(std::lround((distance_m - best) * 1000.0));
+      const Eigen::Vector3d dir = cam.Unproject(x, y, 1.0);
+      double z = distance_m;
+      if (bulge(z * dir.x(), z * dir.y()) <= 0) continue;
+      for (int it = 0; it < 8; ++it) z = distance_m - bulge(z * dir.x(), z * dir.y());
+      if (z < distance_m) img.at(x, y) = uint16_t(std::lround(z * 1000.0));
     }
   }
   return img;

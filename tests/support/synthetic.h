@@ -25,8 +25,9 @@ core::Forest MakeRandomForest(const RandomForestSpec& spec);
 
 /// A 640x480 frame (by default) with one standing person-like figure about `distance_m` away,
 /// arms out, ~40k foreground pixels at 2.5 m; background 0.
+/// `lateral_m` / `vertical_m` move the figure right / down (metres, on its plane).
 core::DepthImage MakePersonDepth(double distance_m = 2.5, int width = 640, int height = 480,
-                                 double lateral_m = 0.0);
+                                 double lateral_m = 0.0, double vertical_m = 0.0);
 
 /// Random depth: blobs of random depth with holes (0), values in [min_mm, max_mm].
 core::DepthImage MakeRandomDepth(uint64_t seed, int width, int height, uint16_t min_mm = 500,
