@@ -1,5 +1,6 @@
 #include "runtime/core/forest_format.h"
 
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -333,7 +334,11 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
 
 Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) return Status(ErrorCode::kIo, path + ": cannot open: " + std::strerror(errno));
+  if (!in) {
+    const int err = errno;
+    return Status(err == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
+                  path + (err == ENOENT ? ": no such file" : ": cannot open: " + std::string(std::strerror(err))));
+  }
   const std::streamoff size = in.tellg();
   if (size < 0) return Status(ErrorCode::kIo, path + ": cannot determine the file size");
   std::vector<uint8_t> bytes(static_cast<size_t>(size));
@@ -344,7 +349,9 @@ Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path) {
 }
 
 Status WriteFileAtomic(const std::string& path, std::span<const uint8_t> bytes) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  // Unique per process and call, so concurrent writers of one path never share a temporary.
+  static std::atomic<uint64_t> counter{0};
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return Status(ErrorCode::kIo, path + ": cannot create " + tmp + ": " + std::strerror(errno));
   size_t done = 0;

@@ -105,7 +105,7 @@ TEST_CASE("infer reads raw Kinect frames from the shared data", "[cli][data]") {
     }
   REQUIRE_FALSE(first.empty());
   const auto dir = testing::ScratchDir("cli-raw");
-  const core::Forest forest = testing::MakeRandomForest({.nodes_per_tree = 500, .max_depth = 8});
+  const core::Forest forest = testing::MakeRandomForest({.max_depth = 8, .nodes_per_tree = 500});
   REQUIRE(core::SaveForest(forest, (dir / "f.pff").string()).ok());
   auto run = RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --out " + (dir / "p.png").string() + " " + first);
   INFO(run.output);
@@ -116,7 +116,7 @@ TEST_CASE("infer reads raw Kinect frames from the shared data", "[cli][data]") {
 
 TEST_CASE("infer and inspect give clear errors on bad input and lose nothing", "[cli]") {
   const auto dir = testing::ScratchDir("cli-bad");
-  const core::Forest forest = testing::MakeRandomForest({.nodes_per_tree = 200, .max_depth = 6});
+  const core::Forest forest = testing::MakeRandomForest({.max_depth = 6, .nodes_per_tree = 200});
   const std::string good = (dir / "good.pff").string();
   REQUIRE(core::SaveForest(forest, good).ok());
   // A corrupt copy: one flipped byte in the middle.

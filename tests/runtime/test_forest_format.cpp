@@ -78,10 +78,10 @@ TEST_CASE("round trip through a file, written atomically", "[format]") {
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("missing file and unwritable folder give Io errors naming the path", "[format]") {
+TEST_CASE("missing file and unwritable folder give errors naming the path", "[format]") {
   auto r = core::LoadForest("/nonexistent/dir/forest.pff");
   REQUIRE_FALSE(r.ok());
-  CHECK(r.status().code() == ErrorCode::kIo);
+  CHECK(r.status().code() == ErrorCode::kNotFound);
   CHECK_THAT(r.status().message(), Catch::Contains("/nonexistent/dir/forest.pff"));
   const core::Forest forest = testing::MakeRandomForest(SmallSpec(1));
   const auto st = core::SaveForest(forest, "/nonexistent/dir/out.pff");
