@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <string>
@@ -14,6 +15,8 @@
 #include "runtime/cli/commands.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
+#include "runtime/joint_proposals.h"
+#include "runtime/visualize.h"
 
 namespace poseforest::cli {
 namespace {
@@ -34,6 +37,12 @@ options:
   --labels             also write the raw part ids as an 8-bit PNG (<name>.labels.png, 255 = background)
   --distributions      also write P(part | pixel) as float32 NumPy array [height, width, parts]
                        (<name>.probs.npy); background pixels are all zero
+  --joints             also propose 3D joints (section 3.4): <name>.joints.json (per joint, every
+                       proposal: position in metres, camera frame; pixel; confidence) and
+                       <name>.pose.png (depth, parts, joints, front/side/top views); uses the
+                       forest's learned proposal parameters, or the paper's means
+  --method M           joint proposals by `meanshift` (default) or `fast` (bottom-up clustering)
+  --min-confidence C   joints drawn in the picture need this confidence (default 0.05)
   --raw-size WxH       size of raw depth frames (default 640x480)
   --threads N          OpenMP threads (default: all cores)
   --quiet              print nothing but errors
@@ -47,6 +56,33 @@ std::string OutPath(const std::string& depth_path, const std::optional<std::stri
   if (p.extension() == ".png" || p.extension() == ".raw") stem = p.stem().string();
   if (out_dir) return (std::filesystem::path(*out_dir) / (stem + suffix)).string();
   return (p.parent_path() / (stem + suffix)).string();
+}
+
+std::string JointsJson(const std::string& source, const core::DepthImage& depth, const runtime::FrameProposals& f,
+                       const char* method) {
+  std::string out = "{\n  \"frame\": \"";
+  for (char c : source) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "\",\n  \"width\": %d, \"height\": %d, \"method\": \"%s\",\n  \"joints\": [\n",
+                depth.width, depth.height, method);
+  out += buf;
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    out += "    {\"joint\": \"" + std::string(core::JointName(j)) + "\", \"proposals\": [";
+    for (size_t k = 0; k < f[size_t(j)].size(); ++k) {
+      const auto& p = f[size_t(j)][k];
+      std::snprintf(buf, sizeof buf, "%s\n      {\"position_m\": [%.4f, %.4f, %.4f], \"pixel\": [%.1f, %.1f], \"confidence\": %.5g}",
+                    k ? "," : "", p.position.x(), p.position.y(), p.position.z(), p.pixel.x(), p.pixel.y(),
+                    double(p.confidence));
+      out += buf;
+    }
+    out += f[size_t(j)].empty() ? "]}" : "\n    ]}";
+    out += j + 1 < core::kNumJoints ? ",\n" : "\n";
+  }
+  out += "  ]\n}\n";
+  return out;
 }
 
 core::Status WriteProbabilitiesNpy(const std::string& path, const runtime::Classification& c) {
@@ -75,7 +111,8 @@ int Fail(const core::Status& st) {
 }  // namespace
 
 int InferMain(int argc, char** argv) {
-  Args args({"forest", "out", "out-dir", "raw-size", "threads"}, {"labels", "distributions", "quiet", "help"});
+  Args args({"forest", "out", "out-dir", "raw-size", "threads", "method", "min-confidence"},
+            {"labels", "distributions", "joints", "quiet", "help"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest infer: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -106,6 +143,21 @@ int InferMain(int argc, char** argv) {
     return 2;
   }
   const bool quiet = args.Has("quiet");
+  const bool joints = args.Has("joints");
+  const std::string method = args.GetOr("method", "meanshift");
+  if (method != "meanshift" && method != "fast") {
+    std::fprintf(stderr, "poseforest infer: --method must be meanshift or fast (got '%s')\n", method.c_str());
+    return 2;
+  }
+  float min_confidence = 0.05f;
+  if (auto mc = args.Get("min-confidence")) {
+    char* end = nullptr;
+    min_confidence = std::strtof(mc->c_str(), &end);
+    if (end == mc->c_str() || *end != '\0' || !(min_confidence >= 0)) {
+      std::fprintf(stderr, "poseforest infer: --min-confidence must be a number >= 0 (got '%s')\n", mc->c_str());
+      return 2;
+    }
+  }
   const auto out_dir = args.Get("out-dir");
   if (out_dir) {
     std::error_code ec;
@@ -119,10 +171,19 @@ int InferMain(int argc, char** argv) {
     std::printf("forest %s: %zu trees, depth %u, %zu nodes, %d parts\n", forest_path->c_str(), forest->trees.size(),
                 forest->max_depth(), forest->total_nodes(), forest->num_parts);
 
+  if (joints && (forest->num_parts != core::kNumParts || forest->part_names != core::Forest::DefaultPartNames()))
+    return Fail({core::ErrorCode::kInvalidArgument,
+                 *forest_path + ": --joints needs a forest with the paper's 31-part taxonomy (this one has " +
+                     std::to_string(forest->num_parts) + " parts)"});
+  runtime::ProposalOptions proposal_options;
+  proposal_options.method = method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
+  proposal_options.params = forest->proposal_params.value_or(core::DefaultProposalParams());
+  proposal_options.num_threads = int(*threads);
+
   runtime::Classifier classifier(*forest);
   runtime::ClassifyOptions options;
   options.num_threads = int(*threads);
-  options.want_distributions = args.Has("distributions");
+  options.want_distributions = args.Has("distributions") || joints;
   runtime::Classification result;
   int failures = 0;
   for (const std::string& depth_path : args.positional()) {
@@ -139,8 +200,22 @@ int InferMain(int argc, char** argv) {
     const std::string parts_png = args.Get("out") ? *args.Get("out") : OutPath(depth_path, out_dir, ".parts.png");
     core::Status st = runtime::WriteLabelColourPng(parts_png, result.labels);
     if (st.ok() && args.Has("labels")) st = runtime::WriteLabelPng(OutPath(depth_path, out_dir, ".labels.png"), result.labels);
-    if (st.ok() && options.want_distributions)
+    if (st.ok() && args.Has("distributions"))
       st = WriteProbabilitiesNpy(OutPath(depth_path, out_dir, ".probs.npy"), result);
+    runtime::FrameProposals proposals;
+    double proposal_ms = 0;
+    if (st.ok() && joints) {
+      const auto t1 = std::chrono::steady_clock::now();
+      proposals = runtime::ProposeJoints(*depth, runtime::ProbabilitiesFromClassification(*depth, result), proposal_options);
+      proposal_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
+      const std::string json = JointsJson(depth_path, *depth, proposals, method.c_str());
+      st = core::WriteFileAtomic(OutPath(depth_path, out_dir, ".joints.json"),
+                                 std::span(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
+      if (st.ok()) {
+        const auto fig = runtime::PoseFigure(*depth, result.labels, proposals, proposal_options.camera, min_confidence);
+        st = runtime::WriteRgbPng(OutPath(depth_path, out_dir, ".pose.png"), fig.width, fig.height, fig.rgb);
+      }
+    }
     if (!st.ok()) {
       std::fprintf(stderr, "poseforest infer: %s\n", st.ToString().c_str());
       ++failures;
@@ -161,6 +236,20 @@ int InferMain(int argc, char** argv) {
         std::printf(" %s %.1f%%", forest->part_names[size_t(order[i])].c_str(),
                     100.0 * counts[size_t(order[i])] / std::max(1, fg));
       std::printf("\n");
+      if (joints) {
+        std::printf("  joints (%s, %.2f ms; most confident proposal of each, camera frame, metres):\n", method.c_str(),
+                    proposal_ms);
+        for (int j = 0; j < core::kNumJoints; ++j) {
+          const auto& list = proposals[size_t(j)];
+          if (list.empty()) {
+            std::printf("    %-11s none\n", std::string(core::JointName(j)).c_str());
+            continue;
+          }
+          std::printf("    %-11s (%6.3f, %6.3f, %6.3f)  confidence %.4g  (%zu proposals)\n",
+                      std::string(core::JointName(j)).c_str(), list[0].position.x(), list[0].position.y(),
+                      list[0].position.z(), double(list[0].confidence), list.size());
+        }
+      }
     }
   }
   return failures == 0 ? 0 : 1;

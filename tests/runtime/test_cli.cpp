@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <sys/wait.h>
 
@@ -91,6 +92,40 @@ TEST_CASE("infer classifies a depth PNG and writes the part picture, labels and 
   in.read(head.data(), 128);
   CHECK_THAT(head, Catch::Contains("'shape': (480, 640, 31)"));
   CHECK(fs::file_size(npy) == 128 + size_t(480) * 640 * 31 * 4);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("infer --joints writes proposals as JSON and the pose picture", "[cli]") {
+  const auto dir = testing::ScratchDir("cli-joints");
+  const core::Forest forest = testing::MakeRandomForest({.max_depth = 10, .nodes_per_tree = 2000});
+  REQUIRE(core::SaveForest(forest, (dir / "f.pff").string()).ok());
+  REQUIRE(runtime::WriteDepthPng((dir / "d.png").string(), testing::MakePersonDepth(2.5)).ok());
+  for (const char* method : {"meanshift", "fast"}) {
+    auto run = RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --joints --method " + method + " " +
+                             (dir / "d.png").string());
+    INFO(run.output);
+    REQUIRE(run.exit_code == 0);
+    CHECK_THAT(run.output, Catch::Contains("L_elbow") && Catch::Contains(method));
+    std::ifstream json(dir / "d.joints.json");
+    const std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
+    CHECK_THAT(text, Catch::Contains("\"joint\": \"head\"") && Catch::Contains("\"joint\": \"R_foot\"") &&
+                         Catch::Contains("position_m") && Catch::Contains(method));
+    auto png = core::ReadFileBytes((dir / "d.pose.png").string());
+    REQUIRE(png.ok());
+    auto fig = runtime::DecodePng(*png, "d.pose.png");
+    REQUIRE(fig.ok());
+    CHECK(fig->width == 960);
+    CHECK(fig->height == 480);
+  }
+  auto bad = RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --joints --method slow " + (dir / "d.png").string());
+  CHECK(bad.exit_code == 2);
+  CHECK_THAT(bad.output, Catch::Contains("--method"));
+  // A forest with another part table has no joints to propose.
+  const core::Forest other = testing::MakeRandomForest({.max_depth = 4, .nodes_per_tree = 20, .num_parts = 25});
+  REQUIRE(core::SaveForest(other, (dir / "o.pff").string()).ok());
+  auto wrong = RunPoseforest("infer --forest " + (dir / "o.pff").string() + " --joints " + (dir / "d.png").string());
+  CHECK(wrong.exit_code == 1);
+  CHECK_THAT(wrong.output, Catch::Contains("31-part"));
   fs::remove_all(dir);
 }
 

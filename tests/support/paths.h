@@ -17,10 +17,13 @@ inline std::filesystem::path DataDir() {
   return POSEFOREST_DATA_DIR_DEFAULT;
 }
 
-/// The folder holding the built `poseforest` program.
+/// The folder holding the built `poseforest` program: POSEFOREST_BIN_DIR (set by ctest), else
+/// the folder of the running test (tests and programs are both built into build/bin).
 inline std::filesystem::path BinDir() {
   if (const char* env = std::getenv("POSEFOREST_BIN_DIR"); env && *env) return env;
-  return std::filesystem::current_path();
+  std::error_code ec;
+  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::filesystem::current_path() : self.parent_path();
 }
 
 /// A fresh empty scratch folder under the system temp dir, unique to this process and `name`.

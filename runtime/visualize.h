@@ -1,0 +1,42 @@
+#pragma once
+// Pictures of results for people (no text, so no font dependency): depth as grey, parts in their
+// colours, joint proposals as markers, and front/side/top views of the point cloud with the
+// joints, like Fig. 5 of the paper.
+
+#include <cstdint>
+#include <vector>
+
+#include "runtime/core/camera.h"
+#include "runtime/core/depth_image.h"
+#include "runtime/joint_proposals.h"
+
+namespace poseforest::runtime {
+
+/// An 8-bit RGB picture, row-major, 3 bytes per pixel.
+struct RgbImage {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgb;
+  RgbImage() = default;
+  RgbImage(int w, int h, uint8_t grey = 0) : width(w), height(h), rgb(size_t(w) * size_t(h) * 3, grey) {}
+  void Set(int x, int y, core::Rgb c) {
+    if (x < 0 || y < 0 || x >= width || y >= height) return;
+    uint8_t* p = &rgb[(size_t(y) * size_t(width) + size_t(x)) * 3];
+    p[0] = c.r, p[1] = c.g, p[2] = c.b;
+  }
+};
+
+/// Depth as grey (near = bright; background black), scaled over the frame's depth range.
+RgbImage DepthPicture(const core::DepthImage& depth);
+/// Part colours (core::PartColour), background black.
+RgbImage PartsPicture(const core::LabelImage& labels);
+/// Draws each joint's proposals with confidence >= min_confidence as a ring in the joint's
+/// colour (the colour of its first part); the most confident one larger.
+void DrawProposals(RgbImage& picture, const FrameProposals& proposals, float min_confidence, float scale = 1.0f);
+
+/// The paper's Fig. 5 layout, 2 x 3 panels of the frame's size / 2: depth, parts, parts with
+/// joints; front, side (from the right) and top views of the foreground point cloud coloured by
+/// part, with the most confident proposal of each joint (confidence >= min_confidence).
+RgbImage PoseFigure(const core::DepthImage& depth, const core::LabelImage& labels, const FrameProposals& proposals,
+                    const core::CameraIntrinsics& camera, float min_confidence);
+
+}  // namespace poseforest::runtime
