@@ -1,0 +1,557 @@
+#include "proto/dds/dds_node.h"
+
+#include <array>
+#include <atomic>
+#include <condition_variable>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+#include <mutex>
+#include <sstream>
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
+#include <fastdds/dds/log/Log.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/DataWriterListener.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+#include <fastdds/rtps/attributes/ServerAttributes.h>
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
+#include <fastrtps/utils/IPLocator.h>
+
+#include "proto/dds/proto_bytes_type.h"
+
+namespace poseforest::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+namespace frtps = eprosima::fastrtps::rtps;
+using core::ErrorCode;
+using core::Status;
+
+const char* EventKindName(DdsEvent::Kind kind) {
+  switch (kind) {
+    case DdsEvent::Kind::kWriterMatched: return "WriterMatched";
+    case DdsEvent::Kind::kWriterUnmatched: return "WriterUnmatched";
+    case DdsEvent::Kind::kReaderMatched: return "ReaderMatched";
+    case DdsEvent::Kind::kReaderUnmatched: return "ReaderUnmatched";
+    case DdsEvent::Kind::kLivelinessLost: return "LivelinessLost";
+    case DdsEvent::Kind::kLivelinessRecovered: return "LivelinessRecovered";
+    case DdsEvent::Kind::kParticipantDiscovered: return "ParticipantDiscovered";
+    case DdsEvent::Kind::kParticipantLost: return "ParticipantLost";
+  }
+  return "?";
+}
+
+void ConfigureDdsLogging() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    const char* env = std::getenv("POSEFOREST_DDS_LOG");
+    std::string level = env ? env : "error";
+    if (level == "warning")
+      fdds::Log::SetVerbosity(fdds::Log::Kind::Warning);
+    else if (level == "info")
+      fdds::Log::SetVerbosity(fdds::Log::Kind::Info);
+    else
+      fdds::Log::SetVerbosity(fdds::Log::Kind::Error);
+  });
+}
+
+namespace {
+
+std::string ToString(const frtps::GUID_t& guid) {
+  std::ostringstream os;
+  os << guid;
+  return os.str();
+}
+std::string ToString(const frtps::GuidPrefix_t& prefix) {
+  std::ostringstream os;
+  os << prefix;
+  return os.str();
+}
+
+eprosima::fastrtps::Duration_t ToDuration(std::chrono::milliseconds ms) {
+  return eprosima::fastrtps::Duration_t(static_cast<int32_t>(ms.count() / 1000),
+                          static_cast<uint32_t>((ms.count() % 1000) * 1000000));
+}
+
+/// "a.b.c.d" or "a.b.c.d:port" -> address, port (0 when absent).
+core::Result<std::pair<std::string, uint32_t>> ParseHostPort(const std::string& text) {
+  std::string host = text;
+  uint32_t port = 0;
+  if (auto colon = text.rfind(':'); colon != std::string::npos) {
+    host = text.substr(0, colon);
+    const std::string p = text.substr(colon + 1);
+    char* end = nullptr;
+    const unsigned long v = std::strtoul(p.c_str(), &end, 10);
+    if (p.empty() || *end != '\0' || v == 0 || v > 65535)
+      return Status(ErrorCode::kInvalidArgument, "bad port in '" + text + "'");
+    port = static_cast<uint32_t>(v);
+  }
+  if (!frtps::IPLocator::isIPv4(host))
+    return Status(ErrorCode::kInvalidArgument, "not an IPv4 address: '" + text + "'");
+  return std::make_pair(host, port);
+}
+
+constexpr size_t kMaxQueuedEvents = 4096;
+
+bool IsKeepAll(Topic t) { return t == Topic::kControl || t == Topic::kReplies; }
+bool HasLease(Topic t) { return t == Topic::kJob || t == Topic::kPresence; }
+bool IsTransientLocal(Topic t) { return t == Topic::kJob || t == Topic::kStatus; }
+int KeepLastDepth(Topic t) {
+  switch (t) {
+    case Topic::kJob: return 1;
+    case Topic::kPresence: return 8;
+    case Topic::kStatus: return 64;
+    default: return 1;
+  }
+}
+
+}  // namespace
+
+struct DdsNode::Impl : public fdds::DomainParticipantListener {
+  NodeConfig config;
+  fdds::DomainParticipant* participant = nullptr;
+  fdds::Publisher* publisher = nullptr;
+  fdds::Subscriber* subscriber = nullptr;
+  fdds::TypeSupport type{new ProtoBytesType()};
+  std::array<fdds::Topic*, kNumTopics> topics{};
+  std::array<fdds::DataWriter*, kNumTopics> writers{};
+  std::array<fdds::DataReader*, kNumTopics> readers{};
+  std::array<std::atomic<int>, kNumTopics> matched_readers{};  // per our writer
+  std::array<std::atomic<int>, kNumTopics> matched_writers{};  // per our reader
+
+  std::mutex mu;
+  std::condition_variable data_cv;   // data available or match count changed
+  uint64_t data_generation = 0;
+  std::deque<DdsEvent> events;
+  std::condition_variable event_cv;
+  size_t next_topic = 0;  // round robin in Receive
+  std::mutex write_mu;    // serializes Publish (DataWriter::write is thread-safe; the sample isn't)
+  ProtoBytesSample write_sample;
+
+  // Per-endpoint listeners know their topic.
+  struct WriterListener : public fdds::DataWriterListener {
+    Impl* impl = nullptr;
+    Topic topic = Topic::kJob;
+    void on_publication_matched(fdds::DataWriter*, const fdds::PublicationMatchedStatus& info) override {
+      impl->matched_readers[static_cast<int>(topic)] = info.current_count;
+      DdsEvent e{info.current_count_change > 0 ? DdsEvent::Kind::kWriterMatched : DdsEvent::Kind::kWriterUnmatched};
+      e.topic = topic;
+      const frtps::GUID_t guid = frtps::iHandle2GUID(info.last_subscription_handle);
+      e.peer_guid = ToString(guid);
+      e.peer_participant = ToString(guid.guidPrefix);
+      e.current_count = info.current_count;
+      impl->PushEvent(std::move(e));
+    }
+  };
+  struct ReaderListener : public fdds::DataReaderListener {
+    Impl* impl = nullptr;
+    Topic topic = Topic::kJob;
+    void on_data_available(fdds::DataReader*) override {
+      {
+        std::lock_guard<std::mutex> lock(impl->mu);
+        ++impl->data_generation;
+      }
+      impl->data_cv.notify_all();
+    }
+    void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& info) override {
+      impl->matched_writers[static_cast<int>(topic)] = info.current_count;
+      DdsEvent e{info.current_count_change > 0 ? DdsEvent::Kind::kReaderMatched : DdsEvent::Kind::kReaderUnmatched};
+      e.topic = topic;
+      const frtps::GUID_t guid = frtps::iHandle2GUID(info.last_publication_handle);
+      e.peer_guid = ToString(guid);
+      e.peer_participant = ToString(guid.guidPrefix);
+      e.current_count = info.current_count;
+      impl->PushEvent(std::move(e));
+    }
+    void on_liveliness_changed(fdds::DataReader*, const fdds::LivelinessChangedStatus& status) override {
+      const frtps::GUID_t guid = frtps::iHandle2GUID(status.last_publication_handle);
+      if (status.not_alive_count_change > 0 || status.alive_count_change < 0) {
+        DdsEvent e{DdsEvent::Kind::kLivelinessLost};
+        e.topic = topic;
+        e.peer_guid = ToString(guid);
+        e.peer_participant = ToString(guid.guidPrefix);
+        e.current_count = status.alive_count;
+        impl->PushEvent(std::move(e));
+      }
+      if (status.alive_count_change > 0) {
+        DdsEvent e{DdsEvent::Kind::kLivelinessRecovered};
+        e.topic = topic;
+        e.peer_guid = ToString(guid);
+        e.peer_participant = ToString(guid.guidPrefix);
+        e.current_count = status.alive_count;
+        impl->PushEvent(std::move(e));
+      }
+    }
+  };
+  std::array<WriterListener, kNumTopics> writer_listeners;
+  std::array<ReaderListener, kNumTopics> reader_listeners;
+
+  void PushEvent(DdsEvent e) {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      events.push_back(std::move(e));
+      if (events.size() > kMaxQueuedEvents) events.pop_front();  // nobody is reading them
+      ++data_generation;  // wakes WaitForMatch too
+    }
+    event_cv.notify_all();
+    data_cv.notify_all();
+  }
+
+  void on_participant_discovery(fdds::DomainParticipant*, frtps::ParticipantDiscoveryInfo&& info) override {
+    DdsEvent e{DdsEvent::Kind::kParticipantDiscovered};
+    switch (info.status) {
+      case frtps::ParticipantDiscoveryInfo::DISCOVERED_PARTICIPANT: e.kind = DdsEvent::Kind::kParticipantDiscovered; break;
+      case frtps::ParticipantDiscoveryInfo::REMOVED_PARTICIPANT:
+      case frtps::ParticipantDiscoveryInfo::DROPPED_PARTICIPANT: e.kind = DdsEvent::Kind::kParticipantLost; break;
+      default: return;
+    }
+    e.peer_guid = ToString(info.info.m_guid);
+    e.peer_participant = ToString(info.info.m_guid.guidPrefix);
+    e.peer_name = info.info.m_participantName.to_string();
+    PushEvent(std::move(e));
+  }
+
+  Status BuildParticipantQos(fdds::DomainParticipantQos& qos);
+  Status CreateEndpoints();
+  void Destroy();
+};
+
+Status DdsNode::Impl::BuildParticipantQos(fdds::DomainParticipantQos& qos) {
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  qos = fdds::PARTICIPANT_QOS_DEFAULT;
+  if (config.transport == TransportKind::kXmlProfile) {
+    if (factory->load_XML_profiles_file(config.xml_file) != ReturnCode_t::RETCODE_OK)
+      return Status(ErrorCode::kInvalidArgument, "cannot load Fast DDS XML profiles from " + config.xml_file);
+    if (factory->get_participant_qos_from_profile(config.xml_profile, qos) != ReturnCode_t::RETCODE_OK)
+      return Status(ErrorCode::kNotFound,
+                    "no participant profile '" + config.xml_profile + "' in " + config.xml_file);
+  }
+  qos.name(config.participant_name);
+  if (config.participant_id >= 0) qos.wire_protocol().participant_id = config.participant_id;
+  auto& builtin = qos.wire_protocol().builtin;
+  if (config.transport != TransportKind::kXmlProfile) {
+    builtin.discovery_config.leaseDuration = ToDuration(config.participant_lease);
+    builtin.discovery_config.leaseDuration_announcementperiod = ToDuration(config.participant_lease / 4);
+  }
+
+  auto udp = [&]() {
+    auto d = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+    d->sendBufferSize = config.udp_buffer_bytes;
+    d->receiveBufferSize = config.udp_buffer_bytes;
+    for (const auto& ip : config.interface_whitelist) d->interfaceWhiteList.push_back(ip);
+    return d;
+  };
+  auto shm = [&]() {
+    auto d = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
+    d->segment_size(8u << 20);  // whole 1 MiB+ samples fit without waiting for the reader
+    return d;
+  };
+
+  for (const auto& ip : config.interface_whitelist)
+    if (!frtps::IPLocator::isIPv4(ip))
+      return Status(ErrorCode::kInvalidArgument, "interface whitelist entry is not an IPv4 address: '" + ip + "'");
+
+  switch (config.transport) {
+    case TransportKind::kDefault:
+      qos.transport().use_builtin_transports = false;
+      qos.transport().user_transports.push_back(shm());
+      qos.transport().user_transports.push_back(udp());
+      break;
+    case TransportKind::kSharedMemoryOnly:
+      qos.transport().use_builtin_transports = false;
+      qos.transport().user_transports.push_back(shm());
+      break;
+    case TransportKind::kUdpOnly: {
+      qos.transport().use_builtin_transports = false;
+      qos.transport().user_transports.push_back(udp());
+      const uint32_t d = config.domain_id;
+      for (const auto& peer : config.initial_peers) {
+        auto hp = ParseHostPort(peer);
+        if (!hp.ok()) return Status(ErrorCode::kInvalidArgument, "initial peer: " + hp.status().message());
+        std::vector<uint32_t> ports;
+        if (hp->second != 0) {
+          ports.push_back(hp->second);
+        } else {
+          // RTPS well-known metatraffic unicast port: PB + DG*domain + d1 + PG*participant_id.
+          for (int id = 0; id < config.peer_participant_ids; ++id) ports.push_back(7400 + 250 * d + 10 + 2 * id);
+        }
+        for (uint32_t port : ports) {
+          frtps::Locator_t loc;
+          loc.kind = LOCATOR_KIND_UDPv4;
+          frtps::IPLocator::setIPv4(loc, hp->first);
+          loc.port = port;
+          builtin.initialPeersList.push_back(loc);
+        }
+      }
+      break;
+    }
+    case TransportKind::kDiscoveryClient: {
+      qos.transport().use_builtin_transports = false;
+      qos.transport().user_transports.push_back(udp());
+      auto hp = ParseHostPort(config.discovery_server);
+      if (!hp.ok()) return Status(ErrorCode::kInvalidArgument, "discovery server: " + hp.status().message());
+      eprosima::fastdds::rtps::RemoteServerAttributes server;
+      if (!server.ReadguidPrefix(config.discovery_server_prefix.c_str()))
+        return Status(ErrorCode::kInvalidArgument, "bad discovery server GUID prefix '" +
+                                                       config.discovery_server_prefix + "'");
+      frtps::Locator_t loc;
+      loc.kind = LOCATOR_KIND_UDPv4;
+      frtps::IPLocator::setIPv4(loc, hp->first);
+      loc.port = hp->second ? hp->second : 11811;
+      server.metatrafficUnicastLocatorList.push_back(loc);
+      builtin.discovery_config.discoveryProtocol = frtps::DiscoveryProtocol_t::CLIENT;
+      builtin.discovery_config.m_DiscoveryServers.push_back(server);
+      break;
+    }
+    case TransportKind::kXmlProfile: break;
+  }
+
+  if (config.security.enabled()) {
+    const SecurityFiles& s = config.security;
+    for (const std::string* path : {&s.identity_ca, &s.identity_certificate, &s.private_key, &s.permissions_ca,
+                                    &s.governance, &s.permissions}) {
+      if (path->empty() || (*path)[0] != '/')
+        return Status(ErrorCode::kInvalidArgument, "security file paths must be absolute: '" + *path + "'");
+      if (FILE* f = std::fopen(path->c_str(), "rb")) {
+        std::fclose(f);
+      } else {
+        return Status(ErrorCode::kIo, "cannot read security file " + *path);
+      }
+    }
+    auto& props = qos.properties().properties();
+    auto add = [&](const char* name, const std::string& value) { props.emplace_back(name, value); };
+    add("dds.sec.auth.plugin", "builtin.PKI-DH");
+    add("dds.sec.auth.builtin.PKI-DH.identity_ca", "file://" + s.identity_ca);
+    add("dds.sec.auth.builtin.PKI-DH.identity_certificate", "file://" + s.identity_certificate);
+    add("dds.sec.auth.builtin.PKI-DH.private_key", "file://" + s.private_key);
+    add("dds.sec.access.plugin", "builtin.Access-Permissions");
+    add("dds.sec.access.builtin.Access-Permissions.permissions_ca", "file://" + s.permissions_ca);
+    add("dds.sec.access.builtin.Access-Permissions.governance", "file://" + s.governance);
+    add("dds.sec.access.builtin.Access-Permissions.permissions", "file://" + s.permissions);
+    add("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
+  }
+  return Status::Ok();
+}
+
+Status DdsNode::Impl::CreateEndpoints() {
+  if (type.register_type(participant) != ReturnCode_t::RETCODE_OK)
+    return Status(ErrorCode::kInternal, "register_type failed");
+  publisher = participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  subscriber = participant->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
+  if (!publisher || !subscriber) return Status(ErrorCode::kInternal, "cannot create publisher/subscriber");
+
+  auto want = [](const std::vector<Topic>& list, Topic t) {
+    for (Topic x : list)
+      if (x == t) return true;
+    return false;
+  };
+  for (Topic t : kAllTopics) {
+    const bool w = want(config.write_topics, t), r = want(config.read_topics, t);
+    if (!w && !r) continue;
+    const int i = static_cast<int>(t);
+    topics[i] = participant->create_topic(TopicName(t), type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+    if (!topics[i]) return Status(ErrorCode::kInternal, std::string("cannot create topic ") + TopicName(t));
+
+    const auto lease = HasLease(t) ? ToDuration(config.liveliness_lease) : eprosima::fastrtps::c_TimeInfinite;
+    const auto liveliness_kind = (t == Topic::kPresence && config.presence_manual_liveliness)
+                                     ? fdds::MANUAL_BY_TOPIC_LIVELINESS_QOS
+                                     : fdds::AUTOMATIC_LIVELINESS_QOS;
+    const auto announce = HasLease(t) ? ToDuration(config.liveliness_lease / 4) : eprosima::fastrtps::c_TimeInfinite;
+    if (w) {
+      fdds::DataWriterQos q = fdds::DATAWRITER_QOS_DEFAULT;
+      q.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
+      q.reliability().max_blocking_time = eprosima::fastrtps::Duration_t(10, 0);
+      q.durability().kind = IsTransientLocal(t) ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS : fdds::VOLATILE_DURABILITY_QOS;
+      if (IsKeepAll(t)) {
+        q.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+        q.resource_limits().max_samples = kKeepAllMaxSamples;
+        q.resource_limits().max_instances = 1;
+        q.resource_limits().max_samples_per_instance = kKeepAllMaxSamples;
+        q.resource_limits().allocated_samples = 16;
+      } else {
+        q.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+        q.history().depth = KeepLastDepth(t);
+        q.resource_limits().allocated_samples = KeepLastDepth(t);
+      }
+      q.liveliness().kind = liveliness_kind;
+      q.liveliness().lease_duration = lease;
+      q.liveliness().announcement_period = announce;
+      q.endpoint().history_memory_policy = frtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
+      // Recover lost fragments of large samples quickly (default heartbeat period is 3 s).
+      q.reliable_writer_qos().times.heartbeatPeriod = eprosima::fastrtps::Duration_t(0, 100000000);
+      writer_listeners[i].impl = this;
+      writer_listeners[i].topic = t;
+      writers[i] = publisher->create_datawriter(topics[i], q, &writer_listeners[i], fdds::StatusMask::all());
+      if (!writers[i]) return Status(ErrorCode::kInternal, std::string("cannot create writer on ") + TopicName(t));
+    }
+    if (r) {
+      fdds::DataReaderQos q = fdds::DATAREADER_QOS_DEFAULT;
+      q.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
+      q.durability().kind = IsTransientLocal(t) ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS : fdds::VOLATILE_DURABILITY_QOS;
+      if (IsKeepAll(t)) {
+        q.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+        q.resource_limits().max_samples = kKeepAllMaxSamples;
+        q.resource_limits().max_instances = 1;
+        q.resource_limits().max_samples_per_instance = kKeepAllMaxSamples;
+        q.resource_limits().allocated_samples = 16;
+      } else {
+        q.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+        q.history().depth = KeepLastDepth(t);
+        q.resource_limits().allocated_samples = KeepLastDepth(t);
+      }
+      q.liveliness().kind = liveliness_kind;
+      q.liveliness().lease_duration = lease;
+      q.endpoint().history_memory_policy = frtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
+      reader_listeners[i].impl = this;
+      reader_listeners[i].topic = t;
+      readers[i] = subscriber->create_datareader(topics[i], q, &reader_listeners[i], fdds::StatusMask::all());
+      if (!readers[i]) return Status(ErrorCode::kInternal, std::string("cannot create reader on ") + TopicName(t));
+    }
+  }
+  return Status::Ok();
+}
+
+void DdsNode::Impl::Destroy() {
+  if (!participant) return;
+  // Listeners first, so no callback runs into a half-destroyed node.
+  for (auto* w : writers)
+    if (w) w->set_listener(nullptr);
+  for (auto* r : readers)
+    if (r) r->set_listener(nullptr);
+  participant->set_listener(nullptr);
+  participant->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant);
+  participant = nullptr;
+}
+
+DdsNode::DdsNode(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+DdsNode::~DdsNode() {
+  if (impl_) impl_->Destroy();
+}
+
+core::Result<std::unique_ptr<DdsNode>> DdsNode::Create(const NodeConfig& config) {
+  ConfigureDdsLogging();
+  auto impl = std::make_unique<Impl>();
+  impl->config = config;
+  fdds::DomainParticipantQos qos;
+  POSEFOREST_RETURN_IF_ERROR(impl->BuildParticipantQos(qos));
+  // Participant discovery events only; data and match callbacks go to the endpoint listeners.
+  fdds::StatusMask mask = fdds::StatusMask::none();
+  impl->participant =
+      fdds::DomainParticipantFactory::get_instance()->create_participant(config.domain_id, qos, impl.get(), mask);
+  if (!impl->participant) {
+    return Status(ErrorCode::kInvalidArgument,
+                  "cannot create DDS participant '" + config.participant_name + "' on domain " +
+                      std::to_string(config.domain_id) +
+                      (config.security.enabled()
+                           ? " (security enabled: check the certificates, key, signed governance/permissions; "
+                             "POSEFOREST_DDS_LOG=warning shows why)"
+                           : " (POSEFOREST_DDS_LOG=warning shows why)"));
+  }
+  std::unique_ptr<DdsNode> node(new DdsNode(std::move(impl)));
+  Status st = node->impl_->CreateEndpoints();
+  if (!st.ok()) return st;  // ~DdsNode cleans up
+  return node;
+}
+
+Status DdsNode::Publish(Topic topic, const void* data, size_t size) {
+  auto* w = impl_->writers[static_cast<int>(topic)];
+  if (!w) return Status(ErrorCode::kInvalidArgument, std::string("this node does not write ") + TopicName(topic));
+  if (size > ProtoBytesType::kMaxBytes)
+    return Status(ErrorCode::kInvalidArgument, "sample of " + std::to_string(size) + " bytes exceeds the maximum");
+  std::lock_guard<std::mutex> lock(impl_->write_mu);
+  auto& bytes = impl_->write_sample.bytes;
+  bytes.assign(static_cast<const uint8_t*>(data), static_cast<const uint8_t*>(data) + size);
+  if (!w->write(&impl_->write_sample))
+    return Status(ErrorCode::kIo, std::string("DataWriter::write failed on ") + TopicName(topic) +
+                                      " (history full for 10 s, or the sample was refused)");
+  return Status::Ok();
+}
+
+std::optional<ReceivedSample> DdsNode::Receive(std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  ProtoBytesSample sample;
+  fdds::SampleInfo info;
+  for (;;) {
+    uint64_t generation;
+    {
+      std::lock_guard<std::mutex> lock(impl_->mu);
+      generation = impl_->data_generation;
+    }
+    for (int k = 0; k < kNumTopics; ++k) {
+      const int i = static_cast<int>((impl_->next_topic + k) % kNumTopics);
+      auto* r = impl_->readers[i];
+      if (!r) continue;
+      while (r->take_next_sample(&sample, &info) == ReturnCode_t::RETCODE_OK) {
+        if (!info.valid_data) continue;  // instance state change (writer gone), not data
+        impl_->next_topic = (i + 1) % kNumTopics;
+        ReceivedSample out;
+        out.topic = static_cast<Topic>(i);
+        out.bytes = std::move(sample.bytes);
+        const frtps::GUID_t guid = frtps::iHandle2GUID(info.publication_handle);
+        out.writer_guid = ToString(guid);
+        out.writer_participant = ToString(guid.guidPrefix);
+        out.source_timestamp_ns = info.source_timestamp.to_ns();
+        return out;
+      }
+    }
+    std::unique_lock<std::mutex> lock(impl_->mu);
+    if (impl_->data_generation != generation) continue;
+    if (impl_->data_cv.wait_until(lock, deadline) == std::cv_status::timeout &&
+        impl_->data_generation == generation)
+      return std::nullopt;
+  }
+}
+
+std::optional<DdsEvent> DdsNode::NextEvent(std::chrono::milliseconds timeout) {
+  std::unique_lock<std::mutex> lock(impl_->mu);
+  if (!impl_->event_cv.wait_for(lock, timeout, [&] { return !impl_->events.empty(); })) return std::nullopt;
+  DdsEvent e = std::move(impl_->events.front());
+  impl_->events.pop_front();
+  return e;
+}
+
+int DdsNode::MatchedReaders(Topic topic) const { return impl_->matched_readers[static_cast<int>(topic)]; }
+int DdsNode::MatchedWriters(Topic topic) const { return impl_->matched_writers[static_cast<int>(topic)]; }
+
+bool DdsNode::WaitForMatch(Topic topic, int n, std::chrono::milliseconds timeout) {
+  const int i = static_cast<int>(topic);
+  auto done = [&] {
+    return (!impl_->writers[i] || impl_->matched_readers[i] >= n) &&
+           (!impl_->readers[i] || impl_->matched_writers[i] >= n);
+  };
+  std::unique_lock<std::mutex> lock(impl_->mu);
+  return impl_->data_cv.wait_for(lock, timeout, done);
+}
+
+bool DdsNode::WaitForAcknowledgments(Topic topic, std::chrono::milliseconds timeout) {
+  auto* w = impl_->writers[static_cast<int>(topic)];
+  if (!w) return false;
+  return w->wait_for_acknowledgments(ToDuration(timeout)) == ReturnCode_t::RETCODE_OK;
+}
+
+Status DdsNode::AssertLiveliness(Topic topic) {
+  auto* w = impl_->writers[static_cast<int>(topic)];
+  if (!w) return Status(ErrorCode::kInvalidArgument, std::string("this node does not write ") + TopicName(topic));
+  if (w->assert_liveliness() != ReturnCode_t::RETCODE_OK)
+    return Status(ErrorCode::kInternal, std::string("assert_liveliness failed on ") + TopicName(topic));
+  return Status::Ok();
+}
+
+std::string DdsNode::participant_guid() const { return ToString(impl_->participant->guid().guidPrefix); }
+
+const NodeConfig& DdsNode::config() const { return impl_->config; }
+
+}  // namespace poseforest::dds

@@ -1,0 +1,56 @@
+#pragma once
+// The DDS topics of the distributed trainer and their QoS. Every topic carries one serialized
+// poseforest.v1.Envelope per sample (type name kEnvelopeTypeName); which bodies travel on which
+// topic is listed in proto/poseforest/v1/wire.proto. No Fast DDS type appears here.
+//
+// QoS (applied by DdsNode, proto/dds/dds_node.cpp; docs/distributed/README.md explains why):
+//   topic      reliability  durability        history        liveliness
+//   job        RELIABLE     TRANSIENT_LOCAL   keep-last 1    AUTOMATIC, lease (coordinator presence)
+//   control    RELIABLE     VOLATILE          keep-all       AUTOMATIC, infinite
+//   replies    RELIABLE     VOLATILE          keep-all       AUTOMATIC, infinite
+//   presence   RELIABLE     VOLATILE          keep-last 8    MANUAL_BY_TOPIC, lease (worker presence;
+//                                                            AUTOMATIC selectable, see NodeConfig)
+//   status     RELIABLE     TRANSIENT_LOCAL   keep-last 64   AUTOMATIC, infinite
+// Keep-all histories are bounded by resource limits (kKeepAllMaxSamples): a full history blocks
+// the writer (flow control) instead of dropping a histogram.
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string_view>
+
+namespace poseforest::dds {
+
+enum class Topic : uint8_t { kJob = 0, kControl, kReplies, kPresence, kStatus };
+inline constexpr int kNumTopics = 5;
+inline constexpr std::array<Topic, kNumTopics> kAllTopics = {Topic::kJob, Topic::kControl, Topic::kReplies,
+                                                             Topic::kPresence, Topic::kStatus};
+
+/// DDS type name registered for every topic.
+inline constexpr const char* kEnvelopeTypeName = "poseforest::v1::Envelope";
+
+/// Samples a keep-all reader or writer holds before the writer blocks.
+inline constexpr int kKeepAllMaxSamples = 256;
+
+/// DDS topic name ("poseforest/control").
+inline constexpr const char* TopicName(Topic t) {
+  switch (t) {
+    case Topic::kJob: return "poseforest/job";
+    case Topic::kControl: return "poseforest/control";
+    case Topic::kReplies: return "poseforest/replies";
+    case Topic::kPresence: return "poseforest/presence";
+    case Topic::kStatus: return "poseforest/status";
+  }
+  return "poseforest/unknown";
+}
+
+/// Short name for logs ("control").
+inline constexpr const char* TopicShortName(Topic t) { return TopicName(t) + 11; }
+
+inline std::optional<Topic> TopicFromShortName(std::string_view name) {
+  for (Topic t : kAllTopics)
+    if (name == TopicShortName(t)) return t;
+  return std::nullopt;
+}
+
+}  // namespace poseforest::dds
