@@ -24,6 +24,10 @@ const Command kCommands[] = {
     {"train", poseforest::cli::TrainMain, "train a forest from a job config (protobuf text format)"},
     {"eval", poseforest::cli::EvalMain, "per-class accuracy of a forest on a held-out test set"},
 #endif
+#ifdef POSEFOREST_HAS_DISTRIBUTED
+    {"coordinator", poseforest::cli::CoordinatorMain, "run a distributed training job (Fast DDS), optionally with local workers"},
+    {"worker", poseforest::cli::WorkerMain, "join distributed training jobs as a worker"},
+#endif
 };
 
 void Usage(FILE* out) {
