@@ -1,0 +1,419 @@
+#include "renderer/assets/makehuman.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <sstream>
+#include <unordered_map>
+
+#include "renderer/assets/json_lite.h"
+
+namespace poseforest::renderer::assets {
+namespace {
+
+using core::ErrorCode;
+using core::Result;
+using core::Status;
+
+constexpr double kDecimetre = 0.1;
+
+Result<std::string> ReadFile(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec))
+    return Status(ErrorCode::kNotFound, path.string() + ": no such file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status(ErrorCode::kIo, path.string() + ": cannot open for reading");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) return Status(ErrorCode::kIo, path.string() + ": read error");
+  return ss.str();
+}
+
+bool ParseNum(std::string_view w, double* out) {
+  if (!w.empty() && w.front() == '+') w.remove_prefix(1);
+  auto [p, ec] = std::from_chars(w.data(), w.data() + w.size(), *out);
+  return ec == std::errc() && p == w.data() + w.size() && std::isfinite(*out);
+}
+
+std::vector<std::string_view> Words(std::string_view line) {
+  std::vector<std::string_view> out;
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
+    size_t j = i;
+    while (j < line.size() && line[j] != ' ' && line[j] != '\t' && line[j] != '\r') ++j;
+    if (j > i) out.push_back(line.substr(i, j - i));
+    i = j;
+  }
+  return out;
+}
+
+template <typename F>
+void ForEachLine(std::string_view text, F&& f) {
+  size_t pos = 0;
+  int line_no = 0;
+  while (pos < text.size()) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string_view::npos) end = text.size();
+    ++line_no;
+    if (!f(text.substr(pos, end - pos), line_no)) return;
+    pos = end + 1;
+  }
+}
+
+struct Target {
+  std::vector<uint32_t> index;
+  std::vector<Eigen::Vector3f> delta;
+};
+
+}  // namespace
+
+struct MakeHumanKit::Impl {
+  std::filesystem::path dir;
+  std::vector<Eigen::Vector3f> base;               // all base.obj vertices, decimetres
+  std::vector<uint32_t> body_vertices;             // compact index -> base index
+  std::vector<std::array<uint32_t, 3>> triangles;  // compact indices
+  struct Bone {
+    std::string name, head, tail, parent;
+  };
+  std::vector<Bone> bones;
+  std::unordered_map<std::string, std::vector<uint32_t>> joints;  // joint name -> base vertices
+  RigWeights weights;                                             // per compact vertex (bone index, w)
+
+  mutable std::mutex mu;
+  mutable std::map<std::string, std::shared_ptr<const Target>> targets;
+
+  Result<std::shared_ptr<const Target>> GetTarget(const std::string& name) const {
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      auto it = targets.find(name);
+      if (it != targets.end()) return it->second;
+    }
+    const auto path = dir / "targets" / "macrodetails" / (name + ".target");
+    auto text = ReadFile(path);
+    if (!text.ok()) return text.status();
+    auto t = std::make_shared<Target>();
+    Status err;
+    ForEachLine(*text, [&](std::string_view line, int line_no) {
+      const auto w = Words(line);
+      if (w.empty() || w[0].front() == '#') return true;
+      double v[4];
+      if (w.size() != 4 || !ParseNum(w[0], &v[0]) || !ParseNum(w[1], &v[1]) || !ParseNum(w[2], &v[2]) ||
+          !ParseNum(w[3], &v[3]) || v[0] < 0 || v[0] >= double(base.size()) || v[0] != std::floor(v[0])) {
+        err =
+            Status(ErrorCode::kDataLoss, path.string() + ":" + std::to_string(line_no) +
+                                             ": expected 'vertexIndex dx dy dz' with a vertex index below " +
+                                             std::to_string(base.size()));
+        return false;
+      }
+      t->index.push_back(uint32_t(v[0]));
+      t->delta.emplace_back(float(v[1]), float(v[2]), float(v[3]));
+      return true;
+    });
+    if (!err.ok()) return err;
+    std::lock_guard<std::mutex> lock(mu);
+    targets[name] = t;
+    return std::shared_ptr<const Target>(t);
+  }
+};
+
+MakeHumanKit::MakeHumanKit() : impl_(std::make_unique<Impl>()) {}
+MakeHumanKit::~MakeHumanKit() = default;
+size_t MakeHumanKit::body_vertex_count() const { return impl_->body_vertices.size(); }
+
+Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::path& kit_dir) {
+  std::unique_ptr<MakeHumanKit> kit(new MakeHumanKit());
+  Impl& m = *kit->impl_;
+  m.dir = kit_dir;
+
+  // --- base.obj: all vertices, faces of group `body` ---
+  const auto obj_path = kit_dir / "base.obj";
+  auto obj = ReadFile(obj_path);
+  if (!obj.ok()) return obj.status();
+  std::vector<std::vector<uint32_t>> faces;
+  std::string group;
+  Status err;
+  ForEachLine(*obj, [&](std::string_view line, int line_no) {
+    if (line.size() < 2) return true;
+    auto bad = [&](const std::string& what) {
+      err = Status(ErrorCode::kDataLoss, obj_path.string() + ":" + std::to_string(line_no) + ": " + what);
+      return false;
+    };
+    if (line[0] == 'v' && line[1] == ' ') {
+      const auto w = Words(line);
+      double x, y, z;
+      if (w.size() < 4 || !ParseNum(w[1], &x) || !ParseNum(w[2], &y) || !ParseNum(w[3], &z))
+        return bad("bad vertex line");
+      m.base.emplace_back(float(x), float(y), float(z));
+    } else if (line[0] == 'g' && line[1] == ' ') {
+      const auto w = Words(line);
+      group = w.size() > 1 ? std::string(w[1]) : "";
+    } else if (line[0] == 'f' && line[1] == ' ' && group == "body") {
+      const auto w = Words(line);
+      std::vector<uint32_t> f;
+      for (size_t k = 1; k < w.size(); ++k) {
+        const std::string_view idx = w[k].substr(0, w[k].find('/'));
+        double v;
+        if (!ParseNum(idx, &v) || v == 0 || v != std::floor(v)) return bad("bad face index");
+        const long i = v > 0 ? long(v) - 1 : long(m.base.size()) + long(v);
+        if (i < 0 || i >= long(m.base.size())) return bad("face index out of range");
+        f.push_back(uint32_t(i));
+      }
+      if (f.size() < 3) return bad("face with fewer than 3 vertices");
+      faces.push_back(std::move(f));
+    }
+    return true;
+  });
+  if (!err.ok()) return err;
+  if (faces.empty()) return Status(ErrorCode::kDataLoss, obj_path.string() + ": no faces in group 'body'");
+  std::vector<int> compact(m.base.size(), -1);
+  for (const auto& f : faces)
+    for (uint32_t i : f)
+      if (compact[i] < 0) {
+        compact[i] = int(m.body_vertices.size());
+        m.body_vertices.push_back(i);
+      }
+  for (const auto& f : faces)
+    for (size_t k = 1; k + 1 < f.size(); ++k)
+      m.triangles.push_back({uint32_t(compact[f[0]]), uint32_t(compact[f[k]]), uint32_t(compact[f[k + 1]])});
+
+  // --- rigs/default.mhskel ---
+  const auto skel_path = kit_dir / "rigs" / "default.mhskel";
+  auto skel_text = ReadFile(skel_path);
+  if (!skel_text.ok()) return skel_text.status();
+  auto skel = json::Parse(*skel_text, skel_path.string());
+  if (!skel.ok()) return skel.status();
+  const json::Value* bones = skel->Find("bones");
+  const json::Value* joints = skel->Find("joints");
+  if (!bones || !bones->IsObject() || !joints || !joints->IsObject())
+    return Status(ErrorCode::kDataLoss, skel_path.string() + ": missing 'bones' or 'joints'");
+  for (const auto& [name, jv] : joints->object) {
+    if (!jv.IsArray() || jv.array.empty())
+      return Status(ErrorCode::kDataLoss, skel_path.string() + ": joint '" + name + "' has no vertex list");
+    std::vector<uint32_t> idx;
+    for (const auto& e : jv.array) {
+      if (!e.IsNumber() || e.number < 0 || e.number >= double(m.base.size()))
+        return Status(ErrorCode::kDataLoss,
+                      skel_path.string() + ": joint '" + name + "' names a vertex out of range");
+      idx.push_back(uint32_t(e.number));
+    }
+    m.joints[name] = std::move(idx);
+  }
+  for (const auto& [name, bv] : bones->object) {
+    const json::Value* head = bv.Find("head");
+    const json::Value* tail = bv.Find("tail");
+    const json::Value* parent = bv.Find("parent");
+    if (!head || !head->IsString() || !tail || !tail->IsString() || !m.joints.count(head->string) ||
+        !m.joints.count(tail->string))
+      return Status(ErrorCode::kDataLoss,
+                    skel_path.string() + ": bone '" + name + "' has no valid head/tail joint");
+    m.bones.push_back({name, head->string, tail->string, parent && parent->IsString() ? parent->string : ""});
+  }
+
+  // --- rigs/default_weights.mhw ---
+  const auto mhw_path = kit_dir / "rigs" / "default_weights.mhw";
+  auto mhw_text = ReadFile(mhw_path);
+  if (!mhw_text.ok()) return mhw_text.status();
+  auto mhw = json::Parse(*mhw_text, mhw_path.string());
+  if (!mhw.ok()) return mhw.status();
+  const json::Value* weights = mhw->Find("weights");
+  if (!weights || !weights->IsObject())
+    return Status(ErrorCode::kDataLoss, mhw_path.string() + ": missing 'weights'");
+  m.weights.assign(m.body_vertices.size(), {});
+  for (const auto& [bone, list] : weights->object) {
+    int b = -1;
+    for (size_t k = 0; k < m.bones.size(); ++k)
+      if (m.bones[k].name == bone) b = int(k);
+    if (b < 0)
+      return Status(ErrorCode::kDataLoss, mhw_path.string() + ": weights for unknown bone '" + bone + "'");
+    if (!list.IsArray())
+      return Status(ErrorCode::kDataLoss, mhw_path.string() + ": bone '" + bone + "': not a list");
+    for (const auto& pair : list.array) {
+      if (!pair.IsArray() || pair.array.size() != 2 || !pair.array[0].IsNumber() ||
+          !pair.array[1].IsNumber() || pair.array[0].number < 0 ||
+          pair.array[0].number >= double(m.base.size()))
+        return Status(ErrorCode::kDataLoss,
+                      mhw_path.string() + ": bone '" + bone + "': bad [vertex, weight] pair");
+      const int c = compact[size_t(pair.array[0].number)];
+      if (c >= 0 && pair.array[1].number > 0)
+        m.weights[size_t(c)].push_back({b, float(pair.array[1].number)});
+    }
+  }
+  return kit;
+}
+
+Result<BodyMesh> MakeHumanKit::Build(const MakeHumanParams& p) const {
+  const Impl& m = *impl_;
+  for (double v : {p.gender, p.age, p.muscle, p.weight})
+    if (!(v >= 0 && v <= 1))
+      return Status(ErrorCode::kInvalidArgument,
+                    "MakeHuman body '" + p.name + "': macro values must be in [0, 1]");
+  if (!(p.height_scale > 0.3 && p.height_scale < 3))
+    return Status(ErrorCode::kInvalidArgument, "MakeHuman body '" + p.name + "': height_scale out of range");
+
+  // Macro modifier weights.
+  const std::pair<const char*, double> gender[] = {{"female", 1 - p.gender}, {"male", p.gender}};
+  double baby = 0, child = 0, young = 0, old = 0;
+  if (p.age < 0.5) {
+    baby = std::max(0.0, 1 - p.age / 0.1875);
+    young = std::max(0.0, (p.age - 0.1875) / 0.3125);
+    child = std::max(0.0, std::min(1.0, p.age / 0.1875) - young);
+  } else {
+    old = 2 * p.age - 1;
+    young = 1 - old;
+  }
+  const std::pair<const char*, double> age[] = {
+      {"baby", baby}, {"child", child}, {"young", young}, {"old", old}};
+  auto three = [](double x) {
+    const double mn = std::max(0.0, 1 - 2 * x), mx = std::max(0.0, 2 * x - 1);
+    return std::array<double, 3>{mn, 1 - mn - mx, mx};
+  };
+  const auto mus = three(p.muscle), wei = three(p.weight);
+  const char* levels[] = {"min", "average", "max"};
+  std::vector<std::pair<std::string, double>> use;
+  for (const auto& [g, gw] : gender)
+    for (const auto& [a, aw] : age) {
+      if (gw * aw < 1e-6) continue;
+      for (const char* race : {"african", "asian", "caucasian"})
+        use.push_back({std::string(race) + "-" + g + "-" + a, gw * aw / 3.0});
+      for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) {
+          const double w = gw * aw * mus[size_t(i)] * wei[size_t(k)];
+          if (w < 1e-6) continue;
+          use.push_back(
+              {std::string("universal-") + g + "-" + a + "-" + levels[i] + "muscle-" + levels[k] + "weight",
+               w});
+        }
+    }
+
+  std::vector<Eigen::Vector3f> pos = m.base;
+  for (const auto& [name, w] : use) {
+    auto t = m.GetTarget(name);
+    if (!t.ok()) return t.status();
+    const Target& tg = **t;
+    for (size_t k = 0; k < tg.index.size(); ++k) pos[tg.index[k]] += float(w) * tg.delta[k];
+  }
+  const double scale = kDecimetre * p.height_scale;
+
+  auto joint_pos = [&](const std::string& joint) {
+    Eigen::Vector3d s = Eigen::Vector3d::Zero();
+    const auto& idx = m.joints.at(joint);
+    for (uint32_t i : idx) s += pos[i].cast<double>();
+    return Eigen::Vector3d(s / double(idx.size()) * scale);
+  };
+  std::vector<RigBone> bones(m.bones.size());
+  for (size_t b = 0; b < m.bones.size(); ++b) {
+    bones[b].name = m.bones[b].name;
+    bones[b].head = joint_pos(m.bones[b].head);
+    bones[b].tail = joint_pos(m.bones[b].tail);
+    bones[b].has_tail = true;
+    for (size_t k = 0; k < m.bones.size(); ++k)
+      if (m.bones[k].name == m.bones[b].parent) bones[b].parent = int(k);
+  }
+  const std::string source = (m.dir / "rigs" / "default.mhskel").string();
+  auto rig = FoldRig(bones, source);
+  if (!rig.ok()) return rig.status();
+
+  BodyMesh body;
+  body.name = "makehuman:" + p.name;
+  body.vertices.reserve(m.body_vertices.size());
+  for (uint32_t i : m.body_vertices) body.vertices.push_back((pos[i].cast<double>() * scale).cast<float>());
+  body.triangles = m.triangles;
+  body.skin = FoldSkin(*rig, m.weights, body.vertices);
+  EstimateMissingJoints(*rig, body.vertices, body.skin);
+  body.rest_joints = rig->rest_joints;
+
+  // Feet on y = 0, pelvis above the origin.
+  float min_y = std::numeric_limits<float>::infinity();
+  for (const auto& v : body.vertices) min_y = std::min(min_y, v.y());
+  const Eigen::Vector3d pelvis = body.rest_joints[size_t(SkelJoint::kPelvis)];
+  const Eigen::Vector3d shift(-pelvis.x(), -double(min_y), -pelvis.z());
+  for (auto& v : body.vertices) v += shift.cast<float>();
+  for (auto& j : body.rest_joints) j += shift;
+  return body;
+}
+
+double MakeHumanAgeFromYears(double years) {
+  years = std::clamp(years, 1.0, 90.0);
+  if (years < 11) return 0.1875 * (years - 1) / 10.0;
+  if (years < 25) return 0.1875 + 0.3125 * (years - 11) / 14.0;
+  return 0.5 + 0.5 * (years - 25) / 65.0;
+}
+
+const std::vector<MakeHumanParams>& MakeHumanPresets() {
+  static const std::vector<MakeHumanParams> presets = [] {
+    auto P = [](const char* name, double gender, double years, double muscle, double weight, double height) {
+      MakeHumanParams p;
+      p.name = name;
+      p.gender = gender;
+      p.age = MakeHumanAgeFromYears(years);
+      p.muscle = muscle;
+      p.weight = weight;
+      p.height_scale = height;
+      return p;
+    };
+    return std::vector<MakeHumanParams>{
+        // MakeHuman's child targets without its height modifier come out short for their age,
+        // so children get a height_scale towards typical heights (~1.28, 1.45, 1.60 m).
+        P("girl-8", 0.0, 8, 0.5, 0.5, 1.17),
+        P("boy-8", 1.0, 8, 0.5, 0.5, 1.12),
+        P("girl-11-thin", 0.0, 11, 0.4, 0.25, 1.15),
+        P("boy-11-heavy", 1.0, 11, 0.5, 0.85, 1.08),
+        P("girl-14", 0.0, 14, 0.5, 0.5, 1.15),
+        P("boy-14", 1.0, 14, 0.55, 0.5, 1.12),
+        P("female-young-thin", 0.0, 25, 0.4, 0.15, 1.0),
+        P("female-young-average", 0.0, 25, 0.5, 0.5, 1.0),
+        P("female-young-heavy", 0.0, 30, 0.45, 0.95, 0.98),
+        P("female-athletic-tall", 0.0, 28, 0.85, 0.45, 1.05),
+        P("male-young-thin", 1.0, 25, 0.45, 0.15, 1.0),
+        P("male-young-average", 1.0, 25, 0.5, 0.5, 1.02),
+        P("male-young-heavy", 1.0, 35, 0.5, 1.0, 1.0),
+        P("male-muscular-tall", 1.0, 28, 1.0, 0.6, 1.07),
+        P("androgynous-short", 0.5, 30, 0.5, 0.5, 0.93),
+        P("female-old", 0.0, 75, 0.35, 0.6, 0.96),
+        P("male-old", 1.0, 75, 0.35, 0.55, 0.97),
+        P("male-old-heavy", 1.0, 65, 0.4, 0.9, 0.98),
+    };
+  }();
+  return presets;
+}
+
+MakeHumanParams VaryMakeHuman(const MakeHumanParams& base, core::RngStream& rng) {
+  MakeHumanParams p = base;
+  p.height_scale = base.height_scale * (1.0 + std::clamp(0.03 * rng.Normal(), -0.08, 0.08));
+  p.weight = std::clamp(base.weight + 0.06 * rng.Normal(), 0.0, 1.0);
+  p.name = base.name + "~var";
+  return p;
+}
+
+double BodyHeight(const BodyMesh& body) {
+  if (body.vertices.empty()) return 0;
+  float lo = body.vertices[0].y(), hi = lo;
+  for (const auto& v : body.vertices) lo = std::min(lo, v.y()), hi = std::max(hi, v.y());
+  return double(hi - lo);
+}
+
+double WaistWidth(const BodyMesh& body) {
+  const double y0 = body.rest_joints[size_t(SkelJoint::kPelvis)].y();
+  const double y1 = body.rest_joints[size_t(SkelJoint::kChest)].y();
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  for (size_t v = 0; v < body.vertices.size(); ++v) {
+    const auto& x = body.vertices[v];
+    if (x.y() < y0 || x.y() > y1) continue;
+    // Torso only: the arms hang beside the waist in the A-pose.
+    if (v < body.skin.size()) {
+      const auto& s = body.skin[v];
+      const int j = s.joint[0];
+      if (j != int(SkelJoint::kPelvis) && j != int(SkelJoint::kSpine) && j != int(SkelJoint::kChest))
+        continue;
+    }
+    lo = std::min(lo, x.x());
+    hi = std::max(hi, x.x());
+  }
+  return hi > lo ? double(hi - lo) : 0.0;
+}
+
+}  // namespace poseforest::renderer::assets
