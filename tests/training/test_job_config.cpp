@@ -1,0 +1,113 @@
+// Job configs: text format parsing, defaults, and clear errors naming the field.
+#include <catch2/catch.hpp>
+#include <fstream>
+
+#include "poseforest/v1/job.pb.h"
+#include "tests/support/paths.h"
+#include "worker/job_spec.h"
+
+using namespace poseforest;
+
+namespace {
+
+core::Result<worker::TrainParams> Parse(const std::string& text) {
+  auto config = worker::ParseJobText(text, "job.textproto");
+  if (!config.ok()) return config.status();
+  return worker::ParamsFromConfig(*config, "job.textproto");
+}
+
+std::string ErrorOf(const std::string& text) {
+  auto p = Parse(text);
+  REQUIRE_FALSE(p.ok());
+  CHECK(p.status().code() == core::ErrorCode::kInvalidArgument);
+  return p.status().message();
+}
+
+}  // namespace
+
+TEST_CASE("a minimal job gets the paper's defaults", "[training][config]") {
+  auto p = Parse("images_per_tree: 10 source { procedural { seed: 4 } }");
+  REQUIRE(p.ok());
+  CHECK(p->num_trees == 3);
+  CHECK(p->max_depth == 20);
+  CHECK(p->pixels_per_image == 2000);
+  CHECK(p->candidate_features == 2000);
+  CHECK(p->thresholds_per_feature == 50);
+  CHECK(p->max_probe_offset_pixel_m == 129.0);
+  CHECK(p->max_offset_units() == 129 * 32);
+  CHECK(p->source.kind == worker::SourceKind::kProcedural);
+  CHECK(p->source.seed == 4);
+  CHECK_FALSE(p->has_test_set);
+}
+
+TEST_CASE("a full job parses every field", "[training][config]") {
+  auto p = Parse(R"(
+    seed: 42 num_trees: 2 max_depth: 12 images_per_tree: 100 pixels_per_image: 500
+    candidate_features: 300 thresholds_per_feature: 20 max_probe_offset_pixel_m: 60
+    min_samples_split: 4 min_gain: 0.01 threads: 2 threshold_reference_pixels: 100
+    part_balance: 0.5 histogram_memory_mb: 64
+    source { rendered { seed: 7 rotation_range_deg: 180 max_people: 2 kinect_noise: false } }
+    test_set { source { dataset { folder: "/tmp/test" count: 10 } } num_images: 10 }
+  )");
+  REQUIRE(p.ok());
+  CHECK(p->seed == 42);
+  CHECK(p->max_depth == 12);
+  CHECK(p->min_gain == 0.01);
+  CHECK(p->histogram_memory_bytes == (uint64_t(64) << 20));
+  CHECK(p->source.kind == worker::SourceKind::kRendered);
+  CHECK(p->source.rotation_range_deg == 180.0);
+  CHECK(p->source.max_people == 2);
+  CHECK_FALSE(p->source.kinect_noise);
+  REQUIRE(p->has_test_set);
+  CHECK(p->test_source.kind == worker::SourceKind::kDataset);
+  CHECK(p->test_source.folder == "/tmp/test");
+  CHECK(p->test_images == 10);
+}
+
+TEST_CASE("bad configs give errors naming the field", "[training][config]") {
+  const std::string src = " source { procedural { } }";
+  CHECK_THAT(ErrorOf("source { procedural { } }"),
+             Catch::Contains("images_per_tree") && Catch::Contains("required"));
+  CHECK_THAT(ErrorOf("images_per_tree: 0" + src), Catch::Contains("images_per_tree = 0"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 thresholds_per_feature: 300" + src),
+             Catch::Contains("thresholds_per_feature = 300") && Catch::Contains("1..255"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 max_probe_offset_pixel_m: -1" + src),
+             Catch::Contains("max_probe_offset_pixel_m"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 max_probe_offset_pixel_m: 5000" + src),
+             Catch::Contains("max_probe_offset_pixel_m"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 max_depth: 0" + src), Catch::Contains("max_depth"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 num_trees: 0" + src), Catch::Contains("num_trees"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 min_samples_split: 1" + src), Catch::Contains("min_samples_split"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 min_gain: -0.5" + src), Catch::Contains("min_gain"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 part_balance: 2" + src), Catch::Contains("part_balance"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5"), Catch::Contains("source") && Catch::Contains("required"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { dataset { } }"), Catch::Contains("source.dataset.folder"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { procedural { num_parts: 1 } }"),
+             Catch::Contains("source.procedural.num_parts"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { rotation_range_deg: 400 } }"),
+             Catch::Contains("source.rendered.rotation_range_deg"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5" + src + " test_set { num_images: 3 }"),
+             Catch::Contains("test_set.source"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5000000 pixels_per_image: 2000" + src), Catch::Contains("2^31"));
+  // Syntax errors and unknown fields name the file and the position.
+  CHECK_THAT(ErrorOf("images_per_tree: 5 no_such_field: 3" + src),
+             Catch::Contains("job.textproto") && Catch::Contains("line 1"));
+  CHECK_THAT(ErrorOf("images_per_tree: {"), Catch::Contains("job.textproto: not a valid"));
+}
+
+TEST_CASE("LoadJob reads a file and names it in errors", "[training][config]") {
+  const auto dir = testing::ScratchDir("job-config");
+  const auto path = (dir / "job.textproto").string();
+  std::ofstream(path) << "# a comment\nimages_per_tree: 3\nsource { procedural { seed: 9 } }\n";
+  auto p = worker::LoadJob(path);
+  REQUIRE(p.ok());
+  CHECK(p->images_per_tree == 3);
+  auto missing = worker::LoadJob((dir / "missing.textproto").string());
+  REQUIRE_FALSE(missing.ok());
+  CHECK(missing.status().code() == core::ErrorCode::kIo);
+  CHECK_THAT(missing.status().message(), Catch::Contains("missing.textproto"));
+  std::ofstream(path) << "images_per_tree: 3\nthresholds_per_feature: 0\nsource { procedural { } }\n";
+  auto bad = worker::LoadJob(path);
+  REQUIRE_FALSE(bad.ok());
+  CHECK_THAT(bad.status().message(), Catch::Contains(path) && Catch::Contains("thresholds_per_feature"));
+}

@@ -1,0 +1,82 @@
+// `poseforest train` and `poseforest eval` end to end, as a user runs them.
+#include <sys/wait.h>
+
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "runtime/core/forest_format.h"
+#include "tests/support/paths.h"
+
+using namespace poseforest;
+
+namespace {
+
+struct Run {
+  int exit_code;
+  std::string output;  // stdout + stderr
+};
+
+Run RunPoseforest(const std::string& args) {
+  const std::string cmd = (testing::BinDir() / "poseforest").string() + " " + args + " 2>&1";
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  REQUIRE(pipe != nullptr);
+  std::string out;
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
+  const int status = ::pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+}  // namespace
+
+TEST_CASE("train a forest from a job file, then evaluate it", "[cli][training]") {
+  const auto dir = testing::ScratchDir("cli-train");
+  const std::string job = (dir / "job.textproto").string(), forest = (dir / "forest.pff").string();
+  std::ofstream(job)
+      << "seed: 3 num_trees: 1 max_depth: 8 images_per_tree: 6 pixels_per_image: 300\n"
+         "candidate_features: 60 thresholds_per_feature: 10 threads: 2\n"
+         "source { procedural { seed: 5 width: 160 height: 120 } }\n"
+         "test_set { source { procedural { seed: 6 width: 160 height: 120 } } num_images: 3 }\n";
+  auto train = RunPoseforest("train " + job + " --out " + forest + " --shards 2");
+  INFO(train.output);
+  REQUIRE(train.exit_code == 0);
+  CHECK_THAT(train.output, Catch::Contains("tree 0 level  0:") && Catch::Contains("evaluations/s") &&
+                               Catch::Contains("memory:") && Catch::Contains("average per-class accuracy"));
+  auto loaded = core::LoadForest(forest);
+  REQUIRE(loaded.ok());
+  CHECK(loaded->trees.size() == 1);
+
+  const std::string png = (dir / "confusion.png").string();
+  auto eval = RunPoseforest("eval --forest " + forest + " --test-set " + job + " --png " + png);
+  INFO(eval.output);
+  REQUIRE(eval.exit_code == 0);
+  CHECK_THAT(eval.output, Catch::Contains("confusion (rows = truth") && Catch::Contains("LU_head") &&
+                              Catch::Contains("average per-class accuracy:"));
+  CHECK(core::ReadFileBytes(png).ok());
+  auto eval_proc = RunPoseforest("eval --forest " + forest + " --test-set procedural:6 --images 2");
+  CHECK(eval_proc.exit_code == 0);
+}
+
+TEST_CASE("train and eval refuse bad input with clear messages", "[cli][training]") {
+  const auto dir = testing::ScratchDir("cli-train-bad");
+  const std::string job = (dir / "bad.textproto").string();
+  std::ofstream(job) << "images_per_tree: 5 candidate_features: 0 source { procedural { } }\n";
+  auto bad = RunPoseforest("train " + job + " --out " + (dir / "f.pff").string());
+  CHECK(bad.exit_code == 2);
+  CHECK_THAT(bad.output, Catch::Contains("bad.textproto") && Catch::Contains("candidate_features = 0"));
+  auto no_out = RunPoseforest("train " + job);
+  CHECK(no_out.exit_code == 2);
+  CHECK_THAT(no_out.output, Catch::Contains("--out"));
+  auto help = RunPoseforest("train --help");
+  CHECK(help.exit_code == 0);
+  CHECK_THAT(help.output, Catch::Contains("usage: poseforest train"));
+  auto eval_help = RunPoseforest("eval --help");
+  CHECK(eval_help.exit_code == 0);
+  CHECK_THAT(eval_help.output, Catch::Contains("average per-class accuracy"));
+  auto missing = RunPoseforest("eval --forest " + (dir / "none.pff").string() + " --test-set procedural:1");
+  CHECK(missing.exit_code == 1);
+  CHECK_THAT(missing.output, Catch::Contains("none.pff"));
+}

@@ -1,0 +1,59 @@
+#pragma once
+// Pieces the distributed worker and coordinator share: transport profiles, the wire
+// extensions (dist_wire.proto) carried inside wire.proto bodies, and the conversion between the
+// engine's NodeHistogram (slots) and the wire's dense counts[candidate][bin][part] tensor.
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "dist_wire.pb.h"
+#include "poseforest/v1/wire.pb.h"
+#include "proto/dds/dds_node.h"
+#include "proto/dds/histogram_codec.h"
+#include "runtime/core/result.h"
+#include "worker/histogram_builder.h"
+
+namespace poseforest::dist {
+
+/// Transport profile names accepted by --profile: "shm" (shared memory only), "udp" (UDPv4 only,
+/// loopback + interfaces), "default" (shared memory + UDP). Errors name the bad value.
+core::Result<dds::TransportKind> ParseProfile(const std::string& name);
+
+/// Participant settings of a trainer node on `domain` with `transport`, reading/writing the topics
+/// of a coordinator (`coordinator` true) or a worker. `lease`: presence liveliness lease.
+dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bool coordinator,
+                               const std::string& name, std::chrono::milliseconds lease);
+
+/// Appends `ext` to the body so that it travels as unknown fields (see dist_wire.proto).
+void AttachExt(const google::protobuf::Message& ext, google::protobuf::Message* body);
+/// Re-reads the unknown fields of `body` as `ext`. DataLoss when they do not parse.
+core::Status ReadExt(const google::protobuf::Message& body, google::protobuf::Message* ext,
+                     const std::string& what);
+
+/// Dense wire tensor (num_candidates x num_bins x num_parts) of a node histogram built with
+/// `plan` (either form); slot -> part through plan.part_slot.
+std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
+                                   int num_parts);
+/// Adds a wire tensor into `hist` (dense, shaped for `plan`). False if a count sits on a part
+/// absent from the node (a worker that disagrees with the coordinator's part counts).
+bool AddWireCounts(const std::vector<uint32_t>& wire, const worker::NodePlan& plan, int num_parts,
+                   worker::NodeHistogram* hist);
+
+/// Adds a run-encoded wire tensor (dds/histogram_codec.h layout, `dims`) into `hist` without
+/// expanding it. False when the runs overrun the tensor or count a part absent from the node.
+bool AddWireRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const dds::HistogramDims& dims,
+                 const worker::NodePlan& plan, worker::NodeHistogram* hist);
+
+/// Sets the 4 offsets + threshold of a wire FeatureSplit; threshold = cut + 0.5 (exact in float
+/// for |cut| < 2^22).
+void SetFeatureSplit(const core::FeatureOffsets& f, int32_t cut, uint32_t left_child, uint32_t candidate,
+                     v1::FeatureSplit* out);
+/// Inverse of SetFeatureSplit; InvalidArgument for a threshold that is not k + 0.5.
+core::Status GetFeatureSplit(const v1::FeatureSplit& s, core::FeatureOffsets* f, int32_t* cut);
+
+/// Seconds on a monotonic clock.
+double NowSeconds();
+
+}  // namespace poseforest::dist

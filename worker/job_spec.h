@@ -1,0 +1,76 @@
+#pragma once
+// A training job, validated and with every default filled in: the plain C++ form of
+// poseforest.v1.TrainerConfig that the worker and coordinator code works with. Parsing and
+// validation live here (not in the coordinator) because workers receive the same config.
+
+#include <cstdint>
+#include <string>
+
+#include "runtime/core/feature.h"
+#include "runtime/core/result.h"
+
+namespace poseforest::v1 {
+class TrainerConfig;
+}
+
+namespace poseforest::worker {
+
+enum class SourceKind { kRendered, kDataset, kProcedural };
+
+/// Where labelled frames come from (poseforest.v1.ImageSource with defaults applied).
+struct SourceSpec {
+  SourceKind kind = SourceKind::kProcedural;
+  uint64_t seed = 1;                ///< rendered / procedural: frame i is a pure function of (seed, i)
+  double rotation_range_deg = 120;  ///< rendered: +- yaw, degrees
+  int max_people = 1;               ///< rendered
+  bool kinect_noise = true;         ///< rendered: the renderer's Kinect v1 noise model
+  double min_distance_m = 1.5;      ///< rendered: metres
+  double max_distance_m = 4.5;      ///< rendered: metres
+  int width = 640, height = 480;    ///< rendered / procedural: pixels
+  std::string folder;               ///< dataset
+  uint32_t first_index = 0;         ///< dataset: first file index
+  uint32_t count = 0;               ///< dataset: frames to use (0 = every consecutive file)
+  int num_parts = 31;               ///< procedural: labels used
+};
+
+/// Everything the trainer needs, validated: see job.proto for meanings and defaults.
+struct TrainParams {
+  uint64_t seed = 1;
+  int num_trees = 3;
+  int max_depth = 20;
+  int images_per_tree = 0;
+  int pixels_per_image = 2000;
+  int candidate_features = 2000;
+  int thresholds_per_feature = 50;
+  double max_probe_offset_pixel_m = 129;
+  int64_t min_samples_split = 10;
+  double min_gain = 1e-6;  ///< bits
+  int threads = 0;         ///< 0 = all cores
+  uint64_t threshold_reference_pixels = 500;
+  double part_balance = 1.0;
+  uint64_t histogram_memory_bytes = uint64_t(1) << 30;
+  core::FeatureConstants constants;
+  SourceSpec source;
+  bool has_test_set = false;
+  SourceSpec test_source;
+  int test_images = 50;
+  int test_pixels_per_image = 0;  ///< 0 = every foreground pixel
+
+  /// max_probe_offset_pixel_m in stored offset units (FeatureConstants::offset_unit).
+  int max_offset_units() const;
+};
+
+/// Parses protobuf text format; errors name `source_name` with line and column.
+core::Result<v1::TrainerConfig> ParseJobText(const std::string& text, const std::string& source_name);
+
+/// Validates a config and fills defaults. Errors are InvalidArgument naming the field, e.g.
+/// "job.textproto: thresholds_per_feature = 300: must be in 1..255".
+core::Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& config, const std::string& source_name);
+
+/// Reads, parses and validates a job file.
+core::Result<TrainParams> LoadJob(const std::string& path);
+
+/// One-line human summary ("3 trees, depth 20, 1000 images/tree, ...").
+std::string DescribeParams(const TrainParams& params);
+
+}  // namespace poseforest::worker
