@@ -1,0 +1,153 @@
+#include "renderer/pose_sampler.h"
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <numbers>
+
+#include "runtime/core/rng.h"
+
+namespace poseforest::renderer {
+namespace {
+
+using Eigen::AngleAxisd;
+using Eigen::Quaterniond;
+using Eigen::Vector3d;
+using J = SkelJoint;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+Quaterniond Rx(double deg) { return Quaterniond(AngleAxisd(deg * kDeg, Vector3d::UnitX())); }
+Quaterniond Ry(double deg) { return Quaterniond(AngleAxisd(deg * kDeg, Vector3d::UnitY())); }
+Quaterniond Rz(double deg) { return Quaterniond(AngleAxisd(deg * kDeg, Vector3d::UnitZ())); }
+
+/// Swing the rest bone direction onto `dir`, then twist about `dir` by twist_deg.
+Quaterniond SwingTwist(const Vector3d& rest_dir, const Vector3d& dir, double twist_deg) {
+  const Quaterniond swing = Quaterniond::FromTwoVectors(rest_dir, dir.normalized());
+  return Quaterniond(AngleAxisd(twist_deg * kDeg, dir.normalized())) * swing;
+}
+
+}  // namespace
+
+Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig& cfg) {
+  core::RngStream rng(core::CounterRng(seed, 0x9053, index, 0x5A3B1E));
+  auto U = [&](double lo, double hi) { return rng.UniformIn(lo, hi); };
+
+  // Local rotations (in the parent's frame; the rest frames are all aligned with the body).
+  std::array<Quaterniond, kNumSkelJoints> local;
+  local.fill(Quaterniond::Identity());
+  auto L = [&](J j) -> Quaterniond& { return local[size_t(int(j))]; };
+
+  // Choose the family.
+  const double total =
+      cfg.p_standing + cfg.p_walking + cfg.p_crouching + cfg.p_kicking + cfg.p_wide + cfg.p_free;
+  double r = U(0.0, total);
+  int family = 0;
+  for (double p : {cfg.p_standing, cfg.p_walking, cfg.p_crouching, cfg.p_kicking, cfg.p_wide, cfg.p_free}) {
+    if (r < p) break;
+    r -= p;
+    ++family;
+  }
+  family = std::min(family, 5);
+  const bool free = family == 5;
+
+  // Trunk: pelvis lean, spine and chest bend/side-bend/twist, neck and head.
+  double hip_flex[2] = {U(-10, 20), U(-10, 20)};  // + = thigh forward
+  double hip_abd[2] = {U(-5, 12), U(-5, 12)};     // + = outward
+  double knee[2] = {U(0, 20), U(0, 20)};
+  double lean = U(-8, 12);  // + = pelvis leans forward
+  switch (family) {
+    case 1: {  // walking / running
+      const int front = int(rng.UniformInt(2));
+      hip_flex[front] = U(10, 55);
+      hip_flex[1 - front] = U(-30, 0);
+      knee[front] = U(0, 70);
+      knee[1 - front] = U(10, 100);
+      lean = U(0, 20);
+      break;
+    }
+    case 2: {  // crouching / squatting / sitting
+      const double f = U(50, 110);
+      hip_flex[0] = f + U(-10, 10);
+      hip_flex[1] = f + U(-10, 10);
+      knee[0] = std::min(145.0, f + U(0, 40));
+      knee[1] = std::min(145.0, f + U(0, 40));
+      hip_abd[0] = U(0, 25);
+      hip_abd[1] = U(0, 25);
+      lean = U(10, 45);
+      break;
+    }
+    case 3: {  // kicking / leg raised (forward or sideways)
+      const int leg = int(rng.UniformInt(2));
+      hip_flex[leg] = U(20, 100);
+      hip_abd[leg] = U(-5, 45);
+      knee[leg] = U(0, 90);
+      break;
+    }
+    case 4:  // legs apart
+      hip_abd[0] = U(10, 40);
+      hip_abd[1] = U(10, 40);
+      knee[0] = U(0, 35);
+      knee[1] = U(0, 35);
+      break;
+    case 5:
+      for (int s = 0; s < 2; ++s) {
+        hip_flex[s] = U(-30, 110);
+        hip_abd[s] = U(-15, 45);
+        knee[s] = U(0, 140);
+      }
+      lean = U(-15, 45);
+      break;
+    default:
+      break;
+  }
+  L(J::kPelvis) = Ry(U(-15, 15)) * Rx(lean) * Rz(U(-6, 6));
+  L(J::kSpine) = Ry(U(-20, 20)) * Rx(U(-10, free ? 35 : 20)) * Rz(U(-12, 12));
+  L(J::kChest) = Ry(U(-15, 15)) * Rx(U(-10, 15)) * Rz(U(-8, 8));
+  L(J::kNeck) = Ry(U(-20, 20)) * Rx(U(-15, 25)) * Rz(U(-10, 10));
+  L(J::kHead) = Ry(U(-45, 45)) * Rx(U(-25, 30)) * Rz(U(-15, 15));
+
+  // Legs. Thigh rest direction is -Y; hip flexion is measured from the vertical, so the pelvis
+  // lean (which turns the legs back with it) is added back. Flexion turns it towards +Z (rotation about X by
+  // -angle), abduction towards the side; knee flexion turns the shin back (+angle about X).
+  for (int s = 0; s < 2; ++s) {
+    const double sx = s == 0 ? 1.0 : -1.0;  // left = +X
+    const J hip = s == 0 ? J::kLHip : J::kRHip;
+    const J kn = s == 0 ? J::kLKnee : J::kRKnee;
+    const J an = s == 0 ? J::kLAnkle : J::kRAnkle;
+    L(hip) = Rz(sx * hip_abd[s]) * Rx(-(hip_flex[s] + lean)) * Ry(sx * U(-20, 30));
+    L(kn) = Rx(knee[s]);
+    L(an) = Rx(U(-25, 25)) * Rz(U(-10, 10));
+  }
+
+  // Arms. Upper arm rest direction is +-X (T-pose). Sample a direction: elevation e (up +) and
+  // azimuth a (forward +), then a twist; the elbow only flexes (forearm turns forward/up).
+  for (int s = 0; s < 2; ++s) {
+    const double sx = s == 0 ? 1.0 : -1.0;
+    const J collar = s == 0 ? J::kLCollar : J::kRCollar;
+    const J sh = s == 0 ? J::kLShoulder : J::kRShoulder;
+    const J el = s == 0 ? J::kLElbow : J::kRElbow;
+    const J wr = s == 0 ? J::kLWrist : J::kRWrist;
+    const bool relaxed = rng.Uniform01() < cfg.p_arms_relaxed;
+    const double e = relaxed ? U(-82, -45) : U(-82, 85);
+    const double a = relaxed ? U(-15, 45) : U(-35, 110);
+    const Vector3d rest_dir(sx, 0, 0);
+    const Vector3d dir(sx * std::cos(e * kDeg) * std::cos(a * kDeg), std::sin(e * kDeg),
+                       std::cos(e * kDeg) * std::sin(a * kDeg));
+    L(collar) = Rz(sx * U(-5, 12)) * Ry(sx * U(-8, 8));  // shrug / protract
+    L(sh) = SwingTwist(rest_dir, dir, U(-40, 40));
+    const double flex = relaxed ? U(0, 70) : U(0, 145);
+    // Flexion axis: the forearm turns towards +Z in the upper arm's frame (about -Y on the left).
+    L(el) = SwingTwist(rest_dir, Vector3d(sx * std::cos(flex * kDeg), 0, std::sin(flex * kDeg)), U(-30, 30));
+    L(wr) = Ry(sx * U(-30, 30)) * Rz(U(-40, 40));
+  }
+
+  Pose pose;
+  for (int j = 0; j < kNumSkelJoints; ++j) {
+    const int p = kSkelParent[size_t(j)];
+    pose.rotation[size_t(j)] =
+        (p < 0 ? local[size_t(j)] : pose.rotation[size_t(p)] * local[size_t(j)]).normalized();
+  }
+  return pose;
+}
+
+}  // namespace poseforest::renderer

@@ -1,0 +1,27 @@
+#pragma once
+// Procedural poses: random, anatomically plausible bone rotations within per-joint limits
+// (swing of the bone direction + twist about it), used when no mocap is supplied. Each pose is
+// a pure function of (seed, index).
+
+#include <cstdint>
+
+#include "renderer/skeleton.h"
+
+namespace poseforest::renderer {
+
+/// Mixture of pose families; the probabilities are normalized.
+struct PoseSamplerConfig {
+  double p_standing = 0.35;     ///< upright, legs nearly straight
+  double p_walking = 0.25;      ///< one leg forward, one back, knees bent
+  double p_crouching = 0.12;    ///< hips and knees strongly flexed
+  double p_kicking = 0.10;      ///< one leg raised
+  double p_wide = 0.10;         ///< legs apart
+  double p_free = 0.08;         ///< every joint independent within its full limits
+  double p_arms_relaxed = 0.4;  ///< chance that an arm hangs near the body
+};
+
+/// A random pose with identity root translation (the scene grounds the feet). Rotations are
+/// body-frame (see Pose); the person stays facing roughly +Z (the scene adds the yaw).
+Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig& config = {});
+
+}  // namespace poseforest::renderer

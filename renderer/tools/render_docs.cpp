@@ -1,0 +1,216 @@
+// Writes the pictures of docs/renderer/: the procedural family in a labelled front T-pose, front
+// and back views, and a Fig. 2-style montage of sampled training frames.
+//   render_docs OUT_DIR
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "renderer/montage.h"
+#include "renderer/procedural_body.h"
+#include "renderer/synthetic_source.h"
+#include "runtime/image_io.h"
+
+#ifdef POSEFOREST_DOCS_WITH_ASSETS
+#include "renderer/assets/makehuman.h"
+#include "renderer/assets/mesh_loader.h"
+#endif
+
+using namespace poseforest;
+using namespace poseforest::renderer;
+
+namespace {
+
+SceneSample Front(int body, double yaw_deg, double dist, double cam_h) {
+  SceneSample s;
+  PersonPlacement p;
+  p.body = body;
+  Eigen::Isometry3d world_from_body = Eigen::Isometry3d::Identity();
+  world_from_body.translate(Eigen::Vector3d(0, 0, -dist));
+  world_from_body.rotate(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()));
+  Eigen::Isometry3d camera_from_world = Eigen::Isometry3d::Identity();
+  camera_from_world.rotate(Eigen::Matrix3d(Eigen::Vector3d(1, -1, -1).asDiagonal()));
+  camera_from_world.translate(Eigen::Vector3d(0, -cam_h, 0));
+  p.camera_from_body = camera_from_world * world_from_body;
+  s.people.push_back(p);
+  return s;
+}
+
+/// Copies `src` (w x h) into `dst` at (x0, y0).
+void Blit(const RgbImage& src, RgbImage* dst, int x0, int y0) {
+  for (int y = 0; y < src.height && y0 + y < dst->height; ++y) {
+    for (int x = 0; x < src.width && x0 + x < dst->width; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        dst->rgb[(size_t(y0 + y) * size_t(dst->width) + size_t(x0 + x)) * 3 + size_t(c)] =
+            src.rgb[(size_t(y) * size_t(src.width) + size_t(x)) * 3 + size_t(c)];
+      }
+    }
+  }
+}
+
+/// The horizontal window [x0, x0 + w) of a picture.
+RgbImage CropX(const RgbImage& src, int x0, int w) {
+  RgbImage out;
+  out.width = w;
+  out.height = src.height;
+  out.rgb.assign(size_t(w) * size_t(src.height) * 3, 0);
+  for (int y = 0; y < src.height; ++y) {
+    for (int x = 0; x < w; ++x) {
+      if (x0 + x < 0 || x0 + x >= src.width) continue;
+      for (int c = 0; c < 3; ++c) {
+        out.rgb[(size_t(y) * size_t(w) + size_t(x)) * 3 + size_t(c)] =
+            src.rgb[(size_t(y) * size_t(src.width) + size_t(x0 + x)) * 3 + size_t(c)];
+      }
+    }
+  }
+  return out;
+}
+
+int Fail(const core::Status& st) {
+  std::fprintf(stderr, "render_docs: %s\n", st.ToString().c_str());
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2 && argc != 3) {
+    std::fprintf(stderr, "usage: render_docs OUT_DIR [DATA_DIR]\n");
+    return 2;
+  }
+  const std::filesystem::path out = argv[1];
+  std::filesystem::create_directories(out);
+  SceneConfig config;
+  config.variants_per_shape = 1;
+  config.noise.enabled = false;
+  auto r = SyntheticRenderer::Create(config);
+  if (!r.ok()) return Fail(r.status());
+  std::printf("GL: %s\n", (*r)->GlRendererString().c_str());
+
+  // 1. The family, front T-pose, labels: 8 x 2 cells cropped around the body.
+  {
+    const int cell_w = 220, cols = 8;
+    RgbImage grid;
+    grid.width = cols * cell_w;
+    grid.height = 2 * 240;
+    grid.rgb.assign(size_t(grid.width) * size_t(grid.height) * 3, 0);
+    for (int b = 0; b < kNumProceduralShapes; ++b) {
+      auto f = (*r)->RenderScene(Front(b, 0, 4.2, 1.0));
+      if (!f.ok()) return Fail(f.status());
+      const RgbImage pic = CropX(LabelsToColour(f->labels, 2), 160 - cell_w / 2, cell_w);
+      Blit(pic, &grid, (b % cols) * cell_w, (b / cols) * 240);
+    }
+    if (auto st =
+            runtime::WriteRgbPng((out / "procedural_family.png").string(), grid.width, grid.height, grid.rgb);
+        !st.ok())
+      return Fail(st);
+  }
+  // 2. Front and back of two bodies (labels + depth), full resolution crops.
+  {
+    RgbImage grid;
+    const int cell_w = 360;
+    grid.width = 4 * cell_w;
+    grid.height = 480;
+    grid.rgb.assign(size_t(grid.width) * size_t(grid.height) * 3, 0);
+    int k = 0;
+    for (int b : {11, 6}) {
+      for (double yaw : {0.0, 180.0}) {
+        auto f = (*r)->RenderScene(Front(b, yaw, 2.6, 0.95));
+        if (!f.ok()) return Fail(f.status());
+        Blit(CropX(LabelsToColour(f->labels, 1), 320 - cell_w / 2, cell_w), &grid, k * cell_w, 0);
+        ++k;
+      }
+    }
+    if (auto st = runtime::WriteRgbPng((out / "front_back.png").string(), grid.width, grid.height, grid.rgb);
+        !st.ok())
+      return Fail(st);
+  }
+  // 3. Fig. 2-style montage of sampled training frames (noise on, some with 2 people).
+  {
+    SceneConfig c2;
+    c2.min_people = 1;
+    c2.max_people = 2;
+    c2.rotation_range_deg = 180;
+    auto r2 = SyntheticRenderer::Create(c2);
+    if (!r2.ok()) return Fail(r2.status());
+    std::vector<RenderedFrame> frames;
+    for (uint64_t i = 0; i < 8; ++i) {
+      auto f = (*r2)->Render(2011, i);
+      if (!f.ok()) return Fail(f.status());
+      frames.push_back(std::move(f).value());
+    }
+    const RgbImage m = MakeMontage(frames, 4, 2, 2);
+    if (auto st = runtime::WriteRgbPng((out / "montage.png").string(), m.width, m.height, m.rgb); !st.ok())
+      return Fail(st);
+  }
+  // 4. Close-up at 2 m with Kinect noise: depth | labels at full resolution, two poses.
+  {
+    SceneConfig c3;
+    c3.min_distance_m = c3.max_distance_m = 2.0;
+    c3.lateral_fraction = 0.0;
+    c3.mirror_probability = 0.0;
+    auto r3 = SyntheticRenderer::Create(c3);
+    if (!r3.ok()) return Fail(r3.status());
+    RgbImage grid;
+    const int cell_w = 320;
+    grid.width = 4 * cell_w;
+    grid.height = 480;
+    grid.rgb.assign(size_t(grid.width) * size_t(grid.height) * 3, 0);
+    for (int k = 0; k < 2; ++k) {
+      auto f = (*r3)->Render(5, uint64_t(k + 1));
+      if (!f.ok()) return Fail(f.status());
+      Blit(CropX(DepthToGrey(f->depth, 1), 160, cell_w), &grid, 2 * k * cell_w, 0);
+      Blit(CropX(LabelsToColour(f->labels, 1), 160, cell_w), &grid, (2 * k + 1) * cell_w, 0);
+    }
+    if (auto st =
+            runtime::WriteRgbPng((out / "closeup_noise.png").string(), grid.width, grid.height, grid.rgb);
+        !st.ok())
+      return Fail(st);
+  }
+#ifdef POSEFOREST_DOCS_WITH_ASSETS
+  // 5. The asset bodies (MakeHuman kit presets, Assimp rigged meshes), labelled by
+  //    LabelBodyParts, in their rest pose, front and back.
+  if (argc == 3) {
+    const std::filesystem::path data = argv[2];
+    SceneConfig c4;
+    c4.use_procedural_bodies = false;
+    c4.noise.enabled = false;
+    auto kit = assets::MakeHumanKit::Load(data / "meshes" / "makehuman_hm08_kit");
+    if (!kit.ok()) return Fail(kit.status());
+    for (const char* name : {"girl-8", "female-young-average", "male-young-heavy"}) {
+      for (const auto& p : assets::MakeHumanPresets()) {
+        if (p.name != name) continue;
+        auto body = (*kit)->Build(p);
+        if (!body.ok()) return Fail(body.status());
+        c4.bodies.push_back(std::move(body).value());
+      }
+    }
+    for (const char* f : {"cesium_man/CesiumMan.glb", "quaternius_modular_women/Soldier.gltf",
+                          "quaternius_casual_female/Casual_Female.gltf"}) {
+      auto body = assets::LoadRiggedMesh(data / "meshes" / f);
+      if (!body.ok()) return Fail(body.status());
+      c4.bodies.push_back(std::move(body).value());
+    }
+    auto r4 = SyntheticRenderer::Create(c4);
+    if (!r4.ok()) return Fail(r4.status());
+    const int n = int((*r4)->bodies().size()), cell_w = 200;
+    RgbImage grid;
+    grid.width = n * cell_w;
+    grid.height = 2 * 240;
+    grid.rgb.assign(size_t(grid.width) * size_t(grid.height) * 3, 0);
+    for (int b = 0; b < n; ++b) {
+      for (int k = 0; k < 2; ++k) {
+        auto f = (*r4)->RenderScene(Front(b, k ? 180.0 : 0.0, 3.2, 0.95));
+        if (!f.ok()) return Fail(f.status());
+        Blit(CropX(LabelsToColour(f->labels, 2), 160 - cell_w / 2, cell_w), &grid, b * cell_w, k * 240);
+      }
+    }
+    if (auto st =
+            runtime::WriteRgbPng((out / "asset_bodies.png").string(), grid.width, grid.height, grid.rgb);
+        !st.ok())
+      return Fail(st);
+    std::printf("wrote %s/asset_bodies.png\n", out.c_str());
+  }
+#endif
+  std::printf("wrote %s/{procedural_family,front_back,montage,closeup_noise}.png\n", out.c_str());
+  return 0;
+}

@@ -1,0 +1,87 @@
+// Procedural pose sampler: deterministic, bone lengths kept, joints within limits.
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "renderer/pose_sampler.h"
+#include "renderer/procedural_body.h"
+#include "renderer/synthetic_source.h"
+
+using namespace poseforest::renderer;
+
+namespace {
+const Eigen::Vector3d& J(const SkelPositions& s, SkelJoint j) { return s[size_t(int(j))]; }
+double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+}  // namespace
+
+TEST_CASE("procedural poses are a pure function of (seed, index)", "[pose]") {
+  const Pose a = SampleProceduralPose(5, 17), b = SampleProceduralPose(5, 17),
+             c = SampleProceduralPose(5, 18);
+  bool same = true, differ = false;
+  for (int j = 0; j < kNumSkelJoints; ++j) {
+    same = same && a.rotation[size_t(j)].coeffs() == b.rotation[size_t(j)].coeffs();
+    differ = differ || !a.rotation[size_t(j)].coeffs().isApprox(c.rotation[size_t(j)].coeffs());
+  }
+  CHECK(same);
+  CHECK(differ);
+}
+
+TEST_CASE("procedural poses keep bone lengths and respect joint limits", "[pose]") {
+  const SkelPositions rest = ProceduralSkeleton(ProceduralBaseShape(11));
+  int upright = 0, arms_raised = 0, knees_bent = 0;
+  const int n = 2000;
+  for (int i = 0; i < n; ++i) {
+    const Pose pose = SampleProceduralPose(1234, uint64_t(i));
+    const SkelPositions p = PoseJoints(rest, pose);
+    for (int j = 1; j < kNumSkelJoints; ++j) {
+      const int par = kSkelParent[size_t(j)];
+      REQUIRE(std::abs(pose.rotation[size_t(j)].norm() - 1.0) < 1e-9);
+      REQUIRE((p[size_t(j)] - p[size_t(par)]).norm() ==
+              Approx((rest[size_t(j)] - rest[size_t(par)]).norm()).margin(1e-9));
+    }
+    for (int side = 0; side < 2; ++side) {
+      const SkelJoint hip = side ? SkelJoint::kRHip : SkelJoint::kLHip;
+      const SkelJoint knee = side ? SkelJoint::kRKnee : SkelJoint::kLKnee;
+      const SkelJoint ankle = side ? SkelJoint::kRAnkle : SkelJoint::kLAnkle;
+      const SkelJoint sh = side ? SkelJoint::kRShoulder : SkelJoint::kLShoulder;
+      const SkelJoint el = side ? SkelJoint::kRElbow : SkelJoint::kLElbow;
+      const SkelJoint wr = side ? SkelJoint::kRWrist : SkelJoint::kLWrist;
+      // Knee and elbow flex within 0..150 degrees (never hyper-extend backwards a lot).
+      const double knee_flex = AngleDeg(J(p, knee) - J(p, hip), J(p, ankle) - J(p, knee));
+      const double elbow_flex = AngleDeg(J(p, el) - J(p, sh), J(p, wr) - J(p, el));
+      REQUIRE(knee_flex <= 150.0);
+      REQUIRE(elbow_flex <= 150.0);
+      // The knee bends backwards: the shin turns towards -Z of the thigh's frame, i.e. the
+      // ankle never moves in front of the thigh line by a large flexion.
+      knees_bent += knee_flex > 30.0;
+      arms_raised += J(p, el).y() > J(p, sh).y() + 0.05;
+    }
+    // The head stays above the pelvis in nearly all poses.
+    upright += J(p, SkelJoint::kHeadTop).y() > J(p, SkelJoint::kPelvis).y() + 0.3;
+  }
+  CHECK(upright > n * 0.97);
+  CHECK(arms_raised > n * 0.2);  // variety: arms up and down
+  CHECK(arms_raised < n * 1.0);  // ... but most arms hang below the shoulder
+  CHECK(knees_bent > n * 0.2);
+}
+
+TEST_CASE("FaceForward removes a pose's heading", "[pose]") {
+  const SkelPositions rest = ProceduralSkeleton(ProceduralBaseShape(11));
+  for (int i = 0; i < 50; ++i) {
+    Pose pose = SampleProceduralPose(77, uint64_t(i));
+    const Eigen::Quaterniond turn(Eigen::AngleAxisd(0.7 * i, Eigen::Vector3d::UnitY()));
+    for (auto& q : pose.rotation) q = turn * q;  // a mocap clip walking off in some direction
+    FaceForward(rest, &pose);
+    const SkelPositions p = PoseJoints(rest, pose);
+    Eigen::Vector3d left = (J(p, SkelJoint::kLHip) - J(p, SkelJoint::kRHip)) +
+                           (J(p, SkelJoint::kLShoulder) - J(p, SkelJoint::kRShoulder));
+    left.y() = 0;
+    const Eigen::Vector3d facing = left.normalized().cross(Eigen::Vector3d::UnitY());
+    CHECK(facing.z() == Approx(1.0).margin(1e-9));
+    // Only a rotation about the vertical: heights are unchanged.
+    const SkelPositions before = PoseJoints(rest, SampleProceduralPose(77, uint64_t(i)));
+    for (int j = 0; j < kNumSkelJoints; ++j)
+      CHECK(p[size_t(j)].y() == Approx(before[size_t(j)].y()).margin(1e-9));
+  }
+}

@@ -1,0 +1,295 @@
+// SyntheticRenderer: the procedural family in a front T-pose shows all 31 parts, frames are a
+// pure function of (seed, index), mirroring swaps labels and joints, visibility is sensible.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <iostream>
+#include <thread>
+
+#include "renderer/procedural_body.h"
+#include "renderer/synthetic_source.h"
+#include "runtime/core/body_parts.h"
+
+using namespace poseforest;
+using namespace poseforest::renderer;
+
+namespace {
+
+SceneConfig SmallConfig() {
+  SceneConfig c;
+  c.variants_per_shape = 1;
+  return c;
+}
+
+std::unique_ptr<SyntheticRenderer> Make(const SceneConfig& c) {
+  auto r = SyntheticRenderer::Create(c);
+  if (!r.ok()) FAIL("SyntheticRenderer: " << r.status().ToString());
+  return std::move(r).value();
+}
+
+/// Body `body` in the rest T-pose, `dist` metres in front of a level camera at 1 m height,
+/// rotated by yaw degrees (0 = facing the camera).
+SceneSample FrontScene(int body, double yaw_deg, double dist = 3.0) {
+  SceneSample s;
+  PersonPlacement p;
+  p.body = body;
+  Eigen::Isometry3d world_from_body = Eigen::Isometry3d::Identity();
+  world_from_body.translate(Eigen::Vector3d(0, 0, -dist));
+  world_from_body.rotate(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()));
+  Eigen::Isometry3d camera_from_world = Eigen::Isometry3d::Identity();
+  camera_from_world.rotate(Eigen::Matrix3d(Eigen::Vector3d(1, -1, -1).asDiagonal()));
+  camera_from_world.translate(Eigen::Vector3d(0, -1.0, 0));
+  p.camera_from_body = camera_from_world * world_from_body;
+  s.people.push_back(p);
+  return s;
+}
+
+std::vector<int> PartCounts(const core::LabelImage& labels) {
+  std::vector<int> c(core::kNumParts, 0);
+  for (uint8_t l : labels.pixels) {
+    if (l != core::kBackgroundLabel) c[l]++;
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("front and back T-pose renders of the procedural family contain all 31 parts", "[egl]") {
+  SceneConfig config = SmallConfig();
+  config.noise.enabled = false;
+  auto r = Make(config);
+  std::cout << "GL: " << r->GlRendererString() << std::endl;
+  REQUIRE(r->bodies().size() == size_t(kNumProceduralShapes));
+  for (int b = 0; b < kNumProceduralShapes; ++b) {
+    // The front shows the whole body; together with the back every part has area.
+    auto front = r->RenderScene(FrontScene(b, 0));
+    auto back = r->RenderScene(FrontScene(b, 180));
+    REQUIRE(front.ok());
+    REQUIRE(back.ok());
+    const auto cf = PartCounts(front->labels), cb = PartCounts(back->labels);
+    for (int p = 0; p < core::kNumParts; ++p) {
+      INFO(r->bodies()[size_t(b)].name << ": " << core::PartName(p) << " front " << cf[size_t(p)] << " back "
+                                       << cb[size_t(p)]);
+      CHECK(cf[size_t(p)] + cb[size_t(p)] >= 15);
+    }
+    // Facing the camera, the person's left is on the image's right (u > cx).
+    double lu = 0, ru = 0;
+    int ln = 0, rn = 0;
+    for (int y = 0; y < 480; ++y) {
+      for (int x = 0; x < 640; ++x) {
+        const uint8_t l = front->labels.at(x, y);
+        if (l == uint8_t(core::Part::kLHand)) lu += x, ++ln;
+        if (l == uint8_t(core::Part::kRHand)) ru += x, ++rn;
+      }
+    }
+    REQUIRE(ln > 0);
+    REQUIRE(rn > 0);
+    CHECK(lu / ln > 319.5);
+    CHECK(ru / rn < 319.5);
+    // Every joint of a front T-pose is visible, and projects onto the body near its part.
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      INFO(r->bodies()[size_t(b)].name << " joint " << core::JointName(j) << " at "
+                                       << front->joints[0][size_t(j)].transpose());
+      CHECK(front->visible[0][size_t(j)]);
+    }
+    const Eigen::Vector2d head_uv = config.camera.Project(front->joints[0][0].cast<double>());
+    const uint8_t head_label = front->labels.at(int(std::lround(head_uv.x())), int(std::lround(head_uv.y())));
+    CHECK(head_label <= uint8_t(core::Part::kRWHead));
+  }
+}
+
+TEST_CASE("Render(seed, index) is deterministic, across calls and renderer instances", "[egl]") {
+  SceneConfig config = SmallConfig();
+  config.min_people = 1;
+  config.max_people = 3;
+  auto a = Make(config);
+  auto b = Make(config);
+  int differing = 0;
+  for (uint64_t i = 0; i < 6; ++i) {
+    auto f1 = a->Render(77, i);
+    auto f2 = a->Render(77, i);
+    auto f3 = b->Render(77, i);
+    REQUIRE(f1.ok());
+    REQUIRE(f2.ok());
+    REQUIRE(f3.ok());
+    CHECK(f1->depth.pixels == f2->depth.pixels);
+    CHECK(f1->labels.pixels == f2->labels.pixels);
+    CHECK(f1->depth.pixels == f3->depth.pixels);
+    CHECK(f1->labels.pixels == f3->labels.pixels);
+    REQUIRE(f1->joints.size() == f3->joints.size());
+    for (size_t p = 0; p < f1->joints.size(); ++p) {
+      for (int j = 0; j < core::kNumJoints; ++j) CHECK(f1->joints[p][size_t(j)] == f3->joints[p][size_t(j)]);
+      CHECK(f1->visible[p] == f3->visible[p]);
+    }
+    auto other = a->Render(78, i);
+    REQUIRE(other.ok());
+    differing += other->depth.pixels != f1->depth.pixels;
+  }
+  CHECK(differing == 6);
+}
+
+TEST_CASE("mirroring flips the image, swaps labels through MirrorPart and joints through MirrorJoint",
+          "[egl]") {
+  SceneConfig config = SmallConfig();
+  config.noise.enabled = false;
+  auto r = Make(config);
+  for (uint64_t i = 0; i < 4; ++i) {
+    SceneSample s = r->Sample(5, i);
+    s.mirrored = false;
+    auto plain = r->RenderScene(s);
+    s.mirrored = true;
+    auto mirrored = r->RenderScene(s);
+    REQUIRE(plain.ok());
+    REQUIRE(mirrored.ok());
+    int fg = 0, agree = 0;
+    for (int y = 0; y < 480; ++y) {
+      for (int x = 0; x < 640; ++x) {
+        const uint8_t a = plain->labels.at(639 - x, y), b = mirrored->labels.at(x, y);
+        if (a == core::kBackgroundLabel && b == core::kBackgroundLabel) continue;
+        ++fg;
+        agree += a != core::kBackgroundLabel && b == uint8_t(core::MirrorPart(a)) &&
+                 plain->depth.at(639 - x, y) == mirrored->depth.at(x, y);
+      }
+    }
+    INFO("frame " << i << ": " << agree << " of " << fg << " foreground pixels agree");
+    CHECK(fg > 500);
+    CHECK(agree >= 0.995 * fg);  // only pixel centres exactly on an edge may differ
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      const Eigen::Vector3f p = plain->joints[0][size_t(core::MirrorJoint(j))];
+      const Eigen::Vector3f q = mirrored->joints[0][size_t(j)];
+      CHECK(q.x() == Approx(-p.x()).margin(1e-5));
+      CHECK(q.y() == Approx(p.y()).margin(1e-5));
+      CHECK(q.z() == Approx(p.z()).margin(1e-5));
+    }
+  }
+}
+
+TEST_CASE("sampled scenes: people in range, visibility, noise on", "[egl]") {
+  SceneConfig config = SmallConfig();
+  config.min_people = 2;
+  config.max_people = 3;
+  auto r = Make(config);
+  int frames_with_pixels = 0, visible = 0, total = 0;
+  for (uint64_t i = 0; i < 10; ++i) {
+    const SceneSample s = r->Sample(3, i);
+    REQUIRE(s.people.size() >= 2);
+    REQUIRE(s.people.size() <= 3);
+    auto f = r->Render(3, i);
+    REQUIRE(f.ok());
+    REQUIRE(f->joints.size() == s.people.size());
+    frames_with_pixels += core::CountForeground(f->depth) > 1000;
+    for (size_t p = 0; p < f->joints.size(); ++p) {
+      const double z = f->joints[p][0].z();
+      CHECK(z > config.min_distance_m - 1.0);
+      CHECK(z < config.max_distance_m + 1.0);
+      for (bool v : f->visible[p]) visible += v, ++total;
+    }
+    for (size_t k = 0; k < f->depth.pixels.size(); ++k) {
+      REQUIRE((f->depth.pixels[k] == 0) == (f->labels.pixels[k] == core::kBackgroundLabel));
+    }
+  }
+  CHECK(frames_with_pixels >= 9);
+  CHECK(visible > total / 3);  // many joints visible,
+  CHECK(visible < total);      // but occlusion and cropping hide some
+  // A person far outside the frustum: nothing rendered, nothing visible.
+  SceneSample off = FrontScene(0, 0);
+  off.people[0].camera_from_body.pretranslate(Eigen::Vector3d(20, 0, 0));
+  auto f = r->RenderScene(off);
+  REQUIRE(f.ok());
+  CHECK(core::CountForeground(f->depth) == 0);
+  for (bool v : f->visible[0]) CHECK_FALSE(v);
+}
+
+TEST_CASE("invalid scene configs are refused with the field named", "[egl]") {
+  SceneConfig c;
+  c.min_distance_m = 5;
+  c.max_distance_m = 2;
+  auto r = SyntheticRenderer::Create(c);
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("distance") != std::string::npos);
+  SceneConfig c2;
+  c2.max_people = 0;
+  CHECK_FALSE(SyntheticRenderer::Create(c2).ok());
+}
+
+TEST_CASE("a renderer created on one thread renders on another, and can be handed back", "[egl]") {
+  SceneConfig config = SmallConfig();
+  auto r = Make(config);  // created here, context released by Create
+  core::Result<RenderedFrame> on_thread = core::Status(core::ErrorCode::kInternal, "not run");
+  std::thread t([&] {
+    on_thread = r->Render(9, 1);
+    r->ReleaseContext();
+  });
+  t.join();
+  REQUIRE(on_thread.ok());
+  auto here = r->Render(9, 1);
+  REQUIRE(here.ok());
+  CHECK(here->depth.pixels == on_thread->depth.pixels);
+  CHECK(here->labels.pixels == on_thread->labels.pixels);
+  // Without the hand-over, the other thread gets a clear error instead of a crash.
+  core::Result<RenderedFrame> refused = core::Status(core::ErrorCode::kInternal, "not run");
+  std::thread t2([&] { refused = r->Render(9, 2); });
+  t2.join();
+  REQUIRE_FALSE(refused.ok());
+  CHECK(refused.status().message().find("ReleaseContext") != std::string::npos);
+}
+
+TEST_CASE("supplied poses and bodies are used; unlabelled bodies get labelled", "[egl]") {
+  SceneConfig config;
+  config.use_procedural_bodies = false;
+  BodyMesh custom = MakeProceduralBody(ProceduralBaseShape(3));
+  custom.name = "custom-unlabelled";
+  custom.part.clear();
+  config.bodies.push_back(custom);
+  Pose arms_up;  // both upper arms straight up (rotation of +-X onto +Y)
+  arms_up.rotation[size_t(int(SkelJoint::kLShoulder))] =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY());
+  arms_up.rotation[size_t(int(SkelJoint::kRShoulder))] =
+      Eigen::Quaterniond::FromTwoVectors(-Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY());
+  arms_up.rotation[size_t(int(SkelJoint::kLElbow))] = arms_up.rotation[size_t(int(SkelJoint::kLShoulder))];
+  arms_up.rotation[size_t(int(SkelJoint::kRElbow))] = arms_up.rotation[size_t(int(SkelJoint::kRShoulder))];
+  arms_up.rotation[size_t(int(SkelJoint::kLWrist))] = arms_up.rotation[size_t(int(SkelJoint::kLShoulder))];
+  arms_up.rotation[size_t(int(SkelJoint::kRWrist))] = arms_up.rotation[size_t(int(SkelJoint::kRShoulder))];
+  const bool shared = GENERATE(false, true);
+  if (shared) {
+    config.shared_poses = std::make_shared<const std::vector<Pose>>(std::vector<Pose>{arms_up});
+  } else {
+    config.poses = {arms_up};
+  }
+  config.mirror_probability = 0;
+  config.camera_roll_deg = 0;
+  auto r = Make(config);
+  REQUIRE(r->bodies().size() == 1);
+  CHECK(r->bodies()[0].name == "custom-unlabelled");
+  REQUIRE(r->bodies()[0].part.size() == r->bodies()[0].vertices.size());
+  for (uint64_t i = 0; i < 5; ++i) {
+    auto f = r->Render(1, i);
+    REQUIRE(f.ok());
+    // Hands above the head in the image (camera roll 0, small pitch): smaller v.
+    const auto& j = f->joints[0];
+    const Eigen::Vector2d head = config.camera.Project(j[size_t(int(core::Joint::kHead))].cast<double>());
+    const Eigen::Vector2d lhand = config.camera.Project(j[size_t(int(core::Joint::kLHand))].cast<double>());
+    const Eigen::Vector2d rhand = config.camera.Project(j[size_t(int(core::Joint::kRHand))].cast<double>());
+    CHECK(lhand.y() < head.y());
+    CHECK(rhand.y() < head.y());
+  }
+}
+
+TEST_CASE("people in one frame stand apart on the floor", "[egl]") {
+  SceneConfig config = SmallConfig();
+  config.min_people = config.max_people = 3;
+  auto r = Make(config);
+  int close = 0;
+  for (uint64_t i = 0; i < 100; ++i) {
+    const SceneSample s = r->Sample(4, i);
+    REQUIRE(s.people.size() == 3);
+    for (size_t a = 0; a < 3; ++a) {
+      for (size_t b = a + 1; b < 3; ++b) {
+        // Pelvis positions in the camera frame; the floor distance is at least ~0.7 m.
+        const Eigen::Vector3d pa = s.people[a].camera_from_body.translation();
+        const Eigen::Vector3d pb = s.people[b].camera_from_body.translation();
+        close += (pa - pb).norm() < 0.6;
+      }
+    }
+  }
+  CHECK(close <= 3);  // only when 8 retries all failed
+}
