@@ -1,3 +1,7 @@
 # bench/train: feature evaluations per second per core of the training histogram builder.
 add_executable(train train.cpp)
 target_link_libraries(train PRIVATE poseforest::coordinator poseforest::warnings)
+
+# bench/leaf_encoding: the accuracy cost of the forest file's uint8 leaf encoding.
+add_executable(leaf_encoding leaf_encoding.cpp)
+target_link_libraries(leaf_encoding PRIVATE poseforest::coordinator poseforest::warnings)

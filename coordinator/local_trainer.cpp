@@ -283,6 +283,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
     for (size_t i = 0; i < frontier.size(); ++i) {
       const FrontierNode& f = frontier[i];
       if (!is_split[i]) {
+        if (options_.leaf_counts) options_.leaf_counts(tree, assembler.num_leaves(), f.parts);
         assembler.MakeLeaf(f.node, f.parts);
         continue;
       }

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,9 @@ struct LocalTrainerOptions {
   int num_shards = 1;                                  ///< worker shards the frames are spread over
   std::function<void(const LevelProgress&)> progress;  ///< optional
   std::function<void(const std::string&)> log;         ///< optional free-text messages
+  /// Optional: the exact part counts of every leaf as it is made (tree, leaf index, kNumParts
+  /// counts), before the file format quantizes them; used to measure the encoding's cost.
+  std::function<void(int tree, uint32_t leaf, std::span<const uint64_t> counts)> leaf_counts;
 };
 
 struct TrainingStats {

@@ -23,6 +23,8 @@ class TreeAssembler {
   void MakeLeaf(uint32_t node, std::span<const uint64_t> part_counts);
 
   size_t num_nodes() const { return nodes_.size(); }
+  /// Leaves made so far; the next MakeLeaf creates leaf number num_leaves().
+  uint32_t num_leaves() const { return num_leaves_; }
   /// The finished tree; every node must have been decided.
   core::Tree Finish();
 

@@ -9,10 +9,11 @@ add_library(poseforest_renderer STATIC
   ${CMAKE_CURRENT_LIST_DIR}/scene.cpp
   ${CMAKE_CURRENT_LIST_DIR}/synthetic_source.cpp
   ${CMAKE_CURRENT_LIST_DIR}/montage.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/scene_assets.cpp
 )
 add_library(poseforest::renderer ALIAS poseforest_renderer)
 target_link_libraries(poseforest_renderer
-  PUBLIC poseforest::skeleton poseforest::runtime Eigen3::Eigen
+  PUBLIC poseforest::skeleton poseforest::assets poseforest::runtime Eigen3::Eigen
   PRIVATE PkgConfig::EGL PkgConfig::GLES poseforest::warnings)
 
 # `poseforest render`: writes a synthetic data set and a preview montage.
@@ -20,6 +21,8 @@ if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/cli/render_command.cpp)
   add_library(poseforest_render_cli STATIC ${CMAKE_CURRENT_LIST_DIR}/cli/render_command.cpp)
   add_library(poseforest::render_cli ALIAS poseforest_render_cli)
   target_link_libraries(poseforest_render_cli PUBLIC poseforest::renderer poseforest::cli_runtime Threads::Threads PRIVATE poseforest::warnings)
+  # Default --data folder (POSEFOREST_DATA_DIR in the environment wins).
+  target_compile_definitions(poseforest_render_cli PRIVATE POSEFOREST_RENDER_DATA_DIR="${POSEFOREST_DATA_DIR}")
   set_property(GLOBAL APPEND PROPERTY POSEFOREST_CLI_LIBS poseforest_render_cli)
   set_property(GLOBAL APPEND PROPERTY POSEFOREST_CLI_DEFS POSEFOREST_HAS_RENDER=1)
 endif()

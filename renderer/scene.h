@@ -43,6 +43,9 @@ struct SceneConfig {
 
   /// Bodies: the procedural family (kNumProceduralShapes base shapes x variants_per_shape
   /// random variants) and/or caller-supplied bodies (MakeHuman, Assimp rigs) with part labels.
+  /// Poses are made for the canonical T-pose; a supplied body whose rest pose differs (e.g.
+  /// MakeHuman's A-pose, see NeedsPoseAdaptation in scene_assets.h) gets every sampled pose
+  /// passed through assets::AdaptPose(pose, body.rest_joints) (decided once per body).
   bool use_procedural_bodies = true;
   int variants_per_shape = 3;
   std::vector<BodyMesh> bodies;

@@ -5,10 +5,12 @@
 #include <cmath>
 #include <numbers>
 
+#include "renderer/assets/retarget.h"
 #include "renderer/egl_renderer.h"
 #include "renderer/part_labels.h"
 #include "renderer/pose_sampler.h"
 #include "renderer/procedural_body.h"
+#include "renderer/scene_assets.h"
 #include "renderer/skinning.h"
 #include "runtime/core/rng.h"
 
@@ -98,6 +100,7 @@ core::Result<std::unique_ptr<SyntheticRenderer>> SyntheticRenderer::Create(const
     for (int s = 0; s < kNumProceduralShapes; ++s) {
       for (int v = 0; v < config.variants_per_shape; ++v) {
         r->bodies_.push_back(MakeProceduralBody(VaryShape(ProceduralBaseShape(s), kFamilySeed, uint64_t(v))));
+        r->adapt_pose_.push_back(0);  // built in the canonical T-pose
       }
     }
   }
@@ -107,6 +110,8 @@ core::Result<std::unique_ptr<SyntheticRenderer>> SyntheticRenderer::Create(const
       LabelBodyParts(r->bodies_.back());
       RefinePartBoundaries(r->bodies_.back(), 2);
     }
+    // Decided once per body: poses are made for the T-pose, an A-pose body needs them adapted.
+    r->adapt_pose_.push_back(NeedsPoseAdaptation(b.rest_joints) ? 1 : 0);
   }
   r->config_.bodies.clear();  // kept once, in bodies_
   for (const BodyMesh& b : r->bodies_) {
@@ -149,6 +154,10 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
     } else {
       person.pose = SampleProceduralPose(pose_bits, 0);
     }
+    // Library and procedural poses are relative to the canonical T-pose; re-express them for a
+    // body resting in another pose (MakeHuman's A-pose), or its arms would come out ~45 deg off.
+    if (adapt_pose_[size_t(person.body)])
+      person.pose = assets::AdaptPose(person.pose, bodies_[size_t(person.body)].rest_joints);
     person.scale = 1.0 + rng.UniformIn(-c.height_jitter, c.height_jitter);
     const double yaw = rng.UniformIn(-c.rotation_range_deg, c.rotation_range_deg);
     // Place people at least 0.7 m apart on the floor (a few deterministic retries; after

@@ -68,6 +68,9 @@ class SyntheticRenderer {
   SceneConfig config_;
   std::vector<BodyMesh> bodies_;
   std::vector<int> gpu_mesh_;  ///< EglRenderer mesh handle per body
+  /// Per body: 1 when its rest pose is not the canonical T-pose, so sampled poses go through
+  /// assets::AdaptPose (NeedsPoseAdaptation in scene_assets.h).
+  std::vector<char> adapt_pose_;
   std::unique_ptr<EglRenderer> gl_;
   StageTimes times_;
   bool profile_stages_ = false;

@@ -10,6 +10,11 @@
 #include "runtime/core/rng.h"
 #include "runtime/image_io.h"
 #if POSEFOREST_HAS_RENDERER
+#include <deque>
+#include <mutex>
+#include <utility>
+
+#include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
 #endif
 
@@ -59,13 +64,86 @@ class DatasetImageSource final : public ImageSource {
 };
 
 #if POSEFOREST_HAS_RENDERER
-void ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
+/// A small process-wide cache of loaded assets: every thread (and every tree) of a job creates
+/// its own ImageSource, but the pose library is read and the MakeHuman bodies are built once.
+/// Keys name the file and its size + modification time, so an edited library is reloaded; the
+/// few most recent entries are kept (a long-lived worker may see several jobs).
+template <typename T>
+class AssetCache {
+ public:
+  template <typename Make>
+  Result<std::shared_ptr<const T>> Get(const std::string& key, Make make) {
+    std::lock_guard<std::mutex> lock(mu_);  // held while loading: the other threads wait for it
+    for (const auto& [k, v] : entries_)
+      if (k == key) return v;
+    Result<std::shared_ptr<const T>> made = make();
+    if (!made.ok()) return made.status();
+    entries_.emplace_back(key, *made);
+    if (entries_.size() > kMaxEntries) entries_.pop_front();
+    return made;
+  }
+
+ private:
+  static constexpr size_t kMaxEntries = 4;
+  std::mutex mu_;
+  std::deque<std::pair<std::string, std::shared_ptr<const T>>> entries_;
+};
+
+std::string FileKey(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  std::string key = fs::absolute(path, ec).lexically_normal().string();
+  const auto size = fs::file_size(path, ec);
+  if (!ec) key.append(1, '|').append(std::to_string(size));
+  const auto time = fs::last_write_time(path, ec);
+  if (!ec) key.append(1, '|').append(std::to_string(time.time_since_epoch().count()));
+  return key;
+}
+
+Result<std::shared_ptr<const std::vector<renderer::Pose>>> SharedPoses(const SourceSpec& spec) {
+  static AssetCache<std::vector<renderer::Pose>> cache;
+  renderer::PoseSelection sel;
+  sel.library = spec.pose_library;
+  sel.clips = spec.clips == ClipSet::kTrain  ? renderer::ClipSet::kTrain
+              : spec.clips == ClipSet::kTest ? renderer::ClipSet::kTest
+                                             : renderer::ClipSet::kAll;
+  sel.test_fraction = spec.test_fraction;
+  sel.split_seed = spec.split_seed;
+  char tail[96];
+  std::snprintf(tail, sizeof tail, "|%s|%.17g|%llu", renderer::ClipSetName(sel.clips), sel.test_fraction,
+                static_cast<unsigned long long>(sel.split_seed));
+  return cache.Get(FileKey(spec.pose_library) + tail, [&] { return renderer::LoadPoseSelection(sel); });
+}
+
+Result<std::shared_ptr<const std::vector<renderer::BodyMesh>>> SharedMakeHumanBodies(const SourceSpec& spec) {
+  static AssetCache<std::vector<renderer::BodyMesh>> cache;
+  return cache.Get(
+      FileKey(spec.makehuman_kit), [&]() -> Result<std::shared_ptr<const std::vector<renderer::BodyMesh>>> {
+        auto bodies = renderer::MakeHumanPresetBodies(spec.makehuman_kit);
+        if (!bodies.ok()) return bodies.status();
+        return std::make_shared<const std::vector<renderer::BodyMesh>>(std::move(bodies).value());
+      });
+}
+
+Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
   scene->rotation_range_deg = spec.rotation_range_deg;
   scene->min_people = 1;
   scene->max_people = spec.max_people;
   scene->noise.enabled = spec.kinect_noise;
   scene->min_distance_m = spec.min_distance_m;
   scene->max_distance_m = spec.max_distance_m;
+  if (!spec.pose_library.empty()) {
+    auto poses = SharedPoses(spec);
+    if (!poses.ok()) return poses.status();
+    scene->shared_poses = *poses;
+  }
+  scene->use_procedural_bodies = spec.procedural_bodies;
+  if (!spec.makehuman_kit.empty()) {
+    auto bodies = SharedMakeHumanBodies(spec);
+    if (!bodies.ok()) return bodies.status();
+    scene->bodies = **bodies;  // the renderer keeps its own copy (uploaded to its GL context)
+  }
+  return Status::Ok();
 }
 
 class RenderedImageSource final : public ImageSource {
@@ -81,7 +159,18 @@ class RenderedImageSource final : public ImageSource {
     return out;
   }
   uint64_t size() const override { return 0; }
-  std::string Describe() const override { return "rendered seed " + std::to_string(spec_.seed); }
+  std::string Describe() const override {
+    std::string d = "rendered seed " + std::to_string(spec_.seed);
+    if (!spec_.pose_library.empty()) {
+      const char* clips = spec_.clips == ClipSet::kTrain  ? "train"
+                          : spec_.clips == ClipSet::kTest ? "test"
+                                                          : "all";
+      d += ", poses: " + std::string(clips) + " clips of " + spec_.pose_library;
+    }
+    if (!spec_.makehuman_kit.empty())
+      d += std::string(", bodies: MakeHuman") + (spec_.procedural_bodies ? " + procedural" : "");
+    return d;
+  }
 
  private:
   SourceSpec spec_;
@@ -182,7 +271,7 @@ Result<std::unique_ptr<ImageSource>> MakeImageSource(const SourceSpec& spec) {
     case SourceKind::kRendered: {
 #if POSEFOREST_HAS_RENDERER
       renderer::SceneConfig scene;
-      ApplySceneOptions(spec, &scene);
+      POSEFOREST_RETURN_IF_ERROR(ApplySceneOptions(spec, &scene));
       auto r = renderer::SyntheticRenderer::Create(scene);
       if (!r.ok()) return r.status();
       return std::unique_ptr<ImageSource>(new RenderedImageSource(spec, std::move(*r)));

@@ -4,6 +4,7 @@
 #include <google/protobuf/text_format.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -74,6 +75,43 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
                    "must be in min_distance_m..8 m");
       spec.width = 640;
       spec.height = 480;
+      namespace fs = std::filesystem;
+      std::error_code ec;
+      spec.pose_library = r.pose_library();
+      if (!spec.pose_library.empty() && !fs::is_regular_file(spec.pose_library, ec))
+        return Bad(source, field + ".rendered.pose_library", "\"" + spec.pose_library + "\"",
+                   fs::exists(spec.pose_library, ec)
+                       ? "is not a file (expected a .pfposes pose library from `poseforest-poselib build`)"
+                       : "no such file (expected a .pfposes pose library from `poseforest-poselib build`)");
+      switch (r.clips()) {
+        case v1::CLIP_SET_UNSPECIFIED:
+        case v1::CLIP_SET_ALL:
+          spec.clips = ClipSet::kAll;
+          break;
+        case v1::CLIP_SET_TRAIN:
+          spec.clips = ClipSet::kTrain;
+          break;
+        case v1::CLIP_SET_TEST:
+          spec.clips = ClipSet::kTest;
+          break;
+        default:
+          return Bad(source, field + ".rendered.clips", Str(int(r.clips())), "unknown clip set");
+      }
+      spec.test_fraction = r.has_test_fraction() ? r.test_fraction() : 0.2;
+      if (!std::isfinite(spec.test_fraction) || spec.test_fraction < 0 || spec.test_fraction > 1)
+        return Bad(source, field + ".rendered.test_fraction", Str(spec.test_fraction), "must be in 0..1");
+      spec.split_seed = r.split_seed();
+      if (spec.pose_library.empty() && (r.has_clips() || r.has_test_fraction() || r.has_split_seed()))
+        return Bad(source, field + ".rendered.pose_library", "",
+                   "is required when clips, test_fraction or split_seed is set");
+      spec.makehuman_kit = r.makehuman_kit();
+      if (!spec.makehuman_kit.empty() && !fs::is_directory(spec.makehuman_kit, ec))
+        return Bad(source, field + ".rendered.makehuman_kit", "\"" + spec.makehuman_kit + "\"",
+                   "no such folder (expected the MakeHuman hm08 kit, e.g. <data>/meshes/makehuman_hm08_kit)");
+      spec.procedural_bodies = r.has_procedural_bodies() ? r.procedural_bodies() : true;
+      if (!spec.procedural_bodies && spec.makehuman_kit.empty())
+        return Bad(source, field + ".rendered.procedural_bodies", "false",
+                   "leaves no bodies: set makehuman_kit or keep the procedural bodies");
       break;
     }
     case v1::ImageSource::kDataset: {
@@ -207,6 +245,23 @@ Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& c, const std::stri
   return p;
 }
 
+void ResolveJobPaths(const std::string& job_path, v1::TrainerConfig* config) {
+  namespace fs = std::filesystem;
+  const fs::path base = fs::path(job_path).parent_path();
+  auto fix = [&](std::string* p) {
+    if (!p->empty() && fs::path(*p).is_relative()) *p = (base / *p).lexically_normal().string();
+  };
+  for (v1::ImageSource* src : {config->has_source() ? config->mutable_source() : nullptr,
+                               config->has_test_set() && config->test_set().has_source()
+                                   ? config->mutable_test_set()->mutable_source()
+                                   : nullptr}) {
+    if (!src || !src->has_rendered()) continue;
+    v1::RenderedSource* r = src->mutable_rendered();
+    if (r->has_pose_library()) fix(r->mutable_pose_library());
+    if (r->has_makehuman_kit()) fix(r->mutable_makehuman_kit());
+  }
+}
+
 Result<TrainParams> LoadJob(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return Status(ErrorCode::kIo, path + ": cannot open job config");
@@ -215,6 +270,7 @@ Result<TrainParams> LoadJob(const std::string& path) {
   if (in.bad()) return Status(ErrorCode::kIo, path + ": read failed");
   auto config = ParseJobText(text.str(), path);
   if (!config.ok()) return config.status();
+  ResolveJobPaths(path, &*config);
   return ParamsFromConfig(*config, path);
 }
 

@@ -17,6 +17,9 @@ namespace poseforest::worker {
 
 enum class SourceKind { kRendered, kDataset, kProcedural };
 
+/// Clips of a pose library a rendered source draws poses from (poseforest.v1.ClipSet).
+enum class ClipSet { kAll, kTrain, kTest };
+
 /// Where labelled frames come from (poseforest.v1.ImageSource with defaults applied).
 struct SourceSpec {
   SourceKind kind = SourceKind::kProcedural;
@@ -31,6 +34,14 @@ struct SourceSpec {
   uint32_t first_index = 0;         ///< dataset: first file index
   uint32_t count = 0;               ///< dataset: frames to use (0 = every consecutive file)
   int num_parts = 31;               ///< procedural: labels used
+  /// rendered: a .pfposes pose library ("" = procedural poses). Relative paths are relative to
+  /// the working directory here: LoadJob has already resolved them against the job file's folder.
+  std::string pose_library;
+  ClipSet clips = ClipSet::kAll;  ///< rendered: clips of pose_library used
+  double test_fraction = 0.2;     ///< rendered: share of clips in the test set, [0, 1]
+  uint64_t split_seed = 0;        ///< rendered: seed of the clip split
+  std::string makehuman_kit;      ///< rendered: MakeHuman hm08 kit folder ("" = none)
+  bool procedural_bodies = true;  ///< rendered: the procedural body family
 };
 
 /// Everything the trainer needs, validated: see job.proto for meanings and defaults.
@@ -67,7 +78,12 @@ core::Result<v1::TrainerConfig> ParseJobText(const std::string& text, const std:
 /// "job.textproto: thresholds_per_feature = 300: must be in 1..255".
 core::Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& config, const std::string& source_name);
 
-/// Reads, parses and validates a job file.
+/// Makes the relative file paths of a config (source / test_set.source rendered.pose_library
+/// and rendered.makehuman_kit) relative to the folder of `job_path` (the job file), so the job
+/// means the same whatever the working directory. Absolute and empty paths stay as they are.
+void ResolveJobPaths(const std::string& job_path, v1::TrainerConfig* config);
+
+/// Reads, parses (ResolveJobPaths against `path`) and validates a job file.
 core::Result<TrainParams> LoadJob(const std::string& path);
 
 /// One-line human summary ("3 trees, depth 20, 1000 images/tree, ...").

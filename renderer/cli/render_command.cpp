@@ -13,11 +13,16 @@
 #include <vector>
 
 #include "renderer/montage.h"
+#include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/image_io.h"
+
+#ifndef POSEFOREST_RENDER_DATA_DIR  // set by renderer.cmake from the POSEFOREST_DATA_DIR cache value
+#define POSEFOREST_RENDER_DATA_DIR "../shared/data"
+#endif
 
 namespace poseforest::cli {
 namespace {
@@ -26,7 +31,8 @@ constexpr const char* kUsage =
     "usage: poseforest render --out DIR [options]\n"
     "\n"
     "Renders synthetic depth frames of people with ground-truth body parts and joints\n"
-    "(procedural bodies and poses, headless EGL). Files in DIR, for i = 0..N-1:\n"
+    "(headless EGL; procedural bodies and poses unless told otherwise). Files in DIR, for\n"
+    "i = 0..N-1:\n"
     "  depth_%06d.png   16-bit depth, millimetres (0 = background)\n"
     "  labels_%06d.png  8-bit part id 0..30 (255 = background)\n"
     "  joints_%06d.json 16 joints per person, camera frame (metres) + pixel + visibility\n"
@@ -40,6 +46,17 @@ constexpr const char* kUsage =
     "  --people N         people per frame (default 1)\n"
     "  --no-noise         no Kinect noise model (clean rendered depth)\n"
     "  --montage FILE.png preview of the first 8 frames: depth grey | part colours, 4x2 grid\n"
+    "  --poses FILE.pfposes  draw poses from this mocap pose library (poseforest-poselib build)\n"
+    "                     instead of the procedural pose sampler\n"
+    "  --clips train|test|all  clips of --poses to use (default all); a clip is a test clip\n"
+    "                     when a hash of (clip name, --split-seed) is below --test-fraction\n"
+    "  --test-fraction F  share of clips in the test set, 0..1 (default 0.2)\n"
+    "  --split-seed S     seed of the clip split (default 0)\n"
+    "  --bodies procedural|makehuman|all  body family (default procedural); makehuman = the 18\n"
+    "                     MakeHuman presets from DATA/meshes/makehuman_hm08_kit\n"
+    "  --data DIR         shared data folder (default: $POSEFOREST_DATA_DIR, else the build's\n"
+    "                     " POSEFOREST_RENDER_DATA_DIR
+    ")\n"
     "  --help             this text\n";
 
 std::string FrameName(const std::string& dir, const char* stem, uint64_t i, const char* ext) {
@@ -76,7 +93,9 @@ std::string JointsJson(const renderer::RenderedFrame& f, const core::CameraIntri
 }  // namespace
 
 int RenderMain(int argc, char** argv) {
-  Args args({"out", "count", "seed", "threads", "rotation", "people", "montage"}, {"no-noise", "help"});
+  Args args({"out", "count", "seed", "threads", "rotation", "people", "montage", "poses", "clips",
+             "test-fraction", "split-seed", "bodies", "data"},
+            {"no-noise", "help"});
   if (core::Status st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest render: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -114,6 +133,88 @@ int RenderMain(int argc, char** argv) {
       return 2;
     }
   }
+  // Poses and bodies: checked before anything is written.
+  const std::string clips = args.GetOr("clips", "all"), bodies = args.GetOr("bodies", "procedural");
+  if (clips != "all" && clips != "train" && clips != "test") {
+    std::fprintf(stderr, "poseforest render: --clips must be train, test or all, not '%s'\n", clips.c_str());
+    return 2;
+  }
+  if (bodies != "procedural" && bodies != "makehuman" && bodies != "all") {
+    std::fprintf(stderr, "poseforest render: --bodies must be procedural, makehuman or all, not '%s'\n",
+                 bodies.c_str());
+    return 2;
+  }
+  if (!args.Has("poses")) {
+    for (const char* o : {"clips", "test-fraction", "split-seed"}) {
+      if (args.Has(o)) {
+        std::fprintf(stderr, "poseforest render: --%s needs --poses FILE.pfposes\n", o);
+        return 2;
+      }
+    }
+  }
+  double test_fraction = 0.2;
+  if (auto f = args.Get("test-fraction")) {
+    char* end = nullptr;
+    test_fraction = std::strtod(f->c_str(), &end);
+    if (f->empty() || *end != '\0' || !(test_fraction >= 0 && test_fraction <= 1)) {
+      std::fprintf(stderr, "poseforest render: --test-fraction must be a number in [0, 1], not '%s'\n",
+                   f->c_str());
+      return 2;
+    }
+  }
+  uint64_t split_seed = 0;
+  if (auto s = args.Get("split-seed")) {
+    char* end = nullptr;
+    split_seed = std::strtoull(s->c_str(), &end, 10);
+    if (s->empty() || *end != '\0' || (*s)[0] == '-') {
+      std::fprintf(stderr, "poseforest render: --split-seed must be a non-negative integer, not '%s'\n",
+                   s->c_str());
+      return 2;
+    }
+  }
+
+  renderer::SceneConfig config;
+  if (auto poses = args.Get("poses")) {
+    renderer::PoseSelection sel;
+    sel.library = *poses;
+    sel.clips = clips == "train"  ? renderer::ClipSet::kTrain
+                : clips == "test" ? renderer::ClipSet::kTest
+                                  : renderer::ClipSet::kAll;
+    sel.test_fraction = test_fraction;
+    sel.split_seed = split_seed;
+    auto lib = renderer::LoadPoseSelection(sel);
+    if (!lib.ok()) {
+      std::fprintf(stderr, "poseforest render: --poses %s\n", lib.status().ToString().c_str());
+      return 1;
+    }
+    config.shared_poses = *lib;  // one copy shared by every thread's renderer
+    std::printf("poses: %zu from the %s clips of %s\n", (*lib)->size(), clips.c_str(), poses->c_str());
+  }
+  config.use_procedural_bodies = bodies != "makehuman";
+  if (bodies != "procedural") {
+    std::filesystem::path data = POSEFOREST_RENDER_DATA_DIR;
+    if (const char* env = std::getenv("POSEFOREST_DATA_DIR"); env && *env) data = env;
+    if (auto d = args.Get("data")) data = *d;
+    const std::filesystem::path kit = data / "meshes" / "makehuman_hm08_kit";
+    std::error_code dir_ec;
+    if (!std::filesystem::is_directory(kit, dir_ec)) {
+      std::fprintf(stderr,
+                   "poseforest render: --bodies %s: %s: MakeHuman kit folder not found (set --data DIR or "
+                   "POSEFOREST_DATA_DIR to the shared data folder)\n",
+                   bodies.c_str(), kit.string().c_str());
+      return 1;
+    }
+    auto made = renderer::MakeHumanPresetBodies(kit);
+    if (!made.ok()) {
+      std::fprintf(stderr, "poseforest render: --bodies %s: %s\n", bodies.c_str(),
+                   made.status().ToString().c_str());
+      return 1;
+    }
+    config.bodies = std::move(made).value();
+    std::printf("bodies: %zu MakeHuman presets from %s%s\n", config.bodies.size(), kit.string().c_str(),
+                bodies == "all" ? " + the procedural family" : "");
+  }
+
   std::error_code ec;
   std::filesystem::create_directories(*out, ec);
   if (ec) {
@@ -121,7 +222,6 @@ int RenderMain(int argc, char** argv) {
     return 1;
   }
 
-  renderer::SceneConfig config;
   config.rotation_range_deg = *rotation == 360 ? 180.0 : 120.0;
   config.min_people = config.max_people = int(*people);
   config.noise.enabled = !args.Has("no-noise");

@@ -111,3 +111,72 @@ TEST_CASE("LoadJob reads a file and names it in errors", "[training][config]") {
   REQUIRE_FALSE(bad.ok());
   CHECK_THAT(bad.status().message(), Catch::Contains(path) && Catch::Contains("thresholds_per_feature"));
 }
+
+TEST_CASE("mocap pose library and MakeHuman options parse, with paths relative to the job file",
+          "[training][config][mocap]") {
+  const auto dir = testing::ScratchDir("job-config-mocap");
+  std::filesystem::create_directories(dir / "poses");
+  std::filesystem::create_directories(dir / "kit");
+  std::ofstream(dir / "poses" / "lib.pfposes") << "not parsed here";
+  const auto path = (dir / "job.textproto").string();
+  std::ofstream(path) << R"(images_per_tree: 3
+source { rendered { pose_library: "poses/lib.pfposes" clips: CLIP_SET_TRAIN test_fraction: 0.25
+                    split_seed: 9 makehuman_kit: "kit" procedural_bodies: false } }
+test_set { source { rendered { pose_library: "poses/lib.pfposes" clips: CLIP_SET_TEST } } }
+)";
+  auto p = worker::LoadJob(path);
+  REQUIRE(p.ok());
+  CHECK(p->source.pose_library == (dir / "poses" / "lib.pfposes").string());
+  CHECK(p->source.clips == worker::ClipSet::kTrain);
+  CHECK(p->source.test_fraction == 0.25);
+  CHECK(p->source.split_seed == 9);
+  CHECK(p->source.makehuman_kit == (dir / "kit").string());
+  CHECK_FALSE(p->source.procedural_bodies);
+  REQUIRE(p->has_test_set);
+  CHECK(p->test_source.clips == worker::ClipSet::kTest);
+  CHECK(p->test_source.test_fraction == 0.2);  // defaults
+  CHECK(p->test_source.split_seed == 0);
+  CHECK(p->test_source.procedural_bodies);
+  CHECK(p->test_source.makehuman_kit.empty());
+
+  // Without options: procedural poses and bodies, as before.
+  auto plain = Parse("images_per_tree: 5 source { rendered { } }");
+  REQUIRE(plain.ok());
+  CHECK(plain->source.pose_library.empty());
+  CHECK(plain->source.clips == worker::ClipSet::kAll);
+  CHECK(plain->source.procedural_bodies);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("bad mocap options give errors naming the field and the path", "[training][config][mocap]") {
+  const std::string missing = "/nonexistent/poses/lib.pfposes";
+  const std::string e =
+      ErrorOf("images_per_tree: 5 source { rendered { pose_library: \"" + missing + "\" } }");
+  CHECK_THAT(e, Catch::Contains("source.rendered.pose_library") && Catch::Contains(missing) &&
+                    Catch::Contains("no such file"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { procedural { } } test_set { source { rendered { "
+                     "pose_library: \"" +
+                     missing + "\" } } }"),
+             Catch::Contains("test_set.source.rendered.pose_library") && Catch::Contains(missing));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { makehuman_kit: \"/nonexistent/kit\" } }"),
+             Catch::Contains("source.rendered.makehuman_kit") && Catch::Contains("/nonexistent/kit"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { clips: CLIP_SET_TEST } }"),
+             Catch::Contains("source.rendered.pose_library") && Catch::Contains("required"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { procedural_bodies: false } }"),
+             Catch::Contains("source.rendered.procedural_bodies"));
+  const auto dir = testing::ScratchDir("job-config-mocap-bad");
+  const auto lib = (dir / "lib.pfposes").string();
+  std::ofstream(lib) << "x";
+  CHECK_THAT(
+      ErrorOf("images_per_tree: 5 source { rendered { pose_library: \"" + lib + "\" test_fraction: 1.5 } }"),
+      Catch::Contains("source.rendered.test_fraction = 1.5"));
+  // A relative path that does not exist next to the job file: the error names the resolved path.
+  const auto job = (dir / "job.textproto").string();
+  std::ofstream(job) << "images_per_tree: 3 source { rendered { pose_library: \"nope.pfposes\" } }\n";
+  auto bad = worker::LoadJob(job);
+  REQUIRE_FALSE(bad.ok());
+  CHECK_THAT(bad.status().message(), Catch::Contains(job) &&
+                                         Catch::Contains("source.rendered.pose_library") &&
+                                         Catch::Contains((dir / "nope.pfposes").string()));
+  std::filesystem::remove_all(dir);
+}

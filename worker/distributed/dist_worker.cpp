@@ -52,7 +52,7 @@ struct DistWorker::Impl {
   std::mutex send_mu;  // guards stamper + job identity used by the heartbeat thread
   dds::EnvelopeStamper stamper;
   std::atomic<bool> has_job{false}, assigned_any{false}, busy{false};
-  std::atomic<uint64_t> newest_epoch{0}, frames_rendered{0};
+  std::atomic<uint64_t> newest_epoch{0}, frames_rendered{0}, shard_epoch{0};
   std::atomic<v1::RendererKind> renderer{v1::RENDERER_KIND_PROCEDURAL};
 
   dds::MessageGate job_gate;
@@ -110,6 +110,9 @@ struct DistWorker::Impl {
           h->set_busy_threads(busy ? uint32_t(std::max(1, opt.threads)) : 0);
           h->set_epoch(newest_epoch);
           h->set_frames_rendered(frames_rendered);
+          HeartbeatExt ext;
+          ext.set_shard_epoch(shard_epoch);
+          AttachExt(ext, h);
         }
         (void)Publish(Topic::kPresence, env);
       }
@@ -403,6 +406,7 @@ struct DistWorker::Impl {
       case v1::Envelope::kShard:
         newest_epoch = std::max<uint64_t>(newest_epoch, env.shard().epoch());
         st = LoadShard(env.shard());
+        if (st.ok()) shard_epoch = env.shard().epoch();
         break;
       case v1::Envelope::kDecisions:
         if (have_shard && int(env.decisions().tree()) == tree) st = ApplyDecisions(env.decisions());
