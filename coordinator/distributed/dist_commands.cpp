@@ -1,0 +1,260 @@
+// `poseforest coordinator` and `poseforest worker`: thin wrappers around DistCoordinator and
+// DistWorker (docs/distributed/service.md).
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "coordinator/distributed/dist_coordinator.h"
+#include "poseforest/v1/job.pb.h"
+#include "runtime/cli/args.h"
+#include "runtime/cli/commands.h"
+#include "runtime/core/forest_format.h"
+#include "worker/distributed/dist_common.h"
+#include "worker/distributed/dist_worker.h"
+#include "worker/job_spec.h"
+
+extern char** environ;
+
+namespace poseforest::cli {
+
+using core::Status;
+
+namespace {
+std::atomic<poseforest::dist::DistWorker*> g_worker{nullptr};
+void OnWorkerSignal(int) {
+  if (auto* w = g_worker.load()) w->Stop();
+}
+
+std::string Human(double bytes) {
+  char buf[32];
+  if (bytes >= 1 << 20)
+    std::snprintf(buf, sizeof buf, "%.1f MiB", bytes / (1 << 20));
+  else
+    std::snprintf(buf, sizeof buf, "%.1f KiB", bytes / 1024);
+  return buf;
+}
+
+/// Worker processes started by --local-workers; killed (TERM, then KILL) at the end.
+struct LocalWorkers {
+  std::vector<pid_t> pids;
+  ~LocalWorkers() { StopAll(); }
+  bool Start(int n, const std::vector<std::string>& args) {
+    std::string self;
+    std::error_code ec;
+    self = std::filesystem::read_symlink("/proc/self/exe", ec).string();
+    if (ec) return false;
+    for (int i = 0; i < n; ++i) {
+      std::vector<std::string> argv = {self, "worker"};
+      argv.insert(argv.end(), args.begin(), args.end());
+      argv.push_back("--exit-with-parent");
+      argv.push_back("--id");
+      argv.push_back("local-worker-" + std::to_string(::getpid()) + "-" + std::to_string(i));
+      std::vector<char*> c;
+      for (auto& a : argv) c.push_back(a.data());
+      c.push_back(nullptr);
+      pid_t pid = -1;
+      if (::posix_spawn(&pid, self.c_str(), nullptr, nullptr, c.data(), environ) != 0) return false;
+      pids.push_back(pid);
+    }
+    return true;
+  }
+  void StopAll() {
+    for (pid_t p : pids) ::kill(p, SIGTERM);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+    for (pid_t p : pids) {
+      int status = 0;
+      while (::waitpid(p, &status, WNOHANG) == 0) {
+        if (std::chrono::steady_clock::now() > deadline) {
+          ::kill(p, SIGKILL);
+          ::waitpid(p, &status, 0);
+          break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    }
+    pids.clear();
+  }
+};
+}  // namespace
+
+int CoordinatorMain(int argc, char** argv) {
+  Args args({"out", "local-workers", "domain", "profile", "checkpoint", "status-file", "min-workers",
+             "job-id", "worker-threads", "worker-wait-s"},
+            {"resume", "help"});
+  if (Status st = args.Parse(argc, argv);
+      !st.ok() || args.Has("help") || args.positional().size() != 1 || !args.Has("out")) {
+    if (!st.ok()) std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
+    std::fprintf(
+        stderr,
+        "usage: poseforest coordinator JOB.textproto --out FOREST.pff [--local-workers N] [--domain D]\n"
+        "         [--profile shm|udp|default] [--checkpoint DIR] [--resume] [--status-file F]\n"
+        "         [--min-workers N] [--job-id ID] [--worker-threads N] [--worker-wait-s S]\n");
+    return args.Has("help") ? 0 : 2;
+  }
+  const std::string job_path = args.positional()[0];
+  std::ifstream in(job_path);
+  if (!in) {
+    std::fprintf(stderr, "coordinator: cannot read %s\n", job_path.c_str());
+    return 1;
+  }
+  std::stringstream ss;
+  ss << in.rdbuf();
+  auto config = worker::ParseJobText(ss.str(), job_path);
+  if (!config.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", config.status().ToString().c_str());
+    return 2;
+  }
+  // Relative paths in the job (pose library, MakeHuman kit, dataset folders) are relative to the
+  // job file, as for `poseforest train`; workers receive the resolved config.
+  worker::ResolveJobPaths(job_path, &*config);
+  auto params = worker::ParamsFromConfig(*config, job_path);
+  if (!params.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", params.status().ToString().c_str());
+    return 2;
+  }
+  auto local = args.GetInt("local-workers", 0, 0, 256);
+  auto domain = args.GetInt("domain", 0, 0, 232);
+  auto min_workers = args.GetInt("min-workers", -1, 1, 4096);
+  auto worker_threads = args.GetInt("worker-threads", 1, 1, 1024);
+  auto wait_s = args.GetInt("worker-wait-s", 60, 1, 86400);
+  auto profile = dist::ParseProfile(args.GetOr("profile", "shm"));
+  if (!local.ok() || !domain.ok() || !min_workers.ok() || !worker_threads.ok() || !wait_s.ok() ||
+      !profile.ok()) {
+    for (const Status& st :
+         {local.ok() ? Status::Ok() : local.status(), domain.ok() ? Status::Ok() : domain.status(),
+          min_workers.ok() ? Status::Ok() : min_workers.status(),
+          worker_threads.ok() ? Status::Ok() : worker_threads.status(),
+          wait_s.ok() ? Status::Ok() : wait_s.status(), profile.ok() ? Status::Ok() : profile.status()})
+      if (!st.ok()) std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
+    return 2;
+  }
+  dist::CoordinatorOptions opt;
+  opt.job_id = args.GetOr("job-id", "");
+  if (opt.job_id.empty()) opt.job_id = dist::DefaultJobId(*config);
+  opt.domain = uint32_t(*domain);
+  opt.transport = *profile;
+  opt.min_workers = *min_workers > 0 ? int(*min_workers) : std::max(1, int(*local));
+  opt.worker_wait = std::chrono::seconds(*wait_s);
+  opt.checkpoint_dir = args.GetOr("checkpoint", "");
+  opt.resume = args.Has("resume");
+  const std::string status_file = args.GetOr("status-file", "");
+  opt.progress = [&](const dist::DistLevelStats& s) {
+    char line[512];
+    std::snprintf(
+        line, sizeof line,
+        "tree %d level %d: %zu nodes (%zu split), %llu samples, %.3g evaluations/s, %d workers alive, "
+        "%s received, %s sent, merge %.1f ms, level %.2f s%s",
+        s.tree, s.level, s.frontier_nodes, s.split_nodes, (unsigned long long)s.samples, s.evaluations_per_s,
+        s.workers_alive, Human(double(s.bytes_received)).c_str(), Human(double(s.bytes_sent)).c_str(),
+        s.merge_seconds * 1e3, s.level_seconds,
+        s.retries ? (", " + std::to_string(s.retries) + " retries").c_str() : "");
+    std::printf("%s\n", line);
+    std::fflush(stdout);
+    if (!status_file.empty()) {
+      char json[512];
+      std::snprintf(
+          json, sizeof json,
+          "{\"tree\":%d,\"level\":%d,\"nodes\":%zu,\"split\":%zu,\"samples\":%llu,\"evaluations_per_s\":%.6g,"
+          "\"workers_alive\":%d,\"bytes_received\":%llu,\"merge_s\":%.6f,\"elapsed_s\":%.3f}\n",
+          s.tree, s.level, s.frontier_nodes, s.split_nodes, (unsigned long long)s.samples,
+          s.evaluations_per_s, s.workers_alive, (unsigned long long)s.bytes_received, s.merge_seconds,
+          s.elapsed_s);
+      const std::string j = json;
+      (void)core::WriteFileAtomic(
+          status_file, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(j.data()), j.size()));
+    }
+  };
+  LocalWorkers workers;
+  if (*local > 0) {
+    const std::vector<std::string> wargs = {"--domain",  std::to_string(*domain),
+                                            "--profile", args.GetOr("profile", "shm"),
+                                            "--job",     opt.job_id,
+                                            "--threads", std::to_string(*worker_threads)};
+    if (!workers.Start(int(*local), wargs)) {
+      std::fprintf(stderr, "coordinator: cannot start local workers\n");
+      return 1;
+    }
+  }
+  dist::DistCoordinator coordinator(*config, *params, opt);
+  const double t0 = dist::NowSeconds();
+  auto forest = coordinator.Train();
+  workers.StopAll();
+  if (!forest.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", forest.status().ToString().c_str());
+    return 1;
+  }
+  const std::string out = *args.Get("out");
+  if (Status st = core::SaveForest(*forest, out); !st.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", st.ToString().c_str());
+    return 1;
+  }
+  std::printf("wrote %s: %zu trees in %.2f s, %s received, %llu messages rejected, %d workers lost\n",
+              out.c_str(), forest->trees.size(), dist::NowSeconds() - t0,
+              Human(double(coordinator.bytes_received())).c_str(),
+              (unsigned long long)coordinator.rejected_messages(), coordinator.workers_lost());
+  return 0;
+}
+
+int WorkerMain(int argc, char** argv) {
+  Args args({"domain", "threads", "job", "profile", "id"}, {"stay", "exit-with-parent", "help"});
+  if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
+    if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
+    std::fprintf(stderr,
+                 "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--profile shm|udp|default] "
+                 "[--id NAME]\n"
+                 "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n");
+    return args.Has("help") ? 0 : 2;
+  }
+  auto domain = args.GetInt("domain", 0, 0, 232);
+  auto threads = args.GetInt("threads", 1, 1, 1024);
+  auto profile = dist::ParseProfile(args.GetOr("profile", "shm"));
+  if (!domain.ok() || !threads.ok() || !profile.ok()) {
+    std::fprintf(stderr, "worker: %s\n",
+                 (!domain.ok()    ? domain.status()
+                  : !threads.ok() ? threads.status()
+                                  : profile.status())
+                     .message()
+                     .c_str());
+    return 2;
+  }
+  dist::WorkerOptions opt;
+  opt.worker_id = args.GetOr("id", "");
+  opt.domain = uint32_t(*domain);
+  opt.transport = *profile;
+  opt.threads = int(*threads);
+  opt.job_id = args.GetOr("job", "");
+  opt.exit_when_done = !args.Has("stay");
+  dist::DistWorker worker(opt);
+  g_worker = &worker;
+  struct sigaction sa = {};
+  sa.sa_handler = OnWorkerSignal;
+  ::sigaction(SIGTERM, &sa, nullptr);
+  ::sigaction(SIGINT, &sa, nullptr);
+  // Started by `coordinator --local-workers`: go when the coordinator goes, even on SIGKILL.
+  if (args.Has("exit-with-parent")) {
+    ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (::getppid() == 1) return 0;
+  }
+  Status st = worker.Run();
+  g_worker = nullptr;
+  if (!st.ok()) {
+    std::fprintf(stderr, "worker: %s\n", st.ToString().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace poseforest::cli

@@ -1,0 +1,861 @@
+#include "coordinator/distributed/dist_coordinator.h"
+
+#include <omp.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "coordinator/split_search.h"
+#include "coordinator/tree_assembler.h"
+#include "proto/dds/histogram_codec.h"
+#include "proto/dds/message_gate.h"
+#include "runtime/core/body_parts.h"
+#include "runtime/core/crc32.h"
+#include "runtime/core/forest_format.h"
+#include "worker/candidates.h"
+#include "worker/distributed/dist_common.h"
+#include "worker/histogram_builder.h"
+
+namespace poseforest::dist {
+
+using core::ErrorCode;
+using core::Result;
+using core::Status;
+using dds::Topic;
+using Verdict = dds::MessageGate::Verdict;
+
+namespace {
+constexpr int kParts = core::kNumParts;
+
+struct FrontierNode {
+  uint32_t node = 0;
+  std::vector<uint64_t> parts;
+  uint64_t total() const {
+    uint64_t n = 0;
+    for (uint64_t c : parts) n += c;
+    return n;
+  }
+};
+
+struct WorkerInfo {
+  std::string id;
+  std::string presence_writer, participant;
+  double last_seen = 0;
+  bool alive = true;
+  bool assigned = false;
+  std::vector<std::pair<uint32_t, uint32_t>> frames;  ///< tree-local [begin, end) ranges
+  uint64_t seen_epoch = 0;                            ///< newest shard epoch its heartbeats report
+  uint64_t assign_epoch = 0;                          ///< epoch of its current ShardAssignment
+  double assign_time = 0;
+};
+
+struct Reply {
+  std::string sender;
+  v1::HistogramReply body;
+  HistogramReplyExt ext;
+};
+}  // namespace
+
+std::string DefaultJobId(const v1::TrainerConfig& config);
+
+struct DistCoordinator::Impl {
+  v1::TrainerConfig config;
+  worker::TrainParams params;
+  CoordinatorOptions opt;
+  std::string job_id, self_id;
+  std::unique_ptr<dds::DdsNode> node;
+  std::unique_ptr<dds::MessageGate> gate;
+  dds::EnvelopeStamper stamper{"", "", v1::SENDER_KIND_COORDINATOR};
+  std::map<std::string, WorkerInfo> workers;
+  std::vector<std::pair<uint32_t, uint32_t>> orphan_frames;  ///< of lost workers, current tree
+  uint64_t epoch = 0;
+  double start = 0;
+  int lost_count = 0;
+  uint64_t total_bytes_received = 0;
+
+  // Current tree.
+  int tree = -1;
+  std::vector<v1::SplitDecisions> tree_decisions;  ///< per decided level, for replays
+  // Level accounting.
+  uint64_t level_bytes_received = 0, level_bytes_sent = 0;
+  int level_retries = 0;
+
+  // Checkpoint state.
+  Checkpoint ckpt;
+
+  void Log(const std::string& m) { opt.log(m); }
+
+  int AssignedCount() const {
+    int n = 0;
+    for (const auto& [id, w] : workers) n += w.alive && w.assigned;
+    return n;
+  }
+
+  int AliveCount() const {
+    int n = 0;
+    for (const auto& [id, w] : workers) n += w.alive;
+    return n;
+  }
+
+  Status Send(Topic topic, v1::Envelope& env) {
+    const std::string bytes = stamper.Seal(topic, env);
+    if (topic == Topic::kControl) level_bytes_sent += bytes.size();
+    return node->Publish(topic, bytes);
+  }
+
+  void PublishStatus(v1::StatusKind kind, const std::string& message, const std::string& worker = "",
+                     int level = 0, double progress = 0) {
+    v1::Envelope env;
+    auto* s = env.mutable_status();
+    s->set_kind(kind);
+    s->set_tree(uint32_t(std::max(0, tree)));
+    s->set_level(uint32_t(level));
+    s->set_epoch(epoch);
+    s->set_progress(std::clamp(progress, 0.0, 1.0));
+    s->set_worker_id(worker);
+    s->set_message(message);
+    s->set_active_workers(uint32_t(AliveCount()));
+    (void)Send(Topic::kStatus, env);
+  }
+
+  void MarkLost(const std::string& id, const std::string& why) {
+    auto it = workers.find(id);
+    if (it == workers.end() || !it->second.alive) return;
+    WorkerInfo& w = it->second;
+    w.alive = false;
+    ++lost_count;
+    if (w.assigned)
+      for (auto r : w.frames) orphan_frames.push_back(r);
+    w.assigned = false;
+    w.frames.clear();
+    // A lost worker's id may come back (a restarted process); an evicted one stays flagged.
+    if (why != "evicted") gate->Forget(id);
+    Log("worker " + id + " lost (" + why + "); " + std::to_string(AliveCount()) + " alive");
+    PublishStatus(why == "evicted" ? v1::STATUS_KIND_WORKER_EVICTED : v1::STATUS_KIND_WORKER_LOST, why, id);
+  }
+
+  Phase expected_phase = PHASE_UNSPECIFIED;
+  int expected_nodes = 0;
+
+  Status CheckShape(const Reply& r, const std::string& sender) const {
+    const int k = params.candidate_features;
+    auto bad = [&](const std::string& m) {
+      return Status(ErrorCode::kInvalidArgument, "reply of " + sender + ": " + m);
+    };
+    if (r.ext.phase() != expected_phase) return bad("wrong phase");
+    if (expected_phase == PHASE_RANGES || expected_phase == PHASE_COUNTS) {
+      if (r.ext.ranges_size() != expected_nodes)
+        return bad("ranges of " + std::to_string(r.ext.ranges_size()) + " nodes");
+      for (const auto& nr : r.ext.ranges()) {
+        if (expected_phase == PHASE_RANGES && nr.fused()) {
+          uint64_t total = 0;
+          for (uint32_t c : nr.cut_counts()) {
+            if (c > uint32_t(params.thresholds_per_feature)) return bad("cut count");
+            total += c;
+          }
+          if (nr.cut_counts_size() != k || total != uint64_t(nr.cut_deltas_size())) return bad("cut list");
+        } else if (expected_phase == PHASE_RANGES && (nr.lo_size() != k || nr.hi_size() != k)) {
+          return bad("range count");
+        }
+        if (expected_phase == PHASE_COUNTS && nr.part_counts_size() != kParts)
+          return bad("part count length");
+      }
+    }
+    return Status::Ok();
+  }
+
+  /// Receives for up to `timeout`, handling presence, replies, events, offenders and timeouts.
+  /// Replies of `want_epoch` from pending workers land in `replies`.
+  void Pump(std::chrono::milliseconds timeout, uint64_t want_epoch, std::map<std::string, Reply>* replies) {
+    while (auto e = node->NextEvent(std::chrono::milliseconds(0))) {
+      if (e->kind == dds::DdsEvent::Kind::kLivelinessLost && e->topic == Topic::kPresence) {
+        for (auto& [id, w] : workers)
+          if (w.alive && w.presence_writer == e->peer_guid) MarkLost(id, "liveliness lost");
+      } else if (e->kind == dds::DdsEvent::Kind::kParticipantLost) {
+        for (auto& [id, w] : workers)
+          if (w.alive && !w.participant.empty() && w.participant == e->peer_participant)
+            MarkLost(id, "participant lost");
+      }
+    }
+    if (auto s = node->Receive(timeout)) {
+      auto out = gate->Check(s->topic, s->bytes, s->writer_guid);
+      if (out.verdict == Verdict::kAccepted) {
+        const v1::Envelope& env = out.envelope;
+        switch (env.body_case()) {
+          case v1::Envelope::kHello:
+          case v1::Envelope::kHeartbeat: {
+            auto [it, fresh] = workers.try_emplace(out.sender);
+            WorkerInfo& w = it->second;
+            if (fresh || !w.alive) {
+              w = WorkerInfo{};
+              w.id = out.sender;
+              w.alive = true;
+              Log("worker " + w.id + " joined (" + std::to_string(AliveCount()) + " alive)");
+              PublishStatus(v1::STATUS_KIND_WORKER_JOINED, "joined", w.id);
+            }
+            w.alive = true;
+            w.last_seen = NowSeconds();
+            if (env.has_heartbeat()) {
+              HeartbeatExt hx;
+              if (ReadExt(env.heartbeat(), &hx, "Heartbeat").ok())
+                w.seen_epoch = std::max(w.seen_epoch, hx.shard_epoch());
+            }
+            w.presence_writer = s->writer_guid;
+            w.participant = s->writer_participant;
+            break;
+          }
+          case v1::Envelope::kHistogram: {
+            total_bytes_received += s->bytes.size();
+            level_bytes_received += s->bytes.size();
+            auto it = workers.find(out.sender);
+            if (replies && env.histogram().epoch() == want_epoch && it != workers.end() && it->second.alive &&
+                it->second.assigned) {
+              Reply r;
+              r.sender = out.sender;
+              r.body = env.histogram();
+              Status st = ReadExt(r.body, &r.ext, "HistogramReply from " + out.sender);
+              if (st.ok()) st = CheckShape(r, out.sender);
+              if (!st.ok()) {
+                // Well-formed for the gate but not what we asked: this worker cannot be trusted.
+                Log(st.ToString());
+                MarkLost(out.sender, "evicted");
+              } else {
+                (*replies)[out.sender] = std::move(r);
+              }
+            }
+            break;
+          }
+          default:
+            break;
+        }
+      }
+    }
+    for (const std::string& id : gate->TakeOffenders()) {
+      if (workers.count(id))
+        MarkLost(id, "evicted");
+      else
+        Log("sender " + id + " flagged by the gate; its messages are dropped");
+    }
+    const double now = NowSeconds();
+    const double limit = std::chrono::duration<double>(opt.heartbeat_timeout).count();
+    for (auto& [id, w] : workers)
+      if (w.alive && now - w.last_seen > limit) MarkLost(id, "heartbeat timeout");
+  }
+
+  Status WaitForWorkers(int n) {
+    const double deadline = NowSeconds() + std::chrono::duration<double>(opt.worker_wait).count();
+    while (AliveCount() < n) {
+      if (NowSeconds() > deadline)
+        return Status(ErrorCode::kNotFound, "job " + job_id + ": " + std::to_string(AliveCount()) + " of " +
+                                                std::to_string(n) + " workers after " +
+                                                std::to_string(opt.worker_wait.count()) + " ms");
+      Pump(std::chrono::milliseconds(50), 0, nullptr);
+    }
+    // Control messages to a worker whose reader has not matched yet would be lost.
+    (void)node->WaitForMatch(Topic::kControl, AliveCount(), std::chrono::milliseconds(5000));
+    return Status::Ok();
+  }
+
+  /// Sends `w` its ShardAssignment, then the tree's decisions so far (the worker replays them).
+  Status SendAssignment(WorkerInfo& w, uint32_t index, uint32_t count) {
+    v1::Envelope env;
+    env.set_recipient_id(w.id);
+    auto* s = env.mutable_shard();
+    s->set_tree(uint32_t(tree));
+    s->set_epoch(++epoch);
+    s->set_pixels_per_image(uint32_t(params.pixels_per_image));
+    s->set_shard_index(index);
+    s->set_shard_count(count);
+    const uint64_t base = uint64_t(tree) * uint64_t(params.images_per_tree);
+    for (auto [b, e] : w.frames) {
+      auto* r = s->add_ranges();
+      r->set_seed(params.source.seed);
+      r->set_first_index(base + b);
+      r->set_count(e - b);
+    }
+    POSEFOREST_RETURN_IF_ERROR(Send(Topic::kControl, env));
+    for (const v1::SplitDecisions& d : tree_decisions) {
+      v1::Envelope denv;
+      denv.set_recipient_id(w.id);
+      *denv.mutable_decisions() = d;
+      denv.mutable_decisions()->set_epoch(++epoch);
+      POSEFOREST_RETURN_IF_ERROR(Send(Topic::kControl, denv));
+    }
+    w.assigned = true;
+    w.assign_epoch = s->epoch();
+    w.assign_time = NowSeconds();
+    return Status::Ok();
+  }
+
+  /// Spreads `frames` (tree-local ranges) over every live worker in contiguous blocks and
+  /// (re)sends the assignments of the workers that got some.
+  Status Distribute(std::vector<std::pair<uint32_t, uint32_t>> frames) {
+    for (;;) {
+      POSEFOREST_RETURN_IF_ERROR(WaitForWorkers(1));
+      std::vector<WorkerInfo*> live;
+      for (auto& [id, w] : workers)
+        if (w.alive) live.push_back(&w);
+      std::vector<uint32_t> list;
+      for (auto [b, e] : frames)
+        for (uint32_t i = b; i < e; ++i) list.push_back(i);
+      std::sort(list.begin(), list.end());
+      const size_t n = live.size();
+      std::vector<WorkerInfo*> changed;
+      for (size_t k = 0; k < n; ++k) {
+        const size_t b = list.size() * k / n, e = list.size() * (k + 1) / n;
+        if (b == e) continue;
+        for (size_t i = b; i < e;) {
+          size_t j = i + 1;
+          while (j < e && list[j] == list[j - 1] + 1) ++j;
+          live[k]->frames.push_back({list[i], list[j - 1] + 1});
+          i = j;
+        }
+        changed.push_back(live[k]);
+      }
+      for (WorkerInfo* w : changed) {
+        std::sort(w->frames.begin(), w->frames.end());
+        POSEFOREST_RETURN_IF_ERROR(SendAssignment(*w, 0, 1));
+      }
+      // A worker lost while we were sending: hand its frames on too.
+      bool ok = true;
+      for (WorkerInfo* w : changed) ok = ok && w->alive;
+      if (ok) return Status::Ok();
+      frames.swap(orphan_frames);
+      orphan_frames.clear();
+    }
+  }
+
+  /// One request/reply round over the assigned workers, repeated under a new epoch (after
+  /// handing lost workers' frames on) until every assigned worker has answered.
+  Result<std::vector<Reply>> Round(Phase phase, const std::vector<uint32_t>& node_ids,
+                                   const std::vector<NodeSpec>& specs, int level) {
+    for (;;) {
+      if (!orphan_frames.empty()) {
+        auto frames = std::move(orphan_frames);
+        orphan_frames.clear();
+        ++level_retries;
+        POSEFOREST_RETURN_IF_ERROR(Distribute(std::move(frames)));
+      }
+      v1::Envelope env;
+      v1::LevelRequest* req = env.mutable_level_request();
+      req->set_tree(uint32_t(tree));
+      req->set_level(uint32_t(level));
+      req->set_epoch(++epoch);
+      for (uint32_t id : node_ids) {
+        req->add_node_ids(id);
+        req->add_candidate_seeds(params.seed);
+      }
+      req->set_job_seed(params.seed);
+      req->set_num_candidates(uint32_t(params.candidate_features));
+      req->set_num_thresholds(uint32_t(params.thresholds_per_feature + 1));
+      req->set_num_parts(uint32_t(kParts));
+      gate->ExpectLevel(*req);
+      LevelRequestExt ext;
+      ext.set_phase(phase);
+      for (const NodeSpec& s : specs) *ext.add_nodes() = s;
+      AttachExt(ext, req);
+      const uint64_t want = req->epoch();
+      expected_phase = phase;
+      expected_nodes = int(node_ids.size());
+      POSEFOREST_RETURN_IF_ERROR(Send(Topic::kControl, env));
+      std::map<std::string, Reply> replies;
+      const double deadline = NowSeconds() + std::chrono::duration<double>(opt.reply_timeout).count();
+      for (;;) {
+        if (NowSeconds() > deadline)
+          for (auto& [id, w] : workers)
+            if (w.assigned && w.alive && !replies.count(id)) MarkLost(id, "no reply");
+        if (!orphan_frames.empty()) break;  // someone was lost: redistribute and ask again
+        // A worker whose heartbeats still do not show its assignment missed it (its control
+        // reader matched after we wrote): send it again and ask the round again.
+        bool resent = false;
+        for (auto& [id, w] : workers)
+          if (w.assigned && w.alive && !replies.count(id) && w.seen_epoch < w.assign_epoch &&
+              NowSeconds() - w.assign_time > 3.0) {
+            Log("worker " + id + " has not seen its assignment: sending it again");
+            POSEFOREST_RETURN_IF_ERROR(SendAssignment(w, 0, 1));
+            resent = true;
+          }
+        if (resent) break;
+        bool all = true;
+        for (const auto& [id, w] : workers)
+          if (w.assigned && w.alive && !replies.count(id)) all = false;
+        if (all) {
+          std::vector<Reply> out;
+          for (auto& [id, w] : workers)
+            if (w.assigned && w.alive) out.push_back(std::move(replies[id]));
+          if (out.empty()) break;
+          return out;
+        }
+        Pump(std::chrono::milliseconds(20), want, &replies);
+      }
+      if (orphan_frames.empty() && AssignedCount() == 0) {
+        // Nobody assigned (every worker lost before any answered): start over with the tree's frames.
+        orphan_frames.push_back({0, uint32_t(params.images_per_tree)});
+      }
+    }
+  }
+
+  Status SaveCheckpoint() {
+    if (opt.checkpoint_dir.empty()) return Status::Ok();
+    ckpt.set_epoch(epoch);
+    const std::string bytes = ckpt.SerializeAsString();
+    std::error_code ec;
+    std::filesystem::create_directories(opt.checkpoint_dir, ec);
+    return core::WriteFileAtomic(
+        (std::filesystem::path(opt.checkpoint_dir) / "checkpoint.pb").string(),
+        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+  }
+
+  /// Replays a logged tree's levels into `assembler`; errors if the log is inconsistent.
+  static Status Replay(const LoggedTree& log, coordinator::TreeAssembler* assembler) {
+    for (const LoggedLevel& level : log.levels())
+      for (const LoggedDecision& d : level.decisions()) {
+        if (d.split()) {
+          core::FeatureOffsets f{int16_t(d.ux()), int16_t(d.uy()), int16_t(d.vx()), int16_t(d.vy())};
+          if (assembler->MakeSplit(d.node(), f, d.cut()) != d.left_child())
+            return Status(ErrorCode::kDataLoss, "checkpoint: node layout does not replay");
+        } else {
+          if (d.part_counts_size() != kParts)
+            return Status(ErrorCode::kDataLoss, "checkpoint: leaf part counts");
+          std::vector<uint64_t> parts(d.part_counts().begin(), d.part_counts().end());
+          assembler->MakeLeaf(d.node(), parts);
+        }
+      }
+    return Status::Ok();
+  }
+
+  Result<core::Tree> TrainTree(std::vector<FrontierNode> frontier, int first_level, int* levels_done) {
+    coordinator::TreeAssembler assembler(kParts);
+    POSEFOREST_RETURN_IF_ERROR(Replay(ckpt.current(), &assembler));
+    // Resumed after its last level, before the tree was filed as finished: nothing left to do.
+    if (first_level > 0 && frontier.empty()) return assembler.Finish();
+    // Shards: every frame of the tree over the live workers; replays of resumed levels included.
+    for (auto& [id, w] : workers) w.assigned = false, w.frames.clear();
+    orphan_frames.clear();
+    POSEFOREST_RETURN_IF_ERROR(Distribute({{0, uint32_t(params.images_per_tree)}}));
+    if (frontier.empty()) {
+      // Census of the root.
+      auto replies = Round(PHASE_COUNTS, {0}, {NodeSpec{}}, 0);
+      if (!replies.ok()) return replies.status();
+      FrontierNode root{0, std::vector<uint64_t>(kParts, 0)};
+      for (const Reply& r : *replies) {
+        for (int p = 0; p < kParts; ++p) root.parts[size_t(p)] += r.ext.ranges(0).part_counts(p);
+      }
+      if (root.total() == 0)
+        return Status(ErrorCode::kInvalidArgument, "tree " + std::to_string(tree) +
+                                                       ": no body pixels in any of its " +
+                                                       std::to_string(params.images_per_tree) + " frames");
+      frontier.push_back(std::move(root));
+    }
+    const int k = params.candidate_features;
+    const int t_count = params.thresholds_per_feature;
+    const int merge_threads = params.threads > 0 ? params.threads : omp_get_max_threads();
+    const int cut_stride = worker::CutStride(t_count);
+    const dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
+    for (int level = first_level; !frontier.empty(); ++level) {
+      const double t_level = NowSeconds();
+      level_bytes_received = level_bytes_sent = 0;
+      level_retries = 0;
+      double hist_s = 0, merge_s = 0;
+      uint64_t evaluations = 0, level_samples = 0;
+      std::vector<size_t> to_split;
+      for (size_t i = 0; i < frontier.size(); ++i) {
+        const uint64_t n = frontier[i].total();
+        level_samples += n;
+        int present = 0;
+        for (uint64_t c : frontier[i].parts) present += c > 0;
+        if (level < params.max_depth && int64_t(n) >= params.min_samples_split && present > 1)
+          to_split.push_back(i);
+      }
+      std::vector<uint8_t> is_split(frontier.size(), 0);
+      std::vector<coordinator::SplitChoice> choices(frontier.size());
+      std::vector<core::FeatureOffsets> chosen(frontier.size());
+      for (size_t b0 = 0; b0 < to_split.size();) {
+        // Batches bounded by histogram memory, as LocalTrainer (the split choice is per node,
+        // so the batching does not change the result).
+        std::vector<worker::NodePlan> plans;
+        uint64_t batch_bytes = 0;
+        size_t b1 = b0;
+        while (b1 < to_split.size()) {
+          const FrontierNode& f = frontier[to_split[b1]];
+          worker::NodePlan plan;
+          plan.node = f.node;
+          plan.num_samples = f.total();
+          plan.SetParts(f.parts);
+          plan.sample_bins = worker::UseSampleBins(plan.num_samples, t_count, plan.num_slots);
+          plan.features.resize(size_t(k));
+          const uint64_t bytes = worker::PlanHistogramBytes(plan, t_count);
+          if (!plans.empty() &&
+              batch_bytes + bytes > std::min(params.histogram_memory_bytes, opt.max_batch_bytes))
+            break;
+          batch_bytes += bytes;
+          plan.features = worker::DrawFeatures(params, tree, f.node);
+          plan.cut_stride = cut_stride;
+          plans.push_back(std::move(plan));
+          ++b1;
+        }
+        // Pass 1: ranges, merged by min/max. A worker that holds every sample of a node whose
+        // reference subsample is the whole node builds it in one fused pass (as LocalTrainer
+        // does for a shard) and returns its histogram and cuts right away.
+        std::vector<uint32_t> ids;
+        std::vector<NodeSpec> specs(plans.size());
+        for (size_t p = 0; p < plans.size(); ++p) {
+          ids.push_back(plans[p].node);
+          specs[p].set_num_samples(plans[p].num_samples);
+        }
+        const double t_ranges = NowSeconds();
+        auto r1 = Round(PHASE_RANGES, ids, specs, level);
+        if (!r1.ok()) return r1.status();
+        hist_s += NowSeconds() - t_ranges;
+        std::vector<size_t> rest;  // plans that need pass 2
+        std::vector<int> fused_by(plans.size(), -1);
+        for (size_t p = 0; p < plans.size(); ++p) {
+          for (size_t r = 0; r < r1->size(); ++r)
+            if ((*r1)[r].ext.ranges(int(p)).fused()) {
+              if (fused_by[p] >= 0)
+                return Status(ErrorCode::kDataLoss, "node " + std::to_string(plans[p].node) +
+                                                        ": two workers claim all of its samples");
+              fused_by[p] = int(r);
+            }
+          if (fused_by[p] >= 0) continue;
+          std::vector<worker::ResponseRange> merged(static_cast<size_t>(k));
+          for (const Reply& r : *r1)
+            for (int c = 0; c < k; ++c)
+              merged[size_t(c)].Merge({r.ext.ranges(int(p)).lo(c), r.ext.ranges(int(p)).hi(c)});
+          plans[p].cuts = worker::DrawCuts(params, tree, plans[p].node, merged);
+          const FrontierNode& f = frontier[to_split[b0 + p]];
+          for (uint64_t c : f.parts) specs[p].add_part_counts(c);
+          for (const auto& m : merged) {
+            specs[p].add_range_lo(m.lo);
+            specs[p].add_range_hi(m.hi);
+          }
+          rest.push_back(p);
+        }
+        // Fused nodes: cuts and histogram from their one worker.
+        {
+          const double t_merge = NowSeconds();
+          for (size_t p = 0; p < plans.size(); ++p) {
+            if (fused_by[p] < 0) continue;
+            const Reply& r = (*r1)[size_t(fused_by[p])];
+            const NodeRanges& nr = r.ext.ranges(int(p));
+            const size_t fi = to_split[b0 + p];
+            plans[p].cuts.assign(size_t(k) * size_t(cut_stride), worker::kNoCut);
+            int pos = 0;
+            bool ok = r.body.nodes(int(p)).samples() == plans[p].num_samples;
+            for (int c = 0; c < k && ok; ++c) {
+              int64_t v = 0;
+              for (uint32_t j = 0; j < nr.cut_counts(c); ++j) {
+                const int32_t d = nr.cut_deltas(pos++);
+                if (j > 0 && d <= 0) ok = false;
+                v = j == 0 ? int64_t(d) : v + int64_t(d);
+                if (v >= int64_t(worker::kNoCut)) ok = false;
+                plans[p].cuts[size_t(c) * size_t(cut_stride) + j] = int32_t(v);
+              }
+            }
+            worker::NodeHistogram hist;
+            hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
+            if (ok) ok = AddWireRuns(r.body.nodes(int(p)).runs(), dims, plans[p], &hist);
+            if (!ok)
+              return Status(ErrorCode::kDataLoss, "fused node " + std::to_string(plans[p].node) + " from " +
+                                                      r.sender + " is inconsistent");
+            evaluations += plans[p].num_samples * uint64_t(k);
+            choices[fi] = coordinator::FindBestSplit(hist, plans[p], frontier[fi].parts);
+            is_split[fi] = choices[fi].valid && choices[fi].gain >= params.min_gain;
+            if (is_split[fi]) chosen[fi] = plans[p].features[size_t(choices[fi].candidate)];
+          }
+          merge_s += NowSeconds() - t_merge;
+        }
+        // Pass 2: histograms, summed. Per node in parallel (independent, deterministic per node).
+        // A reply that counts a part absent from a node comes from a worker that disagrees with
+        // the coordinator: it is evicted and the round asked again without it.
+        std::vector<uint32_t> ids2;
+        std::vector<NodeSpec> specs2;
+        for (size_t p : rest) {
+          ids2.push_back(ids[p]);
+          specs2.push_back(std::move(specs[p]));
+        }
+        for (int attempt = 0; !rest.empty(); ++attempt) {
+          const double t_hist = NowSeconds();
+          auto r2 = Round(PHASE_HISTOGRAMS, ids2, specs2, level);
+          if (!r2.ok()) return r2.status();
+          hist_s += NowSeconds() - t_hist;
+          const double t_merge = NowSeconds();
+          const auto nq = int64_t(rest.size());
+          std::vector<std::string> bad(rest.size());
+          std::vector<uint64_t> got(rest.size(), 0);
+          std::exception_ptr merge_error;
+#pragma omp parallel for num_threads(merge_threads) schedule(dynamic, 1)
+          for (int64_t qi = 0; qi < nq; ++qi) {
+            try {  // no exception may leave the OpenMP region: stored, rethrown after it
+              const auto q = size_t(qi);
+              const size_t p = rest[q];
+              const size_t fi = to_split[b0 + p];
+              worker::NodeHistogram hist;
+              hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
+              for (const Reply& r : *r2) {
+                const auto& nh = r.body.nodes(int(q));
+                if (!AddWireRuns(nh.runs(), dims, plans[p], &hist)) {
+                  bad[q] = r.sender;
+                  break;
+                }
+                got[q] += nh.samples();
+              }
+              if (!bad[q].empty() || got[q] != plans[p].num_samples) continue;
+              choices[fi] = coordinator::FindBestSplit(hist, plans[p], frontier[fi].parts);
+              is_split[fi] = choices[fi].valid && choices[fi].gain >= params.min_gain;
+              if (is_split[fi]) chosen[fi] = plans[p].features[size_t(choices[fi].candidate)];
+            } catch (...) {
+#pragma omp critical(poseforest_dist_merge_error)
+              if (!merge_error) merge_error = std::current_exception();
+            }
+          }
+          if (merge_error) std::rethrow_exception(merge_error);
+          merge_s += NowSeconds() - t_merge;
+          std::string culprit;
+          for (const std::string& b : bad)
+            if (!b.empty()) culprit = b;
+          if (!culprit.empty() && attempt < 3) {
+            Log("histogram from " + culprit + " counts parts absent from a node");
+            MarkLost(culprit, "evicted");
+            continue;
+          }
+          for (size_t q = 0; q < rest.size(); ++q) {
+            if (!bad[q].empty() || got[q] != plans[rest[q]].num_samples)
+              return Status(ErrorCode::kDataLoss, "node " + std::to_string(plans[rest[q]].node) +
+                                                      ": the workers' histograms hold " +
+                                                      std::to_string(got[q]) + " samples, expected " +
+                                                      std::to_string(plans[rest[q]].num_samples));
+            evaluations += got[q] * uint64_t(k);
+          }
+          break;
+        }
+        b0 = b1;
+      }
+      // Children in node order (breadth-first layout), decisions to the workers, the log.
+      std::vector<FrontierNode> next;
+      size_t num_split = 0;
+      v1::Envelope env;
+      v1::SplitDecisions* dec = env.mutable_decisions();
+      dec->set_tree(uint32_t(tree));
+      dec->set_level(uint32_t(level));
+      LoggedLevel* logged = ckpt.mutable_current()->add_levels();
+      for (size_t i = 0; i < frontier.size(); ++i) {
+        const FrontierNode& f = frontier[i];
+        auto* nd = dec->add_nodes();
+        nd->set_node_id(f.node);
+        LoggedDecision* ld = logged->add_decisions();
+        ld->set_node(f.node);
+        if (!is_split[i]) {
+          assembler.MakeLeaf(f.node, f.parts);
+          for (uint64_t c : f.parts) {
+            nd->mutable_leaf()->add_part_counts(c);
+            ld->add_part_counts(c);
+          }
+          continue;
+        }
+        ++num_split;
+        const coordinator::SplitChoice& c = choices[i];
+        const uint32_t left = assembler.MakeSplit(f.node, chosen[i], c.cut);
+        SetFeatureSplit(chosen[i], c.cut, left, uint32_t(c.candidate), nd->mutable_split());
+        ld->set_split(true);
+        ld->set_ux(chosen[i].ux), ld->set_uy(chosen[i].uy), ld->set_vx(chosen[i].vx),
+            ld->set_vy(chosen[i].vy);
+        ld->set_cut(c.cut);
+        ld->set_left_child(left);
+        next.push_back({left, c.left_parts});
+        next.push_back({left + 1, c.right_parts});
+      }
+      dec->set_epoch(++epoch);
+      tree_decisions.push_back(*dec);
+      POSEFOREST_RETURN_IF_ERROR(Send(Topic::kControl, env));
+      frontier.swap(next);
+      ckpt.clear_frontier();
+      for (const FrontierNode& f : frontier) {
+        auto* fe = ckpt.add_frontier();
+        fe->set_node(f.node);
+        for (uint64_t c : f.parts) fe->add_part_counts(c);
+      }
+      POSEFOREST_RETURN_IF_ERROR(SaveCheckpoint());
+      DistLevelStats st;
+      st.tree = tree;
+      st.level = level;
+      st.frontier_nodes = is_split.size();
+      st.split_nodes = num_split;
+      st.samples = level_samples;
+      st.evaluations = evaluations;
+      st.evaluations_per_s = hist_s > 0 ? double(evaluations) / hist_s : 0;
+      st.workers_alive = AliveCount();
+      for (const auto& [id, w] : workers) st.workers_assigned += w.alive && w.assigned;
+      st.bytes_received = level_bytes_received;
+      st.bytes_sent = level_bytes_sent;
+      st.merge_seconds = merge_s;
+      st.level_seconds = NowSeconds() - t_level;
+      st.elapsed_s = NowSeconds() - start;
+      st.retries = level_retries;
+      if (opt.progress) opt.progress(st);
+      const double progress =
+          (double(tree) + std::min(1.0, double(level + 1) / double(params.max_depth + 1))) /
+          double(params.num_trees);
+      PublishStatus(v1::STATUS_KIND_LEVEL_DONE, "level done", "", level, progress);
+      ++*levels_done;
+      if (opt.stop_after_levels >= 0 && *levels_done >= opt.stop_after_levels)
+        return Status(ErrorCode::kInternal,
+                      "stopped after " + std::to_string(*levels_done) + " levels (test hook)");
+    }
+    return assembler.Finish();
+  }
+
+  Result<core::Forest> Train() {
+    start = NowSeconds();
+    std::string config_bytes;
+    config.SerializeToString(&config_bytes);
+    if (job_id.empty()) job_id = DefaultJobId(config);
+    // A fresh sender id per run: a restarted coordinator is a new sender (sequence numbers
+    // restart), and workers take its announcement as "start over".
+    char host[128] = {};
+    ::gethostname(host, sizeof host - 1);
+    self_id = "coordinator-" + std::string(host) + "-" + std::to_string(::getpid()) + "-" +
+              std::to_string(uint64_t(NowSeconds() * 1e6) & 0xFFFFFF);
+    stamper = dds::EnvelopeStamper(job_id, self_id, v1::SENDER_KIND_COORDINATOR);
+    gate = std::make_unique<dds::MessageGate>(dds::GateConfig{self_id, job_id, 16, opt.log});
+    gate->set_num_parts(uint32_t(kParts));
+
+    // Resume.
+    std::vector<core::Tree> trees;
+    std::vector<FrontierNode> frontier;
+    int first_level = 0;
+    ckpt.Clear();
+    ckpt.set_format(1);
+    ckpt.set_job_id(job_id);
+    ckpt.set_config(config_bytes);
+    const std::string ckpt_path =
+        opt.checkpoint_dir.empty() ? ""
+                                   : (std::filesystem::path(opt.checkpoint_dir) / "checkpoint.pb").string();
+    if (opt.resume && !ckpt_path.empty() && std::filesystem::exists(ckpt_path)) {
+      std::ifstream in(ckpt_path, std::ios::binary);
+      std::stringstream ss;
+      ss << in.rdbuf();
+      Checkpoint saved;
+      if (!saved.ParseFromString(ss.str()) || saved.format() != 1)
+        return Status(ErrorCode::kDataLoss, ckpt_path + ": not a checkpoint");
+      if (saved.config() != config_bytes || saved.job_id() != job_id)
+        return Status(ErrorCode::kInvalidArgument, ckpt_path + ": checkpoint of another job");
+      for (const LoggedTree& lt : saved.finished()) {
+        coordinator::TreeAssembler a(kParts);
+        POSEFOREST_RETURN_IF_ERROR(Replay(lt, &a));
+        trees.push_back(a.Finish());
+      }
+      for (const FrontierEntry& fe : saved.frontier()) {
+        if (fe.part_counts_size() != kParts) return Status(ErrorCode::kDataLoss, ckpt_path + ": frontier");
+        frontier.push_back(
+            {fe.node(), std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end())});
+      }
+      first_level = saved.current().levels_size();
+      epoch = saved.epoch();
+      ckpt = saved;
+      Log("resuming " + job_id + " at tree " + std::to_string(trees.size()) + " level " +
+          std::to_string(first_level));
+    }
+
+    auto n = dds::DdsNode::Create(MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease));
+    if (!n.ok()) return n.status();
+    node = std::move(*n);
+    v1::Envelope job_env;
+    auto* job = job_env.mutable_job();
+    *job->mutable_config() = config;
+    job->set_coordinator_id(self_id);
+    job->set_num_parts(uint32_t(kParts));
+    job->set_thresholds_per_feature(uint32_t(params.thresholds_per_feature + 1));
+    POSEFOREST_RETURN_IF_ERROR(Send(Topic::kJob, job_env));
+    Log("announced " + job_id + " as " + self_id + " on domain " + std::to_string(opt.domain) + ": " +
+        worker::DescribeParams(params));
+    PublishStatus(v1::STATUS_KIND_JOB_STARTED, worker::DescribeParams(params));
+    POSEFOREST_RETURN_IF_ERROR(WaitForWorkers(std::max(1, opt.min_workers)));
+
+    int levels_done = 0;
+    for (int t = int(trees.size()); t < params.num_trees; ++t) {
+      tree = t;
+      tree_decisions.clear();
+      if (size_t(t) < opt.min_workers_per_tree.size())
+        POSEFOREST_RETURN_IF_ERROR(WaitForWorkers(opt.min_workers_per_tree[size_t(t)]));
+      // Replays of a resumed tree's levels: rebuild the decisions from the log.
+      for (const LoggedLevel& lv : ckpt.current().levels()) {
+        v1::SplitDecisions d;
+        d.set_tree(uint32_t(t));
+        d.set_level(uint32_t(tree_decisions.size()));
+        for (const LoggedDecision& ld : lv.decisions()) {
+          auto* nd = d.add_nodes();
+          nd->set_node_id(ld.node());
+          if (ld.split())
+            SetFeatureSplit({int16_t(ld.ux()), int16_t(ld.uy()), int16_t(ld.vx()), int16_t(ld.vy())},
+                            ld.cut(), ld.left_child(), 0, nd->mutable_split());
+          else
+            for (uint64_t c : ld.part_counts()) nd->mutable_leaf()->add_part_counts(c);
+        }
+        tree_decisions.push_back(std::move(d));
+      }
+      auto tr = TrainTree(std::move(frontier), first_level, &levels_done);
+      if (!tr.ok()) {
+        PublishStatus(v1::STATUS_KIND_ERROR, tr.status().ToString());
+        return tr.status();
+      }
+      trees.push_back(std::move(*tr));
+      frontier.clear();
+      first_level = 0;
+      *ckpt.add_finished() = ckpt.current();
+      ckpt.clear_current();
+      ckpt.clear_frontier();
+      ckpt.set_tree(uint32_t(t + 1));
+      POSEFOREST_RETURN_IF_ERROR(SaveCheckpoint());
+      PublishStatus(v1::STATUS_KIND_TREE_DONE, "tree done", "", 0, double(t + 1) / params.num_trees);
+    }
+    core::Forest forest;
+    forest.constants = params.constants;
+    forest.num_parts = kParts;
+    forest.part_names = core::Forest::DefaultPartNames();
+    forest.trees = std::move(trees);
+    POSEFOREST_RETURN_IF_ERROR(core::ValidateForest(forest, "trained forest"));
+    PublishStatus(v1::STATUS_KIND_JOB_DONE, "job done", "", 0, 1.0);
+    (void)node->WaitForAcknowledgments(Topic::kStatus, std::chrono::milliseconds(2000));
+    return forest;
+  }
+};
+
+std::string DefaultJobId(const v1::TrainerConfig& config) {
+  std::string bytes;
+  config.SerializeToString(&bytes);
+  const uint32_t crc = core::Crc32(bytes.data(), bytes.size());
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "job-%08x", crc);
+  return buf;
+}
+
+DistCoordinator::DistCoordinator(v1::TrainerConfig config, worker::TrainParams params,
+                                 CoordinatorOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->config = std::move(config);
+  impl_->params = std::move(params);
+  impl_->opt = std::move(options);
+  impl_->job_id = impl_->opt.job_id;
+  if (!impl_->opt.log)
+    impl_->opt.log = [](const std::string& m) { std::fprintf(stderr, "[coordinator] %s\n", m.c_str()); };
+}
+
+DistCoordinator::~DistCoordinator() = default;
+
+Result<core::Forest> DistCoordinator::Train() { return impl_->Train(); }
+const std::string& DistCoordinator::job_id() const { return impl_->job_id; }
+uint64_t DistCoordinator::bytes_received() const { return impl_->total_bytes_received; }
+uint64_t DistCoordinator::rejected_messages() const {
+  return impl_->gate ? impl_->gate->total_rejected() : 0;
+}
+int DistCoordinator::workers_lost() const { return impl_->lost_count; }
+
+}  // namespace poseforest::dist

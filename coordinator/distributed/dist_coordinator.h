@@ -1,0 +1,95 @@
+#pragma once
+// The distributed coordinator: announces a job on a DDS domain, spreads each tree's frames over
+// the workers that join (ShardAssignment), and runs LocalTrainer's level-wise loop with the
+// shards' work done by the workers: per batch of frontier nodes a ranges round (pass 1) and a
+// histograms round (pass 2), merged here, FindBestSplit here, SplitDecisions broadcast. The
+// forest is byte-identical to LocalTrainer's for the same job, whatever the worker count and
+// whatever workers are lost on the way (docs/distributed/service.md).
+//
+// Fault tolerance: a worker whose presence liveliness lapses, whose heartbeats stop, or that the
+// MessageGate flags is dropped; its frames go to the surviving (and newly joined) workers, which
+// replay the tree's split decisions so far to place their samples, and the round is asked again
+// under a new epoch. Checkpoints after every level allow a restarted coordinator to resume.
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "poseforest/v1/job.pb.h"
+#include "proto/dds/dds_node.h"
+#include "runtime/core/forest.h"
+#include "runtime/core/result.h"
+#include "worker/job_spec.h"
+
+namespace poseforest::dist {
+
+/// Reported once per finished level.
+struct DistLevelStats {
+  int tree = 0;
+  int level = 0;
+  size_t frontier_nodes = 0;
+  size_t split_nodes = 0;
+  uint64_t samples = 0;          ///< samples in the frontier
+  uint64_t evaluations = 0;      ///< sample x candidate evaluations binned (pass 2 + fused nodes), all workers
+  double evaluations_per_s = 0;  ///< evaluations / wall seconds of the ranges + histogram rounds
+  int workers_alive = 0;
+  int workers_assigned = 0;     ///< of which hold frames of this tree
+  uint64_t bytes_received = 0;  ///< reply payload bytes of this level (all rounds)
+  uint64_t bytes_sent = 0;      ///< control payload bytes of this level
+  double merge_seconds = 0;     ///< decoding + summing histograms + split choice
+  double level_seconds = 0;     ///< wall time of the level
+  double elapsed_s = 0;         ///< since Train() started
+  int retries = 0;              ///< rounds asked again after a worker loss
+};
+
+struct CoordinatorOptions {
+  std::string job_id;  ///< empty: "job-<crc32 of the config>"
+  uint32_t domain = 0;
+  dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
+  int min_workers = 1;                                ///< workers to wait for before the first tree
+  std::chrono::milliseconds worker_wait{60000};       ///< without any live worker this long: error
+  std::chrono::milliseconds lease{1500};              ///< liveliness lease (presence, job)
+  std::chrono::milliseconds heartbeat_timeout{4000};  ///< no heartbeat this long: worker lost
+  /// An assigned worker that has not answered a round this long is evicted (alive but stuck).
+  std::chrono::milliseconds reply_timeout{300000};
+  /// Histogram bytes per request batch (also bounded by the job's histogram_memory_bytes): keeps
+  /// each reply far below protobuf's 2 GiB message limit. Batching does not change the forest.
+  uint64_t max_batch_bytes = uint64_t(64) << 20;
+  std::string checkpoint_dir;  ///< empty: no checkpoints
+  bool resume = false;         ///< continue from checkpoint_dir/checkpoint.pb if present
+  /// Tests: before tree t (< size), wait until this many workers are alive (late joiners).
+  std::vector<int> min_workers_per_tree;
+  int stop_after_levels = -1;  ///< tests: fail with kInternal after this many levels (a "crash")
+  std::function<void(const DistLevelStats&)> progress;
+  std::function<void(const std::string&)> log;  ///< default: stderr
+};
+
+/// "job-<crc32 of the serialized config>": the same job file gives the same id (--resume).
+std::string DefaultJobId(const v1::TrainerConfig& config);
+
+class DistCoordinator {
+ public:
+  /// `config` is announced to the workers; `params` = ParamsFromConfig(config).
+  DistCoordinator(v1::TrainerConfig config, worker::TrainParams params, CoordinatorOptions options);
+  ~DistCoordinator();
+
+  /// Trains every tree. Errors: participant creation, no workers within worker_wait, a bad
+  /// checkpoint, inconsistent worker data that a retry did not fix.
+  core::Result<core::Forest> Train();
+
+  const std::string& job_id() const;
+  /// Totals over the run.
+  uint64_t bytes_received() const;
+  uint64_t rejected_messages() const;
+  int workers_lost() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace poseforest::dist

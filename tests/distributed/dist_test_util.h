@@ -1,0 +1,86 @@
+#pragma once
+// Helpers of the distributed-service tests: a tiny job, the LocalTrainer reference bytes, and
+// in-process workers on threads.
+
+#include <unistd.h>
+
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "coordinator/distributed/dist_coordinator.h"
+#include "coordinator/local_trainer.h"
+#include "poseforest/v1/job.pb.h"
+#include "runtime/core/forest_format.h"
+#include "worker/distributed/dist_worker.h"
+#include "worker/job_spec.h"
+
+namespace poseforest::dist::testing {
+
+/// A job small enough for a loaded 2-core machine (procedural frames, small images).
+inline std::string TinyJobText(int trees = 2, int depth = 6) {
+  return "seed: 5\nnum_trees: " + std::to_string(trees) + "\nmax_depth: " + std::to_string(depth) +
+         "\nimages_per_tree: 12\npixels_per_image: 150\ncandidate_features: 40\nthresholds_per_feature: 12\n"
+         "max_probe_offset_pixel_m: 60\nthreshold_reference_pixels: 200\n"
+         "source { procedural { seed: 9 width: 96 height: 72 } }\n";
+}
+
+struct Job {
+  v1::TrainerConfig config;
+  worker::TrainParams params;
+};
+
+inline Job ParseJob(const std::string& text) {
+  auto c = worker::ParseJobText(text, "tiny.textproto");
+  if (!c.ok()) throw std::runtime_error(c.status().ToString());
+  auto p = worker::ParamsFromConfig(*c, "tiny.textproto");
+  if (!p.ok()) throw std::runtime_error(p.status().ToString());
+  p->threads = 1;
+  return {*c, *p};
+}
+
+/// SerializeForest bytes of LocalTrainer on `job` (one shard).
+inline std::vector<uint8_t> ReferenceBytes(const Job& job) {
+  coordinator::LocalTrainer trainer(job.params, {});
+  auto forest = trainer.Train();
+  if (!forest.ok()) throw std::runtime_error(forest.status().ToString());
+  return core::SerializeForest(*forest);
+}
+
+/// A domain id unlikely to collide with parallel test processes.
+inline uint32_t Domain(uint32_t offset) { return 1 + (uint32_t(::getpid()) * 13 + offset * 31) % 200; }
+
+/// N DistWorkers on threads; stopped and joined on destruction.
+class ThreadWorkers {
+ public:
+  ThreadWorkers(int n, uint32_t domain, const std::string& job_id) {
+    for (int i = 0; i < n; ++i)
+      Add(domain, job_id, "tw-" + std::to_string(::getpid()) + "-" + std::to_string(i));
+  }
+  void Add(uint32_t domain, const std::string& job_id, const std::string& id) {
+    WorkerOptions o;
+    o.worker_id = id;
+    o.domain = domain;
+    o.job_id = job_id;
+    o.threads = 1;
+    o.exit_when_done = false;
+    o.log = [](const std::string&) {};
+    workers_.push_back(std::make_unique<DistWorker>(o));
+    DistWorker* w = workers_.back().get();
+    threads_.emplace_back([w] { (void)w->Run(); });
+  }
+  void Stop(size_t i) {
+    workers_[i]->Stop();
+    if (threads_[i].joinable()) threads_[i].join();
+  }
+  ~ThreadWorkers() {
+    for (size_t i = 0; i < workers_.size(); ++i) Stop(i);
+  }
+
+ private:
+  std::vector<std::unique_ptr<DistWorker>> workers_;
+  std::vector<std::thread> threads_;
+};
+
+}  // namespace poseforest::dist::testing

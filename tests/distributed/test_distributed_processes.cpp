@@ -1,0 +1,144 @@
+// The distributed service as real processes: `poseforest coordinator` and `poseforest worker`
+// started from the built program. A worker SIGKILLed mid-job, and a coordinator SIGKILLed and
+// restarted with --resume, still give LocalTrainer's forest byte for byte.
+
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include "tests/dds/dds_test_util.h"
+#include "tests/distributed/dist_test_util.h"
+
+using namespace poseforest;
+using namespace poseforest::dist;
+using namespace poseforest::dist::testing;
+using poseforest::dds::testing::Child;
+using poseforest::dds::testing::HelperDir;
+using namespace std::chrono_literals;
+
+namespace {
+std::string Program() { return (HelperDir() / "poseforest").string(); }
+
+struct TempDir {
+  std::filesystem::path path;
+  explicit TempDir(const std::string& name)
+      : path(std::filesystem::temp_directory_path() / (name + "-" + std::to_string(::getpid()))) {
+    std::filesystem::remove_all(path);
+    std::filesystem::create_directories(path);
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+};
+
+std::vector<uint8_t> ReadAll(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void StartWorker(Child& c, uint32_t domain, const std::string& job_id, const std::string& id) {
+  std::string error;
+  REQUIRE(c.Start({Program(), "worker", "--domain", std::to_string(domain), "--job", job_id, "--id", id},
+                  &error));
+}
+}  // namespace
+
+TEST_CASE("coordinator --local-workers 2 writes LocalTrainer's forest (shm and udp profiles)",
+          "[distributed][integration][slow]") {
+  const std::string text = TinyJobText(1, 6);
+  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
+  for (const std::string profile : {"shm", "udp"}) {
+    DYNAMIC_SECTION("profile " << profile) {
+      TempDir dir("pf-dist-local-" + profile);
+      std::ofstream(dir.path / "job.textproto") << text;
+      Child coord;
+      std::string error;
+      REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                           (dir.path / "forest.pff").string(), "--local-workers", "2", "--profile", profile,
+                           "--domain", std::to_string(Domain(profile == "shm" ? 21 : 22)), "--status-file",
+                           (dir.path / "status.json").string()},
+                          &error));
+      auto rc = coord.Wait(120s);
+      INFO(coord.output());
+      REQUIRE(rc.has_value());
+      REQUIRE(*rc == 0);
+      CHECK(coord.output().find("tree 0 level 0:") != std::string::npos);
+      CHECK(coord.output().find("2 workers alive") != std::string::npos);
+      CHECK(ReadAll(dir.path / "forest.pff") == reference);
+      CHECK(std::filesystem::exists(dir.path / "status.json"));
+    }
+  }
+}
+
+TEST_CASE("SIGKILL of one of 3 worker processes mid-job: same forest", "[distributed][integration][slow]") {
+  TempDir dir("pf-dist-kill");
+  const std::string text = TinyJobText(2, 6);
+  std::ofstream(dir.path / "job.textproto") << text;
+  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
+  const uint32_t domain = Domain(23);
+  const std::string job_id = "p-kill-" + std::to_string(::getpid());
+  Child w[3];
+  for (int i = 0; i < 3; ++i) StartWorker(w[i], domain, job_id, "pw-" + std::to_string(i));
+  Child coord;
+  std::string error;
+  REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                       (dir.path / "forest.pff").string(), "--domain", std::to_string(domain), "--job-id",
+                       job_id, "--min-workers", "3"},
+                      &error));
+  auto line = coord.WaitForLine("tree 0 level 1:", 90s);
+  INFO(coord.output());
+  REQUIRE(line.has_value());
+  w[1].Kill(SIGKILL);
+  auto rc = coord.Wait(120s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(coord.output().find("1 workers lost") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  for (int i : {0, 2}) CHECK(w[i].Wait(10s).has_value());  // they exit on JOB_DONE
+}
+
+TEST_CASE("SIGKILL of the coordinator, restart with --resume: same forest",
+          "[distributed][integration][slow]") {
+  TempDir dir("pf-dist-resume");
+  const std::string text = TinyJobText(2, 6);
+  std::ofstream(dir.path / "job.textproto") << text;
+  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
+  const uint32_t domain = Domain(25);
+  const std::string job_id = "p-resume-" + std::to_string(::getpid());
+  Child w[2];
+  for (int i = 0; i < 2; ++i) StartWorker(w[i], domain, job_id, "rw-" + std::to_string(i));
+  const std::vector<std::string> args = {Program(),
+                                         "coordinator",
+                                         (dir.path / "job.textproto").string(),
+                                         "--out",
+                                         (dir.path / "forest.pff").string(),
+                                         "--domain",
+                                         std::to_string(domain),
+                                         "--job-id",
+                                         job_id,
+                                         "--min-workers",
+                                         "2",
+                                         "--checkpoint",
+                                         (dir.path / "ckpt").string()};
+  {
+    Child first;
+    std::string error;
+    REQUIRE(first.Start(args, &error));
+    auto line = first.WaitForLine("tree 0 level 3:", 90s);
+    INFO(first.output());
+    REQUIRE(line.has_value());
+    first.Kill(SIGKILL);
+  }
+  REQUIRE(std::filesystem::exists(dir.path / "ckpt" / "checkpoint.pb"));
+  std::vector<std::string> resume = args;
+  resume.push_back("--resume");
+  Child second;
+  std::string error;
+  REQUIRE(second.Start(resume, &error));
+  auto rc = second.Wait(120s);
+  INFO(second.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(second.output().find("tree 0 level 0:") == std::string::npos);  // resumed, not restarted
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+}
