@@ -1,23 +1,88 @@
 #!/usr/bin/env bash
 # README command one: install what is missing, build (Release), and run the main job on its
-# embedded default. Outputs go to ./out (POSEFOREST_OUT to change).
+# embedded default (the job below):
+#   1. mocap -> pose library: the shared BVH clips retargeted onto the canonical skeleton and
+#      subsampled so no two poses are closer than 5 cm (section 2.2), split by clip into
+#      train and test clips;
+#   2. train a forest with the distributed service - a coordinator and 2 local worker
+#      processes over Fast DDS - on frames each worker renders on the fly (headless EGL):
+#      mocap poses from the train clips on procedural and MakeHuman bodies, random camera,
+#      Kinect-like noise; export it to the runtime format and check it;
+#   3. report the average per-class accuracy on held-out renders of the test clips (section 4);
+#   4. run the runtime on a held-out render and on a real Kinect v1 frame: body parts and
+#      3D joint proposals (JSON + picture); and PCL's independently trained trees on that frame.
+# Outputs go to ./out (POSEFOREST_OUT); POSEFOREST_DATA_DIR points at the shared data.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
-data=${POSEFOREST_DATA_DIR:-$root/../shared/data}
+data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
+  { echo "main-job: no shared data at ${POSEFOREST_DATA_DIR:-$root/../shared/data} (set POSEFOREST_DATA_DIR)" >&2; exit 1; }
 out=${POSEFOREST_OUT:-$root/out}
-bin=$root/build/bin/poseforest
 mkdir -p "$out"
+out=$(cd "$out" && pwd)
+bin=$root/build/bin
+start=$(date +%s)
 
 scripts/setup.sh
 echo "== build (Release)"
 scripts/build.sh
 
-echo "== runtime on real data: PCL's trained people trees on real Kinect v1 frames"
-if [[ -d "$data/pretrained/pcl_people_trees" && -d "$data/real/skeltrack_kinect_depth" ]]; then
-  "$bin" import-pcl --out "$out/pcl_people.pff" "$data"/pretrained/pcl_people_trees/forest{1,2,3}_tree_20.txt.bz2
-  "$bin" infer --forest "$out/pcl_people.pff" --out-dir "$out/real" "$data"/real/skeltrack_kinect_depth/depth-data-*
-else
-  echo "(skipped: no shared data at $data; set POSEFOREST_DATA_DIR)"
-fi
-echo "== done: outputs in $out"
+echo "== 1. pose library from $data/mocap"
+"$bin/poseforest-poselib" build --out "$out/mocap.pfposes" "$data/mocap"
+
+# The embedded default job (proto/poseforest/v1/job.proto). Sized to train in minutes on two
+# cores; the paper used 300k images per tree.
+cat > "$out/job.textproto" <<JOB
+seed: 2011
+num_trees: 3
+max_depth: 20
+images_per_tree: 300
+pixels_per_image: 2000
+candidate_features: 1000
+thresholds_per_feature: 50
+max_probe_offset_pixel_m: 129
+source {
+  rendered {
+    seed: 1
+    rotation_range_deg: 120
+    pose_library: "$out/mocap.pfposes"
+    clips: CLIP_SET_TRAIN
+    test_fraction: 0.2
+    split_seed: 1
+    makehuman_kit: "$data/meshes/makehuman_hm08_kit"
+  }
+}
+test_set {
+  source {
+    rendered {
+      seed: 99
+      rotation_range_deg: 120
+      pose_library: "$out/mocap.pfposes"
+      clips: CLIP_SET_TEST
+      test_fraction: 0.2
+      split_seed: 1
+      makehuman_kit: "$data/meshes/makehuman_hm08_kit"
+    }
+  }
+  num_images: 30
+}
+JOB
+
+echo "== 2. distributed training: coordinator + 2 local workers over Fast DDS ($out/job.textproto)"
+"$bin/poseforest" coordinator "$out/job.textproto" --out "$out/forest.pff" --local-workers 2 \
+  --checkpoint "$out/checkpoint"
+"$bin/poseforest" inspect "$out/forest.pff"
+
+echo "== 3. per-class accuracy on held-out renders (test clips)"
+"$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --png "$out/confusion.png"
+
+echo "== 4. runtime: body parts and joint proposals"
+"$bin/poseforest" render --out "$out/heldout" --count 4 --seed 4242 --poses "$out/mocap.pfposes" --clips test \
+  --test-fraction 0.2 --split-seed 1 --bodies all --data "$data" --montage "$out/heldout/montage.png" >/dev/null
+frame=$(ls "$data"/real/skeltrack_kinect_depth/depth-data-* | head -n 1)
+"$bin/poseforest" infer --forest "$out/forest.pff" --joints --out-dir "$out/infer" "$out/heldout/depth_000000.png" "$frame"
+"$bin/poseforest" import-pcl --out "$out/pcl_people.pff" "$data"/pretrained/pcl_people_trees/forest{1,2,3}_tree_20.txt.bz2
+"$bin/poseforest" infer --forest "$out/pcl_people.pff" --out-dir "$out/pcl" "$frame"
+
+echo "== done in $(( $(date +%s) - start )) s. In $out: forest.pff, confusion.png, infer/*.parts.png,"
+echo "   infer/*.pose.png (depth | parts | joints; front/side/top views), infer/*.joints.json, pcl/"
