@@ -4,10 +4,11 @@
 #   1. mocap -> pose library: the shared BVH clips retargeted onto the canonical skeleton and
 #      subsampled so no two poses are closer than 5 cm (section 2.2), split by clip into
 #      train and test clips;
-#   2. train a forest with the distributed service - a coordinator and 2 local worker
-#      processes over Fast DDS - on frames each worker renders on the fly (headless EGL):
-#      mocap poses from the train clips on procedural and MakeHuman bodies, random camera,
-#      Kinect-like noise; export it to the runtime format and check it;
+#   2. train a forest on frames rendered on the fly (headless EGL): mocap poses from the train
+#      clips on procedural and MakeHuman bodies, random camera, Kinect-like noise; export it to
+#      the runtime format and check it; then train a small job again with the distributed
+#      service (a coordinator and 2 local worker processes over Fast DDS) and check that it
+#      writes the same forest, byte for byte, as the single-process engine;
 #   3. report the average per-class accuracy on held-out renders of the test clips (section 4);
 #   4. run the runtime on a held-out render and on a real Kinect v1 frame: body parts and
 #      3D joint proposals (JSON + picture); and PCL's independently trained trees on that frame.
@@ -68,10 +69,16 @@ test_set {
 }
 JOB
 
-echo "== 2. distributed training: coordinator + 2 local workers over Fast DDS ($out/job.textproto)"
-"$bin/poseforest" coordinator "$out/job.textproto" --out "$out/forest.pff" --local-workers 2 \
-  --checkpoint "$out/checkpoint"
+echo "== 2. training ($out/job.textproto)"
+"$bin/poseforest" train "$out/job.textproto" --out "$out/forest.pff"
 "$bin/poseforest" inspect "$out/forest.pff"
+
+echo "== 2b. the distributed service (coordinator + 2 local workers over Fast DDS) on a small job"
+small="$root/docs/training/smoke_job.textproto"
+"$bin/poseforest" train "$small" --out "$out/small_single.pff" --quiet
+"$bin/poseforest" coordinator "$small" --out "$out/small_distributed.pff" --local-workers 2 --checkpoint "$out/checkpoint"
+cmp "$out/small_single.pff" "$out/small_distributed.pff"
+echo "distributed forest == single-process forest, byte for byte"
 
 echo "== 3. per-class accuracy on held-out renders (test clips)"
 "$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --png "$out/confusion.png"
