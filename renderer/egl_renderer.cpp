@@ -9,10 +9,16 @@
 #include <cstdio>
 #include <cstring>
 #include <string_view>
+#include <unordered_map>
 
 #include "runtime/core/body_parts.h"
 
 namespace poseforest::renderer {
+
+/// Winding of outward (camera-facing) triangles in window space for a transform with positive
+/// determinant: the projection renders rows top-down (a y flip), so counter-clockwise meshes
+/// arrive clockwise. Checked by test_egl_renderer's exact-depth box test.
+constexpr bool kFrontIsCcw = false;
 namespace {
 
 using core::ErrorCode;
@@ -142,6 +148,7 @@ struct EglRenderer::Impl {
   struct Mesh {
     GLuint vao = 0, vbo = 0, ibo = 0;
     GLsizei index_count = 0;
+    bool closed = false;  ///< every edge shared by exactly two triangles, consistently wound
   };
   std::vector<Mesh> meshes;
   std::array<GLuint, 32> identity_map{}, mirror_map{};
@@ -339,7 +346,7 @@ core::Result<std::unique_ptr<EglRenderer>> EglRenderer::Create(const core::Camer
                                             std::to_string(fb_status) + ") on " + r->gl_renderer_);
   }
   glViewport(0, 0, camera.width, camera.height);
-  glDisable(GL_CULL_FACE);  // mirrored geometry flips the winding; bodies are closed anyway
+  glDisable(GL_CULL_FACE);  // enabled per draw for closed meshes (Draw)
   glDisable(GL_BLEND);
   glDisable(GL_DITHER);  // dithering would perturb the encoded bytes
   glEnable(GL_DEPTH_TEST);
@@ -448,6 +455,22 @@ core::Result<int> EglRenderer::UploadMesh(const BodyMesh& mesh) {
   glVertexAttribIPointer(3, 1, GL_UNSIGNED_BYTE, stride, reinterpret_cast<void*>(offsetof(GpuVertex, part)));
   glBindVertexArray(0);
   m.index_count = GLsizei(indices.size());
+  {
+    // Closed and consistently wound: each directed edge appears once and its reverse once.
+    std::unordered_map<uint64_t, int> edges;
+    edges.reserve(mesh.triangles.size() * 3);
+    for (const auto& t : mesh.triangles)
+      for (int e = 0; e < 3; ++e) ++edges[uint64_t(t[size_t(e)]) << 32 | t[size_t((e + 1) % 3)]];
+    m.closed = !mesh.triangles.empty();
+    for (const auto& [key, n] : edges) {
+      const uint64_t reverse = (key << 32) | (key >> 32);
+      const auto it = edges.find(reverse);
+      if (n != 1 || it == edges.end() || it->second != 1) {
+        m.closed = false;
+        break;
+      }
+    }
+  }
   if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
     return Status(ErrorCode::kInternal,
                   "EGL renderer: GL error " + std::to_string(e) + " uploading '" + mesh.name + "'");
@@ -478,6 +501,15 @@ void EglRenderer::Draw(int handle, const JointMatrices& m, bool mirror_labels) {
     impl_->mirrored_bound = mirror_labels;
   }
   const Impl::Mesh& mesh = impl_->meshes[size_t(handle)];
+  // Closed bodies: only faces towards the camera can be the nearest surface, so cull the rest
+  // (about half the triangles). A mirrored transform (negative determinant) flips the winding.
+  if (mesh.closed) {
+    const double det = m[0].template block<3, 3>(0, 0).determinant();
+    glEnable(GL_CULL_FACE);
+    glFrontFace((det > 0) == kFrontIsCcw ? GL_CCW : GL_CW);
+  } else {
+    glDisable(GL_CULL_FACE);
+  }
   glBindVertexArray(mesh.vao);
   glDrawElements(GL_TRIANGLES, mesh.index_count, GL_UNSIGNED_INT, nullptr);
 }
