@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "tests/support/process.h"
 #include "tests/dds/dds_test_util.h"
 
 namespace pdt = poseforest::dds::testing;
@@ -20,21 +21,9 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-struct CommandResult {
-  int rc = -1;
-  std::string output;
-};
+using poseforest::testing::CommandResult;
 
-CommandResult Run(const std::string& cmd) {
-  CommandResult r;
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[512];
-  while (std::fgets(buf, sizeof buf, p)) r.output += buf;
-  const int status = ::pclose(p);
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+CommandResult Run(const std::string& cmd) { return poseforest::testing::RunCommand(cmd); }
 
 /// The namespaces of one test run; the destructor removes them (and with them the veths/bridge).
 struct Topology {
@@ -47,7 +36,7 @@ struct Topology {
   }
   void Must(const std::string& cmd) {
     auto r = Run(cmd);
-    if (r.rc != 0)
+    if (r.exit_code != 0)
       FAIL("network namespace set-up failed (the multi-host test needs root and `ip netns`): `" << cmd
                                                                                                  << "` -> " << r.output);
   }

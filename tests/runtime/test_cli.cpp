@@ -6,37 +6,18 @@
 #include <fstream>
 #include <iterator>
 #include <string>
-#include <sys/wait.h>
 
 #include "runtime/classifier.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #include "tests/support/paths.h"
+#include "tests/support/process.h"
 #include "tests/support/synthetic.h"
 
 using namespace poseforest;
 namespace fs = std::filesystem;
 
-namespace {
-
-struct Run {
-  int exit_code;
-  std::string output;  // stdout + stderr
-};
-
-Run RunPoseforest(const std::string& args) {
-  const std::string cmd = (testing::BinDir() / "poseforest").string() + " " + args + " 2>&1";
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  REQUIRE(pipe != nullptr);
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
-
-}  // namespace
+using testing::RunPoseforest;
 
 TEST_CASE("poseforest help and unknown commands", "[cli]") {
   auto help = RunPoseforest("help");

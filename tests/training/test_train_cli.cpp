@@ -1,5 +1,4 @@
 // `poseforest train` and `poseforest eval` end to end, as a user runs them.
-#include <sys/wait.h>
 
 #include <catch2/catch.hpp>
 #include <cstdio>
@@ -8,29 +7,11 @@
 
 #include "runtime/core/forest_format.h"
 #include "tests/support/paths.h"
+#include "tests/support/process.h"
 
 using namespace poseforest;
 
-namespace {
-
-struct Run {
-  int exit_code;
-  std::string output;  // stdout + stderr
-};
-
-Run RunPoseforest(const std::string& args) {
-  const std::string cmd = (testing::BinDir() / "poseforest").string() + " " + args + " 2>&1";
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  REQUIRE(pipe != nullptr);
-  std::string out;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) out.append(buf, n);
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
-
-}  // namespace
+using testing::RunPoseforest;
 
 TEST_CASE("train a forest from a job file, then evaluate it", "[cli][training]") {
   const auto dir = testing::ScratchDir("cli-train");
