@@ -74,10 +74,23 @@ std::vector<Mode> MeanShiftModes(const std::vector<Eigen::Vector3f>& points, con
   const float cutoff = 3.0f * bandwidth, cutoff2 = cutoff * cutoff, inv_b2 = 1.0f / (bandwidth * bandwidth);
   const Grid grid(points, cutoff);
   std::vector<std::pair<Eigen::Vector3f, float>> arrivals;
+  // Where earlier seeds converged: a later trajectory that comes within a quarter of the merge
+  // distance of one of them would end there too, so it stops and takes that end point (the
+  // usual basin-of-attraction shortcut; it changes no mode, only the work).
+  std::vector<Eigen::Vector3f> ends;
+  const float join2 = 0.0625f * merge_distance * merge_distance;
   for (size_t s = 0; s < points.size(); ++s) {
     if (!(seed_weights[s] > 0)) continue;
     Eigen::Vector3f x = points[s];
-    for (int it = 0; it < max_iterations; ++it) {
+    bool joined = false;
+    for (int it = 0; it < max_iterations && !joined; ++it) {
+      for (const Eigen::Vector3f& e : ends)
+        if ((e - x).squaredNorm() < join2) {
+          x = e;
+          joined = true;
+          break;
+        }
+      if (joined) break;
       Eigen::Vector3f num = Eigen::Vector3f::Zero();
       float den = 0;
       grid.ForNeighbours(x, [&](uint32_t i) {
@@ -93,6 +106,7 @@ std::vector<Mode> MeanShiftModes(const std::vector<Eigen::Vector3f>& points, con
       x = next;
       if (step2 < 1e-6f * bandwidth * bandwidth) break;
     }
+    if (!joined) ends.push_back(x);
     arrivals.emplace_back(x, seed_weights[s]);
   }
   // Seeds that end within merge_distance of a mode's first arrival belong to that mode; its
