@@ -368,10 +368,10 @@ Status DdsNode::Impl::CreateEndpoints() {
                                      ? fdds::MANUAL_BY_TOPIC_LIVELINESS_QOS
                                      : fdds::AUTOMATIC_LIVELINESS_QOS;
     const auto announce = HasLease(t) ? ToDuration(config.liveliness_lease / 4) : eprosima::fastrtps::c_TimeInfinite;
-    if (w) {
-      fdds::DataWriterQos q = fdds::DATAWRITER_QOS_DEFAULT;
+    // QoS that writer and reader of a topic must agree on (reliability, durability, history,
+    // liveliness), set once for both.
+    auto apply_common = [&](auto& q) {
       q.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
-      q.reliability().max_blocking_time = eprosima::fastrtps::Duration_t(10, 0);
       q.durability().kind = IsTransientLocal(t) ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS : fdds::VOLATILE_DURABILITY_QOS;
       if (IsKeepAll(t)) {
         q.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
@@ -386,8 +386,13 @@ Status DdsNode::Impl::CreateEndpoints() {
       }
       q.liveliness().kind = liveliness_kind;
       q.liveliness().lease_duration = lease;
-      q.liveliness().announcement_period = announce;
       q.endpoint().history_memory_policy = frtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
+    };
+    if (w) {
+      fdds::DataWriterQos q = fdds::DATAWRITER_QOS_DEFAULT;
+      apply_common(q);
+      q.reliability().max_blocking_time = eprosima::fastrtps::Duration_t(10, 0);
+      q.liveliness().announcement_period = announce;
       // Recover lost fragments of large samples quickly (default heartbeat period is 3 s).
       q.reliable_writer_qos().times.heartbeatPeriod = eprosima::fastrtps::Duration_t(0, 100000000);
       writer_listeners[i].impl = this;
@@ -397,22 +402,7 @@ Status DdsNode::Impl::CreateEndpoints() {
     }
     if (r) {
       fdds::DataReaderQos q = fdds::DATAREADER_QOS_DEFAULT;
-      q.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
-      q.durability().kind = IsTransientLocal(t) ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS : fdds::VOLATILE_DURABILITY_QOS;
-      if (IsKeepAll(t)) {
-        q.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
-        q.resource_limits().max_samples = kKeepAllMaxSamples;
-        q.resource_limits().max_instances = 1;
-        q.resource_limits().max_samples_per_instance = kKeepAllMaxSamples;
-        q.resource_limits().allocated_samples = 16;
-      } else {
-        q.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-        q.history().depth = KeepLastDepth(t);
-        q.resource_limits().allocated_samples = KeepLastDepth(t);
-      }
-      q.liveliness().kind = liveliness_kind;
-      q.liveliness().lease_duration = lease;
-      q.endpoint().history_memory_policy = frtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
+      apply_common(q);
       reader_listeners[i].impl = this;
       reader_listeners[i].topic = t;
       readers[i] = subscriber->create_datareader(topics[i], q, &reader_listeners[i], fdds::StatusMask::all());
