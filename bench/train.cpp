@@ -54,6 +54,7 @@ Figures RunLevel(const worker::SampleSet& set, const worker::TrainParams& p, int
     for (size_t i = b0; i < std::min(ranges.size(), b0 + batch); ++i) {
       worker::NodePlan plan;
       plan.node = ranges[i].node;
+      plan.position = plan.node;
       plan.num_samples = ranges[i].end - ranges[i].begin;
       std::vector<uint64_t> parts(core::kNumParts);
       set.CountParts(ranges[i], core::kNumParts, parts.data());
@@ -174,6 +175,7 @@ int main(int argc, char** argv) {
       for (size_t i = b0; i < std::min(ranges.size(), b0 + 256); ++i) {
         worker::NodePlan plan;
         plan.node = ranges[i].node;
+        plan.position = plan.node;
         plan.num_samples = ranges[i].end - ranges[i].begin;
         std::vector<uint64_t> parts(core::kNumParts);
         set.CountParts(ranges[i], core::kNumParts, parts.data());

@@ -32,7 +32,8 @@ double Now() {
 
 /// A frontier node as the coordinator knows it.
 struct FrontierNode {
-  uint32_t node;
+  uint32_t node;                ///< breadth-first index (the file's layout)
+  uint64_t position;            ///< heap position: keys the node's random draws (candidates.h)
   std::vector<uint64_t> parts;  ///< kNumParts counts over all shards
   uint64_t total() const {
     uint64_t n = 0;
@@ -144,6 +145,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
   TreeAssembler assembler(core::kNumParts);
   std::vector<FrontierNode> frontier(1);
   frontier[0].node = 0;
+  frontier[0].position = worker::kRootPosition;
   frontier[0].parts.assign(core::kNumParts, 0);
   for (auto& s : shards) {
     if (s.ranges().empty()) continue;
@@ -184,6 +186,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
         const FrontierNode& f = frontier[to_split[b1]];
         NodePlan plan;
         plan.node = f.node;
+        plan.position = f.position;
         plan.num_samples = f.total();
         plan.SetParts(f.parts);
         plan.sample_bins = worker::UseSampleBins(plan.num_samples, t_count, plan.num_slots);
@@ -191,7 +194,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
         const uint64_t bytes = worker::PlanHistogramBytes(plan, t_count);
         if (!plans.empty() && batch_bytes + bytes > params_.histogram_memory_bytes) break;
         batch_bytes += bytes;
-        plan.features = worker::DrawFeatures(params_, tree, f.node);
+        plan.features = worker::DrawFeatures(params_, tree, f.position);
         plan.cut_stride = cut_stride;
         plans.push_back(std::move(plan));
         ++b1;
@@ -225,7 +228,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
             for (size_t k = 0; k < merged[p].size(); ++k) merged[p][k].Merge(part[p][k]);
         }
         for (size_t p = 0; p < normal.size(); ++p)
-          normal[p].cuts = worker::DrawCuts(params_, tree, normal[p].node, merged[p]);
+          normal[p].cuts = worker::DrawCuts(params_, tree, normal[p].position, merged[p]);
       }
       stats_.range_seconds += Now() - t_range;
       // Pass 2: histograms, summed over shards (integer sums: order-independent).
@@ -291,8 +294,8 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
       const SplitChoice& c = choices[i];
       const uint32_t left = assembler.MakeSplit(f.node, chosen_offsets[i], c.cut);
       splits.push_back({f.node, chosen_offsets[i], c.cut, left});
-      next.push_back({left, c.left_parts});
-      next.push_back({left + 1, c.right_parts});
+      next.push_back({left, worker::LeftChildPosition(f.position), c.left_parts});
+      next.push_back({left + 1, worker::RightChildPosition(f.position), c.right_parts});
     }
     for (auto& s : shards) s.ApplySplits(splits, params_.constants, threads);
     if (options_.progress) {

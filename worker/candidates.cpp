@@ -17,8 +17,8 @@ int CutStride(int thresholds_per_feature) {
   return s;
 }
 
-std::vector<core::FeatureOffsets> DrawFeatures(const TrainParams& params, int tree, uint32_t node) {
-  const core::CounterRng rng(params.seed, uint64_t(tree), node, kFeatureStream);
+std::vector<core::FeatureOffsets> DrawFeatures(const TrainParams& params, int tree, uint64_t position) {
+  const core::CounterRng rng(params.seed, uint64_t(tree), position, kFeatureStream);
   const int m = params.max_offset_units();
   std::vector<core::FeatureOffsets> out(static_cast<size_t>(params.candidate_features));
   for (size_t k = 0; k < out.size(); ++k) {
@@ -31,9 +31,9 @@ std::vector<core::FeatureOffsets> DrawFeatures(const TrainParams& params, int tr
   return out;
 }
 
-ReferenceSelector::ReferenceSelector(const TrainParams& params, int tree, uint32_t node,
+ReferenceSelector::ReferenceSelector(const TrainParams& params, int tree, uint64_t position,
                                      uint64_t node_samples)
-    : rng_(params.seed, uint64_t(tree), node, kReferenceStream) {
+    : rng_(params.seed, uint64_t(tree), position, kReferenceStream) {
   if (node_samples <= params.threshold_reference_pixels) {
     all_ = true;
   } else {
@@ -42,10 +42,10 @@ ReferenceSelector::ReferenceSelector(const TrainParams& params, int tree, uint32
   }
 }
 
-std::vector<int32_t> DrawCuts(const TrainParams& params, int tree, uint32_t node,
+std::vector<int32_t> DrawCuts(const TrainParams& params, int tree, uint64_t position,
                               std::span<const ResponseRange> ranges) {
   const int t = params.thresholds_per_feature, stride = CutStride(t);
-  const core::CounterRng rng(params.seed, uint64_t(tree), node, kThresholdStream);
+  const core::CounterRng rng(params.seed, uint64_t(tree), position, kThresholdStream);
   std::vector<int32_t> cuts(ranges.size() * size_t(stride), kNoCut);
   for (size_t k = 0; k < ranges.size(); ++k) {
     const ResponseRange& r = ranges[k];

@@ -425,7 +425,7 @@ void HistogramBuilder::ComputeRanges(const SampleSet& samples, const TrainParams
     (*out)[p].assign(plans[p].features.size(), ResponseRange{});
     const NodeRange r = ranges[p] = samples.RangeOf(plans[p].node);
     if (r.end == r.begin) continue;
-    const ReferenceSelector sel(params, tree, plans[p].node, plans[p].num_samples);
+    const ReferenceSelector sel(params, tree, plans[p].position, plans[p].num_samples);
     if (sel.all()) {
       whole[p] = 1;
     } else {
@@ -641,7 +641,7 @@ void HistogramBuilder::BuildFused(const SampleSet& samples, const TrainParams& p
               _mm512_storeu_si512(&resp[i * ps + size_t(k)], SampleResponses16(in, range.begin + i, soa, k));
           for (uint64_t i = 0; i < n; ++i)
             for (size_t k = 0; k < kk; ++k) ranges[k].Add(resp[i * ps + k]);
-          plan.cuts = DrawCuts(params, tree, plan.node, ranges);
+          plan.cuts = DrawCuts(params, tree, plan.position, ranges);
           plan.cut_stride = stride;
           soa.Set(plan.features, plan.cuts.data(), stride, t);
           // Pass 2: bins by a linear count over the transposed cuts, as the sample-major kernel.
@@ -680,7 +680,7 @@ void HistogramBuilder::BuildFused(const SampleSet& samples, const TrainParams& p
             resp[i * ps + k] = samples.Response(range.begin + i, plan.features[k], in.background_mm);
         for (uint64_t i = 0; i < n; ++i)
           for (size_t k = 0; k < kk; ++k) ranges[k].Add(resp[i * ps + k]);
-        plan.cuts = DrawCuts(params, tree, plan.node, ranges);
+        plan.cuts = DrawCuts(params, tree, plan.position, ranges);
         plan.cut_stride = stride;
         for (uint64_t i = 0; i < n; ++i) {
           const int slot = plan.part_slot[samples.part()[range.begin + i]];

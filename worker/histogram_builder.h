@@ -17,7 +17,8 @@ namespace poseforest::worker {
 
 /// What a worker needs to know about one frontier node (identical on every worker).
 struct NodePlan {
-  uint32_t node = 0;         ///< index in the tree's breadth-first node array
+  uint32_t node = 0;         ///< index in the tree's breadth-first node array (where the samples sit)
+  uint64_t position = 0;     ///< heap position (candidates.h): keys every random draw of the node
   uint64_t num_samples = 0;  ///< samples of the node over all shards
   /// Compact "slot" of each part present in the node (kNumParts entries, 0xFF = absent);
   /// histograms only count present parts, which keeps deep nodes' histograms small.

@@ -224,6 +224,7 @@ Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& c, const std::stri
       return Bad(source, "histogram_memory_mb", Str(c.histogram_memory_mb()), "must be in 16..1048576 MiB");
     p.histogram_memory_bytes = c.histogram_memory_mb() << 20;
   }
+  if (c.has_subtree_max_samples()) p.subtree_max_samples = c.subtree_max_samples();
   if (!c.has_source())
     return Bad(source, "source", "",
                "is required: set one of rendered { }, dataset { folder: ... } or procedural { }");

@@ -60,6 +60,9 @@ struct TrainParams {
   uint64_t threshold_reference_pixels = 500;
   double part_balance = 1.0;
   uint64_t histogram_memory_bytes = uint64_t(1) << 30;
+  /// Distributed service: nodes of at most this many samples (all shards) are trained whole by
+  /// one worker (SubtreeTask); 0 = never. The forest does not depend on it.
+  uint64_t subtree_max_samples = 4096;
   core::FeatureConstants constants;
   SourceSpec source;
   bool has_test_set = false;

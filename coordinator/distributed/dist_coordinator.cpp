@@ -4,7 +4,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <climits>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +15,7 @@
 #include <sstream>
 
 #include "coordinator/split_search.h"
+#include "coordinator/subtree_trainer.h"
 #include "coordinator/tree_assembler.h"
 #include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
@@ -33,9 +36,13 @@ using Verdict = dds::MessageGate::Verdict;
 
 namespace {
 constexpr int kParts = core::kNumParts;
+/// 2: frontier entries, logged decisions and subtree nodes carry heap positions (the random
+/// draws are keyed by them since subtree hand-off); format 1 checkpoints cannot resume.
+constexpr uint32_t kCheckpointFormat = 2;
 
 struct FrontierNode {
   uint32_t node = 0;
+  uint64_t position = 0;  ///< heap position: keys the node's random draws
   std::vector<uint64_t> parts;
   uint64_t total() const {
     uint64_t n = 0;
@@ -61,6 +68,42 @@ struct Reply {
   v1::HistogramReply body;
   HistogramReplyExt ext;
 };
+
+/// A node handed to one worker whole (SubtreeTask), until its SubtreeResult is in.
+struct SubtreeJob {
+  uint32_t node = 0;  ///< breadth-first id
+  uint64_t position = 0;
+  std::vector<uint64_t> parts;
+  std::vector<uint32_t> frames;             ///< tree-local frames holding its samples
+  std::map<std::string, uint64_t> holders;  ///< worker -> samples of the node in its shard
+  std::string worker;                       ///< who has it now
+  uint64_t epoch = 0;                       ///< of the task sent to `worker`
+  double sent = 0;
+  bool done = false;
+  std::vector<coordinator::SubtreeNode> nodes;  ///< the result
+};
+
+coordinator::SubtreeNode FromProto(const SubtreeNode& n) {
+  coordinator::SubtreeNode o;
+  o.position = n.position();
+  o.split = n.split();
+  o.offsets = {int16_t(n.ux()), int16_t(n.uy()), int16_t(n.vx()), int16_t(n.vy())};
+  o.cut = n.cut();
+  o.parts.assign(n.part_counts().begin(), n.part_counts().end());
+  return o;
+}
+
+void ToProto(const coordinator::SubtreeNode& n, SubtreeNode* o) {
+  o->set_position(n.position);
+  o->set_split(n.split);
+  if (n.split) {
+    o->set_ux(n.offsets.ux), o->set_uy(n.offsets.uy), o->set_vx(n.offsets.vx), o->set_vy(n.offsets.vy);
+    o->set_cut(n.cut);
+  }
+  for (uint64_t c : n.parts) o->add_part_counts(c);
+}
+
+bool FitsInt16(int32_t v) { return v >= INT16_MIN && v <= INT16_MAX; }
 }  // namespace
 
 std::string DefaultJobId(const v1::TrainerConfig& config);
@@ -83,6 +126,14 @@ struct DistCoordinator::Impl {
   // Current tree.
   int tree = -1;
   std::vector<v1::SplitDecisions> tree_decisions;  ///< per decided level, for replays
+  /// Every split of the current tree by heap position (the paths of SubtreeTasks).
+  std::map<uint64_t, std::pair<core::FeatureOffsets, int32_t>> split_of;
+  /// Decided nodes of delegated subtrees not placed in the tree yet, by heap position.
+  std::map<uint64_t, coordinator::SubtreeNode> delegated;
+  std::map<uint64_t, SubtreeJob> tasks;  ///< outstanding SubtreeTasks of this level, by position
+  std::set<std::string> banned;          ///< senders of hostile SubtreeResults: never rejoin
+  uint64_t subtree_rejected = 0;
+  uint64_t level_subtree_evaluations = 0;
   // Level accounting.
   uint64_t level_bytes_received = 0, level_bytes_sent = 0;
   int level_retries = 0;
@@ -166,6 +217,13 @@ struct DistCoordinator::Impl {
         }
         if (expected_phase == PHASE_COUNTS && nr.part_counts_size() != kParts)
           return bad("part count length");
+        if (expected_phase == PHASE_FRAMES) {
+          for (int j = 0; j < nr.frames_size(); ++j)
+            if (nr.frames(j) >= uint32_t(params.images_per_tree) ||
+                (j > 0 && nr.frames(j) <= nr.frames(j - 1)))
+              return bad("frame list");
+          if (nr.num_samples() > 0 && nr.frames_size() == 0) return bad("samples without frames");
+        }
       }
     }
     return Status::Ok();
@@ -191,6 +249,7 @@ struct DistCoordinator::Impl {
         switch (env.body_case()) {
           case v1::Envelope::kHello:
           case v1::Envelope::kHeartbeat: {
+            if (banned.count(out.sender)) break;
             auto [it, fresh] = workers.try_emplace(out.sender);
             WorkerInfo& w = it->second;
             if (fresh || !w.alive) {
@@ -232,6 +291,11 @@ struct DistCoordinator::Impl {
             }
             break;
           }
+          case v1::Envelope::kSubtreeResult:
+            total_bytes_received += s->bytes.size();
+            level_bytes_received += s->bytes.size();
+            OnSubtreeResult(out.sender, env.subtree_result());
+            break;
           default:
             break;
         }
@@ -402,6 +466,144 @@ struct DistCoordinator::Impl {
     }
   }
 
+  /// A SubtreeResult that does not fit its task: dropped, counted, and its sender (if it is one
+  /// of our workers) evicted for good; its task goes to another worker.
+  void RejectSubtree(const std::string& sender, const std::string& why) {
+    ++subtree_rejected;
+    Log("SubtreeResult from " + sender + " dropped: " + why);
+    if (workers.count(sender)) {
+      banned.insert(sender);
+      MarkLost(sender, "evicted");
+    }
+  }
+
+  void OnSubtreeResult(const std::string& sender, const v1::SubtreeResult& res) {
+    SubtreeJob* job = nullptr;
+    for (auto& [pos, t] : tasks)
+      if (t.epoch == res.epoch() && !t.done) job = &t;
+    if (!job) {
+      // An answer to a task that was handed on (its worker was thought lost) or is done: stale.
+      ++subtree_rejected;
+      Log("SubtreeResult from " + sender + " of epoch " + std::to_string(res.epoch()) +
+          ": no such task (stale)");
+      return;
+    }
+    if (sender != job->worker)
+      return RejectSubtree(sender, "task " + std::to_string(res.epoch()) + " is not its");
+    if (res.tree() != uint32_t(tree) || res.node_id() != job->node)
+      return RejectSubtree(sender, "tree/node " + std::to_string(res.tree()) + "/" +
+                                       std::to_string(res.node_id()) + ", task is " + std::to_string(tree) +
+                                       "/" + std::to_string(job->node));
+    SubtreeResultExt ext;
+    if (Status st = ReadExt(res, &ext, "SubtreeResult"); !st.ok()) return RejectSubtree(sender, st.message());
+    if (ext.position() != job->position)
+      return RejectSubtree(sender, "position " + std::to_string(ext.position()) + ", task is " +
+                                       std::to_string(job->position));
+    std::vector<coordinator::SubtreeNode> nodes;
+    for (const SubtreeNode& n : ext.nodes()) {
+      if (n.split() && !(FitsInt16(n.ux()) && FitsInt16(n.uy()) && FitsInt16(n.vx()) && FitsInt16(n.vy())))
+        return RejectSubtree(sender, "feature offsets outside int16");
+      nodes.push_back(FromProto(n));
+    }
+    core::Tree layout;
+    if (Status st = coordinator::ValidateSubtree(nodes, job->position, job->parts, params, &layout); !st.ok())
+      return RejectSubtree(sender, st.message());
+    // The forest-format bytes must encode the same subtree.
+    if (res.num_nodes() != layout.nodes.size() || res.num_leaves() != layout.num_leaves ||
+        res.nodes().size() != layout.nodes.size() * sizeof(core::Node) ||
+        std::memcmp(res.nodes().data(), layout.nodes.data(), res.nodes().size()) != 0 ||
+        res.leaves() !=
+            std::string(reinterpret_cast<const char*>(layout.leaves.data()), layout.leaves.size()))
+      return RejectSubtree(sender, "node/leaf bytes do not match its node list");
+    job->nodes = std::move(nodes);
+    job->done = true;
+    level_subtree_evaluations += ext.evaluations();
+  }
+
+  /// Sends `job` to the live worker holding most of its samples (ties: smallest id), any live
+  /// worker when none of its holders is left.
+  Status SendTask(SubtreeJob& job) {
+    const WorkerInfo* best = nullptr;
+    uint64_t best_n = 0;
+    for (const auto& [id, w] : workers) {
+      if (!w.alive) continue;
+      const auto it = job.holders.find(id);
+      const uint64_t n = it == job.holders.end() ? 0 : it->second;
+      if (!best || n > best_n || (n == best_n && w.assigned && !best->assigned)) best = &w, best_n = n;
+    }
+    if (!best) {
+      POSEFOREST_RETURN_IF_ERROR(WaitForWorkers(1));
+      return SendTask(job);
+    }
+    v1::Envelope env;
+    env.set_recipient_id(best->id);
+    v1::SubtreeTask* t = env.mutable_subtree_task();
+    t->set_tree(uint32_t(tree));
+    t->set_node_id(job.node);
+    const int depth = worker::PositionDepth(job.position);
+    t->set_depth(uint32_t(depth));
+    t->set_epoch(++epoch);
+    std::vector<uint64_t> chain;  // root .. the node
+    for (uint64_t p = job.position;; p = worker::ParentPosition(p)) {
+      chain.push_back(p);
+      if (p == worker::kRootPosition) break;
+    }
+    std::reverse(chain.begin(), chain.end());
+    for (size_t i = 0; i + 1 < chain.size(); ++i) {
+      const auto it = split_of.find(chain[i]);
+      if (it == split_of.end())
+        return Status(ErrorCode::kInternal, "no split known at position " + std::to_string(chain[i]));
+      auto* step = t->add_path();
+      SetFeatureSplit(it->second.first, it->second.second, 1, 0, step->mutable_split());
+      step->set_went_right(chain[i + 1] == worker::RightChildPosition(chain[i]));
+    }
+    const uint64_t base = uint64_t(tree) * uint64_t(params.images_per_tree);
+    for (size_t i = 0; i < job.frames.size();) {
+      size_t j = i + 1;
+      while (j < job.frames.size() && job.frames[j] == job.frames[j - 1] + 1) ++j;
+      auto* r = t->add_ranges();
+      r->set_seed(params.source.seed);
+      r->set_first_index(base + job.frames[i]);
+      r->set_count(uint32_t(j - i));
+      i = j;
+    }
+    uint64_t total = 0;
+    for (uint64_t c : job.parts) total += c;
+    t->set_expected_samples(total);
+    SubtreeTaskExt ext;
+    ext.set_position(job.position);
+    for (uint64_t c : job.parts) ext.add_part_counts(c);
+    AttachExt(ext, t);
+    job.worker = best->id;
+    job.epoch = t->epoch();
+    job.sent = NowSeconds();
+    return Send(Topic::kControl, env);
+  }
+
+  /// Waits for every outstanding SubtreeTask's result, handing the task of a worker that is
+  /// lost (or evicted, or silent past reply_timeout) to another one: same result, since the
+  /// subtree depends on the node's samples alone.
+  Status WaitSubtrees() {
+    const double limit = std::chrono::duration<double>(opt.reply_timeout).count();
+    for (;;) {
+      bool all = true;
+      for (auto& [pos, job] : tasks) {
+        if (job.done) continue;
+        all = false;
+        auto it = workers.find(job.worker);
+        if (it != workers.end() && it->second.alive && NowSeconds() - job.sent > limit)
+          MarkLost(job.worker, "no subtree result");
+        if (it == workers.end() || !it->second.alive) {
+          Log("subtree at position " + std::to_string(pos) + ": " + job.worker + " is gone, handing it on");
+          ++level_retries;
+          POSEFOREST_RETURN_IF_ERROR(SendTask(job));
+        }
+      }
+      if (all) return Status::Ok();
+      Pump(std::chrono::milliseconds(20), 0, nullptr);
+    }
+  }
+
   Status SaveCheckpoint() {
     if (opt.checkpoint_dir.empty()) return Status::Ok();
     ckpt.set_epoch(epoch);
@@ -434,6 +636,15 @@ struct DistCoordinator::Impl {
   Result<core::Tree> TrainTree(std::vector<FrontierNode> frontier, int first_level, int* levels_done) {
     coordinator::TreeAssembler assembler(kParts);
     POSEFOREST_RETURN_IF_ERROR(Replay(ckpt.current(), &assembler));
+    split_of.clear();
+    delegated.clear();
+    tasks.clear();
+    for (const LoggedLevel& lv : ckpt.current().levels())
+      for (const LoggedDecision& d : lv.decisions())
+        if (d.split())
+          split_of[d.position()] = {{int16_t(d.ux()), int16_t(d.uy()), int16_t(d.vx()), int16_t(d.vy())},
+                                    d.cut()};
+    for (const SubtreeNode& n : ckpt.subtree_nodes()) delegated[n.position()] = FromProto(n);
     // Resumed after its last level, before the tree was filed as finished: nothing left to do.
     if (first_level > 0 && frontier.empty()) return assembler.Finish();
     // Shards: every frame of the tree over the live workers; replays of resumed levels included.
@@ -444,7 +655,7 @@ struct DistCoordinator::Impl {
       // Census of the root.
       auto replies = Round(PHASE_COUNTS, {0}, {NodeSpec{}}, 0);
       if (!replies.ok()) return replies.status();
-      FrontierNode root{0, std::vector<uint64_t>(kParts, 0)};
+      FrontierNode root{0, worker::kRootPosition, std::vector<uint64_t>(kParts, 0)};
       for (const Reply& r : *replies) {
         for (int p = 0; p < kParts; ++p) root.parts[size_t(p)] += r.ext.ranges(0).part_counts(p);
       }
@@ -463,6 +674,7 @@ struct DistCoordinator::Impl {
       const double t_level = NowSeconds();
       level_bytes_received = level_bytes_sent = 0;
       level_retries = 0;
+      level_subtree_evaluations = 0;
       double hist_s = 0, merge_s = 0;
       uint64_t evaluations = 0, level_samples = 0;
       std::vector<size_t> to_split;
@@ -471,12 +683,59 @@ struct DistCoordinator::Impl {
         level_samples += n;
         int present = 0;
         for (uint64_t c : frontier[i].parts) present += c > 0;
+        // Nodes of delegated subtrees are decided by their SubtreeResult.
+        if (delegated.count(frontier[i].position)) continue;
         if (level < params.max_depth && int64_t(n) >= params.min_samples_split && present > 1)
           to_split.push_back(i);
       }
       std::vector<uint8_t> is_split(frontier.size(), 0);
       std::vector<coordinator::SplitChoice> choices(frontier.size());
       std::vector<core::FeatureOffsets> chosen(frontier.size());
+      // Small nodes go to one worker each, whole (SubtreeTask): ask the workers which frames
+      // hold their samples, send the tasks, and let them train while the histogram rounds of
+      // the other nodes run. Never the root: one worker would train the whole tree.
+      size_t handed_off = 0;
+      if (params.subtree_max_samples > 0 && level > 0) {
+        std::vector<size_t> keep, hand;
+        for (size_t i : to_split)
+          (frontier[i].total() <= params.subtree_max_samples ? hand : keep).push_back(i);
+        if (!hand.empty()) {
+          std::vector<uint32_t> ids;
+          std::vector<NodeSpec> specs(hand.size());
+          for (size_t q = 0; q < hand.size(); ++q) {
+            ids.push_back(frontier[hand[q]].node);
+            specs[q].set_num_samples(frontier[hand[q]].total());
+            specs[q].set_position(frontier[hand[q]].position);
+          }
+          auto rf = Round(PHASE_FRAMES, ids, specs, level);
+          if (!rf.ok()) return rf.status();
+          tasks.clear();
+          for (size_t q = 0; q < hand.size(); ++q) {
+            const FrontierNode& f = frontier[hand[q]];
+            SubtreeJob job;
+            job.node = f.node;
+            job.position = f.position;
+            job.parts = f.parts;
+            uint64_t held = 0;
+            for (const Reply& r : *rf) {
+              const NodeRanges& nr = r.ext.ranges(int(q));
+              if (nr.num_samples() > 0) job.holders[r.sender] = nr.num_samples();
+              held += nr.num_samples();
+              job.frames.insert(job.frames.end(), nr.frames().begin(), nr.frames().end());
+            }
+            if (held != f.total())
+              return Status(ErrorCode::kDataLoss, "node " + std::to_string(f.node) + ": the workers hold " +
+                                                      std::to_string(held) + " of its samples, expected " +
+                                                      std::to_string(f.total()));
+            std::sort(job.frames.begin(), job.frames.end());
+            job.frames.erase(std::unique(job.frames.begin(), job.frames.end()), job.frames.end());
+            SubtreeJob& stored = tasks[f.position] = std::move(job);
+            POSEFOREST_RETURN_IF_ERROR(SendTask(stored));
+          }
+          handed_off = hand.size();
+          to_split.swap(keep);
+        }
+      }
       for (size_t b0 = 0; b0 < to_split.size();) {
         // Batches bounded by histogram memory, as LocalTrainer (the split choice is per node,
         // so the batching does not change the result).
@@ -487,6 +746,7 @@ struct DistCoordinator::Impl {
           const FrontierNode& f = frontier[to_split[b1]];
           worker::NodePlan plan;
           plan.node = f.node;
+          plan.position = f.position;
           plan.num_samples = f.total();
           plan.SetParts(f.parts);
           plan.sample_bins = worker::UseSampleBins(plan.num_samples, t_count, plan.num_slots);
@@ -496,7 +756,7 @@ struct DistCoordinator::Impl {
               batch_bytes + bytes > std::min(params.histogram_memory_bytes, opt.max_batch_bytes))
             break;
           batch_bytes += bytes;
-          plan.features = worker::DrawFeatures(params, tree, f.node);
+          plan.features = worker::DrawFeatures(params, tree, f.position);
           plan.cut_stride = cut_stride;
           plans.push_back(std::move(plan));
           ++b1;
@@ -509,6 +769,7 @@ struct DistCoordinator::Impl {
         for (size_t p = 0; p < plans.size(); ++p) {
           ids.push_back(plans[p].node);
           specs[p].set_num_samples(plans[p].num_samples);
+          specs[p].set_position(plans[p].position);
         }
         const double t_ranges = NowSeconds();
         auto r1 = Round(PHASE_RANGES, ids, specs, level);
@@ -529,7 +790,7 @@ struct DistCoordinator::Impl {
           for (const Reply& r : *r1)
             for (int c = 0; c < k; ++c)
               merged[size_t(c)].Merge({r.ext.ranges(int(p)).lo(c), r.ext.ranges(int(p)).hi(c)});
-          plans[p].cuts = worker::DrawCuts(params, tree, plans[p].node, merged);
+          plans[p].cuts = worker::DrawCuts(params, tree, plans[p].position, merged);
           const FrontierNode& f = frontier[to_split[b0 + p]];
           for (uint64_t c : f.parts) specs[p].add_part_counts(c);
           for (const auto& m : merged) {
@@ -638,6 +899,15 @@ struct DistCoordinator::Impl {
         }
         b0 = b1;
       }
+      if (!tasks.empty()) {
+        const double t_wait = NowSeconds();
+        POSEFOREST_RETURN_IF_ERROR(WaitSubtrees());
+        hist_s += NowSeconds() - t_wait;
+        for (auto& [pos, job] : tasks)
+          for (coordinator::SubtreeNode& n : job.nodes) delegated[n.position] = std::move(n);
+        tasks.clear();
+        evaluations += level_subtree_evaluations;
+      }
       // Children in node order (breadth-first layout), decisions to the workers, the log.
       std::vector<FrontierNode> next;
       size_t num_split = 0;
@@ -646,12 +916,44 @@ struct DistCoordinator::Impl {
       dec->set_tree(uint32_t(tree));
       dec->set_level(uint32_t(level));
       LoggedLevel* logged = ckpt.mutable_current()->add_levels();
+      size_t from_subtrees = 0;
       for (size_t i = 0; i < frontier.size(); ++i) {
         const FrontierNode& f = frontier[i];
         auto* nd = dec->add_nodes();
         nd->set_node_id(f.node);
         LoggedDecision* ld = logged->add_decisions();
         ld->set_node(f.node);
+        ld->set_position(f.position);
+        if (auto it = delegated.find(f.position); it != delegated.end()) {
+          ld->set_delegated(true);
+          // Decided by a worker that holds the whole subtree; the other workers drop their
+          // samples of it (a delegated decision routes nothing).
+          ++from_subtrees;
+          nd->set_delegated(true);
+          const coordinator::SubtreeNode d = std::move(it->second);
+          delegated.erase(it);
+          if (!std::equal(d.parts.begin(), d.parts.end(), f.parts.begin(), f.parts.end()))
+            return Status(ErrorCode::kInternal,
+                          "subtree node " + std::to_string(f.position) + ": part counts");
+          if (!d.split) {
+            assembler.MakeLeaf(f.node, f.parts);
+            for (uint64_t c : f.parts) ld->add_part_counts(c);
+            continue;
+          }
+          ++num_split;
+          const uint32_t left = assembler.MakeSplit(f.node, d.offsets, d.cut);
+          ld->set_split(true);
+          ld->set_ux(d.offsets.ux), ld->set_uy(d.offsets.uy), ld->set_vx(d.offsets.vx),
+              ld->set_vy(d.offsets.vy);
+          ld->set_cut(d.cut);
+          ld->set_left_child(left);
+          split_of[f.position] = {d.offsets, d.cut};
+          const uint64_t lp = worker::LeftChildPosition(f.position),
+                         rp = worker::RightChildPosition(f.position);
+          next.push_back({left, lp, delegated.at(lp).parts});
+          next.push_back({left + 1, rp, delegated.at(rp).parts});
+          continue;
+        }
         if (!is_split[i]) {
           assembler.MakeLeaf(f.node, f.parts);
           for (uint64_t c : f.parts) {
@@ -669,8 +971,9 @@ struct DistCoordinator::Impl {
             ld->set_vy(chosen[i].vy);
         ld->set_cut(c.cut);
         ld->set_left_child(left);
-        next.push_back({left, c.left_parts});
-        next.push_back({left + 1, c.right_parts});
+        split_of[f.position] = {chosen[i], c.cut};
+        next.push_back({left, worker::LeftChildPosition(f.position), c.left_parts});
+        next.push_back({left + 1, worker::RightChildPosition(f.position), c.right_parts});
       }
       dec->set_epoch(++epoch);
       tree_decisions.push_back(*dec);
@@ -680,8 +983,12 @@ struct DistCoordinator::Impl {
       for (const FrontierNode& f : frontier) {
         auto* fe = ckpt.add_frontier();
         fe->set_node(f.node);
+        fe->set_position(f.position);
         for (uint64_t c : f.parts) fe->add_part_counts(c);
       }
+      // Every task of this level is in, so the subtrees' remaining decisions are all known.
+      ckpt.clear_subtree_nodes();
+      for (const auto& [pos, n] : delegated) ToProto(n, ckpt.add_subtree_nodes());
       POSEFOREST_RETURN_IF_ERROR(SaveCheckpoint());
       DistLevelStats st;
       st.tree = tree;
@@ -699,6 +1006,8 @@ struct DistCoordinator::Impl {
       st.level_seconds = NowSeconds() - t_level;
       st.elapsed_s = NowSeconds() - start;
       st.retries = level_retries;
+      st.subtree_tasks = handed_off;
+      st.subtree_nodes = from_subtrees;
       if (opt.progress) opt.progress(st);
       const double progress =
           (double(tree) + std::min(1.0, double(level + 1) / double(params.max_depth + 1))) /
@@ -732,7 +1041,7 @@ struct DistCoordinator::Impl {
     std::vector<FrontierNode> frontier;
     int first_level = 0;
     ckpt.Clear();
-    ckpt.set_format(1);
+    ckpt.set_format(kCheckpointFormat);
     ckpt.set_job_id(job_id);
     ckpt.set_config(config_bytes);
     const std::string ckpt_path =
@@ -743,8 +1052,12 @@ struct DistCoordinator::Impl {
       std::stringstream ss;
       ss << in.rdbuf();
       Checkpoint saved;
-      if (!saved.ParseFromString(ss.str()) || saved.format() != 1)
+      if (!saved.ParseFromString(ss.str()) || saved.format() == 0)
         return Status(ErrorCode::kDataLoss, ckpt_path + ": not a checkpoint");
+      if (saved.format() != kCheckpointFormat)
+        return Status(ErrorCode::kVersionMismatch,
+                      ckpt_path + ": checkpoint format " + std::to_string(saved.format()) +
+                          ", this coordinator reads " + std::to_string(kCheckpointFormat));
       if (saved.config() != config_bytes || saved.job_id() != job_id)
         return Status(ErrorCode::kInvalidArgument, ckpt_path + ": checkpoint of another job");
       for (const LoggedTree& lt : saved.finished()) {
@@ -754,8 +1067,8 @@ struct DistCoordinator::Impl {
       }
       for (const FrontierEntry& fe : saved.frontier()) {
         if (fe.part_counts_size() != kParts) return Status(ErrorCode::kDataLoss, ckpt_path + ": frontier");
-        frontier.push_back(
-            {fe.node(), std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end())});
+        frontier.push_back({fe.node(), fe.position(),
+                            std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end())});
       }
       first_level = saved.current().levels_size();
       epoch = saved.epoch();
@@ -793,7 +1106,9 @@ struct DistCoordinator::Impl {
         for (const LoggedDecision& ld : lv.decisions()) {
           auto* nd = d.add_nodes();
           nd->set_node_id(ld.node());
-          if (ld.split())
+          if (ld.delegated())
+            nd->set_delegated(true);
+          else if (ld.split())
             SetFeatureSplit({int16_t(ld.ux()), int16_t(ld.uy()), int16_t(ld.vx()), int16_t(ld.vy())},
                             ld.cut(), ld.left_child(), 0, nd->mutable_split());
           else
@@ -811,6 +1126,7 @@ struct DistCoordinator::Impl {
       first_level = 0;
       *ckpt.add_finished() = ckpt.current();
       ckpt.clear_current();
+      ckpt.clear_subtree_nodes();
       ckpt.clear_frontier();
       ckpt.set_tree(uint32_t(t + 1));
       POSEFOREST_RETURN_IF_ERROR(SaveCheckpoint());
@@ -854,7 +1170,7 @@ Result<core::Forest> DistCoordinator::Train() { return impl_->Train(); }
 const std::string& DistCoordinator::job_id() const { return impl_->job_id; }
 uint64_t DistCoordinator::bytes_received() const { return impl_->total_bytes_received; }
 uint64_t DistCoordinator::rejected_messages() const {
-  return impl_->gate ? impl_->gate->total_rejected() : 0;
+  return (impl_->gate ? impl_->gate->total_rejected() : 0) + impl_->subtree_rejected;
 }
 int DistCoordinator::workers_lost() const { return impl_->lost_count; }
 

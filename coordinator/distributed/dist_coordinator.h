@@ -32,8 +32,8 @@ struct DistLevelStats {
   int level = 0;
   size_t frontier_nodes = 0;
   size_t split_nodes = 0;
-  uint64_t samples = 0;          ///< samples in the frontier
-  uint64_t evaluations = 0;      ///< sample x candidate evaluations binned (pass 2 + fused nodes), all workers
+  uint64_t samples = 0;      ///< samples in the frontier
+  uint64_t evaluations = 0;  ///< sample x candidate evaluations binned (pass 2 + fused nodes), all workers
   double evaluations_per_s = 0;  ///< evaluations / wall seconds of the ranges + histogram rounds
   int workers_alive = 0;
   int workers_assigned = 0;     ///< of which hold frames of this tree
@@ -42,7 +42,9 @@ struct DistLevelStats {
   double merge_seconds = 0;     ///< decoding + summing histograms + split choice
   double level_seconds = 0;     ///< wall time of the level
   double elapsed_s = 0;         ///< since Train() started
-  int retries = 0;              ///< rounds asked again after a worker loss
+  int retries = 0;              ///< rounds asked again after a worker loss (or subtree tasks handed on)
+  size_t subtree_tasks = 0;     ///< nodes of this level handed to one worker whole (SubtreeTask)
+  size_t subtree_nodes = 0;     ///< nodes of this level decided by SubtreeResults (tasks' roots included)
 };
 
 struct CoordinatorOptions {
@@ -83,6 +85,7 @@ class DistCoordinator {
   const std::string& job_id() const;
   /// Totals over the run.
   uint64_t bytes_received() const;
+  /// Messages dropped: by the gate, plus SubtreeResults that did not fit their task.
   uint64_t rejected_messages() const;
   int workers_lost() const;
 

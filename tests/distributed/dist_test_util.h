@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <cstdlib>
 #include <memory>
 #include <string>
 #include <thread>
@@ -19,10 +20,15 @@
 namespace poseforest::dist::testing {
 
 /// A job small enough for a loaded 2-core machine (procedural frames, small images).
-inline std::string TinyJobText(int trees = 2, int depth = 6) {
+/// `subtree_max_samples`: nodes of at most this many samples go to one worker whole
+/// (SubtreeTask); 0 (the default here) keeps every level on histogram rounds.
+inline std::string TinyJobText(int trees = 2, int depth = 6, uint64_t subtree_max_samples = 0) {
   return "seed: 5\nnum_trees: " + std::to_string(trees) + "\nmax_depth: " + std::to_string(depth) +
          "\nimages_per_tree: 12\npixels_per_image: 150\ncandidate_features: 40\nthresholds_per_feature: 12\n"
          "max_probe_offset_pixel_m: 60\nthreshold_reference_pixels: 200\n"
+         "subtree_max_samples: " +
+         std::to_string(subtree_max_samples) +
+         "\n"
          "source { procedural { seed: 9 width: 96 height: 72 } }\n";
 }
 
@@ -63,9 +69,13 @@ class ThreadWorkers {
     o.worker_id = id;
     o.domain = domain;
     o.job_id = job_id;
+    Add(std::move(o));
+  }
+  /// A worker with the caller's options (test hooks); threads 1, stays after the job.
+  void Add(WorkerOptions o) {
     o.threads = 1;
     o.exit_when_done = false;
-    o.log = [](const std::string&) {};
+    if (!std::getenv("POSEFOREST_TEST_VERBOSE")) o.log = [](const std::string&) {};
     workers_.push_back(std::make_unique<DistWorker>(o));
     DistWorker* w = workers_.back().get();
     threads_.emplace_back([w] { (void)w->Run(); });

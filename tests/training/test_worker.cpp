@@ -61,6 +61,7 @@ int32_t NaiveResponse(const worker::TrainParams& p, const worker::SampleSet& set
 worker::NodePlan PlanFor(const worker::TrainParams& p, const worker::SampleSet& s, uint32_t node) {
   worker::NodePlan plan;
   plan.node = node;
+  plan.position = node;  // any key works as long as plan, DrawFeatures and DrawCuts agree
   const worker::NodeRange r = s.RangeOf(node);
   plan.num_samples = r.end - r.begin;
   std::vector<uint64_t> parts(core::kNumParts);

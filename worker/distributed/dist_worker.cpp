@@ -8,10 +8,12 @@
 #include <mutex>
 #include <thread>
 
+#include "coordinator/subtree_trainer.h"
 #include "poseforest/v1/job.pb.h"
 #include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
 #include "runtime/core/body_parts.h"
+#include "runtime/core/crc32.h"
 #include "worker/candidates.h"
 #include "worker/distributed/dist_common.h"
 #include "worker/histogram_builder.h"
@@ -63,6 +65,11 @@ struct DistWorker::Impl {
   int tree = -1;
   bool have_shard = false;
   std::map<uint64_t, FrameData> cache;  // tree-local frame index -> frame
+  // Frames of other shards rendered for SubtreeTasks (tree `extra_tree`), kept for the tree's
+  // later tasks: at most the tree's frames.
+  int extra_tree = -1;
+  std::map<uint64_t, FrameData> extra;
+  int corrupt_left = 0;
   worker::SampleSet samples;
   std::unique_ptr<worker::HistogramBuilder> builder;
   int applied_levels = 0;
@@ -146,6 +153,9 @@ struct DistWorker::Impl {
     tree = -1;
     have_shard = false;
     cache.clear();
+    extra_tree = -1;
+    extra.clear();
+    corrupt_left = opt.corrupt_subtree_results;
     samples = worker::SampleSet{};
     renderer = RendererOf(params);
     {
@@ -184,9 +194,31 @@ struct DistWorker::Impl {
     std::vector<uint64_t> missing;
     for (uint64_t i : wanted)
       if (!cache.count(i)) missing.push_back(i);
+    std::vector<FrameData> loaded;
+    POSEFOREST_RETURN_IF_ERROR(LoadFrames(missing, &loaded));
+    for (size_t j = 0; j < missing.size(); ++j) cache[missing[j]] = std::move(loaded[j]);
+    frames_rendered += missing.size();
+    samples = worker::SampleSet{};
+    for (const auto& [i, f] : cache) {
+      if (f.picked.empty()) continue;  // no body in view (as LocalTrainer)
+      samples.AddFrame(i, f.depth, f.picked, params.constants);
+    }
+    samples.StartTree(0);
+    have_shard = true;
+    applied_levels = 0;
+    assigned_any = true;
+    Log("tree " + std::to_string(tree) + ": shard of " + std::to_string(wanted.size()) + " frames (" +
+        std::to_string(missing.size()) + " new), " + std::to_string(samples.num_samples()) + " samples");
+    return Status::Ok();
+  }
+
+  /// Renders/loads tree-local frames `missing` of tree `tree` and samples their pixels.
+  Status LoadFrames(const std::vector<uint64_t>& missing, std::vector<FrameData>* out) {
+    const uint64_t ipt = uint64_t(params.images_per_tree);
     // Frames in parallel, one ImageSource per thread (a renderer's context is per thread).
     const int threads = std::max(1, std::min<int>(params.threads, int(missing.size())));
-    std::vector<FrameData> loaded(missing.size());
+    std::vector<FrameData>& loaded = *out;
+    loaded.assign(missing.size(), FrameData{});
     std::vector<Status> errors(static_cast<size_t>(threads));
     std::vector<std::thread> pool;
     for (int tid = 0; tid < threads; ++tid) {
@@ -217,19 +249,6 @@ struct DistWorker::Impl {
     for (auto& t : pool) t.join();
     for (const Status& e : errors)
       if (!e.ok()) return e;
-    for (size_t j = 0; j < missing.size(); ++j) cache[missing[j]] = std::move(loaded[j]);
-    frames_rendered += missing.size();
-    samples = worker::SampleSet{};
-    for (const auto& [i, f] : cache) {
-      if (f.picked.empty()) continue;  // no body in view (as LocalTrainer)
-      samples.AddFrame(i, f.depth, f.picked, params.constants);
-    }
-    samples.StartTree(0);
-    have_shard = true;
-    applied_levels = 0;
-    assigned_any = true;
-    Log("tree " + std::to_string(tree) + ": shard of " + std::to_string(wanted.size()) + " frames (" +
-        std::to_string(missing.size()) + " new), " + std::to_string(samples.num_samples()) + " samples");
     return Status::Ok();
   }
 
@@ -265,8 +284,10 @@ struct DistWorker::Impl {
       const NodeSpec& spec = ext.nodes(i);
       worker::NodePlan& plan = plans[size_t(i)];
       plan.node = req.node_ids(i);
+      plan.position = spec.position();
       plan.num_samples = spec.num_samples();
-      if (ext.phase() != PHASE_COUNTS) plan.features = worker::DrawFeatures(params, tree, plan.node);
+      if (ext.phase() == PHASE_RANGES || ext.phase() == PHASE_HISTOGRAMS)
+        plan.features = worker::DrawFeatures(params, tree, plan.position);
       if (ext.phase() == PHASE_HISTOGRAMS) {
         if (spec.part_counts_size() != core::kNumParts || spec.range_lo_size() != k ||
             spec.range_hi_size() != k) {
@@ -280,7 +301,7 @@ struct DistWorker::Impl {
         plan.cut_stride = worker::CutStride(t);
         std::vector<worker::ResponseRange> ranges(static_cast<size_t>(k));
         for (int c = 0; c < k; ++c) ranges[size_t(c)] = {spec.range_lo(c), spec.range_hi(c)};
-        plan.cuts = worker::DrawCuts(params, tree, plan.node, ranges);
+        plan.cuts = worker::DrawCuts(params, tree, plan.position, ranges);
       }
     }
     v1::Envelope env;
@@ -352,6 +373,22 @@ struct DistWorker::Impl {
           r->add_cut_counts(count);
         }
       }
+    } else if (ext.phase() == PHASE_FRAMES) {
+      for (int i = 0; i < n; ++i) {
+        auto* nh = reply->add_nodes();
+        nh->set_node_id(plans[size_t(i)].node);
+        nh->set_samples(0);
+        for (int p = 0; p < core::kNumParts; ++p) nh->add_part_counts(0);
+        auto* rr = rext.add_ranges();
+        const worker::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
+        rr->set_num_samples(r.end - r.begin);
+        // Samples of a node are ordered by frame: distinct frames are runs.
+        for (uint64_t j = r.begin; j < r.end; ++j) {
+          const uint64_t f = samples.frame_index(j);
+          if (rr->frames_size() == 0 || rr->frames(rr->frames_size() - 1) != uint32_t(f))
+            rr->add_frames(uint32_t(f));
+        }
+      }
     } else if (ext.phase() == PHASE_COUNTS) {
       for (int i = 0; i < n; ++i) {
         auto* nh = reply->add_nodes();
@@ -391,6 +428,124 @@ struct DistWorker::Impl {
     return Publish(Topic::kReplies, env);
   }
 
+  /// Trains the subtree of a SubtreeTask and sends the SubtreeResult: the node's frames (from
+  /// the shard's cache, else rendered and kept for the tree's later tasks), their samples
+  /// routed along the task's path, then TrainSubtree (the engine's own loop and keys).
+  Status RunSubtree(const v1::SubtreeTask& task) {
+    SubtreeTaskExt ext;
+    POSEFOREST_RETURN_IF_ERROR(ReadExt(task, &ext, "SubtreeTask"));
+    const uint64_t ipt = uint64_t(params.images_per_tree);
+    const int t = int(task.tree());
+    if (task.tree() >= uint32_t(params.num_trees))
+      return Status(ErrorCode::kInvalidArgument, "tree out of range");
+    if (ext.part_counts_size() != core::kNumParts)
+      return Status(ErrorCode::kInvalidArgument, "part counts of the wrong length");
+    if (ext.position() >= (uint64_t(1) << 31) || worker::PositionDepth(ext.position()) != int(task.depth()) ||
+        int(task.depth()) > params.max_depth)
+      return Status(ErrorCode::kInvalidArgument, "position " + std::to_string(ext.position()) +
+                                                     " is not at depth " + std::to_string(task.depth()));
+    std::vector<uint64_t> wanted;
+    for (const auto& r : task.ranges()) {
+      if (r.seed() != params.source.seed)
+        return Status(ErrorCode::kInvalidArgument, "image range of another seed");
+      for (uint64_t g = r.first_index(); g < r.first_index() + r.count(); ++g) {
+        if (g < uint64_t(t) * ipt || g >= uint64_t(t + 1) * ipt)
+          return Status(ErrorCode::kInvalidArgument,
+                        "frame " + std::to_string(g) + " is not one of tree " + std::to_string(t) + "'s");
+        wanted.push_back(g - uint64_t(t) * ipt);
+      }
+    }
+    std::sort(wanted.begin(), wanted.end());
+    wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+    const double t0 = NowSeconds();
+    busy = true;
+    if (extra_tree != t) extra.clear(), extra_tree = t;
+    const bool own = t == tree;
+    std::vector<uint64_t> missing;
+    for (uint64_t i : wanted)
+      if (!(own && cache.count(i)) && !extra.count(i)) missing.push_back(i);
+    {
+      const int saved_tree = tree;
+      tree = t;  // LoadFrames keys the frames by `tree`
+      std::vector<FrameData> loaded;
+      Status st = LoadFrames(missing, &loaded);
+      tree = saved_tree;
+      if (!st.ok()) {
+        busy = false;
+        return st;
+      }
+      for (size_t j = 0; j < missing.size(); ++j) extra[missing[j]] = std::move(loaded[j]);
+      frames_rendered += missing.size();
+    }
+    worker::SampleSet set;
+    for (uint64_t i : wanted) {
+      const FrameData& f = own && cache.count(i) ? cache.at(i) : extra.at(i);
+      if (f.picked.empty()) continue;
+      set.AddFrame(i, f.depth, f.picked, params.constants);
+    }
+    set.StartTree(0);
+    // Route along the ancestors' splits; the side not taken is dropped at every step.
+    uint32_t at = 0;
+    for (const auto& step : task.path()) {
+      worker::SampleSet::Split sp;
+      sp.node = at;
+      Status st = GetFeatureSplit(step.split(), &sp.offsets, &sp.cut);
+      if (!st.ok()) {
+        busy = false;
+        return st;
+      }
+      sp.left_child = at + 1;
+      set.ApplySplits(std::span<const worker::SampleSet::Split>(&sp, 1), params.constants, params.threads);
+      at = step.went_right() ? at + 2 : at + 1;
+    }
+    std::vector<uint64_t> parts(ext.part_counts().begin(), ext.part_counts().end());
+    const worker::NodeRange routed = set.RangeOf(at);
+    auto out = coordinator::TrainSubtree(set, at, params, t, ext.position(), parts, *builder);
+    busy = false;
+    if (!out.ok()) return out.status();
+    v1::Envelope env;
+    v1::SubtreeResult* res = env.mutable_subtree_result();
+    res->set_tree(task.tree());
+    res->set_node_id(task.node_id());
+    res->set_epoch(task.epoch());
+    res->set_nodes(std::string(reinterpret_cast<const char*>(out->tree.nodes.data()),
+                               out->tree.nodes.size() * sizeof(core::Node)));
+    res->set_leaves(
+        std::string(reinterpret_cast<const char*>(out->tree.leaves.data()), out->tree.leaves.size()));
+    res->set_num_nodes(uint32_t(out->tree.nodes.size()));
+    res->set_num_leaves(out->tree.num_leaves);
+    res->set_num_parts(uint32_t(core::kNumParts));
+    SubtreeResultExt rext;
+    rext.set_position(ext.position());
+    rext.set_evaluations(out->evaluations);
+    for (const coordinator::SubtreeNode& n : out->nodes) {
+      SubtreeNode* sn = rext.add_nodes();
+      sn->set_position(n.position);
+      sn->set_split(n.split);
+      if (n.split) {
+        sn->set_ux(n.offsets.ux), sn->set_uy(n.offsets.uy), sn->set_vx(n.offsets.vx),
+            sn->set_vy(n.offsets.vy);
+        sn->set_cut(n.cut);
+      }
+      for (uint64_t c : n.parts) sn->add_part_counts(c);
+    }
+    if (corrupt_left > 0) {  // tests: a hostile worker
+      if (corrupt_left-- % 2 == 1)
+        rext.set_position(rext.position() + 1), rext.mutable_nodes(0)->set_position(rext.position());
+      else
+        rext.mutable_nodes(0)->set_part_counts(0, rext.nodes(0).part_counts(0) + 1);
+    }
+    AttachExt(rext, res);
+    uint32_t crc = core::Crc32(res->nodes().data(), res->nodes().size());
+    res->set_crc32(core::Crc32(res->leaves().data(), res->leaves().size(), crc));
+    Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(ext.position()) + " (" +
+        std::to_string(routed.end - routed.begin) + " samples from " + std::to_string(wanted.size()) +
+        " frames, " + std::to_string(missing.size()) + " rendered) -> " + std::to_string(out->nodes.size()) +
+        " nodes in " + std::to_string(NowSeconds() - t0) + " s");
+    (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
+    return Publish(Topic::kReplies, env);
+  }
+
   void OnSample(const dds::ReceivedSample& s) {
     if (s.topic == Topic::kJob) {
       auto out = job_gate.Check(s.topic, s.bytes, s.writer_guid);
@@ -414,6 +569,14 @@ struct DistWorker::Impl {
       case v1::Envelope::kLevelRequest:
         newest_epoch = std::max<uint64_t>(newest_epoch, env.level_request().epoch());
         if (have_shard && int(env.level_request().tree()) == tree) st = Answer(env.level_request());
+        break;
+      case v1::Envelope::kSubtreeTask:
+        if (opt.die_on_subtree_task && opt.die_on_subtree_task()) {
+          Log("test hook: dying with a subtree task");
+          stop = true;
+          return;
+        }
+        st = RunSubtree(env.subtree_task());
         break;
       case v1::Envelope::kStatus:
         if (env.status().kind() == v1::STATUS_KIND_JOB_DONE && opt.exit_when_done) {

@@ -2,7 +2,9 @@
 // The distributed worker: joins a training job announced on a DDS domain, renders/loads the
 // frames of the shard the coordinator assigns, and answers LevelRequests with ranges (pass 1)
 // and histograms (pass 2) of its samples; applies SplitDecisions to move its samples down the
-// tree. A library with a thin CLI (`poseforest worker`), so tests run workers as threads too.
+// tree; trains a small node's whole subtree when it gets a SubtreeTask (re-rendering the frames
+// of the node that are not in its shard). A library with a thin CLI (`poseforest worker`), so tests run
+// workers as threads too.
 //
 // Threads: Run() receives and computes on the caller's thread; a heartbeat thread publishes
 // Hello/Heartbeat on the presence topic (which also asserts its DDS liveliness) while the main
@@ -29,6 +31,13 @@ struct WorkerOptions {
   std::chrono::milliseconds heartbeat_period{250};
   std::chrono::milliseconds lease{1500};        ///< presence liveliness lease
   std::function<void(const std::string&)> log;  ///< default: stderr with the worker id
+  /// Tests: called when a SubtreeTask arrives; returning true makes the worker drop the task and
+  /// stop at once, as if it were killed while holding it.
+  std::function<bool()> die_on_subtree_task;
+  /// Tests: the next this many SubtreeResults are tampered with after they are built (a root
+  /// at the wrong position, then part counts that do not add up), still well-formed for the
+  /// gate: a hostile worker.
+  int corrupt_subtree_results = 0;
 };
 
 class DistWorker {

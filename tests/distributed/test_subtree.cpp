@@ -1,0 +1,194 @@
+// Subtree hand-off (SubtreeTask / SubtreeResult): small nodes are trained whole by one worker,
+// and the forest is still byte-identical to LocalTrainer's with 1, 2, 3 workers, when the
+// worker holding a task dies, when a worker answers with a hostile result, and across a
+// coordinator restart. Workers on threads, real DDS participants over shared memory.
+
+#include <catch2/catch.hpp>
+#include <filesystem>
+
+#include "coordinator/subtree_trainer.h"
+#include "tests/distributed/dist_test_util.h"
+#include "worker/candidates.h"
+
+using namespace poseforest;
+using namespace poseforest::dist;
+using namespace poseforest::dist::testing;
+
+namespace {
+CoordinatorOptions Options(uint32_t domain, int min_workers) {
+  CoordinatorOptions o;
+  o.domain = domain;
+  o.min_workers = min_workers;
+  o.worker_wait = std::chrono::seconds(30);
+  if (!std::getenv("POSEFOREST_TEST_VERBOSE")) o.log = [](const std::string&) {};
+  return o;
+}
+
+/// Levels with hand-offs and nodes decided by subtree results, summed over a run.
+struct HandOff {
+  size_t tasks = 0, nodes = 0, histogram_levels = 0;
+  int retries = 0;
+  void Add(const DistLevelStats& s) {
+    tasks += s.subtree_tasks;
+    nodes += s.subtree_nodes;
+    histogram_levels += s.subtree_nodes < s.frontier_nodes;
+    retries += s.retries;
+  }
+};
+
+// Tiny job: 1800 samples at the root, ~900 at depth 1; 300 hands off nodes from depth ~2 on.
+constexpr uint64_t kSubtreeMax = 300;
+}  // namespace
+
+TEST_CASE("heap positions: children, parents and depths", "[distributed][unit]") {
+  CHECK(worker::LeftChildPosition(0) == 1);
+  CHECK(worker::RightChildPosition(0) == 2);
+  CHECK(worker::ParentPosition(5) == 2);
+  CHECK(worker::ParentPosition(6) == 2);
+  CHECK(worker::PositionDepth(0) == 0);
+  CHECK(worker::PositionDepth(2) == 1);
+  CHECK(worker::PositionDepth(6) == 2);
+  CHECK(worker::PositionDepth((uint64_t(1) << 31) - 2) == 30);  // deepest node of a depth-30 tree
+}
+
+TEST_CASE("with subtree hand-off the forest is byte-identical to LocalTrainer with 1, 2, 3 workers",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(2, 6, kSubtreeMax));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  // The job without hand-off gives the same bytes (LocalTrainer ignores the setting).
+  CHECK(ReferenceBytes(ParseJob(TinyJobText(2, 6, 0))) == reference);
+  for (int n : {1, 2, 3}) {
+    DYNAMIC_SECTION(n << " workers") {
+      const uint32_t domain = Domain(40 + uint32_t(n));
+      const std::string job_id = "t-subtree-" + std::to_string(n);
+      ThreadWorkers workers(n, domain, job_id);
+      CoordinatorOptions o = Options(domain, n);
+      o.job_id = job_id;
+      HandOff h;
+      o.progress = [&](const DistLevelStats& s) { h.Add(s); };
+      DistCoordinator coordinator(job.config, job.params, o);
+      auto forest = coordinator.Train();
+      INFO(forest.status().ToString());
+      REQUIRE(forest.ok());
+      CHECK(core::SerializeForest(*forest) == reference);
+      CHECK(h.tasks >= 2);             // deep nodes were handed off ...
+      CHECK(h.nodes > h.tasks);        // ... and their subtrees came back whole
+      CHECK(h.histogram_levels >= 2);  // the shallow levels still ran histogram rounds
+      CHECK(coordinator.workers_lost() == 0);
+      CHECK(coordinator.rejected_messages() == 0);
+    }
+  }
+}
+
+TEST_CASE("a worker lost while it holds a subtree task: the task goes to another, same forest",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(1, 6, kSubtreeMax));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(47);
+  const std::string job_id = "t-subtree-loss";
+  ThreadWorkers workers(0, domain, job_id);
+  std::atomic<int> died{0};
+  for (int i = 0; i < 3; ++i) {
+    WorkerOptions w;
+    w.worker_id = "tw-" + std::to_string(::getpid()) + "-sl" + std::to_string(i);
+    w.domain = domain;
+    w.job_id = job_id;
+    // The first task that reaches any worker kills that worker.
+    w.die_on_subtree_task = [&died] { return died.fetch_add(1) == 0; };
+    workers.Add(std::move(w));
+  }
+  CoordinatorOptions o = Options(domain, 3);
+  o.job_id = job_id;
+  o.heartbeat_timeout = std::chrono::milliseconds(2000);
+  HandOff h;
+  o.progress = [&](const DistLevelStats& s) { h.Add(s); };
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  INFO(forest.status().ToString());
+  REQUIRE(forest.ok());
+  CHECK(died >= 1);
+  CHECK(coordinator.workers_lost() == 1);
+  CHECK(h.retries >= 1);
+  CHECK(h.tasks >= 2);
+  CHECK(core::SerializeForest(*forest) == reference);
+}
+
+TEST_CASE("a hostile SubtreeResult is dropped, counted, its sender evicted; same forest",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(1, 6, kSubtreeMax));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  for (int corrupt : {1, 2}) {  // 1: a root at the wrong position; 2: part counts that do not add up
+    DYNAMIC_SECTION("corruption " << corrupt) {
+      const uint32_t domain = Domain(50 + uint32_t(corrupt));
+      const std::string job_id = "t-subtree-hostile-" + std::to_string(corrupt);
+      // The liar is alone when the tree starts, so it holds every sample and gets the first
+      // task; an honest worker joins after the root level and gets the task after the eviction.
+      ThreadWorkers workers(0, domain, job_id);
+      WorkerOptions liar;
+      liar.worker_id = "tw-" + std::to_string(::getpid()) + "-liar";
+      liar.domain = domain;
+      liar.job_id = job_id;
+      liar.corrupt_subtree_results = corrupt;
+      workers.Add(std::move(liar));
+      CoordinatorOptions o = Options(domain, 1);
+      o.job_id = job_id;
+      HandOff h;
+      bool added = false;
+      o.progress = [&](const DistLevelStats& s) {
+        h.Add(s);
+        if (!added) {
+          CHECK(s.subtree_tasks == 0);
+          workers.Add(domain, job_id, "tw-" + std::to_string(::getpid()) + "-honest");
+          added = true;
+        }
+      };
+      DistCoordinator coordinator(job.config, job.params, o);
+      auto forest = coordinator.Train();
+      INFO(forest.status().ToString());
+      REQUIRE(forest.ok());
+      CHECK(core::SerializeForest(*forest) == reference);
+      CHECK(h.tasks >= 2);
+      CHECK(h.retries >= 1);                   // the liar's task was handed on
+      CHECK(coordinator.workers_lost() == 1);  // the liar, evicted
+      CHECK(coordinator.rejected_messages() >= 1);
+    }
+  }
+}
+
+TEST_CASE("coordinator stopped with delegated subtrees pending resumes: same forest",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(2, 6, kSubtreeMax));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(53);
+  const std::string job_id = "t-subtree-resume";
+  const auto dir = std::filesystem::temp_directory_path() / ("pf-subtree-ckpt-" + std::to_string(::getpid()));
+  ThreadWorkers workers(2, domain, job_id);
+  for (int stop_after : {3, 4, 9}) {
+    DYNAMIC_SECTION("stop after " << stop_after << " levels") {
+      std::filesystem::remove_all(dir);
+      CoordinatorOptions o = Options(domain, 2);
+      o.job_id = job_id;
+      o.checkpoint_dir = dir.string();
+      o.stop_after_levels = stop_after;
+      HandOff before;
+      o.progress = [&](const DistLevelStats& s) { before.Add(s); };
+      {
+        DistCoordinator first(job.config, job.params, o);
+        auto r = first.Train();
+        REQUIRE(!r.ok());
+        CHECK(r.status().message().find("test hook") != std::string::npos);
+      }
+      o.stop_after_levels = -1;
+      o.resume = true;
+      HandOff after;
+      o.progress = [&](const DistLevelStats& s) { after.Add(s); };
+      DistCoordinator second(job.config, job.params, o);
+      auto forest = second.Train();
+      INFO(forest.status().ToString());
+      REQUIRE(forest.ok());
+      CHECK(core::SerializeForest(*forest) == reference);
+      CHECK(before.tasks + after.tasks >= 2);
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
