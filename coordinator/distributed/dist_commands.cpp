@@ -47,6 +47,20 @@ std::string Human(double bytes) {
   return buf;
 }
 
+/// --peers / --interfaces (only with --profile udp).
+Status ParseUdpFlags(const Args& args, dds::TransportKind profile, std::vector<std::string>* peers,
+                     std::vector<std::string>* interfaces) {
+  for (const char* flag : {"peers", "interfaces"}) {
+    if (!args.Has(flag)) continue;
+    if (profile != dds::TransportKind::kUdpOnly)
+      return Status(core::ErrorCode::kInvalidArgument, std::string("--") + flag + " needs --profile udp");
+    auto list = dist::ParseAddressList(*args.Get(flag), flag, std::string(flag) == "peers");
+    if (!list.ok()) return list.status();
+    *(std::string(flag) == "peers" ? peers : interfaces) = std::move(*list);
+  }
+  return Status::Ok();
+}
+
 /// Worker processes started by --local-workers; killed (TERM, then KILL) at the end.
 struct LocalWorkers {
   std::vector<pid_t> pids;
@@ -92,7 +106,7 @@ struct LocalWorkers {
 
 int CoordinatorMain(int argc, char** argv) {
   Args args({"out", "local-workers", "domain", "profile", "checkpoint", "status-file", "min-workers",
-             "job-id", "worker-threads", "worker-wait-s"},
+             "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces"},
             {"resume", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || args.positional().size() != 1 || !args.Has("out")) {
@@ -101,7 +115,9 @@ int CoordinatorMain(int argc, char** argv) {
         stderr,
         "usage: poseforest coordinator JOB.textproto --out FOREST.pff [--local-workers N] [--domain D]\n"
         "         [--profile shm|udp|default] [--checkpoint DIR] [--resume] [--status-file F]\n"
-        "         [--min-workers N] [--job-id ID] [--worker-threads N] [--worker-wait-s S]\n");
+        "         [--min-workers N] [--job-id ID] [--worker-threads N] [--worker-wait-s S]\n"
+        "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers, local\n"
+        "          addresses; e.g. on hosts without multicast)\n");
     return args.Has("help") ? 0 : 2;
   }
   const std::string job_path = args.positional()[0];
@@ -142,6 +158,10 @@ int CoordinatorMain(int argc, char** argv) {
     return 2;
   }
   dist::CoordinatorOptions opt;
+  if (Status st = ParseUdpFlags(args, *profile, &opt.udp_peers, &opt.udp_interfaces); !st.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
+    return 2;
+  }
   opt.job_id = args.GetOr("job-id", "");
   if (opt.job_id.empty()) opt.job_id = dist::DefaultJobId(*config);
   opt.domain = uint32_t(*domain);
@@ -179,10 +199,12 @@ int CoordinatorMain(int argc, char** argv) {
   };
   LocalWorkers workers;
   if (*local > 0) {
-    const std::vector<std::string> wargs = {"--domain",  std::to_string(*domain),
-                                            "--profile", args.GetOr("profile", "shm"),
-                                            "--job",     opt.job_id,
-                                            "--threads", std::to_string(*worker_threads)};
+    std::vector<std::string> wargs = {"--domain",  std::to_string(*domain),
+                                      "--profile", args.GetOr("profile", "shm"),
+                                      "--job",     opt.job_id,
+                                      "--threads", std::to_string(*worker_threads)};
+    for (const char* flag : {"peers", "interfaces"})
+      if (args.Has(flag)) wargs.insert(wargs.end(), {std::string("--") + flag, *args.Get(flag)});
     if (!workers.Start(int(*local), wargs)) {
       std::fprintf(stderr, "coordinator: cannot start local workers\n");
       return 1;
@@ -201,20 +223,25 @@ int CoordinatorMain(int argc, char** argv) {
     std::fprintf(stderr, "coordinator: %s\n", st.ToString().c_str());
     return 1;
   }
-  std::printf("wrote %s: %zu trees in %.2f s, %s received, %llu messages rejected, %d workers lost\n",
-              out.c_str(), forest->trees.size(), dist::NowSeconds() - t0,
-              Human(double(coordinator.bytes_received())).c_str(),
-              (unsigned long long)coordinator.rejected_messages(), coordinator.workers_lost());
+  std::printf(
+      "wrote %s: %zu trees in %.2f s, %s received, %llu messages rejected, %llu stale messages dropped, %d "
+      "workers lost\n",
+      out.c_str(), forest->trees.size(), dist::NowSeconds() - t0, Human(double(coordinator.bytes_received())).c_str(),
+      (unsigned long long)coordinator.rejected_messages(), (unsigned long long)coordinator.stale_messages(),
+      coordinator.workers_lost());
   return 0;
 }
 
 int WorkerMain(int argc, char** argv) {
-  Args args({"domain", "threads", "job", "profile", "id"}, {"stay", "exit-with-parent", "help"});
+  Args args({"domain", "threads", "job", "profile", "id", "peers", "interfaces"},
+            {"stay", "exit-with-parent", "help"});
   if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
     if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
     std::fprintf(stderr,
                  "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--profile shm|udp|default] "
                  "[--id NAME]\n"
+                 "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers,\n"
+                 "          usually the coordinator's address, and the local addresses to use)\n"
                  "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n");
     return args.Has("help") ? 0 : 2;
   }
@@ -231,6 +258,10 @@ int WorkerMain(int argc, char** argv) {
     return 2;
   }
   dist::WorkerOptions opt;
+  if (Status st = ParseUdpFlags(args, *profile, &opt.udp_peers, &opt.udp_interfaces); !st.ok()) {
+    std::fprintf(stderr, "worker: %s\n", st.message().c_str());
+    return 2;
+  }
   opt.worker_id = args.GetOr("id", "");
   opt.domain = uint32_t(*domain);
   opt.transport = *profile;

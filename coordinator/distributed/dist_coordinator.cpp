@@ -79,6 +79,7 @@ struct DistCoordinator::Impl {
   double start = 0;
   int lost_count = 0;
   uint64_t total_bytes_received = 0;
+  uint64_t stale_count = 0;  ///< stale messages (the gate's per-sender stats are reset by Forget)
 
   // Current tree.
   int tree = -1;
@@ -186,6 +187,7 @@ struct DistCoordinator::Impl {
     }
     if (auto s = node->Receive(timeout)) {
       auto out = gate->Check(s->topic, s->bytes, s->writer_guid);
+      if (out.verdict == Verdict::kStale) ++stale_count;
       if (out.verdict == Verdict::kAccepted) {
         const v1::Envelope& env = out.envelope;
         switch (env.body_case()) {
@@ -764,7 +766,8 @@ struct DistCoordinator::Impl {
           std::to_string(first_level));
     }
 
-    auto n = dds::DdsNode::Create(MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease));
+    auto n = dds::DdsNode::Create(
+        MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease, opt.udp_peers, opt.udp_interfaces));
     if (!n.ok()) return n.status();
     node = std::move(*n);
     v1::Envelope job_env;
@@ -857,5 +860,6 @@ uint64_t DistCoordinator::rejected_messages() const {
   return impl_->gate ? impl_->gate->total_rejected() : 0;
 }
 int DistCoordinator::workers_lost() const { return impl_->lost_count; }
+uint64_t DistCoordinator::stale_messages() const { return impl_->stale_count; }
 
 }  // namespace poseforest::dist

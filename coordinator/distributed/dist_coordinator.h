@@ -49,6 +49,8 @@ struct CoordinatorOptions {
   std::string job_id;  ///< empty: "job-<crc32 of the config>"
   uint32_t domain = 0;
   dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
+  /// kUdpOnly: initial peers and local interfaces (MakeNodeConfig); empty = loopback, all.
+  std::vector<std::string> udp_peers, udp_interfaces;
   int min_workers = 1;                                ///< workers to wait for before the first tree
   std::chrono::milliseconds worker_wait{60000};       ///< without any live worker this long: error
   std::chrono::milliseconds lease{1500};              ///< liveliness lease (presence, job)
@@ -84,6 +86,8 @@ class DistCoordinator {
   /// Totals over the run.
   uint64_t bytes_received() const;
   uint64_t rejected_messages() const;
+  /// Valid messages of an older epoch (e.g. replies of a worker cut off and back), dropped.
+  uint64_t stale_messages() const;
   int workers_lost() const;
 
   struct Impl;

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "proto/dds/dds_node.h"
 #include "runtime/core/result.h"
@@ -28,6 +29,9 @@ struct WorkerOptions {
   bool exit_when_done = true;  ///< return from Run() when the coordinator reports JOB_DONE
   std::chrono::milliseconds heartbeat_period{250};
   std::chrono::milliseconds lease{1500};        ///< presence liveliness lease
+  /// kUdpOnly: initial peers (usually the coordinator's address) and local interfaces to use;
+  /// empty = loopback peer, every interface (MakeNodeConfig).
+  std::vector<std::string> udp_peers, udp_interfaces;
   std::function<void(const std::string&)> log;  ///< default: stderr with the worker id
 };
 
