@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "coordinator/distributed/coordinator_monitoring.h"
 #include "coordinator/distributed/dist_coordinator.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/cli/args.h"
@@ -106,7 +107,8 @@ struct LocalWorkers {
 
 int CoordinatorMain(int argc, char** argv) {
   Args args({"out", "local-workers", "domain", "profile", "checkpoint", "status-file", "min-workers",
-             "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces"},
+             "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces", "http", "event-log",
+             "http-linger-s"},
             {"resume", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || args.positional().size() != 1 || !args.Has("out")) {
@@ -116,6 +118,9 @@ int CoordinatorMain(int argc, char** argv) {
         "usage: poseforest coordinator JOB.textproto --out FOREST.pff [--local-workers N] [--domain D]\n"
         "         [--profile shm|udp|default] [--checkpoint DIR] [--resume] [--status-file F]\n"
         "         [--min-workers N] [--job-id ID] [--worker-threads N] [--worker-wait-s S]\n"
+        "         [--http HOST:PORT|off] [--event-log F.jsonl] [--http-linger-s S]   (status, metrics and\n"
+        "          dashboard over HTTP, default 127.0.0.1:0 = a free loopback port, printed; the final\n"
+        "          state stays up S s (default 2) if anyone read it; JSON-lines event log)\n"
         "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers, local\n"
         "          addresses; e.g. on hosts without multicast)\n");
     return args.Has("help") ? 0 : 2;
@@ -197,6 +202,27 @@ int CoordinatorMain(int argc, char** argv) {
           status_file, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(j.data()), j.size()));
     }
   };
+  // Monitoring: status model, HTTP (dashboard, /status.json, /metrics), event log.
+  auto linger = args.GetInt("http-linger-s", 2, 0, 3600);
+  if (!linger.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", linger.status().message().c_str());
+    return 2;
+  }
+  auto monitoring = dist::CoordinatorMonitoring::Start(
+      {opt.job_id, opt.domain, args.GetOr("profile", "shm"), params->num_trees, params->max_depth,
+       params->images_per_tree, params->pixels_per_image, params->candidate_features,
+       params->thresholds_per_feature, *args.Get("out")},
+      args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""));
+  if (!monitoring.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", monitoring.status().ToString().c_str());
+    return 2;
+  }
+  opt.observer = (*monitoring)->observer();
+  if (const std::string url = (*monitoring)->url(); !url.empty()) {
+    std::printf("status: %s/ (dashboard), %s/status.json, %s/metrics; poseforest monitor --url %s\n", url.c_str(),
+                url.c_str(), url.c_str(), url.c_str());
+    std::fflush(stdout);
+  }
   LocalWorkers workers;
   if (*local > 0) {
     std::vector<std::string> wargs = {"--domain",  std::to_string(*domain),
@@ -216,11 +242,13 @@ int CoordinatorMain(int argc, char** argv) {
   workers.StopAll();
   if (!forest.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", forest.status().ToString().c_str());
+    (*monitoring)->Finish(false, forest.status().ToString(), double(*linger));
     return 1;
   }
   const std::string out = *args.Get("out");
   if (Status st = core::SaveForest(*forest, out); !st.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", st.ToString().c_str());
+    (*monitoring)->Finish(false, st.ToString(), double(*linger));
     return 1;
   }
   std::printf(
@@ -229,6 +257,8 @@ int CoordinatorMain(int argc, char** argv) {
       out.c_str(), forest->trees.size(), dist::NowSeconds() - t0, Human(double(coordinator.bytes_received())).c_str(),
       (unsigned long long)coordinator.rejected_messages(), (unsigned long long)coordinator.stale_messages(),
       coordinator.workers_lost());
+  std::fflush(stdout);
+  (*monitoring)->Finish(true, "wrote " + out, double(*linger));
   return 0;
 }
 

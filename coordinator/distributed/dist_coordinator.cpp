@@ -123,6 +123,7 @@ struct DistCoordinator::Impl {
     s->set_worker_id(worker);
     s->set_message(message);
     s->set_active_workers(uint32_t(AliveCount()));
+    if (opt.observer) opt.observer->OnStatus(*s);
     (void)Send(Topic::kStatus, env);
   }
 
@@ -204,6 +205,7 @@ struct DistCoordinator::Impl {
             }
             w.alive = true;
             w.last_seen = NowSeconds();
+            if (opt.observer) opt.observer->OnWorkerSeen(out.sender);
             if (env.has_heartbeat()) {
               HeartbeatExt hx;
               if (ReadExt(env.heartbeat(), &hx, "Heartbeat").ok())
@@ -229,6 +231,7 @@ struct DistCoordinator::Impl {
                 Log(st.ToString());
                 MarkLost(out.sender, "evicted");
               } else {
+                if (opt.observer) opt.observer->OnWorkerReply(out.sender, s->bytes.size(), r.body);
                 (*replies)[out.sender] = std::move(r);
               }
             }
@@ -293,6 +296,11 @@ struct DistCoordinator::Impl {
     w.assigned = true;
     w.assign_epoch = s->epoch();
     w.assign_time = NowSeconds();
+    if (opt.observer) {
+      uint64_t frames = 0;
+      for (auto [b, e] : w.frames) frames += e - b;
+      opt.observer->OnWorkerAssigned(w.id, tree, frames);
+    }
     return Status::Ok();
   }
 
@@ -476,6 +484,10 @@ struct DistCoordinator::Impl {
         if (level < params.max_depth && int64_t(n) >= params.min_samples_split && present > 1)
           to_split.push_back(i);
       }
+      if (opt.observer) {
+        opt.observer->OnLevelStart(tree, level, frontier.size(), level_samples);
+        opt.observer->OnNodesDecided(frontier.size() - to_split.size(), frontier.size());
+      }
       std::vector<uint8_t> is_split(frontier.size(), 0);
       std::vector<coordinator::SplitChoice> choices(frontier.size());
       std::vector<core::FeatureOffsets> chosen(frontier.size());
@@ -639,6 +651,7 @@ struct DistCoordinator::Impl {
           break;
         }
         b0 = b1;
+        if (opt.observer) opt.observer->OnNodesDecided(frontier.size() - to_split.size() + b0, frontier.size());
       }
       // Children in node order (breadth-first layout), decisions to the workers, the log.
       std::vector<FrontierNode> next;
@@ -648,8 +661,10 @@ struct DistCoordinator::Impl {
       dec->set_tree(uint32_t(tree));
       dec->set_level(uint32_t(level));
       LoggedLevel* logged = ckpt.mutable_current()->add_levels();
+      double entropy_sum = 0, gain_sum = 0;  // for DistLevelStats
       for (size_t i = 0; i < frontier.size(); ++i) {
         const FrontierNode& f = frontier[i];
+        entropy_sum += coordinator::Entropy(f.parts) * double(f.total());
         auto* nd = dec->add_nodes();
         nd->set_node_id(f.node);
         LoggedDecision* ld = logged->add_decisions();
@@ -664,6 +679,7 @@ struct DistCoordinator::Impl {
         }
         ++num_split;
         const coordinator::SplitChoice& c = choices[i];
+        gain_sum += c.gain;
         const uint32_t left = assembler.MakeSplit(f.node, chosen[i], c.cut);
         SetFeatureSplit(chosen[i], c.cut, left, uint32_t(c.candidate), nd->mutable_split());
         ld->set_split(true);
@@ -701,7 +717,10 @@ struct DistCoordinator::Impl {
       st.level_seconds = NowSeconds() - t_level;
       st.elapsed_s = NowSeconds() - start;
       st.retries = level_retries;
+      st.mean_entropy = level_samples > 0 ? entropy_sum / double(level_samples) : 0;
+      st.mean_gain = num_split > 0 ? gain_sum / double(num_split) : 0;
       if (opt.progress) opt.progress(st);
+      if (opt.observer) opt.observer->OnLevelDone(st);
       const double progress =
           (double(tree) + std::min(1.0, double(level + 1) / double(params.max_depth + 1))) /
           double(params.num_trees);
