@@ -1,5 +1,6 @@
 #include "coordinator/subtree_trainer.h"
 
+#include <cmath>
 #include <string>
 
 #include "coordinator/split_search.h"
@@ -133,6 +134,7 @@ Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sam
         n.split = true;
         n.offsets = chosen[i];
         n.cut = c.cut;
+        n.gain = c.gain;
         const uint32_t left = assembler.MakeSplit(f.local, chosen[i], c.cut);
         splits.push_back({f.sample_node, chosen[i], c.cut, left});
         next.push_back({left, left, worker::LeftChildPosition(f.position), c.left_parts});
@@ -172,6 +174,7 @@ Status ValidateSubtree(std::span<const SubtreeNode> nodes, uint64_t root_positio
     }
     if (!WantsSplit(params, depth_of[i], n.parts)) return bad("node " + std::to_string(i) + " may not split");
     if (n.cut <= -(1 << 22) || n.cut >= (1 << 22)) return bad("cut of node " + std::to_string(i));
+    if (!std::isfinite(n.gain) || n.gain < 0) return bad("gain of node " + std::to_string(i));
     const uint32_t left = assembler.MakeSplit(uint32_t(i), n.offsets, n.cut);
     depth_of.push_back(depth_of[i] + 1);
     depth_of.push_back(depth_of[i] + 1);

@@ -24,6 +24,7 @@ struct SubtreeNode {
   bool split = false;
   core::FeatureOffsets offsets;  ///< split only
   int32_t cut = 0;               ///< split only: tau = cut + 0.5 mm
+  double gain = 0;               ///< split only: information gain, bits (statistics)
   std::vector<uint64_t> parts;   ///< kNumParts sample counts of the node (every node)
 };
 

@@ -247,6 +247,63 @@ void CountAvx512(const KernelInput& in, uint64_t b, uint64_t e, const core::Feat
   }
 }
 
+/// Whether every real cut of `cuts[0, n)` lies in [-32767, 32766], so that the 16-bit kernels
+/// may bin: a response saturated to int16 then compares with every such cut as the int32 response
+/// does (r > 32767 -> 32767 > c; r < -32768 -> -32768 > c is false as r > c is), and the padding
+/// kNoCut becomes 32767, which no saturated response exceeds. Responses are depth differences
+/// (|r| <= background_mm in practice), so this holds for any real node; the int32 kernels remain
+/// for the rest.
+inline bool CutsFit16(const int32_t* cuts, size_t n) {
+  for (size_t j = 0; j < n; ++j)
+    if (cuts[j] != kNoCut && (cuts[j] < -32767 || cuts[j] > 32766)) return false;
+  return true;
+}
+inline int16_t Cut16(int32_t c) { return c == kNoCut ? int16_t(32767) : int16_t(c); }
+
+/// 32 int16 lanes from two vectors of 16 int32 responses, saturated, in order.
+inline __m512i Pack16(__m512i lo, __m512i hi) {
+  return _mm512_inserti64x4(_mm512_castsi256_si512(_mm512_cvtsepi32_epi16(lo)), _mm512_cvtsepi32_epi16(hi), 1);
+}
+
+inline __mmask32 Mask32(uint64_t n) { return n >= 32 ? ~__mmask32(0) : __mmask32((uint64_t(1) << n) - 1); }
+
+/// CountAvx512 in 16-bit lanes (cuts that CutsFit16): 32 samples at a time; the 64 cut slots
+/// fit in two registers, so each of the 7 binary-search steps is one two-table permute, one
+/// compare and one masked add for 32 samples (the int32 kernel needs two permutes, a blend, a
+/// test, a compare and an add for 16).
+void CountAvx512x16(const KernelInput& in, uint64_t b, uint64_t e, const core::FeatureOffsets& f,
+                    const int32_t* cuts, int stride, const int16_t* slot_table16, int slots, uint32_t* counts) {
+  alignas(64) int16_t c64[64];
+  for (int j = 0; j < 64; ++j) c64[j] = j < stride ? Cut16(cuts[j]) : int16_t(32767);
+  const __m512i c_lo = _mm512_load_si512(c64), c_hi = _mm512_load_si512(c64 + 32);
+  const __m512i st = _mm512_loadu_si512(slot_table16);
+  const __m512 fux = _mm512_set1_ps(float(f.ux)), fuy = _mm512_set1_ps(float(f.uy)),
+               fvx = _mm512_set1_ps(float(f.vx)), fvy = _mm512_set1_ps(float(f.vy));
+  const __m512i vslots = _mm512_set1_epi16(int16_t(slots));
+  alignas(64) uint16_t idx[32];
+  for (uint64_t i = b; i < e; i += 32) {
+    const uint64_t left = e - i;
+    const __mmask16 v0 = left >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << left) - 1);
+    const __mmask16 v1 = left >= 32 ? __mmask16(0xFFFF) : left > 16 ? __mmask16((1u << (left - 16)) - 1) : 0;
+    const __m512i r0 = Responses16(in, i, v0, fux, fuy, fvx, fvy);
+    const __m512i r1 = v1 ? Responses16(in, i + 16, v1, fux, fuy, fvx, fvy) : _mm512_setzero_si512();
+    const __m512i r = Pack16(r0, r1);
+    __m512i pos = _mm512_setzero_si512();
+    for (int step = 32; step > 0; step >>= 1) {
+      const __m512i val = _mm512_permutex2var_epi16(c_lo, _mm512_add_epi16(pos, _mm512_set1_epi16(int16_t(step - 1))), c_hi);
+      pos = _mm512_mask_add_epi16(pos, _mm512_cmpgt_epi16_mask(r, val), pos, _mm512_set1_epi16(int16_t(step)));
+    }
+    // pos <= 63 here; the last slot needs one more comparison to reach 64.
+    pos = _mm512_mask_add_epi16(pos, _mm512_cmpgt_epi16_mask(r, _mm512_permutex2var_epi16(c_lo, pos, c_hi)), pos,
+                                _mm512_set1_epi16(1));
+    const __m512i part = _mm512_cvtepu8_epi16(_mm256_maskz_loadu_epi8(Mask32(left), in.part + i));
+    const __m512i slot = _mm512_permutexvar_epi16(part, st);
+    _mm512_store_si512(idx, _mm512_add_epi16(_mm512_mullo_epi16(pos, vslots), slot));
+    const int n = int(std::min<uint64_t>(32, left));
+    for (int l = 0; l < n; ++l) ++counts[idx[l]];
+  }
+}
+
 /// Min/max of the responses of samples [b, e).
 void RangeAvx512(const KernelInput& in, uint64_t b, uint64_t e, const core::FeatureOffsets& f,
                  ResponseRange* out) {
@@ -268,15 +325,19 @@ void RangeAvx512(const KernelInput& in, uint64_t b, uint64_t e, const core::Feat
 /// one pixel) stay in L1, instead of 16 samples of scattered frames per vector.
 constexpr uint64_t kSampleMajorMax = 768;
 
-/// A node's candidates transposed for the sample-major kernels (16-lane blocks).
+/// A node's candidates transposed for the sample-major kernels (blocks of 16 and 32 lanes).
 struct CandidateSoa {
   int num_candidates = 0, padded = 0, thresholds = 0;
   std::vector<float> ux, uy, vx, vy;  ///< padded entries are 0 (probe the pixel itself)
-  std::vector<int32_t> cuts;          ///< [j * padded + k]: cut j of candidate k (kNoCut padding)
+  /// Cut j of candidate k at [j * padded + k] (padding: kNoCut / 32767), in int16 when every
+  /// cut CutsFit16 (cuts16, half the memory and twice the lanes), else in int32 (cuts).
+  bool fit16 = false;
+  std::vector<int32_t> cuts;
+  std::vector<int16_t> cuts16;
 
   void Set(const std::vector<core::FeatureOffsets>& f, const int32_t* cut_rows, int stride, int t) {
     num_candidates = int(f.size());
-    padded = (num_candidates + 15) / 16 * 16;
+    padded = (num_candidates + 31) / 32 * 32;
     thresholds = t;
     ux.assign(size_t(padded), 0.f);
     uy.assign(size_t(padded), 0.f);
@@ -288,7 +349,14 @@ struct CandidateSoa {
       vx[size_t(k)] = float(f[size_t(k)].vx);
       vy[size_t(k)] = float(f[size_t(k)].vy);
     }
-    if (cut_rows) {
+    if (!cut_rows) return;
+    fit16 = CutsFit16(cut_rows, size_t(num_candidates) * size_t(stride));
+    if (fit16) {
+      cuts16.assign(size_t(t) * size_t(padded), int16_t(32767));
+      for (int k = 0; k < num_candidates; ++k)
+        for (int j = 0; j < t; ++j)
+          cuts16[size_t(j) * size_t(padded) + size_t(k)] = Cut16(cut_rows[size_t(k) * size_t(stride) + size_t(j)]);
+    } else {
       cuts.assign(size_t(t) * size_t(padded), kNoCut);
       for (int k = 0; k < num_candidates; ++k)
         for (int j = 0; j < t; ++j)
@@ -296,6 +364,22 @@ struct CandidateSoa {
     }
   }
 };
+
+/// Bins of 32 saturated responses against the transposed int16 cuts of their 32 candidates
+/// (col[j * pitch + lane], rows 0..t-1): a linear count, in two accumulators so that the
+/// masked adds form two dependency chains of t/2 instead of one of t.
+inline __m512i Bins32(__m512i r, const int16_t* col, size_t pitch, int t) {
+  const __m512i one = _mm512_set1_epi16(1);
+  __m512i b0 = _mm512_setzero_si512(), b1 = _mm512_setzero_si512();
+  int j = 0;
+  for (; j + 2 <= t; j += 2) {
+    b0 = _mm512_mask_add_epi16(b0, _mm512_cmpgt_epi16_mask(r, _mm512_loadu_si512(col + size_t(j) * pitch)), b0, one);
+    b1 = _mm512_mask_add_epi16(b1, _mm512_cmpgt_epi16_mask(r, _mm512_loadu_si512(col + size_t(j + 1) * pitch)), b1,
+                               one);
+  }
+  if (j < t) b0 = _mm512_mask_add_epi16(b0, _mm512_cmpgt_epi16_mask(r, _mm512_loadu_si512(col + size_t(j) * pitch)), b0, one);
+  return _mm512_add_epi16(b0, b1);
+}
 
 /// Responses of one sample to candidates [k, k+16) (exactly core::FeatureResponse per lane).
 inline __m512i SampleResponses16(const KernelInput& in, uint64_t i, const CandidateSoa& c, int k) {
@@ -331,6 +415,23 @@ void CountSampleMajorAvx512(const KernelInput& in, uint64_t b, uint64_t e, const
   const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   const __m512i cand_stride = _mm512_set1_epi32(bins * slots), vslots = _mm512_set1_epi32(slots);
   const __m512i one = _mm512_set1_epi32(1);
+  if (c.fit16) {
+    alignas(64) uint16_t local[32];  // bin * slots + slot per lane
+    const size_t cs = size_t(bins) * size_t(slots);
+    const __m512i vslots16 = _mm512_set1_epi16(int16_t(slots));
+    for (uint64_t i = b; i < e; ++i) {
+      const __m512i slot = _mm512_set1_epi16(int16_t(slot_of[in.part[i]]));
+      for (int k = 0; k < c.num_candidates; k += 32) {
+        const __m512i r = Pack16(SampleResponses16(in, i, c, k), SampleResponses16(in, i, c, k + 16));
+        const __m512i bin = Bins32(r, c.cuts16.data() + k, size_t(c.padded), c.thresholds);
+        _mm512_store_si512(local, _mm512_add_epi16(_mm512_mullo_epi16(bin, vslots16), slot));
+        uint32_t* ck = counts + size_t(k) * cs;
+        const int n = std::min(32, c.num_candidates - k);
+        for (int l = 0; l < n; ++l) ++ck[size_t(l) * cs + local[l]];
+      }
+    }
+    return;
+  }
   for (uint64_t i = b; i < e; ++i) {
     const __m512i slot = _mm512_set1_epi32(slot_of[in.part[i]]);
     for (int k = 0; k < c.num_candidates; k += 16) {
@@ -355,6 +456,17 @@ void CountSampleMajorAvx512(const KernelInput& in, uint64_t b, uint64_t e, const
 void BinSampleMajorAvx512(const KernelInput& in, uint64_t b, uint64_t e, const CandidateSoa& c,
                           uint8_t* rows) {
   const __m512i one = _mm512_set1_epi32(1);
+  if (c.fit16) {
+    for (uint64_t i = b; i < e; ++i) {
+      uint8_t* row = rows + (i - b) * size_t(c.num_candidates);
+      for (int k = 0; k < c.num_candidates; k += 32) {
+        const __m512i r = Pack16(SampleResponses16(in, i, c, k), SampleResponses16(in, i, c, k + 16));
+        const __m512i bin = Bins32(r, c.cuts16.data() + k, size_t(c.padded), c.thresholds);
+        _mm256_mask_storeu_epi8(row + k, Mask32(uint64_t(c.num_candidates - k)), _mm512_cvtepi16_epi8(bin));
+      }
+    }
+    return;
+  }
   for (uint64_t i = b; i < e; ++i) {
     uint8_t* row = rows + (i - b) * size_t(c.num_candidates);
     for (int k = 0; k < c.num_candidates; k += 16) {
@@ -525,7 +637,11 @@ void HistogramBuilder::Build(const SampleSet& samples, std::span<const NodePlan>
       const int slots = hist.num_slots, stride = plan.cut_stride;
       const uint8_t* slot_of = plan.part_slot.data();
       int32_t slot_table32[32] = {};
-      for (int c = 0; c < core::kNumParts; ++c) slot_table32[c] = slot_of[c] == 0xFF ? 0 : slot_of[c];
+      int16_t slot_table16[32] = {};
+      for (int c = 0; c < core::kNumParts; ++c) {
+        slot_table32[c] = slot_of[c] == 0xFF ? 0 : slot_of[c];
+        slot_table16[c] = int16_t(slot_table32[c]);
+      }
       if (plan.sample_bins) {
         uint8_t* rows = hist.sample_bin.data();
         const auto kk = size_t(plan.features.size());
@@ -569,7 +685,10 @@ void HistogramBuilder::Build(const SampleSet& samples, std::span<const NodePlan>
           }
 #if POSEFOREST_HIST_AVX512
           if (simd && stride <= 64) {
-            CountAvx512(in, b0, b1, f, cuts, stride, slot_table32, slots, counts);
+            if (CutsFit16(cuts, size_t(stride)))
+              CountAvx512x16(in, b0, b1, f, cuts, stride, slot_table16, slots, counts);
+            else
+              CountAvx512(in, b0, b1, f, cuts, stride, slot_table32, slots, counts);
             continue;
           }
 #endif
@@ -627,8 +746,8 @@ void HistogramBuilder::BuildFused(const SampleSet& samples, const TrainParams& p
         const NodeRange range = samples.RangeOf(plan.node);
         const uint64_t n = range.end - range.begin;
         const size_t kk = plan.features.size();
-        // Pass 1: responses once (rows padded to 16 candidates), ranges from them.
-        const size_t ps = (kk + 15) / 16 * 16;
+        // Pass 1: responses once (rows padded to 32 candidates), ranges from them.
+        const size_t ps = (kk + 31) / 32 * 32;
         resp.resize(n * ps);
         std::vector<ResponseRange> ranges(kk);
         const int stride = CutStride(t), slots = hist.num_slots;
@@ -636,15 +755,41 @@ void HistogramBuilder::BuildFused(const SampleSet& samples, const TrainParams& p
         if (samples.uniform_size() && stride <= 64) {
           CandidateSoa soa;
           soa.Set(plan.features, nullptr, 0, 0);
+          std::vector<int32_t> lo(ps, INT32_MAX), hi(ps, INT32_MIN);
           for (uint64_t i = 0; i < n; ++i)
-            for (int k = 0; k < soa.num_candidates; k += 16)
-              _mm512_storeu_si512(&resp[i * ps + size_t(k)], SampleResponses16(in, range.begin + i, soa, k));
-          for (uint64_t i = 0; i < n; ++i)
-            for (size_t k = 0; k < kk; ++k) ranges[k].Add(resp[i * ps + k]);
+            for (int k = 0; k < soa.padded; k += 16) {
+              const __m512i r = SampleResponses16(in, range.begin + i, soa, k);
+              _mm512_storeu_si512(&resp[i * ps + size_t(k)], r);
+              _mm512_storeu_si512(&lo[size_t(k)], _mm512_min_epi32(_mm512_loadu_si512(&lo[size_t(k)]), r));
+              _mm512_storeu_si512(&hi[size_t(k)], _mm512_max_epi32(_mm512_loadu_si512(&hi[size_t(k)]), r));
+            }
+          for (size_t k = 0; k < kk; ++k) ranges[k] = ResponseRange{lo[k], hi[k]};
           plan.cuts = DrawCuts(params, tree, plan.position, ranges);
           plan.cut_stride = stride;
           soa.Set(plan.features, plan.cuts.data(), stride, t);
           // Pass 2: bins by a linear count over the transposed cuts, as the sample-major kernel.
+          if (soa.fit16) {
+            alignas(64) uint16_t local[32];  // bin * slots + slot per lane
+            const size_t cs = size_t(num_bins) * size_t(slots);
+            for (uint64_t i = 0; i < n; ++i) {
+              const __m512i slot = _mm512_set1_epi16(int16_t(plan.part_slot[samples.part()[range.begin + i]]));
+              for (int k = 0; k < soa.num_candidates; k += 32) {
+                const int32_t* ri = &resp[i * ps + size_t(k)];
+                const __m512i r = Pack16(_mm512_loadu_si512(ri), _mm512_loadu_si512(ri + 16));
+                const __m512i bin = Bins32(r, soa.cuts16.data() + k, size_t(soa.padded), t);
+                const int m = std::min(32, soa.num_candidates - k);
+                if (plan.sample_bins) {
+                  _mm256_mask_storeu_epi8(&hist.sample_bin[i * kk + size_t(k)], Mask32(uint64_t(m)),
+                                          _mm512_cvtepi16_epi8(bin));
+                } else {
+                  _mm512_store_si512(local, _mm512_add_epi16(_mm512_mullo_epi16(bin, _mm512_set1_epi16(int16_t(slots))), slot));
+                  uint32_t* ck = hist.counts.data() + size_t(k) * cs;
+                  for (int l = 0; l < m; ++l) ++ck[size_t(l) * cs + local[l]];
+                }
+              }
+            }
+            return;
+          }
           alignas(64) int32_t idx[16];
           const __m512i one = _mm512_set1_epi32(1);
           const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);

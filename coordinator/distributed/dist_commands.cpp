@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "coordinator/distributed/coordinator_monitoring.h"
 #include "coordinator/distributed/dist_coordinator.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/cli/args.h"
@@ -45,6 +46,20 @@ std::string Human(double bytes) {
   else
     std::snprintf(buf, sizeof buf, "%.1f KiB", bytes / 1024);
   return buf;
+}
+
+/// --peers / --interfaces (only with --profile udp).
+Status ParseUdpFlags(const Args& args, dds::TransportKind profile, std::vector<std::string>* peers,
+                     std::vector<std::string>* interfaces) {
+  for (const char* flag : {"peers", "interfaces"}) {
+    if (!args.Has(flag)) continue;
+    if (profile != dds::TransportKind::kUdpOnly)
+      return Status(core::ErrorCode::kInvalidArgument, std::string("--") + flag + " needs --profile udp");
+    auto list = dist::ParseAddressList(*args.Get(flag), flag, std::string(flag) == "peers");
+    if (!list.ok()) return list.status();
+    *(std::string(flag) == "peers" ? peers : interfaces) = std::move(*list);
+  }
+  return Status::Ok();
 }
 
 /// Worker processes started by --local-workers; killed (TERM, then KILL) at the end.
@@ -92,7 +107,8 @@ struct LocalWorkers {
 
 int CoordinatorMain(int argc, char** argv) {
   Args args({"out", "local-workers", "domain", "profile", "checkpoint", "status-file", "min-workers",
-             "job-id", "worker-threads", "worker-wait-s"},
+             "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces", "http", "event-log",
+             "http-linger-s"},
             {"resume", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || args.positional().size() != 1 || !args.Has("out")) {
@@ -101,7 +117,12 @@ int CoordinatorMain(int argc, char** argv) {
         stderr,
         "usage: poseforest coordinator JOB.textproto --out FOREST.pff [--local-workers N] [--domain D]\n"
         "         [--profile shm|udp|default] [--checkpoint DIR] [--resume] [--status-file F]\n"
-        "         [--min-workers N] [--job-id ID] [--worker-threads N] [--worker-wait-s S]\n");
+        "         [--min-workers N] [--job-id ID] [--worker-threads N] [--worker-wait-s S]\n"
+        "         [--http HOST:PORT|off] [--event-log F.jsonl] [--http-linger-s S]   (status, metrics and\n"
+        "          dashboard over HTTP, default 127.0.0.1:0 = a free loopback port, printed; the final\n"
+        "          state stays up S s (default 2) if anyone read it; JSON-lines event log)\n"
+        "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers, local\n"
+        "          addresses; e.g. on hosts without multicast)\n");
     return args.Has("help") ? 0 : 2;
   }
   const std::string job_path = args.positional()[0];
@@ -142,6 +163,10 @@ int CoordinatorMain(int argc, char** argv) {
     return 2;
   }
   dist::CoordinatorOptions opt;
+  if (Status st = ParseUdpFlags(args, *profile, &opt.udp_peers, &opt.udp_interfaces); !st.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
+    return 2;
+  }
   opt.job_id = args.GetOr("job-id", "");
   if (opt.job_id.empty()) opt.job_id = dist::DefaultJobId(*config);
   opt.domain = uint32_t(*domain);
@@ -177,12 +202,35 @@ int CoordinatorMain(int argc, char** argv) {
           status_file, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(j.data()), j.size()));
     }
   };
+  // Monitoring: status model, HTTP (dashboard, /status.json, /metrics), event log.
+  auto linger = args.GetInt("http-linger-s", 2, 0, 3600);
+  if (!linger.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", linger.status().message().c_str());
+    return 2;
+  }
+  auto monitoring = dist::CoordinatorMonitoring::Start(
+      {opt.job_id, opt.domain, args.GetOr("profile", "shm"), params->num_trees, params->max_depth,
+       params->images_per_tree, params->pixels_per_image, params->candidate_features,
+       params->thresholds_per_feature, *args.Get("out")},
+      args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""));
+  if (!monitoring.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", monitoring.status().ToString().c_str());
+    return 2;
+  }
+  opt.observer = (*monitoring)->observer();
+  if (const std::string url = (*monitoring)->url(); !url.empty()) {
+    std::printf("status: %s/ (dashboard), %s/status.json, %s/metrics; poseforest monitor --url %s\n", url.c_str(),
+                url.c_str(), url.c_str(), url.c_str());
+    std::fflush(stdout);
+  }
   LocalWorkers workers;
   if (*local > 0) {
-    const std::vector<std::string> wargs = {"--domain",  std::to_string(*domain),
-                                            "--profile", args.GetOr("profile", "shm"),
-                                            "--job",     opt.job_id,
-                                            "--threads", std::to_string(*worker_threads)};
+    std::vector<std::string> wargs = {"--domain",  std::to_string(*domain),
+                                      "--profile", args.GetOr("profile", "shm"),
+                                      "--job",     opt.job_id,
+                                      "--threads", std::to_string(*worker_threads)};
+    for (const char* flag : {"peers", "interfaces"})
+      if (args.Has(flag)) wargs.insert(wargs.end(), {std::string("--") + flag, *args.Get(flag)});
     if (!workers.Start(int(*local), wargs)) {
       std::fprintf(stderr, "coordinator: cannot start local workers\n");
       return 1;
@@ -194,27 +242,36 @@ int CoordinatorMain(int argc, char** argv) {
   workers.StopAll();
   if (!forest.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", forest.status().ToString().c_str());
+    (*monitoring)->Finish(false, forest.status().ToString(), double(*linger));
     return 1;
   }
   const std::string out = *args.Get("out");
   if (Status st = core::SaveForest(*forest, out); !st.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", st.ToString().c_str());
+    (*monitoring)->Finish(false, st.ToString(), double(*linger));
     return 1;
   }
-  std::printf("wrote %s: %zu trees in %.2f s, %s received, %llu messages rejected, %d workers lost\n",
-              out.c_str(), forest->trees.size(), dist::NowSeconds() - t0,
-              Human(double(coordinator.bytes_received())).c_str(),
-              (unsigned long long)coordinator.rejected_messages(), coordinator.workers_lost());
+  std::printf(
+      "wrote %s: %zu trees in %.2f s, %s received, %llu messages rejected, %llu stale messages dropped, %d "
+      "workers lost\n",
+      out.c_str(), forest->trees.size(), dist::NowSeconds() - t0, Human(double(coordinator.bytes_received())).c_str(),
+      (unsigned long long)coordinator.rejected_messages(), (unsigned long long)coordinator.stale_messages(),
+      coordinator.workers_lost());
+  std::fflush(stdout);
+  (*monitoring)->Finish(true, "wrote " + out, double(*linger));
   return 0;
 }
 
 int WorkerMain(int argc, char** argv) {
-  Args args({"domain", "threads", "job", "profile", "id"}, {"stay", "exit-with-parent", "help"});
+  Args args({"domain", "threads", "job", "profile", "id", "peers", "interfaces"},
+            {"stay", "exit-with-parent", "help"});
   if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
     if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
     std::fprintf(stderr,
                  "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--profile shm|udp|default] "
                  "[--id NAME]\n"
+                 "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers,\n"
+                 "          usually the coordinator's address, and the local addresses to use)\n"
                  "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n");
     return args.Has("help") ? 0 : 2;
   }
@@ -231,6 +288,10 @@ int WorkerMain(int argc, char** argv) {
     return 2;
   }
   dist::WorkerOptions opt;
+  if (Status st = ParseUdpFlags(args, *profile, &opt.udp_peers, &opt.udp_interfaces); !st.ok()) {
+    std::fprintf(stderr, "worker: %s\n", st.message().c_str());
+    return 2;
+  }
   opt.worker_id = args.GetOr("id", "");
   opt.domain = uint32_t(*domain);
   opt.transport = *profile;

@@ -89,6 +89,7 @@ coordinator::SubtreeNode FromProto(const SubtreeNode& n) {
   o.split = n.split();
   o.offsets = {int16_t(n.ux()), int16_t(n.uy()), int16_t(n.vx()), int16_t(n.vy())};
   o.cut = n.cut();
+  o.gain = n.gain();
   o.parts.assign(n.part_counts().begin(), n.part_counts().end());
   return o;
 }
@@ -99,6 +100,7 @@ void ToProto(const coordinator::SubtreeNode& n, SubtreeNode* o) {
   if (n.split) {
     o->set_ux(n.offsets.ux), o->set_uy(n.offsets.uy), o->set_vx(n.offsets.vx), o->set_vy(n.offsets.vy);
     o->set_cut(n.cut);
+    o->set_gain(n.gain);
   }
   for (uint64_t c : n.parts) o->add_part_counts(c);
 }
@@ -122,6 +124,7 @@ struct DistCoordinator::Impl {
   double start = 0;
   int lost_count = 0;
   uint64_t total_bytes_received = 0;
+  uint64_t stale_count = 0;  ///< stale messages (the gate's per-sender stats are reset by Forget)
 
   // Current tree.
   int tree = -1;
@@ -173,6 +176,7 @@ struct DistCoordinator::Impl {
     s->set_worker_id(worker);
     s->set_message(message);
     s->set_active_workers(uint32_t(AliveCount()));
+    if (opt.observer) opt.observer->OnStatus(*s);
     (void)Send(Topic::kStatus, env);
   }
 
@@ -244,6 +248,7 @@ struct DistCoordinator::Impl {
     }
     if (auto s = node->Receive(timeout)) {
       auto out = gate->Check(s->topic, s->bytes, s->writer_guid);
+      if (out.verdict == Verdict::kStale) ++stale_count;
       if (out.verdict == Verdict::kAccepted) {
         const v1::Envelope& env = out.envelope;
         switch (env.body_case()) {
@@ -261,6 +266,7 @@ struct DistCoordinator::Impl {
             }
             w.alive = true;
             w.last_seen = NowSeconds();
+            if (opt.observer) opt.observer->OnWorkerSeen(out.sender);
             if (env.has_heartbeat()) {
               HeartbeatExt hx;
               if (ReadExt(env.heartbeat(), &hx, "Heartbeat").ok())
@@ -286,6 +292,7 @@ struct DistCoordinator::Impl {
                 Log(st.ToString());
                 MarkLost(out.sender, "evicted");
               } else {
+                if (opt.observer) opt.observer->OnWorkerReply(out.sender, s->bytes.size(), r.body);
                 (*replies)[out.sender] = std::move(r);
               }
             }
@@ -355,6 +362,11 @@ struct DistCoordinator::Impl {
     w.assigned = true;
     w.assign_epoch = s->epoch();
     w.assign_time = NowSeconds();
+    if (opt.observer) {
+      uint64_t frames = 0;
+      for (auto [b, e] : w.frames) frames += e - b;
+      opt.observer->OnWorkerAssigned(w.id, tree, frames);
+    }
     return Status::Ok();
   }
 
@@ -688,6 +700,10 @@ struct DistCoordinator::Impl {
         if (level < params.max_depth && int64_t(n) >= params.min_samples_split && present > 1)
           to_split.push_back(i);
       }
+      if (opt.observer) {
+        opt.observer->OnLevelStart(tree, level, frontier.size(), level_samples);
+        opt.observer->OnNodesDecided(frontier.size() - to_split.size(), frontier.size());
+      }
       std::vector<uint8_t> is_split(frontier.size(), 0);
       std::vector<coordinator::SplitChoice> choices(frontier.size());
       std::vector<core::FeatureOffsets> chosen(frontier.size());
@@ -898,6 +914,8 @@ struct DistCoordinator::Impl {
           break;
         }
         b0 = b1;
+        if (opt.observer)
+          opt.observer->OnNodesDecided(frontier.size() - to_split.size() - handed_off + b0, frontier.size());
       }
       if (!tasks.empty()) {
         const double t_wait = NowSeconds();
@@ -907,6 +925,7 @@ struct DistCoordinator::Impl {
           for (coordinator::SubtreeNode& n : job.nodes) delegated[n.position] = std::move(n);
         tasks.clear();
         evaluations += level_subtree_evaluations;
+        if (opt.observer) opt.observer->OnNodesDecided(frontier.size(), frontier.size());
       }
       // Children in node order (breadth-first layout), decisions to the workers, the log.
       std::vector<FrontierNode> next;
@@ -917,8 +936,10 @@ struct DistCoordinator::Impl {
       dec->set_level(uint32_t(level));
       LoggedLevel* logged = ckpt.mutable_current()->add_levels();
       size_t from_subtrees = 0;
+      double entropy_sum = 0, gain_sum = 0;  // for DistLevelStats
       for (size_t i = 0; i < frontier.size(); ++i) {
         const FrontierNode& f = frontier[i];
+        entropy_sum += coordinator::Entropy(f.parts) * double(f.total());
         auto* nd = dec->add_nodes();
         nd->set_node_id(f.node);
         LoggedDecision* ld = logged->add_decisions();
@@ -941,6 +962,7 @@ struct DistCoordinator::Impl {
             continue;
           }
           ++num_split;
+          gain_sum += d.gain;
           const uint32_t left = assembler.MakeSplit(f.node, d.offsets, d.cut);
           ld->set_split(true);
           ld->set_ux(d.offsets.ux), ld->set_uy(d.offsets.uy), ld->set_vx(d.offsets.vx),
@@ -964,6 +986,7 @@ struct DistCoordinator::Impl {
         }
         ++num_split;
         const coordinator::SplitChoice& c = choices[i];
+        gain_sum += c.gain;
         const uint32_t left = assembler.MakeSplit(f.node, chosen[i], c.cut);
         SetFeatureSplit(chosen[i], c.cut, left, uint32_t(c.candidate), nd->mutable_split());
         ld->set_split(true);
@@ -1008,7 +1031,10 @@ struct DistCoordinator::Impl {
       st.retries = level_retries;
       st.subtree_tasks = handed_off;
       st.subtree_nodes = from_subtrees;
+      st.mean_entropy = level_samples > 0 ? entropy_sum / double(level_samples) : 0;
+      st.mean_gain = num_split > 0 ? gain_sum / double(num_split) : 0;
       if (opt.progress) opt.progress(st);
+      if (opt.observer) opt.observer->OnLevelDone(st);
       const double progress =
           (double(tree) + std::min(1.0, double(level + 1) / double(params.max_depth + 1))) /
           double(params.num_trees);
@@ -1077,7 +1103,8 @@ struct DistCoordinator::Impl {
           std::to_string(first_level));
     }
 
-    auto n = dds::DdsNode::Create(MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease));
+    auto n = dds::DdsNode::Create(MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease,
+                                                 opt.udp_peers, opt.udp_interfaces));
     if (!n.ok()) return n.status();
     node = std::move(*n);
     v1::Envelope job_env;
@@ -1173,5 +1200,6 @@ uint64_t DistCoordinator::rejected_messages() const {
   return (impl_->gate ? impl_->gate->total_rejected() : 0) + impl_->subtree_rejected;
 }
 int DistCoordinator::workers_lost() const { return impl_->lost_count; }
+uint64_t DistCoordinator::stale_messages() const { return impl_->stale_count; }
 
 }  // namespace poseforest::dist

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "poseforest/v1/job.pb.h"
+#include "poseforest/v1/wire.pb.h"
 #include "proto/dds/dds_node.h"
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
@@ -45,12 +46,37 @@ struct DistLevelStats {
   int retries = 0;              ///< rounds asked again after a worker loss (or subtree tasks handed on)
   size_t subtree_tasks = 0;     ///< nodes of this level handed to one worker whole (SubtreeTask)
   size_t subtree_nodes = 0;     ///< nodes of this level decided by SubtreeResults (tasks' roots included)
+  double mean_entropy = 0;      ///< bits: part entropy of the frontier nodes, weighted by samples
+  double mean_gain = 0;         ///< bits: mean information gain of the splits chosen (0: none)
+};
+
+/// Live view of the coordinator for monitoring (coordinator/distributed/status_model.h,
+/// event_log.h). Called on the training thread; implementations must be quick and not throw.
+class CoordinatorObserver {
+ public:
+  virtual ~CoordinatorObserver() = default;
+  /// Every StatusEvent the coordinator publishes on the status topic.
+  virtual void OnStatus(const v1::StatusEvent&) {}
+  /// A level starts: `nodes` frontier nodes holding `samples` samples.
+  virtual void OnLevelStart(int /*tree*/, int /*level*/, size_t /*nodes*/, uint64_t /*samples*/) {}
+  /// Frontier nodes of the current level whose decision is made (per request batch).
+  virtual void OnNodesDecided(size_t /*done*/, size_t /*total*/) {}
+  /// The level's figures (also given to CoordinatorOptions::progress).
+  virtual void OnLevelDone(const DistLevelStats&) {}
+  /// A hello or heartbeat of worker `id` was accepted.
+  virtual void OnWorkerSeen(const std::string& /*id*/) {}
+  /// Worker `id` was sent a shard of `frames` frames of tree `tree`.
+  virtual void OnWorkerAssigned(const std::string& /*id*/, int /*tree*/, uint64_t /*frames*/) {}
+  /// A reply of the current round from worker `id` was accepted (`bytes`: its payload).
+  virtual void OnWorkerReply(const std::string& /*id*/, uint64_t /*bytes*/, const v1::HistogramReply&) {}
 };
 
 struct CoordinatorOptions {
   std::string job_id;  ///< empty: "job-<crc32 of the config>"
   uint32_t domain = 0;
   dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
+  /// kUdpOnly: initial peers and local interfaces (MakeNodeConfig); empty = loopback, all.
+  std::vector<std::string> udp_peers, udp_interfaces;
   int min_workers = 1;                                ///< workers to wait for before the first tree
   std::chrono::milliseconds worker_wait{60000};       ///< without any live worker this long: error
   std::chrono::milliseconds lease{1500};              ///< liveliness lease (presence, job)
@@ -67,6 +93,7 @@ struct CoordinatorOptions {
   int stop_after_levels = -1;  ///< tests: fail with kInternal after this many levels (a "crash")
   std::function<void(const DistLevelStats&)> progress;
   std::function<void(const std::string&)> log;  ///< default: stderr
+  CoordinatorObserver* observer = nullptr;       ///< not owned; may be null
 };
 
 /// "job-<crc32 of the serialized config>": the same job file gives the same id (--resume).
@@ -87,6 +114,8 @@ class DistCoordinator {
   uint64_t bytes_received() const;
   /// Messages dropped: by the gate, plus SubtreeResults that did not fit their task.
   uint64_t rejected_messages() const;
+  /// Valid messages of an older epoch (e.g. replies of a worker cut off and back), dropped.
+  uint64_t stale_messages() const;
   int workers_lost() const;
 
   struct Impl;

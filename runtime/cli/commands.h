@@ -14,5 +14,7 @@ int TrainMain(int argc, char** argv);    ///< coordinator: train a forest from a
 int EvalMain(int argc, char** argv);     ///< coordinator: per-class accuracy on a test set
 int CoordinatorMain(int argc, char** argv);  ///< coordinator/distributed: train over Fast DDS
 int WorkerMain(int argc, char** argv);       ///< worker/distributed: join a job over Fast DDS
+int MonitorMain(int argc, char** argv);      ///< coordinator/distributed: live status of a job
+int ExportMain(int argc, char** argv);       ///< coordinator/distributed: forest from a checkpoint
 
 }  // namespace poseforest::cli

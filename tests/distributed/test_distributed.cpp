@@ -1,5 +1,5 @@
 // The distributed service in one process (coordinator + workers on threads, real DDS
-// participants over shared memory): byte-identical forests with 1, 2, 3 workers, a worker
+// participants over shared memory): byte-identical forests with 1, 2, 3 and 5 workers, a worker
 // stopped mid-job, a garbage writer, and a coordinator "crash" + resume from its checkpoint.
 
 #include <atomic>
@@ -26,11 +26,11 @@ CoordinatorOptions Options(uint32_t domain, int min_workers) {
 }
 }  // namespace
 
-TEST_CASE("distributed forest is byte-identical to LocalTrainer with 1, 2 and 3 workers",
+TEST_CASE("distributed forest is byte-identical to LocalTrainer with 1, 2, 3 and 5 workers",
           "[distributed][integration]") {
   const Job job = ParseJob(TinyJobText());
   const std::vector<uint8_t> reference = ReferenceBytes(job);
-  for (int n : {1, 2, 3}) {
+  for (int n : {1, 2, 3, 5}) {
     DYNAMIC_SECTION(n << " workers") {
       const uint32_t domain = Domain(uint32_t(n));
       const std::string job_id = "t-identical-" + std::to_string(n);
@@ -45,6 +45,7 @@ TEST_CASE("distributed forest is byte-identical to LocalTrainer with 1, 2 and 3 
       CHECK(core::SerializeForest(*forest) == reference);
       REQUIRE(!levels.empty());
       CHECK(levels.front().workers_alive == n);
+      CHECK(levels.front().workers_assigned == n);  // every worker holds frames
       CHECK(levels.front().bytes_received > 0);
       CHECK(coordinator.workers_lost() == 0);
     }

@@ -1,6 +1,7 @@
 // The distributed service as real processes: `poseforest coordinator` and `poseforest worker`
 // started from the built program. A worker SIGKILLed mid-job, and a coordinator SIGKILLed and
 // restarted with --resume, still give LocalTrainer's forest byte for byte.
+// Bad --peers / --interfaces values are refused with an error naming the flag and the value.
 
 #include <catch2/catch.hpp>
 #include <filesystem>
@@ -9,6 +10,7 @@
 
 #include "tests/dds/dds_test_util.h"
 #include "tests/distributed/dist_test_util.h"
+#include "tests/support/process.h"
 
 using namespace poseforest;
 using namespace poseforest::dist;
@@ -141,4 +143,30 @@ TEST_CASE("SIGKILL of the coordinator, restart with --resume: same forest",
   REQUIRE(*rc == 0);
   CHECK(second.output().find("tree 0 level 0:") == std::string::npos);  // resumed, not restarted
   CHECK(ReadAll(dir.path / "forest.pff") == reference);
+}
+
+TEST_CASE("coordinator and worker: bad --peers / --interfaces get a clear error", "[distributed][integration]") {
+  TempDir dir("pf-dist-peers");
+  std::ofstream(dir.path / "job.textproto") << TinyJobText(1, 3);
+  const std::string coordinator = Program() + " coordinator " + (dir.path / "job.textproto").string() + " --out " +
+                                  (dir.path / "f.pff").string() + " ";
+  struct Case {
+    std::string cmd, expect;
+  };
+  const std::vector<Case> cases = {
+      {coordinator + "--profile udp --peers 10.0.0.300", "'10.0.0.300' is not an IPv4 address"},
+      {coordinator + "--profile udp --peers 10.0.0.1,host.example", "'host.example' is not an IPv4 address"},
+      {coordinator + "--profile udp --peers 10.0.0.1:70000", "'10.0.0.1:70000' is not an IPv4 address"},
+      {coordinator + "--profile udp --interfaces 10.0.0.1:7400", "--interfaces"},
+      {coordinator + "--profile shm --peers 10.0.0.1", "--peers needs --profile udp"},
+      {Program() + " worker --profile udp --peers 1.2.3", "'1.2.3' is not an IPv4 address"},
+      {Program() + " worker --interfaces 10.0.0.2", "--interfaces needs --profile udp"},
+  };
+  for (const Case& c : cases) {
+    auto r = poseforest::testing::RunCommand(c.cmd);
+    INFO(c.cmd << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK(r.output.find(c.expect) != std::string::npos);
+  }
+  CHECK(!std::filesystem::exists(dir.path / "f.pff"));
 }

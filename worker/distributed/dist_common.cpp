@@ -1,5 +1,6 @@
 #include "worker/distributed/dist_common.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -17,13 +18,18 @@ Result<dds::TransportKind> ParseProfile(const std::string& name) {
 }
 
 dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bool coordinator,
-                               const std::string& name, std::chrono::milliseconds lease) {
+                               const std::string& name, std::chrono::milliseconds lease,
+                               const std::vector<std::string>& peers, const std::vector<std::string>& interfaces) {
   dds::NodeConfig c;
   c.domain_id = domain;
   c.participant_name = name;
   c.transport = transport;
   c.liveliness_lease = lease;
-  if (transport == dds::TransportKind::kUdpOnly) c.initial_peers = {"127.0.0.1"}, c.peer_participant_ids = 16;
+  if (transport == dds::TransportKind::kUdpOnly) {
+    c.initial_peers = peers.empty() ? std::vector<std::string>{"127.0.0.1"} : peers;
+    c.peer_participant_ids = 16;
+    c.interface_whitelist = interfaces;
+  }
   using dds::Topic;
   if (coordinator) {
     c.write_topics = {Topic::kJob, Topic::kControl, Topic::kStatus};
@@ -33,6 +39,43 @@ dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bo
     c.read_topics = {Topic::kJob, Topic::kControl, Topic::kStatus};
   }
   return c;
+}
+
+Result<std::vector<std::string>> ParseAddressList(const std::string& value, const std::string& flag,
+                                                  bool allow_port) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start <= value.size()) {
+    const size_t comma = std::min(value.find(',', start), value.size());
+    const std::string item = value.substr(start, comma - start);
+    start = comma + 1;
+    if (item.empty()) continue;
+    const size_t colon = item.find(':');
+    const std::string ip = item.substr(0, colon);
+    bool ok = true;
+    int parts = 0;
+    for (size_t p = 0; ok && p <= ip.size(); ++parts) {
+      const size_t dot = std::min(ip.find('.', p), ip.size());
+      const std::string octet = ip.substr(p, dot - p);
+      ok = !octet.empty() && octet.size() <= 3 && octet.find_first_not_of("0123456789") == std::string::npos &&
+           std::stoi(octet) <= 255;
+      p = dot + 1;
+    }
+    ok = ok && parts == 4;
+    if (ok && colon != std::string::npos) {
+      const std::string port = item.substr(colon + 1);
+      ok = allow_port && !port.empty() && port.size() <= 5 &&
+           port.find_first_not_of("0123456789") == std::string::npos && std::stoi(port) > 0 &&
+           std::stoi(port) < 65536;
+    }
+    if (!ok)
+      return Status(ErrorCode::kInvalidArgument,
+                    "--" + flag + " " + value + ": '" + item + "' is not an IPv4 address" +
+                        (allow_port ? " (a.b.c.d or a.b.c.d:port)" : " (a.b.c.d)"));
+    out.push_back(item);
+  }
+  if (out.empty()) return Status(ErrorCode::kInvalidArgument, "--" + flag + ": no address given");
+  return out;
 }
 
 void AttachExt(const google::protobuf::Message& ext, google::protobuf::Message* body) {

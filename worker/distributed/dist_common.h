@@ -23,8 +23,17 @@ core::Result<dds::TransportKind> ParseProfile(const std::string& name);
 
 /// Participant settings of a trainer node on `domain` with `transport`, reading/writing the topics
 /// of a coordinator (`coordinator` true) or a worker. `lease`: presence liveliness lease.
+/// kUdpOnly: `peers` ("a.b.c.d[:port]") replace the default initial peer 127.0.0.1 (hosts without
+/// multicast: workers list the coordinator), `interfaces` restricts the local IPv4 addresses used.
 dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bool coordinator,
-                               const std::string& name, std::chrono::milliseconds lease);
+                               const std::string& name, std::chrono::milliseconds lease,
+                               const std::vector<std::string>& peers = {},
+                               const std::vector<std::string>& interfaces = {});
+
+/// Splits a comma-separated --peers / --interfaces value; InvalidArgument naming `flag` for an
+/// entry that is not an IPv4 address (with an optional :port for peers).
+core::Result<std::vector<std::string>> ParseAddressList(const std::string& value, const std::string& flag,
+                                                        bool allow_port);
 
 /// Appends `ext` to the body so that it travels as unknown fields (see dist_wire.proto).
 void AttachExt(const google::protobuf::Message& ext, google::protobuf::Message* body);

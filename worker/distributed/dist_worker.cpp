@@ -526,6 +526,7 @@ struct DistWorker::Impl {
         sn->set_ux(n.offsets.ux), sn->set_uy(n.offsets.uy), sn->set_vx(n.offsets.vx),
             sn->set_vy(n.offsets.vy);
         sn->set_cut(n.cut);
+        sn->set_gain(n.gain);
       }
       for (uint64_t c : n.parts) sn->add_part_counts(c);
     }
@@ -611,7 +612,8 @@ DistWorker::~DistWorker() = default;
 Status DistWorker::Run() {
   Impl impl(options_, stop_);
   auto node = dds::DdsNode::Create(
-      MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id, options_.lease));
+      MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id, options_.lease,
+                     options_.udp_peers, options_.udp_interfaces));
   if (!node.ok()) return node.status();
   impl.node = std::move(*node);
   std::thread heartbeat([&] { impl.HeartbeatLoop(); });

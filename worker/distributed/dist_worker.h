@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "proto/dds/dds_node.h"
 #include "runtime/core/result.h"
@@ -30,6 +31,9 @@ struct WorkerOptions {
   bool exit_when_done = true;  ///< return from Run() when the coordinator reports JOB_DONE
   std::chrono::milliseconds heartbeat_period{250};
   std::chrono::milliseconds lease{1500};        ///< presence liveliness lease
+  /// kUdpOnly: initial peers (usually the coordinator's address) and local interfaces to use;
+  /// empty = loopback peer, every interface (MakeNodeConfig).
+  std::vector<std::string> udp_peers, udp_interfaces;
   std::function<void(const std::string&)> log;  ///< default: stderr with the worker id
   /// Tests: called when a SubtreeTask arrives; returning true makes the worker drop the task and
   /// stop at once, as if it were killed while holding it.

@@ -1,0 +1,40 @@
+#include "coordinator/distributed/coordinator_monitoring.h"
+
+#include <chrono>
+#include <thread>
+
+#include "coordinator/distributed/dashboard.h"
+
+namespace poseforest::dist {
+
+core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Start(
+    const JobInfo& job, const std::string& http, const std::string& event_log) {
+  std::unique_ptr<CoordinatorMonitoring> m(new CoordinatorMonitoring());
+  m->model_ = std::make_unique<StatusModel>(job);
+  std::vector<CoordinatorObserver*> targets = {m->model_.get()};
+  if (!event_log.empty()) {
+    auto log = EventLog::Open(event_log, job.job_id);
+    if (!log.ok()) return log.status();
+    m->log_ = std::move(*log);
+    targets.push_back(m->log_.get());
+  }
+  m->fanout_ = ObserverFanOut(targets);
+  if (http != "off") {
+    HttpServerOptions opt;
+    POSEFOREST_RETURN_IF_ERROR(ParseHttpAddress(http, &opt));
+    auto server = HttpServer::Start(opt, StatusHandler(m->model_.get()));
+    if (!server.ok()) return server.status();
+    m->http_ = std::move(*server);
+    m->model_->SetUrl(m->http_->url() + "/");
+  }
+  return m;
+}
+
+void CoordinatorMonitoring::Finish(bool ok, const std::string& message, double linger_s) {
+  model_->Finish(ok, message);
+  if (log_) log_->Write(ok ? "FOREST_WRITTEN" : "JOB_FAILED", {{"message", JsonString(message)}});
+  if (http_ && http_->requests() > 0 && linger_s > 0)
+    std::this_thread::sleep_for(std::chrono::duration<double>(linger_s));
+}
+
+}  // namespace poseforest::dist

@@ -1,0 +1,19 @@
+#pragma once
+// The coordinator's HTTP endpoints over a StatusModel: "/" (the dashboard: one self-contained
+// HTML page whose script polls /status.json every second), "/status.json", "/metrics"
+// (Prometheus text format 0.0.4) and "/healthz". docs/distributed/monitoring.md.
+
+#include <string>
+
+#include "coordinator/distributed/http_server.h"
+#include "coordinator/distributed/status_model.h"
+
+namespace poseforest::dist {
+
+/// The dashboard page (no external resources).
+const std::string& DashboardHtml();
+
+/// Routes requests to `model` (not owned; must outlive the server).
+HttpServer::Handler StatusHandler(const StatusModel* model);
+
+}  // namespace poseforest::dist

@@ -1,0 +1,354 @@
+// `poseforest monitor`: a live terminal view of a training job, read from the coordinator's
+// /status.json (docs/distributed/monitoring.md).
+
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <map>
+#include <string>
+#include <thread>
+
+#include "coordinator/distributed/http_server.h"
+#include "coordinator/distributed/status_model.h"
+#include "poseforest/v1/wire.pb.h"
+#include "proto/dds/dds_node.h"
+#include "proto/dds/message_gate.h"
+#include "runtime/cli/args.h"
+#include "runtime/cli/commands.h"
+#include "worker/distributed/dist_common.h"
+
+namespace poseforest::cli {
+
+using core::Status;
+namespace pb = google::protobuf;
+
+namespace {
+const pb::Value* Field(const pb::Struct& s, const std::string& key) {
+  auto it = s.fields().find(key);
+  return it == s.fields().end() ? nullptr : &it->second;
+}
+double Num(const pb::Struct& s, const std::string& key, double fallback = NAN) {
+  const pb::Value* v = Field(s, key);
+  return v && v->kind_case() == pb::Value::kNumberValue ? v->number_value() : fallback;
+}
+std::string Str(const pb::Struct& s, const std::string& key) {
+  const pb::Value* v = Field(s, key);
+  return v && v->kind_case() == pb::Value::kStringValue ? v->string_value() : "";
+}
+const pb::Struct* Obj(const pb::Struct& s, const std::string& key) {
+  const pb::Value* v = Field(s, key);
+  return v && v->kind_case() == pb::Value::kStructValue ? &v->struct_value() : nullptr;
+}
+const pb::ListValue* List(const pb::Struct& s, const std::string& key) {
+  const pb::Value* v = Field(s, key);
+  return v && v->kind_case() == pb::Value::kListValue ? &v->list_value() : nullptr;
+}
+
+std::string Si(double v) {
+  if (!std::isfinite(v)) return "-";
+  char buf[32];
+  const double a = std::fabs(v);
+  if (a >= 1e9)
+    std::snprintf(buf, sizeof buf, "%.2f G", v / 1e9);
+  else if (a >= 1e6)
+    std::snprintf(buf, sizeof buf, "%.2f M", v / 1e6);
+  else if (a >= 1e3)
+    std::snprintf(buf, sizeof buf, "%.1f k", v / 1e3);
+  else
+    std::snprintf(buf, sizeof buf, "%.0f", v);
+  return buf;
+}
+
+std::string Duration(double s) {
+  if (!std::isfinite(s) || s < 0) return "-";
+  const long t = std::lround(s);
+  char buf[32];
+  if (t >= 3600)
+    std::snprintf(buf, sizeof buf, "%ldh %02ldm %02lds", t / 3600, (t % 3600) / 60, t % 60);
+  else if (t >= 60)
+    std::snprintf(buf, sizeof buf, "%ldm %02lds", t / 60, t % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%lds", t);
+  return buf;
+}
+
+/// The text of one snapshot.
+std::string Render(const pb::Struct& s) {
+  std::string out;
+  char line[512];
+  const pb::Struct* cfg = Obj(s, "config");
+  const double trees = cfg ? Num(*cfg, "num_trees", 0) : 0, depth = cfg ? Num(*cfg, "max_depth", 0) : 0;
+  const std::string state = Str(s, "state");
+  std::snprintf(line, sizeof line, "job %s  state %s  elapsed %s  ETA %s\n", Str(s, "job_id").c_str(),
+                state.c_str(), Duration(Num(s, "elapsed_s")).c_str(),
+                state == "done" ? "done" : Duration(Num(s, "eta_s")).c_str());
+  out += line;
+  const double p = std::clamp(Num(s, "progress", 0), 0.0, 1.0);
+  std::string bar(30, '.');
+  for (int i = 0; i < int(std::lround(p * 30)); ++i) bar[size_t(i)] = '#';
+  std::snprintf(line, sizeof line, "progress [%s] %5.1f %%  trees done %.0f of %.0f\n", bar.c_str(), p * 100,
+                Num(s, "trees_done", 0), trees);
+  out += line;
+  std::snprintf(line, sizeof line, "tree %.0f/%.0f  level %.0f/%.0f  nodes %.0f/%.0f  forest nodes %.0f\n",
+                Num(s, "tree", 0) + 1, trees, Num(s, "level", 0), depth, Num(s, "level_nodes_done", 0),
+                Num(s, "level_nodes_total", 0), Num(s, "forest_nodes", 0));
+  out += line;
+  std::snprintf(line, sizeof line, "samples/s %s  evaluations/s %s", Si(Num(s, "samples_per_s")).c_str(),
+                Si(Num(s, "evaluations_per_s")).c_str());
+  out += line;
+  if (const pb::Struct* t = Obj(s, "totals"))
+    std::snprintf(line, sizeof line, "  (%s evaluations, %.1f MiB received, %.0f retries)\n",
+                  Si(Num(*t, "evaluations", 0)).c_str(), Num(*t, "bytes_received", 0) / 1048576,
+                  Num(*t, "retries", 0));
+  else
+    std::snprintf(line, sizeof line, "\n");
+  out += line;
+  if (!Str(s, "message").empty()) out += "message: " + Str(s, "message") + "\n";
+  const pb::ListValue* workers = List(s, "workers");
+  int alive = 0, lost = 0;
+  if (workers)
+    for (const auto& w : workers->values())
+      if (w.has_struct_value()) {
+        const std::string ws = Str(w.struct_value(), "state");
+        alive += ws == "training" || ws == "joined";
+        lost += ws == "lost" || ws == "evicted";
+      }
+  std::snprintf(line, sizeof line, "workers: %d alive, %d lost or evicted\n", alive, lost);
+  out += line;
+  std::snprintf(line, sizeof line, "  %-32s %-9s %7s %8s %15s %12s %10s\n", "worker", "state", "frames",
+                "replies", "evaluations/s", "evaluations", "last seen");
+  out += line;
+  if (workers)
+    for (const auto& w : workers->values()) {
+      if (!w.has_struct_value()) continue;
+      const pb::Struct& ws = w.struct_value();
+      const double seen = Num(ws, "last_seen_s", -1);
+      std::snprintf(line, sizeof line, "  %-32.32s %-9s %7.0f %8.0f %15s %12s %10s\n", Str(ws, "id").c_str(),
+                    Str(ws, "state").c_str(), Num(ws, "frames", 0), Num(ws, "replies", 0),
+                    Si(Num(ws, "evaluations_per_s", 0)).c_str(), Si(Num(ws, "evaluations", 0)).c_str(),
+                    seen >= 0 ? (Duration(seen) + " ago").c_str() : "-");
+      out += line;
+    }
+  if (const pb::ListValue* levels = List(s, "levels"); levels && levels->values_size() > 0) {
+    const auto& l = levels->values(levels->values_size() - 1);
+    if (l.has_struct_value()) {
+      const pb::Struct& ls = l.struct_value();
+      std::snprintf(line, sizeof line,
+                    "last level: tree %.0f level %.0f, %.0f nodes (%.0f split), entropy %.3f bits, gain %.3f "
+                    "bits, %.2f s\n",
+                    Num(ls, "tree", 0), Num(ls, "level", 0), Num(ls, "nodes", 0), Num(ls, "split", 0),
+                    Num(ls, "entropy", 0), Num(ls, "gain", 0), Num(ls, "seconds", 0));
+      out += line;
+    }
+  }
+  if (const pb::ListValue* events = List(s, "events"); events && events->values_size() > 0) {
+    const auto& e = events->values(events->values_size() - 1);
+    if (e.has_struct_value()) {
+      const pb::Struct& es = e.struct_value();
+      out += "last event: " + Str(es, "event");
+      if (!Str(es, "worker").empty()) out += " " + Str(es, "worker");
+      if (!Str(es, "message").empty()) out += " (" + Str(es, "message") + ")";
+      out += "\n";
+    }
+  }
+  return out;
+}
+
+/// `monitor --domain D [--job ID]`: the job announcement and the status events from DDS (the
+/// status topic keeps its last 64 events for late readers). Fewer figures than the HTTP status:
+/// a StatusEvent carries tree, level, progress and the live worker count, not throughput.
+int MonitorDds(uint32_t domain, dds::TransportKind transport, std::string job_id, bool once, long interval_ms,
+               long timeout_s) {
+  dds::NodeConfig cfg;
+  cfg.domain_id = domain;
+  cfg.participant_name = "monitor-" + std::to_string(::getpid());
+  cfg.transport = transport;
+  if (transport == dds::TransportKind::kUdpOnly) {
+    cfg.initial_peers = {"127.0.0.1"};
+    cfg.peer_participant_ids = 16;
+  }
+  cfg.read_topics = {dds::Topic::kJob, dds::Topic::kStatus};
+  auto node = dds::DdsNode::Create(cfg);
+  if (!node.ok()) {
+    std::fprintf(stderr, "monitor: %s\n", node.status().ToString().c_str());
+    return 1;
+  }
+  dds::MessageGate gate(dds::GateConfig{cfg.participant_name, job_id, 16, [](const std::string&) {}});
+  std::string coordinator;
+  int trees = 0, depth = 0;
+  v1::StatusEvent last;
+  bool have_status = false;
+  std::map<std::string, std::string> workers;  // id -> joined / lost / evicted
+  std::deque<std::string> events;
+  const auto t0 = std::chrono::steady_clock::now();
+  double p0 = -1, t_p0 = 0;
+  auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  auto render = [&] {
+    std::string out;
+    char line[512];
+    const std::string state = !have_status                              ? "waiting"
+                              : last.kind() == v1::STATUS_KIND_JOB_DONE ? "done"
+                              : last.kind() == v1::STATUS_KIND_ERROR    ? "failed"
+                                                                        : "training";
+    double eta = -1;
+    if (p0 >= 0 && last.progress() > p0 && last.progress() < 1)
+      eta = (seconds() - t_p0) * (1 - last.progress()) / (last.progress() - p0);
+    std::snprintf(line, sizeof line, "job %s  state %s  coordinator %s  (DDS domain %u)  ETA %s\n",
+                  job_id.c_str(), state.c_str(), coordinator.c_str(), domain,
+                  state == "done" ? "done" : Duration(eta).c_str());
+    out += line;
+    const double p = std::clamp(last.progress(), 0.0, 1.0);
+    std::string bar(30, '.');
+    for (int i = 0; i < int(std::lround(p * 30)); ++i) bar[size_t(i)] = '#';
+    std::snprintf(line, sizeof line, "progress [%s] %5.1f %%  tree %u/%d  level %u/%d  workers alive %u\n",
+                  bar.c_str(), p * 100, last.tree() + 1, trees, last.level(), depth, last.active_workers());
+    out += line;
+    out += "workers seen in the status events:\n";
+    for (const auto& [id, st] : workers) out += "  " + id + "  " + st + "\n";
+    out += "last events:\n";
+    for (const std::string& e : events) out += "  " + e + "\n";
+    out += "(throughput, nodes and per-worker figures: poseforest monitor --url, the coordinator's --http)\n";
+    return std::make_pair(out, state);
+  };
+  auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
+  auto last_heard = std::chrono::steady_clock::now();
+  const bool tty = ::isatty(1) && !once;
+  for (;;) {
+    auto s = (*node)->Receive(std::chrono::milliseconds(50));
+    if (s) {
+      auto out = gate.Check(s->topic, s->bytes, s->writer_guid);
+      if (out.verdict == dds::MessageGate::Verdict::kAccepted) {
+        last_heard = std::chrono::steady_clock::now();
+        const v1::Envelope& env = out.envelope;
+        if (env.has_job() && (job_id.empty() || env.job_id() == job_id)) {
+          job_id = env.job_id();
+          coordinator = env.job().coordinator_id();
+          gate.set_job_id(job_id);
+          gate.set_coordinator_id(coordinator);
+          trees = int(env.job().config().has_num_trees() ? env.job().config().num_trees() : 3);
+          depth = int(env.job().config().has_max_depth() ? env.job().config().max_depth() : 20);
+        } else if (env.has_status()) {
+          last = env.status();
+          have_status = true;
+          if (p0 < 0 && last.progress() > 0) p0 = last.progress(), t_p0 = seconds();
+          const std::string kind = dist::StatusKindName(last.kind());
+          if (last.kind() == v1::STATUS_KIND_WORKER_JOINED) workers[last.worker_id()] = "joined";
+          if (last.kind() == v1::STATUS_KIND_WORKER_LOST) workers[last.worker_id()] = "lost";
+          if (last.kind() == v1::STATUS_KIND_WORKER_EVICTED) workers[last.worker_id()] = "evicted";
+          events.push_back(kind + " tree " + std::to_string(last.tree()) + " level " +
+                           std::to_string(last.level()) +
+                           (last.worker_id().empty() ? "" : " " + last.worker_id()) +
+                           (last.message().empty() ? "" : " (" + last.message() + ")"));
+          while (events.size() > 8) events.pop_front();
+        }
+      }
+      continue;  // drain what is there before printing
+    }
+    const auto now = std::chrono::steady_clock::now();
+    const bool done =
+        have_status && (last.kind() == v1::STATUS_KIND_JOB_DONE || last.kind() == v1::STATUS_KIND_ERROR);
+    // --once: print after the history has arrived (a quiet moment after the first status).
+    if ((once && have_status) || done ||
+        (!once && now - last_print >= std::chrono::milliseconds(interval_ms))) {
+      auto [text, state] = render();
+      if (tty) std::fputs("\033[H\033[2J", stdout);
+      std::fputs(text.c_str(), stdout);
+      if (!tty && !once) std::fputs("\n", stdout);
+      std::fflush(stdout);
+      last_print = now;
+      if (once || state == "done") return 0;
+      if (state == "failed") return 1;
+    }
+    if (now - last_heard > std::chrono::seconds(timeout_s)) {
+      std::fprintf(stderr, "monitor: no status of %s on DDS domain %u for %ld s\n",
+                   job_id.empty() ? "any job" : job_id.c_str(), domain, timeout_s);
+      return 1;
+    }
+  }
+}
+}  // namespace
+
+int MonitorMain(int argc, char** argv) {
+  Args args({"url", "interval-ms", "timeout-s", "domain", "job", "profile"}, {"once", "help"});
+  if (Status st = args.Parse(argc, argv);
+      !st.ok() || args.Has("help") || !args.positional().empty() || args.Has("url") == args.Has("domain")) {
+    if (!st.ok()) std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
+    std::fprintf(
+        stderr,
+        "usage: poseforest monitor --url http://HOST:PORT [--once] [--interval-ms 1000] [--timeout-s 10]\n"
+        "       poseforest monitor --domain D [--job ID] [--profile shm|udp|default] [--once] ...\n"
+        "  Shows a training job's live status from its coordinator (the URL the coordinator prints,\n"
+        "  `--http` there): tree, level, nodes done/total, samples/s, evaluations/s, ETA, workers.\n"
+        "  Refreshes every second and exits when the job is done (0) or failed (1); --once prints one\n"
+        "  snapshot. Exits 1 when the coordinator cannot be reached for --timeout-s seconds.\n"
+        "  --domain: reads the job announcement and status events from DDS instead (tree, level,\n"
+        "  progress, workers joined/lost; no throughput figures); --job picks one job of the domain.\n");
+    return args.Has("help") ? 0 : 2;
+  }
+  auto interval = args.GetInt("interval-ms", 1000, 50, 3600000);
+  auto timeout = args.GetInt("timeout-s", 10, 1, 86400);
+  if (!interval.ok() || !timeout.ok()) {
+    std::fprintf(stderr, "monitor: %s\n",
+                 (!interval.ok() ? interval.status() : timeout.status()).message().c_str());
+    return 2;
+  }
+  if (args.Has("domain")) {
+    auto domain = args.GetInt("domain", 0, 0, 232);
+    auto profile = dist::ParseProfile(args.GetOr("profile", "shm"));
+    if (!domain.ok() || !profile.ok()) {
+      std::fprintf(stderr, "monitor: %s\n",
+                   (!domain.ok() ? domain.status() : profile.status()).message().c_str());
+      return 2;
+    }
+    return MonitorDds(uint32_t(*domain), *profile, args.GetOr("job", ""), args.Has("once"), *interval,
+                      *timeout);
+  }
+  std::string url = *args.Get("url");
+  while (!url.empty() && url.back() == '/') url.pop_back();
+  const bool once = args.Has("once");
+  const bool tty = ::isatty(1) && !once;
+  auto last_ok = std::chrono::steady_clock::now();
+  std::string last_state;
+  for (;;) {
+    auto body = dist::HttpGet(url + "/status.json", std::chrono::milliseconds(5000));
+    pb::Struct status;
+    Status st = body.ok() ? Status::Ok() : body.status();
+    if (st.ok()) {
+      pb::util::JsonParseOptions po;
+      po.ignore_unknown_fields = true;
+      if (!pb::util::JsonStringToMessage(*body, &status, po).ok())
+        st = Status(core::ErrorCode::kDataLoss, url + "/status.json: not a JSON object");
+    }
+    if (!st.ok()) {
+      if (once) {
+        std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
+        return 1;
+      }
+      if (std::chrono::steady_clock::now() - last_ok > std::chrono::seconds(*timeout)) {
+        std::fprintf(stderr, "monitor: %s (for %ld s; last state: %s)\n", st.message().c_str(), *timeout,
+                     last_state.empty() ? "never reached" : last_state.c_str());
+        return 1;
+      }
+    } else {
+      last_ok = std::chrono::steady_clock::now();
+      last_state = Str(status, "state");
+      const std::string text = Render(status);
+      if (tty) std::fputs("\033[H\033[2J", stdout);
+      std::fputs(text.c_str(), stdout);
+      if (!tty && !once) std::fputs("\n", stdout);
+      std::fflush(stdout);
+      if (once) return 0;
+      if (last_state == "done") return 0;
+      if (last_state == "failed") return 1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(*interval));
+  }
+}
+
+}  // namespace poseforest::cli

@@ -1,0 +1,648 @@
+// Monitoring of the distributed service: the coordinator's status JSON, Prometheus metrics and
+// dashboard (loaded in headless Chromium) during and after a real run with local workers,
+// `poseforest monitor --once`, the event log (a worker SIGKILLed gives WORKER_LOST, the job still
+// finishes), `poseforest export` (byte-identical to --out for a finished job; a stopped job loads
+// in the runtime), hostile HTTP clients, and corrupt checkpoints.
+
+#include <arpa/inet.h>
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/stubs/logging.h>
+#include <google/protobuf/util/json_util.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+
+#include <catch2/catch.hpp>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <regex>
+#include <sstream>
+
+#include "coordinator/distributed/checkpoint_export.h"
+#include "coordinator/distributed/dashboard.h"
+#include "coordinator/distributed/http_server.h"
+#include "coordinator/distributed/status_model.h"
+#include "tests/dds/dds_test_util.h"
+#include "tests/distributed/dist_test_util.h"
+#include "tests/support/process.h"
+
+using namespace poseforest;
+using namespace poseforest::dist;
+using namespace poseforest::dist::testing;
+using poseforest::dds::testing::Child;
+using poseforest::dds::testing::HelperDir;
+using namespace std::chrono_literals;
+namespace pb = google::protobuf;
+namespace fs = std::filesystem;
+
+namespace {
+std::string Program() { return (HelperDir() / "poseforest").string(); }
+
+struct TempDir {
+  fs::path path;
+  explicit TempDir(const std::string& name)
+      : path(fs::temp_directory_path() / (name + "-" + std::to_string(::getpid()))) {
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+std::string ReadText(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+std::string SmokeJob() {
+  const std::string text = ReadText(fs::path(POSEFOREST_SOURCE_DIR) / "docs/training/smoke_job.textproto");
+  REQUIRE(!text.empty());
+  return text;
+}
+
+pb::Struct ParseJson(const std::string& text) {
+  pb::Struct s;
+  const auto st = pb::util::JsonStringToMessage(text, &s);
+  INFO(text.substr(0, 2000));
+  REQUIRE(st.ok());
+  return s;
+}
+
+double Num(const pb::Struct& s, const std::string& k) {
+  auto it = s.fields().find(k);
+  REQUIRE(it != s.fields().end());
+  return it->second.number_value();
+}
+std::string Str(const pb::Struct& s, const std::string& k) {
+  auto it = s.fields().find(k);
+  REQUIRE(it != s.fields().end());
+  return it->second.string_value();
+}
+const pb::ListValue& List(const pb::Struct& s, const std::string& k) {
+  auto it = s.fields().find(k);
+  REQUIRE(it != s.fields().end());
+  return it->second.list_value();
+}
+
+pb::Struct GetStatus(const std::string& url) {
+  auto body = HttpGet(url + "/status.json", 5s);
+  if (!body.ok()) FAIL(body.status().ToString());
+  return ParseJson(*body);
+}
+
+/// The URL from the coordinator's "status: http://..." line.
+std::string WaitForUrl(Child& c) {
+  auto line = c.WaitForLine("status: http://", 60s);
+  INFO(c.output());
+  REQUIRE(line.has_value());
+  const size_t a = line->find("http://");
+  const size_t b = line->find("/ (dashboard)");
+  REQUIRE(b != std::string::npos);
+  return line->substr(a, b - a);
+}
+
+/// Sends `bytes` on a fresh connection to 127.0.0.1:`port` and returns what comes back until the
+/// server closes (or `timeout`).
+std::string RawExchange(uint16_t port, const std::string& bytes, std::chrono::milliseconds timeout = 5s) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  REQUIRE(fd >= 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(port);
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  size_t sent = 0;
+  while (sent < bytes.size()) {
+    const ssize_t n = ::send(fd, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
+    if (n <= 0) break;  // the server may close early (431): fine
+    sent += size_t(n);
+  }
+  std::string out;
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  for (;;) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) break;
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, int(left.count())) <= 0) break;
+    char buf[4096];
+    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+    if (n <= 0) break;
+    out.append(buf, size_t(n));
+  }
+  ::close(fd);
+  return out;
+}
+
+int StatusCode(const std::string& reply) {
+  if (reply.rfind("HTTP/1.1 ", 0) != 0 || reply.size() < 12) return -1;
+  return std::atoi(reply.substr(9, 3).c_str());
+}
+
+uint16_t PortOf(const std::string& url) { return uint16_t(std::stoi(url.substr(url.rfind(':') + 1))); }
+
+/// Every sample line of a Prometheus text exposition is NAME{LABELS} VALUE and every family has
+/// HELP and TYPE lines.
+void CheckPrometheusSyntax(const std::string& text) {
+  static const std::regex sample(
+      R"(^[a-zA-Z_:][a-zA-Z0-9_:]*(\{([a-zA-Z_][a-zA-Z0-9_]*="([^"\\]|\\.)*",?)*\})? ([-+]?[0-9.eE+-]+|NaN|[+-]Inf)$)");
+  static const std::regex comment(R"(^# (HELP|TYPE) [a-zA-Z_:][a-zA-Z0-9_:]* .+$)");
+  std::istringstream in(text);
+  std::string line;
+  int samples = 0;
+  while (std::getline(in, line)) {
+    INFO(line);
+    if (line.rfind("#", 0) == 0)
+      CHECK(std::regex_match(line, comment));
+    else {
+      CHECK(std::regex_match(line, sample));
+      ++samples;
+    }
+  }
+  CHECK(samples > 20);
+}
+
+std::vector<pb::Struct> EventLines(const fs::path& p) {
+  std::vector<pb::Struct> out;
+  std::istringstream in(ReadText(p));
+  std::string line;
+  while (std::getline(in, line)) out.push_back(ParseJson(line));
+  return out;
+}
+
+int CountEvents(const std::vector<pb::Struct>& events, const std::string& kind) {
+  int n = 0;
+  for (const auto& e : events) n += Str(e, "event") == kind;
+  return n;
+}
+
+int CountMatches(const std::string& text, const std::string& pattern) {
+  const std::regex re(pattern);
+  return int(std::distance(std::sregex_iterator(text.begin(), text.end(), re), std::sregex_iterator()));
+}
+
+int CountLines(const std::string& text, const std::string& needle) {
+  int n = 0;
+  for (size_t p = text.find(needle); p != std::string::npos; p = text.find(needle, p + 1)) ++n;
+  return n;
+}
+
+/// The dashboard's DOM after its script has run, from headless Chromium (Debian `chromium`).
+std::string DumpDom(const std::string& url) {
+  REQUIRE(fs::exists("/usr/bin/chromium"));  // scripts/setup.sh installs it
+  TempDir profile("pf-chromium-profile");
+  const std::string cmd =
+      "timeout 90 /usr/bin/chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+      "--disable-background-networking --disable-component-update --disable-sync --disable-dev-shm-usage "
+      "--user-data-dir=" +
+      profile.path.string() + " --virtual-time-budget=4000 --dump-dom " + url + "/ 2>/dev/null";
+  auto r = poseforest::testing::RunCommand(cmd);
+  INFO(r.output.substr(0, 3000));
+  REQUIRE(r.exit_code == 0);
+  return r.output;
+}
+
+/// Text content of the element with `id` in a dumped DOM (flat elements only).
+std::string ElementText(const std::string& dom, const std::string& id) {
+  const size_t at = dom.find("id=\"" + id + "\"");
+  if (at == std::string::npos) return "";
+  const size_t open = dom.find('>', at);
+  const size_t close = dom.find('<', open);
+  return dom.substr(open + 1, close - open - 1);
+}
+}  // namespace
+
+TEST_CASE(
+    "coordinator status over HTTP during and after a run: JSON, metrics, dashboard, monitor, event log, "
+    "export",
+    "[distributed][monitoring][integration][slow]") {
+  TempDir dir("pf-mon-run");
+  std::ofstream(dir.path / "job.textproto") << SmokeJob();
+  const std::string job_id = "mon-" + std::to_string(::getpid());
+  Child coord;
+  std::string error;
+  REQUIRE(coord.Start(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "forest.pff").string(), "--local-workers", "2", "--domain", std::to_string(Domain(41)),
+       "--job-id", job_id, "--http", "127.0.0.1:0", "--event-log", (dir.path / "events.jsonl").string(),
+       "--checkpoint", (dir.path / "ckpt").string(), "--http-linger-s", "10"},
+      &error));
+  const std::string url = WaitForUrl(coord);
+  {
+    auto line = coord.WaitForLine("tree 0 level 3:", 120s);
+    INFO(coord.output());
+    REQUIRE(line.has_value());
+  }
+  // During the run.
+  const pb::Struct s = GetStatus(url);
+  CHECK(Str(s, "job_id") == job_id);
+  CHECK(Str(s, "state") == "training");
+  CHECK(Num(s, "level") >= 3);
+  CHECK(Num(s, "level_nodes_total") >= 1);
+  CHECK(Num(s, "level_nodes_done") <= Num(s, "level_nodes_total"));
+  CHECK(Num(s, "evaluations_per_s") > 0);
+  CHECK(Num(s, "samples_per_s") > 0);
+  CHECK(Num(s, "progress") > 0);
+  CHECK(Num(s, "progress") < 1);
+  CHECK(s.fields().at("eta_s").has_number_value());
+  const auto& levels = List(s, "levels");
+  REQUIRE(levels.values_size() >= 4);
+  const pb::Struct& root = levels.values(0).struct_value();
+  CHECK(Num(root, "tree") == 0);
+  CHECK(Num(root, "level") == 0);
+  CHECK(Num(root, "nodes") == 1);
+  CHECK(Num(root, "entropy") > 1.0);  // 31 parts: several bits at the root
+  CHECK(Num(root, "gain") > 0);
+  CHECK(Num(levels.values(3).struct_value(), "entropy") < Num(root, "entropy"));
+  const auto& workers = List(s, "workers");
+  REQUIRE(workers.values_size() == 2);
+  for (const auto& w : workers.values()) {
+    CHECK(Str(w.struct_value(), "id").find("local-worker-") == 0);
+    CHECK(Str(w.struct_value(), "state") == "training");
+    CHECK(Num(w.struct_value(), "frames") == 30);  // 60 frames per tree over 2 workers
+    CHECK(Num(w.struct_value(), "evaluations") > 0);
+  }
+  // Metrics.
+  auto metrics = HttpGet(url + "/metrics", 5s);
+  REQUIRE(metrics.ok());
+  CheckPrometheusSyntax(*metrics);
+  CHECK(metrics->find("poseforest_job_state{job=\"" + job_id + "\",state=\"training\"} 1") !=
+        std::string::npos);
+  CHECK(metrics->find("# TYPE poseforest_evaluations_total counter") != std::string::npos);
+  CHECK(CountLines(*metrics, "poseforest_worker_up{") == 2);
+  CHECK(metrics->find("poseforest_workers{job=\"" + job_id + "\",state=\"training\"} 2") !=
+        std::string::npos);
+  // `poseforest monitor --once`.
+  auto mon = poseforest::testing::RunPoseforest("monitor --once --url " + url);
+  INFO(mon.output);
+  CHECK(mon.exit_code == 0);
+  CHECK(mon.output.find("job " + job_id + "  state training") != std::string::npos);
+  CHECK(mon.output.find("workers: 2 alive, 0 lost or evicted") != std::string::npos);
+  CHECK(CountLines(mon.output, "  local-worker-") == 2);
+  CHECK(std::regex_search(mon.output, std::regex(R"(tree [12]/2  level [0-9]+/14  nodes [0-9]+/[0-9]+)")));
+  // The same from the DDS status topic (no URL needed).
+  auto mon_dds = poseforest::testing::RunPoseforest("monitor --once --domain " + std::to_string(Domain(41)) +
+                                                    " --job " + job_id + " --timeout-s 30");
+  INFO(mon_dds.output);
+  CHECK(mon_dds.exit_code == 0);
+  CHECK(mon_dds.output.find("job " + job_id + "  state training") != std::string::npos);
+  CHECK(std::regex_search(mon_dds.output, std::regex(R"(tree [12]/2  level [0-9]+/14  workers alive 2)")));
+  CHECK(CountLines(mon_dds.output, "  local-worker-") == 2);
+  // Hostile clients against the live coordinator: answered, and training goes on.
+  CHECK(StatusCode(RawExchange(PortOf(url), "BREW /pot HTCPCP/1.0\r\n\r\n")) == 400);
+  CHECK(StatusCode(RawExchange(PortOf(url), "GET / HTTP/1.1\r\nX: " + std::string(100000, 'a'))) == 431);
+  // The dashboard in headless Chromium: its script fetched /status.json and filled the page.
+  const std::string dom = DumpDom(url);
+  INFO(dom.substr(0, 4000));
+  CHECK(ElementText(dom, "job") == job_id);
+  CHECK(std::regex_match(ElementText(dom, "tree"), std::regex(R"([12] / 2)")));
+  CHECK(std::regex_match(ElementText(dom, "level"), std::regex(R"([0-9]+ / 14)")));
+  CHECK(std::regex_match(ElementText(dom, "nodes"), std::regex(R"([0-9]+ / [0-9]+)")));
+  CHECK(CountLines(dom, "class=\"worker-row\"") == 2);
+  CHECK(dom.find("<td class=\"l\">local-worker-") != std::string::npos);
+  CHECK(std::regex_search(dom, std::regex(R"(id="chart-eps"[^>]*points="[0-9])")));  // the chart is drawn
+
+  // After the run: the final state stays up for --http-linger-s.
+  {
+    auto line = coord.WaitForLine("wrote ", 180s);
+    INFO(coord.output());
+    REQUIRE(line.has_value());
+  }
+  const pb::Struct done = GetStatus(url);
+  CHECK(Str(done, "state") == "done");
+  CHECK(Num(done, "progress") == 1);
+  CHECK(Num(done, "trees_done") == 2);
+  const int level_lines = CountMatches(coord.output(), R"(tree [0-9]+ level [0-9]+: )");
+  CHECK(level_lines > 10);
+  CHECK(Num(done.fields().at("totals").struct_value(), "levels") == double(level_lines));
+  CHECK(List(done, "levels").values_size() == level_lines);
+  for (const auto& w : List(done, "workers").values()) CHECK(Str(w.struct_value(), "state") == "done");
+  auto final_metrics = HttpGet(url + "/metrics", 5s);
+  REQUIRE(final_metrics.ok());
+  CHECK(final_metrics->find("poseforest_job_state{job=\"" + job_id + "\",state=\"done\"} 1") !=
+        std::string::npos);
+  CHECK(final_metrics->find("poseforest_job_progress_ratio{job=\"" + job_id + "\"} 1") != std::string::npos);
+  auto mon_done = poseforest::testing::RunPoseforest("monitor --url " + url);  // exits on "done"
+  CHECK(mon_done.exit_code == 0);
+  CHECK(mon_done.output.find("state done") != std::string::npos);
+  auto rc = coord.Wait(60s);
+  REQUIRE(rc.has_value());
+  CHECK(*rc == 0);
+
+  // Event log.
+  const auto events = EventLines(dir.path / "events.jsonl");
+  CHECK(CountEvents(events, "JOB_STARTED") == 1);
+  CHECK(CountEvents(events, "WORKER_JOINED") == 2);
+  CHECK(CountEvents(events, "LEVEL_DONE") == level_lines);
+  CHECK(CountEvents(events, "TREE_DONE") == 2);
+  CHECK(CountEvents(events, "JOB_DONE") == 1);
+  CHECK(CountEvents(events, "FOREST_WRITTEN") == 1);
+  CHECK(Str(events.front(), "event") == "JOB_STARTED");
+  CHECK(Str(events.back(), "event") == "FOREST_WRITTEN");
+  for (const auto& e : events) {
+    CHECK(Str(e, "job") == job_id);
+    if (Str(e, "event") == "LEVEL_DONE") CHECK(Num(e, "mean_entropy") >= 0);
+  }
+
+  // Export from the checkpoint = the coordinator's forest, byte for byte.
+  auto ex = poseforest::testing::RunPoseforest("export --checkpoint " + (dir.path / "ckpt").string() +
+                                               " --out " + (dir.path / "exported.pff").string());
+  INFO(ex.output);
+  CHECK(ex.exit_code == 0);
+  CHECK(ex.output.find("job " + job_id + " finished: 2 of 2 trees") != std::string::npos);
+  CHECK(ReadText(dir.path / "exported.pff") == ReadText(dir.path / "forest.pff"));
+}
+
+TEST_CASE("a worker SIGKILLed mid-job: WORKER_LOST in the status and the event log, the job finishes",
+          "[distributed][monitoring][integration][slow]") {
+  TempDir dir("pf-mon-kill");
+  const std::string text = TinyJobText(2, 8);
+  std::ofstream(dir.path / "job.textproto") << text;
+  const uint32_t domain = Domain(43);
+  const std::string job_id = "mon-kill-" + std::to_string(::getpid());
+  Child w[3];
+  std::string error;
+  for (int i = 0; i < 3; ++i)
+    REQUIRE(w[i].Start({Program(), "worker", "--domain", std::to_string(domain), "--job", job_id, "--id",
+                        "mk-" + std::to_string(i)},
+                       &error));
+  Child coord;
+  REQUIRE(coord.Start(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "forest.pff").string(), "--domain", std::to_string(domain), "--job-id", job_id,
+       "--min-workers", "3", "--event-log", (dir.path / "events.jsonl").string(), "--http-linger-s", "10"},
+      &error));
+  const std::string url = WaitForUrl(coord);
+  {
+    auto line = coord.WaitForLine("tree 0 level 1:", 90s);
+    INFO(coord.output());
+    REQUIRE(line.has_value());
+  }
+  w[1].Kill(SIGKILL);
+  auto line = coord.WaitForLine("wrote ", 120s);
+  INFO(coord.output());
+  REQUIRE(line.has_value());
+  const pb::Struct s = GetStatus(url);
+  CHECK(Str(s, "state") == "done");
+  CHECK(Num(s.fields().at("totals").struct_value(), "workers_lost") == 1);
+  std::map<std::string, std::string> states;
+  for (const auto& x : List(s, "workers").values())
+    states[Str(x.struct_value(), "id")] = Str(x.struct_value(), "state");
+  CHECK(states["mk-1"] == "lost");
+  CHECK(states["mk-0"] == "done");
+  CHECK(states["mk-2"] == "done");
+  auto rc = coord.Wait(60s);
+  REQUIRE(rc.has_value());
+  CHECK(*rc == 0);
+  const auto events = EventLines(dir.path / "events.jsonl");
+  CHECK(CountEvents(events, "JOB_STARTED") == 1);
+  CHECK(CountEvents(events, "WORKER_JOINED") == 3);
+  CHECK(CountEvents(events, "WORKER_LOST") == 1);
+  CHECK(CountEvents(events, "LEVEL_DONE") > 2);
+  CHECK(CountEvents(events, "JOB_DONE") == 1);
+  for (const auto& e : events)
+    if (Str(e, "event") == "WORKER_LOST") CHECK(Str(e, "worker") == "mk-1");
+  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
+  CHECK(ReadText(dir.path / "forest.pff") == std::string(reference.begin(), reference.end()));
+}
+
+TEST_CASE("export after a stopped job: finished trees + the tree in progress as leaves, loads in the runtime",
+          "[distributed][monitoring][integration][slow]") {
+  TempDir dir("pf-mon-stop");
+  std::ofstream(dir.path / "job.textproto") << SmokeJob();
+  {
+    Child coord;
+    std::string error;
+    REQUIRE(coord.Start(
+        {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+         (dir.path / "forest.pff").string(), "--local-workers", "2", "--domain", std::to_string(Domain(45)),
+         "--checkpoint", (dir.path / "ckpt").string(), "--http", "off"},
+        &error));
+    auto line = coord.WaitForLine("tree 1 level 4:", 180s);
+    INFO(coord.output());
+    REQUIRE(line.has_value());
+    CHECK(coord.output().find("status: http") == std::string::npos);  // --http off
+    coord.Kill(SIGKILL);
+  }
+  const std::string ckpt = (dir.path / "ckpt").string();
+  auto leaves = poseforest::testing::RunPoseforest("export --checkpoint " + ckpt + " --out " +
+                                                   (dir.path / "leaves.pff").string());
+  INFO(leaves.output);
+  REQUIRE(leaves.exit_code == 0);
+  CHECK(std::regex_search(
+      leaves.output,
+      std::regex(
+          R"(stopped: 1 of 2 trees finished; tree 1 \(in progress, [0-9]+ levels decided\) finished as [0-9]+ leaves)")));
+  auto drop = poseforest::testing::RunPoseforest("export --checkpoint " + ckpt + " --partial drop --out " +
+                                                 (dir.path / "drop.pff").string());
+  INFO(drop.output);
+  REQUIRE(drop.exit_code == 0);
+  CHECK(drop.output.find("dropped") != std::string::npos);
+  auto inspect = poseforest::testing::RunPoseforest("inspect " + (dir.path / "leaves.pff").string() + " " +
+                                                    (dir.path / "drop.pff").string());
+  INFO(inspect.output);
+  CHECK(inspect.exit_code == 0);
+  // Tree 0 is the finished job's tree 0 (same job, same seed): check against LocalTrainer.
+  auto job = ParseJob(SmokeJob());
+  job.params.threads = 2;
+  coordinator::LocalTrainer trainer(job.params, {});
+  auto full = trainer.Train();
+  REQUIRE(full.ok());
+  auto exported = core::LoadForest((dir.path / "leaves.pff").string());
+  REQUIRE(exported.ok());
+  REQUIRE(exported->trees.size() == 2);
+  const auto& a = exported->trees[0].nodes;
+  const auto& b = full->trees[0].nodes;
+  REQUIRE(a.size() == b.size());
+  CHECK(std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0);
+  CHECK(exported->trees[0].leaves == full->trees[0].leaves);
+  // The partial tree is the full tree cut at the checkpoint's depth: fewer nodes, same top.
+  CHECK(exported->trees[1].nodes.size() < full->trees[1].nodes.size());
+  CHECK(exported->trees[1].nodes[0].is_leaf() == full->trees[1].nodes[0].is_leaf());
+  auto dropped = core::LoadForest((dir.path / "drop.pff").string());
+  REQUIRE(dropped.ok());
+  CHECK(dropped->trees.size() == 1);
+}
+
+TEST_CASE("export: missing and corrupt checkpoints give errors, never a crash",
+          "[distributed][monitoring][integration]") {
+  TempDir dir("pf-mon-corrupt");
+  // A real checkpoint of a small job, trained in-process with thread workers.
+  const std::string text = TinyJobText(2, 5);
+  Job job = ParseJob(text);
+  const uint32_t domain = Domain(47);
+  const std::string job_id = "mon-ck-" + std::to_string(::getpid());
+  std::vector<uint8_t> trained;
+  {
+    ThreadWorkers workers(2, domain, job_id);
+    CoordinatorOptions opt;
+    opt.job_id = job_id;
+    opt.domain = domain;
+    opt.min_workers = 2;
+    opt.checkpoint_dir = (dir.path / "ckpt").string();
+    opt.log = [](const std::string&) {};
+    DistCoordinator c(job.config, job.params, opt);
+    auto f = c.Train();
+    REQUIRE(f.ok());
+    trained = core::SerializeForest(*f);
+  }
+  const std::string good = ReadText(dir.path / "ckpt" / "checkpoint.pb");
+  REQUIRE(good.size() > 100);
+  {
+    auto r = ForestFromCheckpoint((dir.path / "ckpt").string(), PartialTree::kFinishAsLeaves);
+    REQUIRE(r.ok());
+    CHECK(core::SerializeForest(r->forest) == trained);
+  }
+  // Through the command: missing, garbage, a config of another kind.
+  auto missing = poseforest::testing::RunPoseforest("export --checkpoint " + (dir.path / "nope").string() +
+                                                    " --out " + (dir.path / "x.pff").string());
+  CHECK(missing.exit_code == 1);
+  CHECK(missing.output.find("no checkpoint") != std::string::npos);
+  fs::create_directories(dir.path / "bad");
+  std::ofstream(dir.path / "bad" / "checkpoint.pb") << "this is not a protobuf \xff\xff\xff\xff";
+  auto garbage = poseforest::testing::RunPoseforest("export --checkpoint " + (dir.path / "bad").string() +
+                                                    " --out " + (dir.path / "x.pff").string());
+  CHECK(garbage.exit_code == 1);
+  CHECK(garbage.output.find((dir.path / "bad" / "checkpoint.pb").string()) != std::string::npos);
+  CHECK(!fs::exists(dir.path / "x.pff"));
+  auto usage = poseforest::testing::RunPoseforest("export --checkpoint " + (dir.path / "ckpt").string());
+  CHECK(usage.exit_code == 2);
+
+  // Every truncation and a byte flip at every offset: an error or a valid forest, never a crash.
+  const std::string file = "mutated.pb";
+  int errors = 0, valid = 0;
+  auto attempt = [&](const std::string& bytes) {
+    auto r = ForestFromCheckpointBytes(bytes, file, PartialTree::kFinishAsLeaves);
+    if (!r.ok()) {
+      ++errors;
+      CHECK(r.status().message().find(file) != std::string::npos);
+    } else {
+      ++valid;
+      CHECK(core::ValidateForest(r->forest, "mutated").ok());
+    }
+  };
+  google::protobuf::LogSilencer quiet;  // libprotobuf logs invalid UTF-8 in string fields
+  for (size_t n = 0; n < good.size(); ++n) attempt(good.substr(0, n));
+  for (size_t i = 0; i < good.size(); ++i) {
+    std::string b = good;
+    b[i] = char(b[i] ^ 0x5A);
+    attempt(b);
+  }
+  CHECK(errors > int(good.size()) / 2);
+  CHECK(valid > 0);  // flips in counts or thresholds still make a (different) forest
+}
+
+TEST_CASE("HTTP server: bad requests, huge heads, slow clients and floods do not block it",
+          "[distributed][monitoring][unit]") {
+  StatusModel model({"hostile-job", 3, "shm", 2, 6, 10, 100, 20, 8, "/tmp/x.pff"});
+  HttpServerOptions opt;
+  opt.timeout = 700ms;
+  opt.max_connections = 8;
+  auto server = HttpServer::Start(opt, StatusHandler(&model));
+  REQUIRE(server.ok());
+  HttpServer& http = **server;
+  const uint16_t port = http.port();
+  const std::string url = http.url();
+  auto ok = [&](int line) {
+    auto body = HttpGet(url + "/status.json", 2s);
+    if (!body.ok()) FAIL("line " << line << ": " << body.status().ToString());
+    CHECK(Str(ParseJson(*body), "job_id") == "hostile-job");
+  };
+  ok(__LINE__);
+  CHECK(StatusCode(RawExchange(port, "GARBAGE\r\n\r\n")) == 400);
+  CHECK(StatusCode(RawExchange(port, "GET /status.json HTTP/9.9\r\n\r\n")) == 400);
+  CHECK(StatusCode(RawExchange(port, "GET  /  HTTP/1.1\r\n\r\n")) == 400);
+  CHECK(StatusCode(RawExchange(port, "GET nopath HTTP/1.1\r\n\r\n")) == 400);
+  CHECK(StatusCode(RawExchange(port, std::string("G\0T / HTTP/1.1\r\n\r\n", 18))) == 400);
+  CHECK(StatusCode(RawExchange(port, "POST /status.json HTTP/1.1\r\nContent-Length: 3\r\n\r\nabc")) == 405);
+  CHECK(StatusCode(RawExchange(port, "GET /nothing HTTP/1.1\r\n\r\n")) == 404);
+  CHECK(StatusCode(RawExchange(port, "GET /status.json HTTP/1.0\r\n\r\n")) == 200);
+  const std::string head = RawExchange(port, "HEAD /metrics HTTP/1.1\r\n\r\n");
+  CHECK(StatusCode(head) == 200);
+  CHECK(head.substr(head.find("\r\n\r\n") + 4).empty());
+  // A head that never ends: 431 once it passes the limit, the connection closed.
+  CHECK(StatusCode(RawExchange(port, "GET / HTTP/1.1\r\n" + std::string(1 << 20, 'h'))) == 431);
+  CHECK(StatusCode(RawExchange(port, "GET / HTTP/1.1\r\nCookie: " + std::string(20000, 'c') + "\r\n\r\n")) ==
+        431);
+  ok(__LINE__);
+  // Slow clients (a few bytes, then silence) hold no one up and get 408 at the timeout.
+  std::vector<std::thread> slow;
+  std::vector<int> slow_codes(4, 0);
+  for (int i = 0; i < 4; ++i)
+    slow.emplace_back([&, i] { slow_codes[size_t(i)] = StatusCode(RawExchange(port, "GET /sta", 5s)); });
+  std::this_thread::sleep_for(100ms);
+  const auto t0 = std::chrono::steady_clock::now();
+  ok(__LINE__);
+  CHECK(std::chrono::steady_clock::now() - t0 < 500ms);
+  for (auto& t : slow) t.join();
+  for (int c : slow_codes) CHECK(c == 408);
+  // A flood beyond max_connections: the extra ones are refused with 503, then all is well again.
+  std::vector<int> fds;
+  for (int i = 0; i < 8; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(port);
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+    fds.push_back(fd);
+  }
+  std::this_thread::sleep_for(200ms);
+  CHECK(StatusCode(RawExchange(port, "GET / HTTP/1.1\r\n\r\n")) == 503);
+  for (int fd : fds) ::close(fd);
+  std::this_thread::sleep_for(300ms);
+  ok(__LINE__);
+  CHECK(http.dropped() >= 1);
+  CHECK(http.bad_requests() >= 12);
+  // Clients that connect and reset.
+  for (int i = 0; i < 20; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(port);
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0) {
+      ::send(fd, "GET / HTTP/1.1\r\n\r\n", 18, MSG_NOSIGNAL);
+      linger l{1, 0};
+      ::setsockopt(fd, SOL_SOCKET, SO_LINGER, &l, sizeof l);
+    }
+    ::close(fd);
+  }
+  std::this_thread::sleep_for(300ms);  // with max_connections 8 the dead ones must be reaped first
+  ok(__LINE__);
+  // The dashboard is one self-contained page.
+  auto page = HttpGet(url + "/", 2s);
+  REQUIRE(page.ok());
+  CHECK(page->find("<script>") != std::string::npos);
+  CHECK(page->find("src=") == std::string::npos);
+  CHECK(page->find("href=") == std::string::npos);
+  // Bad addresses.
+  HttpServerOptions bad;
+  CHECK(!ParseHttpAddress("nohost", &bad).ok());
+  CHECK(!ParseHttpAddress("1.2.3:80", &bad).ok());
+  CHECK(!ParseHttpAddress("127.0.0.1:70000", &bad).ok());
+  CHECK(!ParseHttpAddress("example.com:80", &bad).ok());
+  HttpServerOptions taken;
+  taken.port = port;
+  CHECK(!HttpServer::Start(taken, StatusHandler(&model)).ok());
+  CHECK(!HttpGet("http://127.0.0.1:1/status.json", 1s).ok());
+}
+
+TEST_CASE("status JSON and metrics escape hostile worker ids", "[distributed][monitoring][unit]") {
+  StatusModel model({"job-\"x\"", 0, "shm", 1, 4, 10, 100, 20, 8, ""});
+  const std::string evil = "w\"1\\\n<script>alert(1)</script>\x01\xff";
+  v1::StatusEvent e;
+  e.set_kind(v1::STATUS_KIND_WORKER_JOINED);
+  e.set_worker_id(evil);
+  model.OnStatus(e);
+  model.OnWorkerAssigned(evil, 0, 5);
+  const pb::Struct s = ParseJson(model.Json());
+  CHECK(Str(s, "job_id") == "job-\"x\"");
+  const auto& w = List(s, "workers");
+  REQUIRE(w.values_size() == 1);
+  // Control characters and invalid UTF-8 come back escaped / replaced, everything else as sent.
+  CHECK(Str(w.values(0).struct_value(), "id") == "w\"1\\\n<script>alert(1)</script>\x01\xef\xbf\xbd");
+  CheckPrometheusSyntax(model.Prometheus());
+  CHECK(model.Prometheus().find("worker=\"w\\\"1\\\\\\n<script>") != std::string::npos);
+}
