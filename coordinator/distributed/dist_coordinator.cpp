@@ -495,7 +495,7 @@ struct DistCoordinator::Impl {
       if (t.epoch == res.epoch() && !t.done) job = &t;
     if (!job) {
       // An answer to a task that was handed on (its worker was thought lost) or is done: stale.
-      ++subtree_rejected;
+      ++stale_count;
       Log("SubtreeResult from " + sender + " of epoch " + std::to_string(res.epoch()) +
           ": no such task (stale)");
       return;
