@@ -270,7 +270,7 @@ struct DistCoordinator::Impl {
             if (env.has_heartbeat()) {
               HeartbeatExt hx;
               if (ReadExt(env.heartbeat(), &hx, "Heartbeat").ok())
-                w.seen_epoch = std::max(w.seen_epoch, hx.shard_epoch());
+                w.seen_epoch = std::max({w.seen_epoch, hx.shard_epoch(), hx.received_shard_epoch()});
             }
             w.presence_writer = s->writer_guid;
             w.participant = s->writer_participant;

@@ -54,7 +54,7 @@ struct DistWorker::Impl {
   std::mutex send_mu;  // guards stamper + job identity used by the heartbeat thread
   dds::EnvelopeStamper stamper;
   std::atomic<bool> has_job{false}, assigned_any{false}, busy{false};
-  std::atomic<uint64_t> newest_epoch{0}, frames_rendered{0}, shard_epoch{0};
+  std::atomic<uint64_t> newest_epoch{0}, frames_rendered{0}, shard_epoch{0}, received_shard_epoch{0};
   std::atomic<v1::RendererKind> renderer{v1::RENDERER_KIND_PROCEDURAL};
 
   dds::MessageGate job_gate;
@@ -119,6 +119,7 @@ struct DistWorker::Impl {
           h->set_frames_rendered(frames_rendered);
           HeartbeatExt ext;
           ext.set_shard_epoch(shard_epoch);
+          ext.set_received_shard_epoch(received_shard_epoch);
           AttachExt(ext, h);
         }
         (void)Publish(Topic::kPresence, env);
@@ -163,6 +164,8 @@ struct DistWorker::Impl {
       stamper.set_job_id(job_id);
     }
     assigned_any = false;
+    shard_epoch = 0;
+    received_shard_epoch = 0;
     has_job = true;
     Log("joined job " + job_id + " of " + coordinator_id + ": " + worker::DescribeParams(params));
   }
@@ -561,6 +564,8 @@ struct DistWorker::Impl {
     switch (env.body_case()) {
       case v1::Envelope::kShard:
         newest_epoch = std::max<uint64_t>(newest_epoch, env.shard().epoch());
+        received_shard_epoch = std::max<uint64_t>(received_shard_epoch, env.shard().epoch());
+        assigned_any = true;  // heartbeats (with the epochs) from now on, also while it loads
         st = LoadShard(env.shard());
         if (st.ok()) shard_epoch = env.shard().epoch();
         break;
