@@ -69,6 +69,9 @@ struct DistWorker::Impl {
   // later tasks: at most the tree's frames.
   int extra_tree = -1;
   std::map<uint64_t, FrameData> extra;
+  // Renders the few frames a SubtreeTask lacks on the receiving thread (Run's), created once
+  // per job: creating a source (renderer context, pose library, bodies) costs seconds.
+  std::unique_ptr<worker::ImageSource> task_source;
   int corrupt_left = 0;
   worker::SampleSet samples;
   std::unique_ptr<worker::HistogramBuilder> builder;
@@ -156,6 +159,7 @@ struct DistWorker::Impl {
     cache.clear();
     extra_tree = -1;
     extra.clear();
+    task_source.reset();
     corrupt_left = opt.corrupt_subtree_results;
     samples = worker::SampleSet{};
     renderer = RendererOf(params);
@@ -218,10 +222,11 @@ struct DistWorker::Impl {
   /// Renders/loads tree-local frames `missing` of tree `tree` and samples their pixels.
   Status LoadFrames(const std::vector<uint64_t>& missing, std::vector<FrameData>* out) {
     const uint64_t ipt = uint64_t(params.images_per_tree);
-    // Frames in parallel, one ImageSource per thread (a renderer's context is per thread).
-    const int threads = std::max(1, std::min<int>(params.threads, int(missing.size())));
     std::vector<FrameData>& loaded = *out;
     loaded.assign(missing.size(), FrameData{});
+    if (missing.empty()) return Status::Ok();
+    // Frames in parallel, one ImageSource per thread (a renderer's context is per thread).
+    const int threads = std::max(1, std::min<int>(params.threads, int(missing.size())));
     std::vector<Status> errors(static_cast<size_t>(threads));
     std::vector<std::thread> pool;
     for (int tid = 0; tid < threads; ++tid) {
@@ -431,6 +436,32 @@ struct DistWorker::Impl {
     return Publish(Topic::kReplies, env);
   }
 
+  /// Frames `missing` of tree `t` rendered on this thread by task_source (few frames: no
+  /// thread pool, and the source is made once per job). Same frames and samples as LoadFrames.
+  Status RenderHere(int t, const std::vector<uint64_t>& missing, std::vector<FrameData>* out) {
+    out->assign(missing.size(), FrameData{});
+    if (missing.empty()) return Status::Ok();
+    try {
+      if (!task_source) {
+        auto source = worker::MakeImageSource(params.source);
+        if (!source.ok()) return source.status();
+        task_source = std::move(*source);
+      }
+      for (size_t j = 0; j < missing.size(); ++j) {
+        const uint64_t index = uint64_t(t) * uint64_t(params.images_per_tree) + missing[j];
+        auto frame = task_source->Frame(index);
+        if (!frame.ok()) return frame.status();
+        (*out)[j].picked =
+            worker::SamplePixels(*frame, params.pixels_per_image, params.part_balance,
+                                 core::CounterRng(params.seed, uint64_t(t), index, worker::kSamplingStream));
+        (*out)[j].depth = std::move(frame->depth);
+      }
+    } catch (const std::exception& e) {
+      return Status(ErrorCode::kInternal, std::string("rendering frames: ") + e.what());
+    }
+    return Status::Ok();
+  }
+
   /// Trains the subtree of a SubtreeTask and sends the SubtreeResult: the node's frames (from
   /// the shard's cache, else rendered and kept for the tree's later tasks), their samples
   /// routed along the task's path, then TrainSubtree (the engine's own loop and keys).
@@ -468,11 +499,16 @@ struct DistWorker::Impl {
     for (uint64_t i : wanted)
       if (!(own && cache.count(i)) && !extra.count(i)) missing.push_back(i);
     {
-      const int saved_tree = tree;
-      tree = t;  // LoadFrames keys the frames by `tree`
       std::vector<FrameData> loaded;
-      Status st = LoadFrames(missing, &loaded);
-      tree = saved_tree;
+      Status st;
+      if (missing.size() >= 4 * size_t(params.threads) && params.threads > 1) {
+        const int saved_tree = tree;
+        tree = t;  // LoadFrames keys the frames by `tree`
+        st = LoadFrames(missing, &loaded);
+        tree = saved_tree;
+      } else {
+        st = RenderHere(t, missing, &loaded);
+      }
       if (!st.ok()) {
         busy = false;
         return st;
@@ -616,9 +652,9 @@ DistWorker::~DistWorker() = default;
 
 Status DistWorker::Run() {
   Impl impl(options_, stop_);
-  auto node = dds::DdsNode::Create(
-      MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id, options_.lease,
-                     options_.udp_peers, options_.udp_interfaces));
+  auto node =
+      dds::DdsNode::Create(MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id,
+                                          options_.lease, options_.udp_peers, options_.udp_interfaces));
   if (!node.ok()) return node.status();
   impl.node = std::move(*node);
   std::thread heartbeat([&] { impl.HeartbeatLoop(); });
