@@ -15,5 +15,7 @@ int EvalMain(int argc, char** argv);     ///< coordinator: per-class accuracy on
 int TuneJointsMain(int argc, char** argv);  ///< coordinator: learn joint-proposal parameters
 int CoordinatorMain(int argc, char** argv);  ///< coordinator/distributed: train over Fast DDS
 int WorkerMain(int argc, char** argv);       ///< worker/distributed: join a job over Fast DDS
+int MonitorMain(int argc, char** argv);      ///< coordinator/distributed: live status of a job
+int ExportMain(int argc, char** argv);       ///< coordinator/distributed: forest from a checkpoint
 
 }  // namespace poseforest::cli

@@ -28,6 +28,8 @@ const Command kCommands[] = {
 #ifdef POSEFOREST_HAS_DISTRIBUTED
     {"coordinator", poseforest::cli::CoordinatorMain, "run a distributed training job (Fast DDS), optionally with local workers"},
     {"worker", poseforest::cli::WorkerMain, "join distributed training jobs as a worker"},
+    {"monitor", poseforest::cli::MonitorMain, "live status of a distributed training job (coordinator's HTTP status)"},
+    {"export", poseforest::cli::ExportMain, "write the runtime forest from a distributed job's checkpoint"},
 #endif
 };
 
