@@ -35,6 +35,13 @@ struct ProposalOptions {
   /// cheaper at 0.5.
   float voxel_fraction = 0.5f;
   int max_iterations = 30;
+  /// Mean shift starts from one point per cell of bandwidth * seed_cell_fraction (the seed
+  /// weight-averaged position of the cell's seed voxels, carrying their summed seed weight)
+  /// instead of from every seed voxel; 0 = every seed voxel.
+  float seed_cell_fraction = 2.0f;
+  /// Mean shift ignores pixels whose P(joint) is below this floor (they are never seeds when
+  /// it is below prob_threshold, and add little density); 0 = every pixel with P > 0.
+  float min_probability = 0.02f;
   /// Modes closer than this fraction of the bandwidth are one proposal.
   float merge_fraction = 0.5f;
   /// Fast clustering: cell size as a fraction of the joint's bandwidth; occupied cells that
@@ -61,10 +68,14 @@ struct JointProbabilities {
   std::vector<std::array<float, core::kNumJoints>> prob;      ///< P(joint | pixel)
 };
 
-/// From an inferred classification (needs Classification::sums: classify with
-/// want_distributions). Parts are pooled per joint with core::JointParts. A forest with another
-/// part table (e.g. imported PCL trees) has no joint mapping: returns empty probabilities.
-JointProbabilities ProbabilitiesFromClassification(const core::DepthImage& depth, const Classification& c);
+/// From an inferred classification: uses Classification::foreground_sums if present (classify
+/// with want_foreground_distributions: one pass over the foreground only, `num_threads` OpenMP
+/// threads, 0 = all), else the dense Classification::sums (want_distributions). Parts are
+/// pooled per joint with core::JointParts. A forest with another part table (e.g. imported PCL
+/// trees) has no joint mapping: returns empty probabilities. Either way the pixels come in
+/// raster order with identical probabilities.
+JointProbabilities ProbabilitiesFromClassification(const core::DepthImage& depth, const Classification& c,
+                                                   int num_threads = 0);
 /// From ground-truth part labels: P = 1 for the joint whose parts contain the label.
 JointProbabilities ProbabilitiesFromLabels(const core::DepthImage& depth, const core::LabelImage& labels);
 
