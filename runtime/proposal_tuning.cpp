@@ -59,8 +59,9 @@ TuningResult TuneProposalParams(const std::vector<ValidationFrame>& frames, cons
     for (int j = 0; j < core::kNumJoints; ++j) result.base_ap[size_t(j)] = ev.AveragePrecision(j);
   }
 
-  std::array<double, core::kNumJoints> best_ap;
+  std::array<double, core::kNumJoints> best_ap, best_score;
   best_ap.fill(-1.0);
+  best_score.fill(-1.0);
   const int total = int(grid.bandwidth_m.size() * grid.prob_threshold.size());
   int done = 0;
   for (float b : grid.bandwidth_m) {
@@ -77,12 +78,18 @@ TuningResult TuneProposalParams(const std::vector<ValidationFrame>& frames, cons
             aps[size_t(j) * grid.z_offset_m.size() + size_t(z)] =
                 ApShifted(frames, at_surface, j, grid.z_offset_m[size_t(z)], distance_m);
       // Strictly better wins, in grid order, so ties keep the earlier (smaller) grid values.
+      // With mirror_pairs the score of a joint is the mean AP of it and its mirror (over those
+      // of the two that appear), so both sides pick the same point.
+      const size_t nz = grid.z_offset_m.size();
       for (int j = 0; j < core::kNumJoints; ++j) {
         if (!visible[size_t(j)]) continue;
-        for (size_t z = 0; z < grid.z_offset_m.size(); ++z) {
-          const double ap = aps[size_t(j) * grid.z_offset_m.size() + z];
-          if (ap > best_ap[size_t(j)]) {
-            best_ap[size_t(j)] = ap;
+        const int m = grid.mirror_pairs ? core::MirrorJoint(j) : j;
+        for (size_t z = 0; z < nz; ++z) {
+          double score = aps[size_t(j) * nz + z];
+          if (m != j && visible[size_t(m)]) score = (score + aps[size_t(m) * nz + z]) / 2;
+          if (score > best_score[size_t(j)]) {
+            best_score[size_t(j)] = score;
+            best_ap[size_t(j)] = aps[size_t(j) * nz + z];
             result.params[size_t(j)] = {b, lambda, grid.z_offset_m[z]};
           }
         }

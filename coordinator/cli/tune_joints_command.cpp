@@ -18,7 +18,7 @@ constexpr const char* kUsage =
 Learns the joint-proposal parameters of section 3.4 for this forest: for each of the 16 joints,
 the mean-shift bandwidth b, the seed probability threshold lambda and the surface-to-interior
 z offset zeta that maximize the joint's average precision (D = 0.1 m) on validation frames, by
-grid search (b in 0.03..0.12 m, lambda in 0.05..0.3, zeta in 0..0.1 m). The forest's inferred
+grid search (b in 0.045..0.16 m, lambda in 0.1..0.4, zeta in 0..0.1 m). The forest's inferred
 parts are used, as at run time. Writes the forest with the parameters stored in it (format 1.1,
 section JPAR), so `poseforest infer --joints` and `poseforest eval` use them with no other file.
 
@@ -45,7 +45,7 @@ options:
 
 int TuneJointsMain(int argc, char** argv) {
   Args args({"forest", "validation", "out", "frames", "from", "seed", "people", "threads"},
-            {"help", "quiet"});
+            {"help", "quiet", "per-joint"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest tune-joints: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -118,10 +118,12 @@ int TuneJointsMain(int argc, char** argv) {
   runtime::ProposalOptions base;
   base.params = forest->proposal_params.value_or(core::DefaultProposalParams());
   base.num_threads = int(*threads);
-  const runtime::TuningGrid grid;
+  runtime::TuningGrid grid;
+  grid.mirror_pairs = !args.Has("per-joint");
   if (!quiet)
-    std::printf("grid: %zu bandwidths x %zu thresholds x %zu z offsets per joint\n", grid.bandwidth_m.size(),
-                grid.prob_threshold.size(), grid.z_offset_m.size());
+    std::printf("grid: %zu bandwidths x %zu thresholds x %zu z offsets per %s\n", grid.bandwidth_m.size(),
+                grid.prob_threshold.size(), grid.z_offset_m.size(),
+                grid.mirror_pairs ? "joint pair (left and right share)" : "joint");
   const auto result = runtime::TuneProposalParams(*valid, base, grid, 0.1f, [&](int d, int t) {
     if (!quiet && (d % 5 == 0 || d == t))
       std::fprintf(stderr, "tune-joints: grid %d / %d (b, lambda) points (%.0f s)\n", d, t, seconds());

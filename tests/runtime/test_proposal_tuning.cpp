@@ -11,11 +11,11 @@ namespace {
 
 constexpr int kHead = int(core::Joint::kHead);
 
-// A flat 2 m frame with square patches of head probability; returns the frame and the 3D
+// A flat 2 m frame with square patches of `joint` (default head) probability; returns the frame and the 3D
 // centre of each patch.
 runtime::ValidationFrame Patches(
     const std::vector<std::tuple<int, int, int, float>>& patches /* x, y, half, p */,
-    std::vector<Eigen::Vector3f>* centres) {
+    std::vector<Eigen::Vector3f>* centres, int joint = kHead) {
   runtime::ValidationFrame f;
   f.depth = core::DepthImage(640, 480, 0);
   f.probs.width = 640;
@@ -27,7 +27,7 @@ runtime::ValidationFrame Patches(
         f.depth.at(x, y) = 2000;
         f.probs.pixel.push_back(uint32_t(y * 640 + x));
         std::array<float, core::kNumJoints> pr{};
-        pr[kHead] = p;
+        pr[size_t(joint)] = p;
         f.probs.prob.push_back(pr);
       }
     if (centres) centres->push_back(cam.PixelToPoint(cx, cy, 2000).cast<float>());
@@ -152,4 +152,37 @@ TEST_CASE("PR figure: text in the built-in font and curves in the series' colour
   for (size_t i = 0; i < fig.rgb.size(); i += 3)
     blue += fig.rgb[i] == 31 && fig.rgb[i + 1] == 119 && fig.rgb[i + 2] == 180;
   CHECK(blue > 200);  // two curves, the legend swatch and the AP labels
+}
+
+TEST_CASE("left and right joints share parameters unless asked not to", "[tuning]") {
+  // Left shoulder: a 0.9 patch on the joint and a larger 0.5 distractor that wins when it seeds
+  // (thresholds below 0.5). Right shoulder: the 0.9 patch alone, so every threshold is perfect
+  // and on its own it keeps the smallest. As a pair, both take the threshold that suits both.
+  const int left = int(core::Joint::kLShoulder), right = int(core::Joint::kRShoulder);
+  std::vector<Eigen::Vector3f> c;
+  runtime::ValidationFrame fl = Patches({{200, 240, 6, 0.9f}, {450, 240, 12, 0.5f}}, &c, left);
+  runtime::PersonJoints pl;
+  pl.position.fill(Eigen::Vector3f(0, 0, 9));
+  pl.position[size_t(left)] = c[0];
+  pl.visible[size_t(left)] = true;
+  fl.people = {pl};
+  runtime::ValidationFrame fr = Patches({{300, 240, 6, 0.9f}}, &c, right);
+  runtime::PersonJoints pr;
+  pr.position.fill(Eigen::Vector3f(0, 0, 9));
+  pr.position[size_t(right)] = c.back();
+  pr.visible[size_t(right)] = true;
+  fr.people = {pr};
+  runtime::TuningGrid grid;
+  grid.bandwidth_m = {0.065f};
+  grid.prob_threshold = {0.1f, 0.6f};
+  grid.z_offset_m = {0.0f};
+  const auto paired = runtime::TuneProposalParams({fl, fr}, {}, grid, 0.05f);
+  CHECK(paired.params[size_t(left)].prob_threshold == 0.6f);
+  CHECK(paired.params[size_t(right)].prob_threshold == 0.6f);
+  CHECK(paired.ap[size_t(left)] == Approx(1.0));
+  CHECK(paired.ap[size_t(right)] == Approx(1.0));
+  grid.mirror_pairs = false;
+  const auto single = runtime::TuneProposalParams({fl, fr}, {}, grid, 0.05f);
+  CHECK(single.params[size_t(left)].prob_threshold == 0.6f);
+  CHECK(single.params[size_t(right)].prob_threshold == 0.1f);
 }
