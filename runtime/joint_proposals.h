@@ -38,7 +38,7 @@ struct ProposalOptions {
   /// Mean shift starts from one point per cell of bandwidth * seed_cell_fraction (the seed
   /// weight-averaged position of the cell's seed voxels, carrying their summed seed weight)
   /// instead of from every seed voxel; 0 = every seed voxel.
-  float seed_cell_fraction = 2.0f;
+  float seed_cell_fraction = 1.0f;
   /// Mean shift ignores pixels whose P(joint) is below this floor (they are never seeds when
   /// it is below prob_threshold, and add little density); 0 = every pixel with P > 0.
   float min_probability = 0.02f;
