@@ -16,6 +16,7 @@
 
 #include <signal.h>
 #include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -67,6 +68,9 @@ double LoadAverage() {
 
 /// A worker process: this program with --worker-process.
 int WorkerProcess(int argc, char** argv) {
+  // Go when the bench goes (killed or interrupted), as `worker --exit-with-parent` does.
+  ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (::getppid() == 1) return 0;
   dist::WorkerOptions o;
   for (int i = 1; i + 1 < argc; ++i) {
     if (!std::strcmp(argv[i], "--domain"))
