@@ -536,7 +536,12 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
   cloud.y.resize(n);
   cloud.z.resize(n);
   cloud.d2.resize(n);
-  std::vector<uint8_t> usable(n);
+  // P(j | pixel k) at joint_prob[j * n + k], joint-major so that each joint's pass reads one
+  // contiguous array; 0 where it does not count (not positive, not finite, no depth). Reused
+  // across calls on the same thread.
+  thread_local std::vector<float> joint_prob_storage;
+  joint_prob_storage.resize(n * size_t(core::kNumJoints));
+  float* const joint_prob = joint_prob_storage.data();
   const int team = int(std::min<size_t>(size_t(threads), std::max<size_t>(1, n / 4096)));
   std::vector<Eigen::Vector3f> lo(size_t(team), Eigen::Vector3f::Constant(std::numeric_limits<float>::max()));
   std::vector<Eigen::Vector3f> hi(size_t(team), Eigen::Vector3f::Constant(std::numeric_limits<float>::lowest()));
@@ -549,7 +554,11 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
     for (size_t k = 0; k < n; ++k) {
       const uint32_t i = probs.pixel[k];
       const uint16_t d = i < num_pixels ? depth.pixels[i] : 0;
-      usable[k] = d != 0;
+      const std::array<float, core::kNumJoints>& row = probs.prob[k];
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        const float p = row[size_t(j)];
+        joint_prob[size_t(j) * n + k] = d != 0 && p > 0 && std::isfinite(p) ? p : 0.0f;
+      }
       if (d == 0) continue;
       const int x = int(i % uint32_t(depth.width)), y = int(i / uint32_t(depth.width));
       const Eigen::Vector3f p = options.camera.PixelToPoint(x, y, d).cast<float>();
@@ -585,11 +594,7 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
         p.confidence = confidence;
         proposals.push_back(p);
       };
-      // P(j | pixel) where it counts: positive and finite, on a usable pixel.
-      auto prob = [&](size_t k) {
-        const float p = probs.prob[k][size_t(j)];
-        return usable[k] && p > 0 && std::isfinite(p) ? p : 0.0f;
-      };
+      const float* const pj = joint_prob + size_t(j) * n;
       PointSet& v = s.voxels;
       // Pixels below the floor add (almost) nothing to the density and are never seeds.
       const float min_p = std::max(options.min_probability, std::numeric_limits<float>::min());
@@ -603,7 +608,7 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
           s.vy.clear();
           s.vz.clear();
           for (size_t k = 0; k < n; ++k) {
-            const float p = prob(k);
+            const float p = pj[k];
             if (!(p >= min_p)) continue;
             const float w = p * cloud.d2[k];
             const Eigen::Vector3f pt(cloud.x[k], cloud.y[k], cloud.z[k]);
@@ -630,8 +635,8 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
           }
         } else {
           for (size_t k = 0; k < n; ++k) {
-            const float p = prob(k);
-            if (p == 0) continue;
+            const float p = pj[k];
+            if (!(p >= min_p)) continue;
             const float w = p * cloud.d2[k];
             v.push_back(cloud.x[k], cloud.y[k], cloud.z[k], w, p > jp.prob_threshold ? w : 0.0f);
           }
@@ -650,7 +655,7 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
         std::vector<Eigen::Vector3f> wsum;
         std::vector<float> wtot;
         for (size_t k = 0; k < n; ++k) {
-          const float p = prob(k);
+          const float p = pj[k];
           if (!(p > jp.prob_threshold)) continue;
           const Eigen::Vector3f pt(cloud.x[k], cloud.y[k], cloud.z[k]);
           const Eigen::Vector3i c = s.ids.CellOf(pt);
