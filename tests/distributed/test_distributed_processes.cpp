@@ -146,11 +146,12 @@ TEST_CASE("SIGKILL of the coordinator, restart with --resume: same forest",
   CHECK(ReadAll(dir.path / "forest.pff") == reference);
 }
 
-TEST_CASE("coordinator and worker: bad --peers / --interfaces get a clear error", "[distributed][integration]") {
+TEST_CASE("coordinator and worker: bad --peers / --interfaces get a clear error",
+          "[distributed][integration]") {
   TempDir dir("pf-dist-peers");
   std::ofstream(dir.path / "job.textproto") << TinyJobText(1, 3);
-  const std::string coordinator = Program() + " coordinator " + (dir.path / "job.textproto").string() + " --out " +
-                                  (dir.path / "f.pff").string() + " ";
+  const std::string coordinator = Program() + " coordinator " + (dir.path / "job.textproto").string() +
+                                  " --out " + (dir.path / "f.pff").string() + " ";
   struct Case {
     std::string cmd, expect;
   };
