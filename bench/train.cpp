@@ -217,10 +217,10 @@ void SideBySide(const worker::SampleSet& set, const worker::TrainParams& p, int 
               forest ? "every threshold (best split)" : "1 random threshold each", sk_cpu, sk_wall, sk_nodes,
               sk_depth, sk_acc);
   std::printf("  ours (LocalTrainer, 1 thread), %zu fresh candidates x %d thresholds at every node, features "
-              "computed from the frames: %.2f s CPU (%.2f s wall, of which %.2f s loading frames + sampling), "
-              "%zu nodes, depth %u, %.3g evaluations\n",
-              k, p.thresholds_per_feature, ours_cpu, ours_wall, st.load_seconds, tree->nodes.size(), tree->depth,
-              double(st.evaluations));
+              "computed from the frames: %.2f s CPU (%.2f s wall, of which %.2f s loading frames + sampling, "
+              "%.2f s histograms incl. fused passes, %.2f s threshold ranges), %zu nodes, depth %u, %.3g evaluations\n",
+              k, p.thresholds_per_feature, ours_cpu, ours_wall, st.load_seconds, st.histogram_seconds,
+              st.range_seconds, tree->nodes.size(), tree->depth, double(st.evaluations));
   std::printf("side by side: sklearn fit / ours = %.2f (CPU seconds; ours includes computing the features and "
               "loading the frames, theirs does not)\n",
               sk_cpu / ours_cpu);

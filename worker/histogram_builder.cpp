@@ -498,12 +498,14 @@ void BinSampleMajorAvx512(const KernelInput& in, uint64_t b, uint64_t e, const C
   }
 }
 
-/// Sample-major min/max of every candidate over [b, e): one sample at a time against all
+/// Sample-major min/max of every candidate over samples [b, e), or over index[b..e) when
+/// `index` is given (a node's reference subsample): one sample at a time against all
 /// candidates (its probes stay in L1), running minima/maxima in `out`.
-void RangeSampleMajorAvx512(const KernelInput& in, uint64_t b, uint64_t e, const CandidateSoa& c,
-                            ResponseRange* out) {
+void RangeSampleMajorAvx512(const KernelInput& in, uint64_t b, uint64_t e, const uint32_t* index,
+                            const CandidateSoa& c, ResponseRange* out) {
   std::vector<int32_t> lo(size_t(c.padded), INT32_MAX), hi(size_t(c.padded), INT32_MIN);
-  for (uint64_t i = b; i < e; ++i) {
+  for (uint64_t j = b; j < e; ++j) {
+    const uint64_t i = index ? index[j] : j;
     for (int k = 0; k < c.num_candidates; k += 16) {
       const __m512i r = SampleResponses16(in, i, c, k);
       _mm512_storeu_si512(lo.data() + k, _mm512_min_epi32(_mm512_loadu_si512(lo.data() + k), r));
@@ -562,7 +564,10 @@ void HistogramBuilder::ComputeRanges(const SampleSet& samples, const TrainParams
     }
     const auto k = uint32_t(plans[p].features.size());
     uint32_t chunk = ChunkFor(whole[p] ? r.end - r.begin : refs[p].size(), k, threads_);
-    if (SampleMajor(whole[p], r.end - r.begin, samples)) chunk = k;
+    // Sample-major (whole candidate rows per item) for small nodes and for reference subsamples
+    // of at most kSampleMajorMax samples (the usual case: threshold_reference_pixels = 500).
+    if (SampleMajor(whole[p], r.end - r.begin, samples) || (!whole[p] && SampleMajor(true, refs[p].size(), samples)))
+      chunk = k;
     for (uint32_t k0 = 0; k0 < k; k0 += chunk) items.push_back({uint32_t(p), k0, std::min(k, k0 + chunk)});
   }
   const KernelInput in = InputOf(samples, constants_.background_mm);
@@ -580,7 +585,13 @@ void HistogramBuilder::ComputeRanges(const SampleSet& samples, const TrainParams
       if (SampleMajor(whole[item.plan], range.end - range.begin, samples)) {
         CandidateSoa soa;
         soa.Set(plan.features, nullptr, 0, 0);
-        RangeSampleMajorAvx512(in, range.begin, range.end, soa, out_ranges);
+        RangeSampleMajorAvx512(in, range.begin, range.end, nullptr, soa, out_ranges);
+        return;
+      }
+      if (!whole[item.plan] && SampleMajor(true, refs[item.plan].size(), samples)) {
+        CandidateSoa soa;
+        soa.Set(plan.features, nullptr, 0, 0);
+        RangeSampleMajorAvx512(in, 0, refs[item.plan].size(), refs[item.plan].data(), soa, out_ranges);
         return;
       }
 #endif
