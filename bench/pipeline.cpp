@@ -1,6 +1,7 @@
 // The whole runtime pipeline on 640x480 frames with one person: classification (eq. 2, the
-// compact per-foreground-pixel distributions) + per-joint probabilities + joint proposals
-// (mean shift, eq. 7-8, or the fast clustering), timed per stage (wall and CPU time), and the
+// compact per-foreground-pixel distributions) + joint proposals with the parts pooled per joint
+// on the way in (mean shift, eq. 7-8, or the fast clustering), timed per stage (wall and CPU
+// time; checked equal to the two-step path through JointProbabilities), and the
 // joint average precision of section 4 on the same held-out renders - inferred parts with
 // both proposal methods and, as Fig. 7's upper bound, proposals from the ground-truth parts.
 // Also times the classifier with the dense W*H*32 distributions (what it was before) for
@@ -136,7 +137,7 @@ int main(int argc, char** argv) {
 
   runtime::JointApEvaluator ap_ms, ap_fast, ap_upper;
   // Per stage, per frame: wall ms and process CPU ms.
-  enum Stage { kClassify, kProbabilities, kMeanShift, kFast, kDense, kStages };
+  enum Stage { kClassify, kMeanShift, kFast, kProbabilities, kDense, kStages };
   std::vector<double> wall[kStages], cpu[kStages];
   runtime::Classification cls, cls_dense;
   long foreground = 0;
@@ -154,17 +155,31 @@ int main(int argc, char** argv) {
       t[k] = Clock::now();
       c[k] = CpuMs();
     };
+    // The pipeline: classify, then proposals straight from the compact sums (parts pooled per
+    // joint inside the proposals' first pass). Then, for comparison only, the separate
+    // probability array and the dense classifier.
     mark(0);
     classifier.Classify(frame->depth, copt, &cls);
     mark(1);
-    const auto probs = runtime::ProbabilitiesFromClassification(frame->depth, cls, threads);
+    const auto p_ms = runtime::ProposeJointsFromClassification(frame->depth, cls, mean_shift);
     mark(2);
-    const auto p_ms = runtime::ProposeJoints(frame->depth, probs, mean_shift);
+    const auto p_fast = runtime::ProposeJointsFromClassification(frame->depth, cls, fast);
     mark(3);
-    const auto p_fast = runtime::ProposeJoints(frame->depth, probs, fast);
+    const auto probs = runtime::ProbabilitiesFromClassification(frame->depth, cls, threads);
     mark(4);
     classifier.Classify(frame->depth, dense, &cls_dense);
     mark(5);
+    // The fused path must equal the two-step one.
+    const auto p_check = runtime::ProposeJoints(frame->depth, probs, mean_shift);
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      bool same = p_check[size_t(j)].size() == p_ms[size_t(j)].size();
+      for (size_t m = 0; same && m < p_ms[size_t(j)].size(); ++m)
+        same = p_check[size_t(j)][m].position == p_ms[size_t(j)][m].position;
+      if (!same) {
+        std::fprintf(stderr, "pipeline: fused and two-step proposals differ on frame %d, joint %d\n", i, j);
+        return 1;
+      }
+    }
     for (int k = 0; k < kStages; ++k) {
       wall[k].push_back(Ms(t[k], t[k + 1]));
       cpu[k].push_back(c[k + 1] - c[k]);
@@ -193,8 +208,9 @@ int main(int argc, char** argv) {
   const char* policy = std::getenv("OMP_WAIT_POLICY");
   std::printf("threads %d (0 = all), OMP_WAIT_POLICY=%s; load average before: %s, after: %s\n", threads,
               policy != nullptr ? policy : "(unset)", load_before.c_str(), LoadAverage().c_str());
-  const char* names[kStages] = {"classify (foreground distributions)", "probabilities (parts -> joints)",
-                                "mean shift proposals", "fast clustering proposals",
+  const char* names[kStages] = {"classify (foreground distributions)", "proposals: mean shift (fused)",
+                                "proposals: fast clustering (fused)",
+                                "[separate probability array, not needed]",
                                 "[classify with dense W*H*32 distributions]"};
   double w[kStages], u[kStages];
   std::printf("%-44s %14s %14s\n", "stage (median over frames)", "wall ms", "CPU ms");
@@ -203,14 +219,14 @@ int main(int argc, char** argv) {
     u[k] = Median(cpu[k]);
     std::printf("%-44s %14.3f %14.3f\n", names[k], w[k], u[k]);
   }
-  const double with_ms = w[kClassify] + w[kProbabilities] + w[kMeanShift];
-  const double with_fast = w[kClassify] + w[kProbabilities] + w[kFast];
+  const double with_ms = w[kClassify] + w[kMeanShift];
+  const double with_fast = w[kClassify] + w[kFast];
   std::printf("pipeline with mean shift: %.3f ms/frame = %.1f frames/s (mAP %.3f); CPU %.3f ms/frame\n", with_ms,
-              1000.0 / with_ms, ap_ms.MeanAveragePrecision(), u[kClassify] + u[kProbabilities] + u[kMeanShift]);
+              1000.0 / with_ms, ap_ms.MeanAveragePrecision(), u[kClassify] + u[kMeanShift]);
   std::printf("pipeline with fast clustering: %.3f ms/frame = %.1f frames/s (mAP %.3f); CPU %.3f ms/frame\n",
-              with_fast, 1000.0 / with_fast, ap_fast.MeanAveragePrecision(),
-              u[kClassify] + u[kProbabilities] + u[kFast]);
-  std::printf("headline: classify + probabilities + mean shift (wall, median per stage)\n");
+              with_fast, 1000.0 / with_fast, ap_fast.MeanAveragePrecision(), u[kClassify] + u[kFast]);
+  std::printf("headline: the whole pipeline with mean shift = classify + mean shift proposals (wall, median per "
+              "stage)\n");
   std::printf("frames/s: %.1f frames/s\n", 1000.0 / with_ms);
   return 0;
 }

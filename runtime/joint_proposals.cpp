@@ -523,11 +523,16 @@ JointProbabilities ProbabilitiesFromLabels(const core::DepthImage& depth, const 
   return out;
 }
 
-FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabilities& probs,
-                             const ProposalOptions& options) {
+namespace {
+
+/// ProposeJoints over n foreground pixels: pixel_of(k) is pixel k's raster index and
+/// probability_row(k, float p[kNumJoints]) writes its P(joint | pixel) (any values: those
+/// that do not count are zeroed here). Both are called from the OpenMP team and must not throw.
+template <typename PixelOf, typename ProbabilityRow>
+FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of, ProbabilityRow probability_row,
+                       const ProposalOptions& options) {
   FrameProposals out;
-  const size_t n = probs.pixel.size();
-  if (n == 0 || probs.prob.size() != n || depth.width != probs.width || depth.height != probs.height) return out;
+  if (n == 0) return out;
   const size_t num_pixels = depth.pixels.size();
   const int threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
   // Reproject once: 3D point and weight factor d^2 per pixel (0 depth: unusable, never read).
@@ -552,9 +557,10 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
     Eigen::Vector3f& my_hi = hi[size_t(omp_get_thread_num())];
 #pragma omp for schedule(static)
     for (size_t k = 0; k < n; ++k) {
-      const uint32_t i = probs.pixel[k];
+      const uint32_t i = pixel_of(k);
       const uint16_t d = i < num_pixels ? depth.pixels[i] : 0;
-      const std::array<float, core::kNumJoints>& row = probs.prob[k];
+      float row[core::kNumJoints];
+      probability_row(k, row);
       for (int j = 0; j < core::kNumJoints; ++j) {
         const float p = row[size_t(j)];
         joint_prob[size_t(j) * n + k] = d != 0 && p > 0 && std::isfinite(p) ? p : 0.0f;
@@ -705,6 +711,40 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
   }
   if (error) std::rethrow_exception(error);
   return out;
+}
+
+}  // namespace
+
+FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabilities& probs,
+                             const ProposalOptions& options) {
+  if (probs.prob.size() != probs.pixel.size() || depth.width != probs.width || depth.height != probs.height) return {};
+  return Propose(
+      depth, probs.pixel.size(), [&](size_t k) { return probs.pixel[k]; },
+      [&](size_t k, float* row) { std::copy(probs.prob[k].begin(), probs.prob[k].end(), row); }, options);
+}
+
+FrameProposals ProposeJointsFromClassification(const core::DepthImage& depth, const Classification& c,
+                                                const ProposalOptions& options) {
+  const size_t stride = size_t(c.stride);
+  if (c.foreground_sums.empty() || c.foreground_sums.size() != c.foreground.size() * stride)
+    return ProposeJoints(depth, ProbabilitiesFromClassification(depth, c, options.num_threads), options);
+  if (c.num_parts != core::kNumParts || c.width != depth.width || c.height != depth.height) return {};
+  // The parts of each joint (disjoint sets), and the same arithmetic as
+  // ProbabilitiesFromClassification, so that both paths give identical probabilities.
+  std::array<std::vector<int>, core::kNumJoints> joint_parts;
+  for (int j = 0; j < core::kNumJoints; ++j) joint_parts[size_t(j)] = core::JointParts(j);
+  const float norm = 1.0f / float(core::kLeafTotal * c.num_trees);
+  return Propose(
+      depth, c.foreground.size(), [&](size_t k) { return c.foreground[k]; },
+      [&](size_t k, float* row) {
+        const uint16_t* sums = c.foreground_sums.data() + k * stride;
+        for (int j = 0; j < core::kNumJoints; ++j) {
+          int sum = 0;
+          for (int part : joint_parts[size_t(j)]) sum += sums[part];
+          row[j] = float(sum) * norm;
+        }
+      },
+      options);
 }
 
 }  // namespace poseforest::runtime

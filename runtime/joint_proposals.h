@@ -84,6 +84,14 @@ JointProbabilities ProbabilitiesFromLabels(const core::DepthImage& depth, const 
 FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabilities& probs,
                              const ProposalOptions& options);
 
+/// The same from a classification, fused: with Classification::foreground_sums (classify with
+/// want_foreground_distributions) the parts are pooled per joint inside the proposals' first
+/// parallel pass, so no JointProbabilities is built; the result equals
+/// ProposeJoints(depth, ProbabilitiesFromClassification(depth, c), options). Without them it
+/// is exactly that.
+FrameProposals ProposeJointsFromClassification(const core::DepthImage& depth, const Classification& c,
+                                                const ProposalOptions& options);
+
 /// Mean shift of one weighted point set (exposed for tests): modes reached from `seeds`
 /// (indices into points), with the summed seed weight reaching each, most confident first.
 struct Mode {

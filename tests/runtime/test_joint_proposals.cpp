@@ -197,10 +197,31 @@ TEST_CASE("probabilities from the compact foreground output equal those from the
   // And so the proposals are the same.
   const auto a = runtime::ProposeJoints(depth, want, runtime::ProposalOptions{});
   const auto b = runtime::ProposeJoints(depth, runtime::ProbabilitiesFromClassification(depth, compact), runtime::ProposalOptions{});
+  // The fused path (parts pooled inside the proposals' first pass), from either output.
+  const auto fused = runtime::ProposeJointsFromClassification(depth, compact, runtime::ProposalOptions{});
+  const auto fused_dense = runtime::ProposeJointsFromClassification(depth, dense, runtime::ProposalOptions{});
+  size_t total = 0;
   for (int j = 0; j < core::kNumJoints; ++j) {
     REQUIRE(a[size_t(j)].size() == b[size_t(j)].size());
-    for (size_t m = 0; m < a[size_t(j)].size(); ++m) CHECK(a[size_t(j)][m].position == b[size_t(j)][m].position);
+    REQUIRE(a[size_t(j)].size() == fused[size_t(j)].size());
+    REQUIRE(a[size_t(j)].size() == fused_dense[size_t(j)].size());
+    total += a[size_t(j)].size();
+    for (size_t m = 0; m < a[size_t(j)].size(); ++m) {
+      CHECK(a[size_t(j)][m].position == b[size_t(j)][m].position);
+      CHECK(a[size_t(j)][m].position == fused[size_t(j)][m].position);
+      CHECK(a[size_t(j)][m].confidence == fused[size_t(j)][m].confidence);
+      CHECK(a[size_t(j)][m].position == fused_dense[size_t(j)][m].position);
+    }
   }
+  CHECK(total > 0);
+  // A classification without distributions, or of another size, gives no proposals.
+  runtime::Classification none;
+  classifier.Classify(depth, runtime::ClassifyOptions{}, &none);
+  for (const auto& j : runtime::ProposeJointsFromClassification(depth, none, runtime::ProposalOptions{}))
+    CHECK(j.empty());
+  for (const auto& j : runtime::ProposeJointsFromClassification(testing::MakePersonDepth(2.5, 80, 60), compact,
+                                                                runtime::ProposalOptions{}))
+    CHECK(j.empty());
 }
 
 TEST_CASE("proposals are depth invariant: the same body at 2 m and 4 m", "[proposals]") {
