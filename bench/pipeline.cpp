@@ -73,7 +73,7 @@ int main(int argc, char** argv) {
     ::setenv("OMP_WAIT_POLICY", "passive", 1);
     ::execv("/proc/self/exe", argv);  // returns only on failure: then measure as we are
   }
-  cli::Args args({"forest", "frames", "seed", "poses", "clips", "test-fraction", "split-seed", "bodies", "data", "threads", "seed-cell", "min-probability"},
+  cli::Args args({"forest", "frames", "seed", "poses", "clips", "test-fraction", "split-seed", "bodies", "data", "threads", "seed-cell", "min-probability", "cluster-cell"},
                  {"help"});
   if (auto st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.Get("forest")) {
     std::fprintf(stderr,
@@ -133,6 +133,7 @@ int main(int argc, char** argv) {
   mean_shift.num_threads = fast.num_threads = threads;
   if (auto v = args.Get("seed-cell")) mean_shift.seed_cell_fraction = std::stof(*v);
   if (auto v = args.Get("min-probability")) mean_shift.min_probability = std::stof(*v);
+  if (auto v = args.Get("cluster-cell")) fast.cluster_cell_fraction = std::stof(*v);
   fast.method = runtime::ProposalMethod::kFastClustering;
 
   runtime::JointApEvaluator ap_ms, ap_fast, ap_upper;
