@@ -8,6 +8,7 @@
 // comparison. Runs with OMP_WAIT_POLICY=passive unless the environment sets a policy.
 //   build/bench/pipeline --forest F.pff [--frames N] [--seed S] [--poses L.pfposes --clips test]
 //                        [--bodies procedural|makehuman|all] [--data DIR] [--threads N]
+//                        [--seed-cell F] [--min-probability P] [--cluster-cell F]
 // Last line: `frames/s: <value> frames/s` of the whole pipeline with mean shift (the line
 // before it says which method and both figures).
 #include <unistd.h>
@@ -78,7 +79,9 @@ int main(int argc, char** argv) {
   if (auto st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.Get("forest")) {
     std::fprintf(stderr,
                  "usage: pipeline --forest F.pff [--frames N] [--seed S] [--poses L.pfposes --clips test] "
-                 "[--bodies procedural|makehuman|all] [--data DIR] [--threads N]\n%s\n",
+                 "[--bodies procedural|makehuman|all] [--data DIR] [--threads N]\n"
+                 "                [--seed-cell F] [--min-probability P] [--cluster-cell F]   (ProposalOptions: "
+                 "seed_cell_fraction, min_probability, cluster_cell_fraction)\n%s\n",
                  st.ok() ? "" : st.message().c_str());
     return 2;
   }
