@@ -91,6 +91,15 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   INFO(infer.output);
   CHECK(infer.exit_code == 0);
   CHECK_THAT(infer.output, Catch::Contains("the forest's learned parameters"));
+  // ... and they change the proposals: the untuned forest (same trees) proposes otherwise.
+  auto plain = RunPoseforest("infer --forest " + forest + " --joints --quiet --out-dir " +
+                             (dir / "plain").string() + " " + (dir / "frames" / "depth_000000.png").string());
+  REQUIRE(plain.exit_code == 0);
+  auto tuned_json = core::ReadFileBytes((dir / "infer" / "depth_000000.joints.json").string());
+  auto plain_json = core::ReadFileBytes((dir / "plain" / "depth_000000.joints.json").string());
+  REQUIRE(tuned_json.ok());
+  REQUIRE(plain_json.ok());
+  CHECK(*tuned_json != *plain_json);
 
   // A rendered folder (with joints_*.json) works as a test set too.
   auto folder =
