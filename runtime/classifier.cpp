@@ -8,7 +8,9 @@
 //    background constant (so a probe needs only a bounds test). Phase 2, scheduled
 //    dynamically over the OpenMP team in chunks of kChunk foreground pixels, walks each tree
 //    in turn over a chunk (the top of the tree stays in L1/L2), then sums leaf rows and takes
-//    the argmax while the leaf indices are still in L1.
+//    the argmax while the leaf indices are still in L1. The per-pixel sums go out from there:
+//    to the compact foreground array (want_foreground_distributions: the row of foreground
+//    pixel k at k * stride, no per-frame clearing) and/or the dense W*H*stride one.
 //  - A tree walk keeps many independent traversals in flight. AVX-512: 16 pixels per vector,
 //    two vectors interleaved to hide load latency; a lane whose pixel reached a leaf is
 //    refilled with the next pixel at once (compress/expand), so no lane idles while deeper
