@@ -686,7 +686,7 @@ void HistogramBuilder::Build(const SampleSet& samples, std::span<const NodePlan>
       const int slots = hist.num_slots, stride = plan.cut_stride;
       const uint8_t* slot_of = plan.part_slot.data();
       int32_t slot_table32[32] = {};
-      int16_t slot_table16[32] = {};
+      [[maybe_unused]] int16_t slot_table16[32] = {};
       for (int c = 0; c < core::kNumParts; ++c) {
         slot_table32[c] = slot_of[c] == 0xFF ? 0 : slot_of[c];
         slot_table16[c] = int16_t(slot_table32[c]);
