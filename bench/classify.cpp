@@ -1,6 +1,8 @@
 // Per-pixel classification speed: a realistic forest (3 trees, depth 20, ~300k nodes each)
 // on a 640x480 frame with one person at 2.5 m (~33k foreground pixels). Prints the optimized
-// classifier's speed on all cores and on one, the other kernels' (AVX2, portable), a naive
+// classifier's speed on all cores and on one, with the per-pixel distributions the joint
+// proposals need (compact foreground sums, and the dense W*H*32 array for comparison), the
+// other kernels' (AVX2, portable), a naive
 // reference's (one pixel, one tree, one node at a time through core::FeatureResponse), and the
 // same with a forest small enough for L2, to tell memory latency from compute. Checks that
 // optimized and reference labels are identical (exit 1 if not). Runs with
@@ -104,11 +106,14 @@ Timing Measure(Fn&& fn, double seconds, int warmup = 3) {
   return t;
 }
 
+/// distributions: 0 labels only, 1 also the compact foreground sums, 2 also the dense W*H*32 sums.
 Timing Optimized(const core::Forest& forest, const core::DepthImage& depth, int threads, Kernel kernel,
-                 double seconds) {
+                 double seconds, int distributions = 0) {
   runtime::Classification out;
   runtime::ClassifyOptions options;
   options.num_threads = threads;
+  options.want_foreground_distributions = distributions == 1;
+  options.want_distributions = distributions == 2;
   return Measure([&] { runtime::detail::ClassifyWithKernel(forest, depth, options, kernel, &out); }, seconds);
 }
 
@@ -178,6 +183,10 @@ int main(int argc, char** argv) {
     avx2_one = Optimized(forest, frame, 1, Kernel::kAvx2, seconds / 2);
     avx2_all = Optimized(forest, frame, all, Kernel::kAvx2, seconds / 2);
   }
+  // What the joint proposals need on top of the labels: the compact per-foreground-pixel
+  // sums (what bench/pipeline uses), and the dense W*H*32 array for comparison.
+  const Timing fg_all = Optimized(forest, frame, all, Kernel::kAuto, seconds / 2, 1);
+  const Timing dense_all = Optimized(forest, frame, all, Kernel::kAuto, seconds / 2, 2);
   const Timing port_all = Optimized(forest, frame, all, Kernel::kPortable, seconds / 2);
   const Timing port_one = Optimized(forest, frame, 1, Kernel::kPortable, seconds / 2);
 
@@ -216,6 +225,8 @@ int main(int argc, char** argv) {
   line("reference, 1 thread:", ref, 1, vpf);
   line("optimized, 1 thread:", opt_one, 1, vpf);
   line("optimized, all threads:", opt_all, all, vpf);
+  line("+ foreground sums, all:", fg_all, all, vpf);
+  line("+ dense W*H*32 sums, all:", dense_all, all, vpf);
   if (avx2 && avx512) {
     line("avx2 kernel, 1 thread:", avx2_one, 1, vpf);
     line("avx2 kernel, all threads:", avx2_all, all, vpf);

@@ -7,15 +7,26 @@
 // Per core = per CPU second of the process (the build machine is shared, so wall time
 // understates it; the wall figure is printed too). Headline (last line): root + deep level.
 //
+// Side by side (--compare sklearn, the default when /usr/bin/python3 imports sklearn): the same
+// pixels' responses to the root's candidates, written as an N x K float32 matrix, fitted by
+// scikit-learn's ExtraTreesClassifier (one tree, every candidate at every node, entropy, same
+// depth and min_samples_split, n_jobs=1; bench/sklearn_side_by_side.py times fit() alone),
+// against our engine (coordinator::LocalTrainer, 1 thread) training one tree of the same depth
+// on the same pixels, feature computation included.
+//
 // usage: train [--source procedural|rendered] [--images N] [--pixels N] [--candidates N] [--thresholds N]
-// [--depth D] [--threads N]
+// [--depth D] [--threads N] [--compare sklearn|none] [--compare-depth D] [--sklearn-model extra|forest]
+// [--sklearn-script PATH]
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
+#include <fstream>
 #include <string>
 
+#include "coordinator/local_trainer.h"
 #include "runtime/core/rng.h"
 #include "worker/candidates.h"
 #include "worker/histogram_builder.h"
@@ -39,6 +50,7 @@ double Cpu() {
 
 struct Figures {
   double build_evals_per_s = 0, range_s = 0, build_s = 0, build_cpu_s = 0, range_cpu_s = 0;
+  double cuts_cpu_s = 0;  ///< of range_cpu_s: DrawCuts
   uint64_t evals = 0;
   size_t nodes = 0;
 };
@@ -67,8 +79,10 @@ Figures RunLevel(const worker::SampleSet& set, const worker::TrainParams& p, int
     const double t0 = Now(), c0 = Cpu();
     std::vector<std::vector<worker::ResponseRange>> rr;
     builder.ComputeRanges(set, p, 0, plans, &rr);
+    const double cc = Cpu();
     for (size_t i = 0; i < plans.size(); ++i) plans[i].cuts = worker::DrawCuts(p, 0, plans[i].node, rr[i]);
     const double t1 = Now(), c1 = Cpu();
+    fig.cuts_cpu_s += c1 - cc;
     fig.range_cpu_s += c1 - c0;
     std::vector<worker::NodeHistogram> hists;
     builder.Build(set, plans, p.thresholds_per_feature, &hists);
@@ -82,16 +96,173 @@ Figures RunLevel(const worker::SampleSet& set, const worker::TrainParams& p, int
   return fig;
 }
 
+/// Writes a 2-D (cols > 0) or 1-D array as a NumPy .npy file (format 1.0, C order).
+bool WriteNpy(const std::filesystem::path& path, const void* data, size_t bytes, const char* descr, size_t rows,
+              size_t cols) {
+  std::string dict = std::string("{'descr': '") + descr + "', 'fortran_order': False, 'shape': (" +
+                     std::to_string(rows) + (cols ? ", " + std::to_string(cols) + ")" : std::string(",)")) + ", }";
+  const size_t unpadded = 10 + dict.size() + 1;
+  dict.append((64 - unpadded % 64) % 64, ' ');
+  dict += '\n';
+  std::ofstream f(path, std::ios::binary);
+  const auto len = uint16_t(dict.size());
+  f.write("\x93NUMPY\x01\x00", 8);
+  f.write(reinterpret_cast<const char*>(&len), 2);
+  f.write(dict.data(), std::streamsize(dict.size()));
+  f.write(static_cast<const char*>(data), std::streamsize(bytes));
+  return bool(f);
+}
+
+struct CompareOptions {
+  std::string mode = "auto";  ///< auto (sklearn when available) | sklearn | none
+  int depth = 20;
+  std::string model = "extra";
+  std::string script = POSEFOREST_SKLEARN_SCRIPT;
+};
+
+constexpr const char* kPython = "/usr/bin/python3";
+
+/// Why the sklearn side by side cannot run, or "" when it can.
+std::string SklearnMissing(const CompareOptions& o) {
+  if (!std::filesystem::exists(kPython)) return std::string(kPython) + " does not exist";
+  if (!std::filesystem::exists(o.script)) return "script " + o.script + " not found (--sklearn-script)";
+  const std::string cmd = std::string(kPython) + " -c 'import sklearn, numpy' > /dev/null 2>&1";
+  if (std::system(cmd.c_str()) != 0)
+    return std::string(kPython) + " cannot import sklearn/numpy (Debian: apt-get install python3-sklearn)";
+  return "";
+}
+
+/// The side by side: sklearn's fit() on the precomputed responses vs our engine training the
+/// same tree shape on the same pixels from the frames (features computed as it goes).
+void SideBySide(const worker::SampleSet& set, const worker::TrainParams& p, int images, int pixels,
+                const CompareOptions& o) {
+  const auto features = worker::DrawFeatures(p, 0, 0);
+  const size_t n = set.num_samples(), k = features.size();
+  std::printf("side by side: %zu samples x %zu candidates, depth %d, min_samples_split %lld, 1 thread each\n", n,
+              k, o.depth, static_cast<long long>(p.min_samples_split));
+  std::fflush(stdout);
+  // The matrix: responses of every sample to the root's candidates (what sklearn gets for free).
+  const double m0 = Cpu();
+  std::vector<float> x(n * k);
+  std::vector<uint8_t> y(n);
+  for (size_t i = 0; i < n; ++i) {
+    y[i] = set.part()[i];
+    for (size_t c = 0; c < k; ++c) x[i * k + c] = float(set.Response(i, features[c], p.constants.background_mm));
+  }
+  char tmpl[] = "/tmp/poseforest_train_cmp_XXXXXX";
+  if (!mkdtemp(tmpl)) {
+    std::printf("side by side skipped: cannot create a temporary directory under /tmp\n");
+    return;
+  }
+  const std::filesystem::path dir(tmpl);
+  const bool written = WriteNpy(dir / "x.npy", x.data(), x.size() * sizeof(float), "<f4", n, k) &&
+                       WriteNpy(dir / "y.npy", y.data(), y.size(), "|u1", n, 0);
+  x = {};
+  std::printf("  feature matrix for sklearn: %.0f MB, computed in %.2f s CPU (not counted for either side)\n",
+              double(n * k * sizeof(float)) / 1e6, Cpu() - m0);
+  std::fflush(stdout);
+  double sk_cpu = -1, sk_wall = -1, sk_acc = -1;
+  int sk_nodes = 0, sk_depth = 0;
+  std::string sk_line;
+  if (written) {
+    const std::string cmd = std::string(kPython) + " " + o.script + " --x " + (dir / "x.npy").string() + " --y " +
+                            (dir / "y.npy").string() + " --depth " + std::to_string(o.depth) +
+                            " --min-samples-split " + std::to_string(p.min_samples_split) + " --model " + o.model +
+                            " 2>&1";
+    if (FILE* pipe = popen(cmd.c_str(), "r")) {
+      char buf[1024];
+      while (std::fgets(buf, sizeof buf, pipe)) {
+        const std::string line(buf);
+        if (line.rfind("sklearn:", 0) == 0) {
+          sk_line = line;
+          const char* q = std::strstr(buf, "fit_cpu_s=");
+          if (q)
+            std::sscanf(q, "fit_cpu_s=%lf fit_wall_s=%lf nodes=%d depth=%d train_accuracy=%lf", &sk_cpu, &sk_wall,
+                        &sk_nodes, &sk_depth, &sk_acc);
+        } else {
+          std::printf("  [sklearn script] %s", buf);
+        }
+      }
+      const int rc = pclose(pipe);
+      if (rc != 0) std::printf("  sklearn script exited with status %d\n", rc);
+    }
+  } else {
+    std::printf("  could not write the matrix under %s\n", dir.c_str());
+  }
+  std::error_code ec;
+  std::filesystem::remove_all(dir, ec);
+  if (sk_cpu < 0) {
+    std::printf("side by side: no sklearn timing (see the lines above)\n");
+    return;
+  }
+  // Ours: the engine trains tree 0 of the same job (same frames, same sampled pixels).
+  worker::TrainParams q = p;
+  q.num_trees = 1;
+  q.max_depth = o.depth;
+  q.images_per_tree = images;
+  q.pixels_per_image = pixels;
+  q.threads = 1;
+  coordinator::LocalTrainer trainer(q, {});
+  const double c0 = Cpu(), w0 = Now();
+  auto tree = trainer.TrainTree(0);
+  const double ours_cpu = Cpu() - c0, ours_wall = Now() - w0;
+  if (!tree.ok()) {
+    std::printf("side by side: our engine failed: %s\n", tree.status().ToString().c_str());
+    return;
+  }
+  const auto& st = trainer.stats();
+  if (st.samples != n)
+    std::printf("  WARNING: the engine sampled %llu pixels, the matrix has %zu\n",
+                static_cast<unsigned long long>(st.samples), n);
+  const bool forest = o.model == "forest";
+  std::printf("  sklearn %s, 1 tree, %zu features at every node, %s: fit %.2f s CPU "
+              "(%.2f s wall), %d nodes, depth %d, training accuracy %.3f\n",
+              forest ? "RandomForestClassifier" : "ExtraTreesClassifier", k,
+              forest ? "every threshold (best split)" : "1 random threshold each", sk_cpu, sk_wall, sk_nodes,
+              sk_depth, sk_acc);
+  std::printf("  ours (LocalTrainer, 1 thread), %zu fresh candidates x %d thresholds at every node, features "
+              "computed from the frames: %.2f s CPU (%.2f s wall, of which %.2f s loading frames + sampling, "
+              "%.2f s histograms incl. fused passes, %.2f s threshold ranges), %zu nodes, depth %u, %.3g evaluations\n",
+              k, p.thresholds_per_feature, ours_cpu, ours_wall, st.load_seconds, st.histogram_seconds,
+              st.range_seconds, tree->nodes.size(), tree->depth, double(st.evaluations));
+  std::printf("side by side: sklearn fit / ours = %.2f (CPU seconds; ours includes computing the features and "
+              "loading the frames, theirs does not)\n",
+              sk_cpu / ours_cpu);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   // Defaults: the paper's per-node search (2000 features x 50 thresholds, 2000 pixels/frame).
   int images = 20, pixels = 2000, candidates = 2000, thresholds = 50, depth = 10, threads = 1;
   bool rendered = false;
-  for (int i = 1; i + 1 < argc; i += 2) {
+  CompareOptions compare;
+  for (int i = 1; i < argc; i += 2) {
     const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      std::printf(
+          "usage: train [--source procedural|rendered] [--images N] [--pixels N] [--candidates N]\n"
+          "             [--thresholds N] [--depth D] [--threads N] [--compare auto|sklearn|none]\n"
+          "             [--compare-depth D] [--sklearn-model extra|forest] [--sklearn-script PATH]\n"
+          "Histogram-builder throughput (evaluations/s/core, last line), then a side by side with\n"
+          "scikit-learn (default auto: when /usr/bin/python3 imports sklearn; the reason is printed\n"
+          "when it is skipped).\n");
+      return 0;
+    }
+    if (i + 1 >= argc) {
+      std::fprintf(stderr, "option %s needs a value (--help)\n", argv[i]);
+      return 2;
+    }
     const int v = std::atoi(argv[i + 1]);
-    if (a == "--source")
+    if (a == "--compare")
+      compare.mode = argv[i + 1];
+    else if (a == "--compare-depth")
+      compare.depth = v;
+    else if (a == "--sklearn-model")
+      compare.model = argv[i + 1];
+    else if (a == "--sklearn-script")
+      compare.script = argv[i + 1];
+    else if (a == "--source")
       rendered = std::string(argv[i + 1]) == "rendered";
     else if (a == "--images")
       images = v;
@@ -109,6 +280,14 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "unknown option %s\n", argv[i]);
       return 2;
     }
+  }
+  if (compare.mode != "auto" && compare.mode != "sklearn" && compare.mode != "none") {
+    std::fprintf(stderr, "--compare %s: must be auto, sklearn or none\n", compare.mode.c_str());
+    return 2;
+  }
+  if (compare.model != "extra" && compare.model != "forest") {
+    std::fprintf(stderr, "--sklearn-model %s: must be extra or forest\n", compare.model.c_str());
+    return 2;
   }
   worker::TrainParams p;
   p.seed = 1;
@@ -139,11 +318,24 @@ int main(int argc, char** argv) {
               images, rendered ? "rendered" : "procedural", set.num_samples(), candidates, thresholds,
               threads);
 
+  // The side by side runs on the pixels before the deep level's splits (a copy).
+  std::string compare_skipped;
+  if (compare.mode == "none") {
+    compare_skipped = "--compare none";
+  } else {
+    compare_skipped = SklearnMissing(compare);
+    if (!compare_skipped.empty() && compare.mode == "sklearn") {
+      std::fprintf(stderr, "train bench: --compare sklearn: %s\n", compare_skipped.c_str());
+      return 1;
+    }
+  }
+  const worker::SampleSet compare_set = compare_skipped.empty() ? set : worker::SampleSet();
+
   const Figures root = RunLevel(set, p, threads, 1);
   std::printf(
-      "root:     1 node,  %.3g evaluations in %.2f s wall, %.2f s CPU (+ ranges %.2f s wall, %.2f s CPU): "
-      "%.3g evaluations/s wall, %.3g per CPU second\n",
-      double(root.evals), root.build_s, root.build_cpu_s, root.range_s, root.range_cpu_s,
+      "root:     1 node,  %.3g evaluations in %.2f s wall, %.2f s CPU (+ ranges %.2f s wall, %.2f s CPU of which "
+      "DrawCuts %.2f s): %.3g evaluations/s wall, %.3g per CPU second\n",
+      double(root.evals), root.build_s, root.build_cpu_s, root.range_s, root.range_cpu_s, root.cuts_cpu_s,
       root.build_evals_per_s, double(root.evals) / root.build_cpu_s);
 
   // Deep level: split every node by a random candidate at the response of its first sample,
@@ -193,14 +385,18 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "level %d: %zu nodes (%.0f samples/node), %.3g evaluations in %.2f s wall, %.2f s CPU (+ ranges %.2f s "
-      "wall, %.2f s CPU): %.3g evaluations/s wall, %.3g per CPU second\n",
+      "wall, %.2f s CPU of which DrawCuts %.2f s): %.3g evaluations/s wall, %.3g per CPU second\n",
       depth, deep.nodes, double(set.num_samples()) / double(deep.nodes), double(deep.evals), deep.build_s,
-      deep.build_cpu_s, deep.range_s, deep.range_cpu_s, deep.build_evals_per_s,
+      deep.build_cpu_s, deep.range_s, deep.range_cpu_s, deep.cuts_cpu_s, deep.build_evals_per_s,
       double(deep.evals) / deep.build_cpu_s);
   std::printf(
       "level %d fused (ranges + cuts + histograms in one pass, %.3g evaluations): %.3g evaluations per CPU "
       "second\n",
       depth, double(fused_evals), double(fused_evals) / fused_cpu);
+  if (compare_skipped.empty())
+    SideBySide(compare_set, p, images, pixels, compare);
+  else
+    std::printf("side by side with scikit-learn skipped: %s\n", compare_skipped.c_str());
   std::printf("wall-clock per core (shared machine, pessimistic): %.4g evaluations/s/core\n",
               double(root.evals + deep.evals) / (root.build_s + deep.build_s) / threads);
   std::printf("with the threshold-range pass counted as overhead: %.4g evaluations/s/core (CPU)\n",

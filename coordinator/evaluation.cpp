@@ -2,15 +2,126 @@
 
 #include <omp.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <limits>
 #include <memory>
 
 #include "runtime/classifier.h"
+#include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
+#include "runtime/joint_proposals.h"
+#include "runtime/visualize.h"
+#if POSEFOREST_HAS_RENDERER
+#include "renderer/scene_assets.h"
+#include "renderer/synthetic_source.h"
+#endif
 
 namespace poseforest::coordinator {
+namespace {
+
+using core::ErrorCode;
+using core::Result;
+using core::Status;
+
+std::string IndexedPath(const std::string& folder, const char* stem, uint64_t index, const char* ext) {
+  char name[64];
+  std::snprintf(name, sizeof name, "%s_%06llu.%s", stem, static_cast<unsigned long long>(index), ext);
+  return (std::filesystem::path(folder) / name).string();
+}
+
+class ProceduralEvalSource final : public EvalFrameSource {
+ public:
+  explicit ProceduralEvalSource(worker::SourceSpec spec) : spec_(std::move(spec)) {}
+  Result<EvalFrame> Frame(uint64_t index) override {
+    worker::LabelledFrame f = worker::MakeProceduralFrame(spec_, index);
+    return EvalFrame{std::move(f.depth), std::move(f.labels), {}};
+  }
+  bool has_joints() const override { return false; }
+  uint64_t size() const override { return 0; }
+  std::string Describe() const override {
+    return "procedural seed " + std::to_string(spec_.seed) + " (no joints)";
+  }
+
+ private:
+  worker::SourceSpec spec_;
+};
+
+class DatasetEvalSource final : public EvalFrameSource {
+ public:
+  DatasetEvalSource(worker::SourceSpec spec, uint64_t count, bool joints)
+      : spec_(std::move(spec)), count_(count), joints_(joints) {}
+  Result<EvalFrame> Frame(uint64_t index) override {
+    const uint64_t file = spec_.first_index + index;
+    auto f = worker::ReadDatasetFrame(spec_.folder, file);
+    if (!f.ok()) return f.status();
+    EvalFrame out{std::move(f->depth), std::move(f->labels), {}};
+    if (joints_) {
+      auto people = ReadJointsJson(IndexedPath(spec_.folder, "joints", file, "json"));
+      if (!people.ok()) return people.status();
+      out.people = std::move(*people);
+    }
+    return out;
+  }
+  bool has_joints() const override { return joints_; }
+  uint64_t size() const override { return count_; }
+  std::string Describe() const override {
+    return "dataset " + spec_.folder + " (" + std::to_string(count_) + " frames" +
+           (joints_ ? ", with joints)" : ", no joints_*.json)");
+  }
+
+ private:
+  worker::SourceSpec spec_;
+  uint64_t count_;
+  bool joints_;
+};
+
+#if POSEFOREST_HAS_RENDERER
+class RenderedEvalSource final : public EvalFrameSource {
+ public:
+  RenderedEvalSource(worker::SourceSpec spec, std::unique_ptr<renderer::SyntheticRenderer> r)
+      : spec_(std::move(spec)), renderer_(std::move(r)) {}
+  Result<EvalFrame> Frame(uint64_t index) override {
+    auto frame = renderer_->Render(spec_.seed, index);
+    if (!frame.ok()) return frame.status();
+    EvalFrame out{std::move(frame->depth), std::move(frame->labels), {}};
+    out.people.resize(frame->joints.size());
+    for (size_t k = 0; k < frame->joints.size(); ++k) {
+      out.people[k].position = frame->joints[k];
+      out.people[k].visible = frame->visible[k];
+    }
+    return out;
+  }
+  bool has_joints() const override { return true; }
+  uint64_t size() const override { return 0; }
+  std::string Describe() const override {
+    const int people = renderer_->config().max_people;
+    std::string d = "rendered seed " + std::to_string(spec_.seed);
+    if (!spec_.pose_library.empty())
+      d += std::string(", ") +
+           (spec_.clips == worker::ClipSet::kTest    ? "test"
+            : spec_.clips == worker::ClipSet::kTrain ? "train"
+                                                     : "all") +
+           " clips of " + spec_.pose_library;
+    d += ", " + std::to_string(renderer_->config().min_people) +
+         (people > renderer_->config().min_people ? ".." + std::to_string(people) : std::string()) +
+         " people/frame";
+    return d;
+  }
+
+ private:
+  worker::SourceSpec spec_;
+  std::unique_ptr<renderer::SyntheticRenderer> renderer_;
+};
+#endif
+
+// The ratio, or 0 when the bound is 0.
+double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
+
+}  // namespace
 
 uint64_t ConfusionMatrix::TruthTotal(int part) const {
   uint64_t n = 0;
@@ -81,6 +192,316 @@ core::Result<ConfusionMatrix> EvaluateForest(const core::Forest& forest, const w
     }
   }
   return m;
+}
+
+Result<std::vector<runtime::PersonJoints>> ReadJointsJson(const std::string& path) {
+  auto bytes = core::ReadFileBytes(path);
+  if (!bytes.ok()) return bytes.status();
+  const std::string text(bytes->begin(), bytes->end());
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
+  size_t pos = text.find("\"people\"");
+  if (pos == std::string::npos)
+    return bad("no \"people\" array (expected joints_%06d.json from `poseforest render`)");
+  std::vector<runtime::PersonJoints> people;
+  while ((pos = text.find("\"joints\"", pos)) != std::string::npos) {
+    runtime::PersonJoints person;
+    pos += 8;
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      const std::string who = "person " + std::to_string(people.size()) + ", joint " + std::to_string(j) +
+                              " (" + std::string(core::JointName(j)) + ")";
+      float xyz[3];
+      const char* keys[3] = {"\"x\":", "\"y\":", "\"z\":"};
+      for (int a = 0; a < 3; ++a) {
+        pos = text.find(keys[a], pos);
+        if (pos == std::string::npos) return bad(who + ": missing " + std::string(keys[a]).substr(0, 3));
+        pos += 4;
+        const char* begin = text.c_str() + pos;
+        char* end = nullptr;
+        xyz[a] = std::strtof(begin, &end);
+        if (end == begin || !std::isfinite(xyz[a]))
+          return bad(who + ": " + std::string(keys[a]).substr(0, 3) + " is not a number");
+        pos = size_t(end - text.c_str());
+      }
+      person.position[size_t(j)] = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]);
+      pos = text.find("\"visible\":", pos);
+      if (pos == std::string::npos) return bad(who + ": missing \"visible\"");
+      pos += 10;
+      while (pos < text.size() && text[pos] == ' ') ++pos;
+      if (text.compare(pos, 4, "true") == 0) {
+        person.visible[size_t(j)] = true;
+      } else if (text.compare(pos, 5, "false") != 0) {
+        return bad(who + ": \"visible\" must be true or false");
+      }
+    }
+    people.push_back(person);
+  }
+  return people;
+}
+
+Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const worker::SourceSpec& source, int people) {
+  if (people < 0 || people > 8)
+    return Status(ErrorCode::kInvalidArgument, "people = " + std::to_string(people) + ": must be in 0..8");
+  if (people > 0 && source.kind != worker::SourceKind::kRendered)
+    return Status(ErrorCode::kInvalidArgument,
+                  "--people needs a rendered test set (a job's test_set with source.rendered); a folder or "
+                  "procedural set has its people already");
+  switch (source.kind) {
+    case worker::SourceKind::kProcedural:
+      return std::unique_ptr<EvalFrameSource>(new ProceduralEvalSource(source));
+    case worker::SourceKind::kDataset: {
+      auto probe = worker::MakeImageSource(source);  // checks the folder, counts frames
+      if (!probe.ok()) return probe.status();
+      std::error_code ec;
+      const bool joints =
+          std::filesystem::exists(IndexedPath(source.folder, "joints", source.first_index, "json"), ec);
+      return std::unique_ptr<EvalFrameSource>(new DatasetEvalSource(source, (*probe)->size(), joints));
+    }
+    case worker::SourceKind::kRendered: {
+#if POSEFOREST_HAS_RENDERER
+      renderer::SceneConfig scene;
+      scene.rotation_range_deg = source.rotation_range_deg;
+      scene.min_people = people > 0 ? people : 1;
+      scene.max_people = people > 0 ? people : source.max_people;
+      scene.noise.enabled = source.kinect_noise;
+      scene.min_distance_m = source.min_distance_m;
+      scene.max_distance_m = source.max_distance_m;
+      if (!source.pose_library.empty()) {
+        renderer::PoseSelection sel;
+        sel.library = source.pose_library;
+        sel.clips = source.clips == worker::ClipSet::kTrain  ? renderer::ClipSet::kTrain
+                    : source.clips == worker::ClipSet::kTest ? renderer::ClipSet::kTest
+                                                             : renderer::ClipSet::kAll;
+        sel.test_fraction = source.test_fraction;
+        sel.split_seed = source.split_seed;
+        auto poses = renderer::LoadPoseSelection(sel);
+        if (!poses.ok()) return poses.status();
+        scene.shared_poses = *poses;
+      }
+      scene.use_procedural_bodies = source.procedural_bodies;
+      if (!source.makehuman_kit.empty()) {
+        auto bodies = renderer::MakeHumanPresetBodies(source.makehuman_kit);
+        if (!bodies.ok()) return bodies.status();
+        scene.bodies = std::move(*bodies);
+      }
+      auto r = renderer::SyntheticRenderer::Create(scene);
+      if (!r.ok()) return r.status();
+      return std::unique_ptr<EvalFrameSource>(new RenderedEvalSource(source, std::move(*r)));
+#else
+      return Status(ErrorCode::kUnimplemented, "rendered test set: this build has no synthetic renderer");
+#endif
+    }
+  }
+  return Status(ErrorCode::kInternal, "unknown source kind");
+}
+
+namespace {
+bool HasJointTaxonomy(const core::Forest& forest) {
+  return forest.num_parts == core::kNumParts && forest.part_names == core::Forest::DefaultPartNames();
+}
+void AddConfusion(const EvalFrame& frame, const core::LabelImage& predicted, ConfusionMatrix* m) {
+  for (size_t p = 0; p < frame.depth.pixels.size(); ++p) {
+    const uint8_t truth = frame.labels.pixels[p];
+    if (frame.depth.pixels[p] == 0 || truth >= core::kNumParts) continue;
+    const uint8_t pred = predicted.pixels[p];
+    if (pred >= core::kNumParts) continue;
+    ++m->counts[size_t(truth) * core::kNumParts + pred];
+  }
+}
+double MsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+}  // namespace
+
+Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker::SourceSpec& source,
+                                        const JointEvalOptions& options) {
+  if (forest.num_parts != core::kNumParts)
+    return Status(ErrorCode::kInvalidArgument, "forest has " + std::to_string(forest.num_parts) +
+                                                   " parts; evaluation needs the 31-part taxonomy");
+  auto src = MakeEvalFrameSource(source, options.people);
+  if (!src.ok()) return src.status();
+  Evaluation e{.mean_shift = runtime::JointApEvaluator(options.distance_m),
+               .fast = runtime::JointApEvaluator(options.distance_m),
+               .upper_bound = runtime::JointApEvaluator(options.distance_m)};
+  e.distance_m = options.distance_m;
+  e.has_joints = (*src)->has_joints() && HasJointTaxonomy(forest);
+  e.learned_params = !options.params && forest.proposal_params.has_value();
+  e.params =
+      options.params ? *options.params : forest.proposal_params.value_or(core::DefaultProposalParams());
+  runtime::Classifier classifier(forest);
+  runtime::ClassifyOptions copt;
+  copt.num_threads = options.threads;
+  copt.want_distributions = e.has_joints;
+  runtime::ProposalOptions ms;
+  ms.params = e.params;
+  ms.num_threads = options.threads;
+  runtime::ProposalOptions fast = ms;
+  fast.method = runtime::ProposalMethod::kFastClustering;
+  runtime::Classification out;
+  for (int i = 0; i < options.num_images; ++i) {
+    auto frame = (*src)->Frame(options.first_index + uint64_t(i));
+    if (!frame.ok()) return frame.status();
+    auto t = std::chrono::steady_clock::now();
+    classifier.Classify(frame->depth, copt, &out);
+    e.classify_ms += MsSince(t);
+    AddConfusion(*frame, out.labels, &e.confusion);
+    ++e.frames;
+    if (e.has_joints) {
+      e.people += int(frame->people.size());
+      const auto probs = runtime::ProbabilitiesFromClassification(frame->depth, out);
+      t = std::chrono::steady_clock::now();
+      e.mean_shift.AddFrame(runtime::ProposeJoints(frame->depth, probs, ms), frame->people);
+      e.mean_shift_ms += MsSince(t);
+      if (options.fast) {
+        t = std::chrono::steady_clock::now();
+        e.fast.AddFrame(runtime::ProposeJoints(frame->depth, probs, fast), frame->people);
+        e.fast_ms += MsSince(t);
+      }
+      if (options.upper_bound)
+        e.upper_bound.AddFrame(
+            runtime::ProposeJoints(frame->depth,
+                                   runtime::ProbabilitiesFromLabels(frame->depth, frame->labels), ms),
+            frame->people);
+    }
+    if (options.progress) options.progress(i + 1, options.num_images);
+  }
+  return e;
+}
+
+std::string FormatJointApTable(const Evaluation& e) {
+  std::string s;
+  char line[320];
+  double b = 0, lambda = 0, zeta = 0;
+  for (const auto& p : e.params) b += p.bandwidth_m, lambda += p.prob_threshold, zeta += p.z_offset_m;
+  std::snprintf(
+      line, sizeof line,
+      "joint average precision (section 4: D = %.2f m, every proposal counts), %d frames, %d people;\n"
+      "proposal parameters: %s, mean b = %.3f m, lambda = %.3f, zeta = %.3f m\n",
+      double(e.distance_m), e.frames, e.people,
+      e.learned_params ? "learned (stored in the forest)" : "the paper's means (forest has none)",
+      b / core::kNumJoints, lambda / core::kNumJoints, zeta / core::kNumJoints);
+  s += line;
+  std::snprintf(line, sizeof line, "%-11s %9s %9s %10s %9s %10s\n", "joint", "visible", "AP mean", "AP fast",
+                "AP gt-parts", "mean/gt");
+  s += line;
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    const double ms = e.mean_shift.AveragePrecision(j), up = e.upper_bound.AveragePrecision(j);
+    std::snprintf(line, sizeof line, "%-11s %9d %9.3f %9.3f %10.3f %9.2f\n",
+                  std::string(core::JointName(j)).c_str(), e.mean_shift.positives(j), ms,
+                  e.fast.AveragePrecision(j), up, Ratio(ms, up));
+    s += line;
+  }
+  const double ms = e.mean_shift.MeanAveragePrecision(), up = e.upper_bound.MeanAveragePrecision();
+  std::snprintf(line, sizeof line, "%-11s %9s %9.3f %9.3f %10.3f %9.2f\n", "mAP", "", ms,
+                e.fast.MeanAveragePrecision(), up, Ratio(ms, up));
+  s += line;
+  std::snprintf(
+      line, sizeof line,
+      "mAP: mean shift %.3f, fast clustering %.3f; upper bound (ground-truth parts) %.3f; "
+      "inferred / upper bound %.2f\n(the paper, synthetic test set: mean shift 0.731, fast 0.677)\n",
+      ms, e.fast.MeanAveragePrecision(), up, Ratio(ms, up));
+  s += line;
+  return s;
+}
+
+Status WritePrCurves(const Evaluation& e, const std::string& dir) {
+  if (!e.has_joints)
+    return Status(ErrorCode::kInvalidArgument, "no joints in this test set: no precision-recall curves");
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Status(ErrorCode::kIo, dir + ": cannot create folder: " + ec.message());
+  const core::Rgb blue{31, 119, 180}, orange{255, 127, 14}, green{44, 160, 44};
+  std::vector<runtime::PrPanel> panels;
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    runtime::PrPanel p{std::string(core::JointName(j)), {}};
+    p.series.push_back({"mean shift", blue, e.mean_shift.Curve(j), e.mean_shift.AveragePrecision(j)});
+    if (e.fast.positives(j))
+      p.series.push_back({"fast", orange, e.fast.Curve(j), e.fast.AveragePrecision(j)});
+    if (e.upper_bound.positives(j))
+      p.series.push_back(
+          {"gt parts (upper bound)", green, e.upper_bound.Curve(j), e.upper_bound.AveragePrecision(j)});
+    panels.push_back(std::move(p));
+  }
+  const auto grid = runtime::PrCurvesFigure(panels, 4);
+  POSEFOREST_RETURN_IF_ERROR(runtime::WriteRgbPng((std::filesystem::path(dir) / "pr_joints.png").string(),
+                                                  grid.width, grid.height, grid.rgb));
+  runtime::PrPanel mean{"mean over joints (mAP)", {}};
+  mean.series.push_back({"mean shift", blue, e.mean_shift.MeanCurve(), e.mean_shift.MeanAveragePrecision()});
+  if (e.fast.MeanAveragePrecision() > 0 || e.fast.positives(0))
+    mean.series.push_back({"fast", orange, e.fast.MeanCurve(), e.fast.MeanAveragePrecision()});
+  if (e.upper_bound.positives(0) || e.upper_bound.MeanAveragePrecision() > 0)
+    mean.series.push_back(
+        {"gt parts (upper bound)", green, e.upper_bound.MeanCurve(), e.upper_bound.MeanAveragePrecision()});
+  const auto big = runtime::PrCurvesFigure({mean}, 1, 720, 540, 2);
+  return runtime::WriteRgbPng((std::filesystem::path(dir) / "pr_mean.png").string(), big.width, big.height,
+                              big.rgb);
+}
+
+Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSource which) {
+  NamedSource out;
+  if (set.rfind("procedural:", 0) == 0) {
+    out.source.kind = worker::SourceKind::kProcedural;
+    char* end = nullptr;
+    const char* digits = set.c_str() + 11;
+    out.source.seed = std::strtoull(digits, &end, 10);
+    if (end == digits || *end != '\0')
+      return Status(ErrorCode::kInvalidArgument, set + ": expected procedural:SEED with an integer seed");
+    out.source.width = 320;
+    out.source.height = 240;
+    return out;
+  }
+  if (set.size() > 10 && set.substr(set.size() - 10) == ".textproto") {
+    auto job = worker::LoadJob(set);
+    if (!job.ok()) return job.status();
+    if (which == JobSource::kTraining) {
+      out.source = job->source;
+      out.num_images = 50;
+      return out;
+    }
+    if (!job->has_test_set) return Status(ErrorCode::kInvalidArgument, set + " has no test_set { }");
+    out.source = job->test_source;
+    out.num_images = job->test_images;
+    return out;
+  }
+  out.source.kind = worker::SourceKind::kDataset;
+  out.source.folder = set;
+  auto probe = worker::MakeImageSource(out.source);
+  if (!probe.ok()) return probe.status();
+  out.num_images = int(std::min<uint64_t>((*probe)->size(), 1'000'000));
+  return out;
+}
+
+Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
+    const core::Forest& forest, const worker::SourceSpec& source, int num_images, uint64_t first_index,
+    int threads, int people, const std::function<void(int done, int total)>& progress) {
+  if (!HasJointTaxonomy(forest))
+    return Status(ErrorCode::kInvalidArgument,
+                  "the forest has " + std::to_string(forest.num_parts) +
+                      " parts; joint proposals need the paper's 31-part taxonomy");
+  auto src = MakeEvalFrameSource(source, people);
+  if (!src.ok()) return src.status();
+  if (!(*src)->has_joints())
+    return Status(ErrorCode::kInvalidArgument,
+                  (*src)->Describe() +
+                      ": has no ground-truth joints (use rendered frames or a `poseforest render` folder)");
+  runtime::Classifier classifier(forest);
+  runtime::ClassifyOptions copt;
+  copt.num_threads = threads;
+  copt.want_distributions = true;
+  runtime::Classification out;
+  std::vector<runtime::ValidationFrame> frames;
+  frames.reserve(size_t(num_images));
+  for (int i = 0; i < num_images; ++i) {
+    auto frame = (*src)->Frame(first_index + uint64_t(i));
+    if (!frame.ok()) return frame.status();
+    classifier.Classify(frame->depth, copt, &out);
+    runtime::ValidationFrame v;
+    v.probs = runtime::ProbabilitiesFromClassification(frame->depth, out);
+    v.depth = std::move(frame->depth);
+    v.people = std::move(frame->people);
+    frames.push_back(std::move(v));
+    if (progress) progress(i + 1, num_images);
+  }
+  return frames;
 }
 
 std::string FormatAccuracyTable(const ConfusionMatrix& m) {

@@ -1,14 +1,21 @@
 #pragma once
-// Classification accuracy of a forest on labelled frames (section 4): the confusion matrix
-// between ground-truth part and most likely inferred part over body pixels, and the average
-// per-class accuracy = mean of its row-normalized diagonal.
+// Accuracy of a forest on labelled frames (section 4): the confusion matrix between
+// ground-truth part and most likely inferred part over body pixels, and the average per-class
+// accuracy = mean of its row-normalized diagonal; and the joint average precision of the joint
+// proposals (mean shift, the fast clustering, and Fig. 7's upper bound: mean shift on the
+// ground-truth parts), counted against every person's joints.
 
 #include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
+#include "runtime/joint_metrics.h"
+#include "runtime/proposal_tuning.h"
 #include "worker/image_source.h"
 
 namespace poseforest::coordinator {
@@ -46,5 +53,87 @@ std::string FormatConfusionText(const ConfusionMatrix& m);
 /// The row-normalized confusion matrix as an RGB picture (cell_px square cells, white = 100%,
 /// diagonal tinted green, a border between parts).
 core::Status WriteConfusionPng(const ConfusionMatrix& m, const std::string& path, int cell_px = 16);
+
+/// A labelled frame and the ground-truth joints of each person in it.
+struct EvalFrame {
+  core::DepthImage depth;
+  core::LabelImage labels;
+  std::vector<runtime::PersonJoints> people;  ///< empty when the source has no joints
+};
+
+/// Labelled frames with joints: rendered (the renderer's joints), a `poseforest render` folder
+/// (joints_%06d.json next to depth/labels) or procedural (no joints). One instance per thread.
+class EvalFrameSource {
+ public:
+  virtual ~EvalFrameSource() = default;
+  virtual core::Result<EvalFrame> Frame(uint64_t index) = 0;
+  /// Whether frames carry ground-truth joints (joint AP is possible).
+  virtual bool has_joints() const = 0;
+  /// Distinct frames, or 0 when unbounded.
+  virtual uint64_t size() const = 0;
+  virtual std::string Describe() const = 0;
+};
+
+/// `people` > 0 renders exactly that many people per frame (rendered sources only; others
+/// refuse it with InvalidArgument); 0 keeps the source's own setting.
+core::Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const worker::SourceSpec& source,
+                                                                   int people = 0);
+
+/// Reads joints_%06d.json as `poseforest render` writes it. Errors name the file.
+core::Result<std::vector<runtime::PersonJoints>> ReadJointsJson(const std::string& path);
+
+struct JointEvalOptions {
+  int num_images = 50;
+  uint64_t first_index = 0;
+  int threads = 0;          ///< 0 = all cores
+  int people = 0;           ///< see MakeEvalFrameSource
+  bool fast = true;         ///< also the fast clustering
+  bool upper_bound = true;  ///< also mean shift on the ground-truth parts
+  /// Proposal parameters; unset = the forest's learned ones (JPAR), else the paper's means.
+  std::optional<core::ProposalParams> params;
+  float distance_m = 0.1f;  ///< the AP's D
+  std::function<void(int done, int total)> progress;
+};
+
+struct Evaluation {
+  ConfusionMatrix confusion;
+  bool has_joints = false;
+  int frames = 0;
+  int people = 0;  ///< people summed over frames
+  float distance_m = 0.1f;
+  bool learned_params = false;  ///< the forest's JPAR was used
+  core::ProposalParams params;
+  runtime::JointApEvaluator mean_shift, fast, upper_bound;
+  double classify_ms = 0, mean_shift_ms = 0, fast_ms = 0;  ///< summed over frames
+};
+
+/// Classifies every frame (confusion matrix over body pixels) and, when the source has joints
+/// and the forest the 31-part taxonomy, proposes joints and scores them (section 4's AP).
+core::Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker::SourceSpec& source,
+                                              const JointEvalOptions& options);
+
+/// Per-joint AP table (mean shift, fast, ground-truth parts), mAP of each, the ratio
+/// inferred / upper bound, and the parameters used.
+std::string FormatJointApTable(const Evaluation& e);
+/// Writes DIR/pr_joints.png (precision-recall curves of each joint, the three methods) and
+/// DIR/pr_mean.png (the mAP-level curve: mean interpolated precision over joints per recall).
+core::Status WritePrCurves(const Evaluation& e, const std::string& dir);
+
+/// A frame source named on the command line, and how many frames it suggests.
+struct NamedSource {
+  worker::SourceSpec source;
+  int num_images = 50;  ///< a job's test_set.num_images, a folder's frame count, else 50
+};
+/// Which source of a job config a JOB.textproto argument means.
+enum class JobSource { kTestSet, kTraining };
+/// Resolves a SET argument: DIR (a `poseforest render` folder), JOB.textproto (its test_set or
+/// its training source) or procedural:SEED. Errors say which form was expected.
+core::Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSource which);
+
+/// Renders `num_images` validation frames (from `first_index`), classifies them and keeps the
+/// inferred joint probabilities and the ground truth: the input of runtime::TuneProposalParams.
+core::Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
+    const core::Forest& forest, const worker::SourceSpec& source, int num_images, uint64_t first_index,
+    int threads, int people, const std::function<void(int done, int total)>& progress = {});
 
 }  // namespace poseforest::coordinator

@@ -8,7 +8,9 @@
 //    background constant (so a probe needs only a bounds test). Phase 2, scheduled
 //    dynamically over the OpenMP team in chunks of kChunk foreground pixels, walks each tree
 //    in turn over a chunk (the top of the tree stays in L1/L2), then sums leaf rows and takes
-//    the argmax while the leaf indices are still in L1.
+//    the argmax while the leaf indices are still in L1. The per-pixel sums go out from there:
+//    to the compact foreground array (want_foreground_distributions: the row of foreground
+//    pixel k at k * stride, no per-frame clearing) and/or the dense W*H*stride one.
 //  - A tree walk keeps many independent traversals in flight. AVX-512: 16 pixels per vector,
 //    two vectors interleaved to hide load latency; a lane whose pixel reached a leaf is
 //    refilled with the next pixel at once (compress/expand), so no lane idles while deeper
@@ -179,9 +181,10 @@ int ListRowPortable(const uint16_t* depth, int width, int y, uint16_t background
 }
 
 /// Sums leaf rows over trees and takes the argmax for `count` foreground pixels whose leaf
-/// in tree t is leaves[t * leaves_stride + i] and whose linear index is pixel[i].
+/// in tree t is leaves[t * leaves_stride + i] and whose linear index is pixel[i]. The sums
+/// also go to fg_sums[i * stride...] unless it is null (the compact foreground output).
 void CombinePortable(const core::Forest& forest, const uint32_t* leaves, size_t leaves_stride,
-                     const uint32_t* pixel, int count, Classification* out) {
+                     const uint32_t* pixel, int count, uint16_t* fg_sums, Classification* out) {
   const int stride = forest.leaf_stride();
   const int parts = forest.num_parts;
   const int trees = int(forest.trees.size());
@@ -201,6 +204,8 @@ void CombinePortable(const core::Forest& forest, const uint32_t* leaves, size_t 
     out->labels.pixels[p] = uint8_t(best);
     if (want)
       std::memcpy(out->sums.data() + size_t(p) * size_t(stride), acc, size_t(stride) * sizeof(uint16_t));
+    if (fg_sums != nullptr)
+      std::memcpy(fg_sums + size_t(i) * size_t(stride), acc, size_t(stride) * sizeof(uint16_t));
   }
 }
 
@@ -364,7 +369,7 @@ int ListRowAvx512(const uint16_t* depth, int width, int y, uint16_t background, 
 
 /// CombinePortable for 16 < stride <= 32 (the 31-part taxonomy), AVX-512BW.
 void CombineAvx512Stride32(const core::Forest& forest, const uint32_t* leaves, size_t leaves_stride,
-                           const uint32_t* pixel, int count, Classification* out) {
+                           const uint32_t* pixel, int count, uint16_t* fg_sums, Classification* out) {
   const int trees = int(forest.trees.size());
   const bool want = !out->sums.empty();
   // Only parts < num_parts compete (the padding is zero and the sum over parts is 255 * trees,
@@ -387,6 +392,7 @@ void CombineAvx512Stride32(const core::Forest& forest, const uint32_t* leaves, s
     const uint32_t p = pixel[i];
     out->labels.pixels[p] = uint8_t(std::countr_zero(unsigned(eq)));
     if (want) _mm512_storeu_si512(out->sums.data() + size_t(p) * 32u, acc);
+    if (fg_sums != nullptr) _mm512_storeu_si512(fg_sums + size_t(i) * 32u, acc);
   }
 }
 
@@ -585,6 +591,8 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
   } else {
     out->sums.clear();
   }
+  out->foreground.clear();
+  out->foreground_sums.clear();
   if (n == 0) return;
 
   // All allocation happens here, before the parallel region: nothing inside can throw.
@@ -620,6 +628,12 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
                              &s.xb[i], &s.yb[i], &s.scale[i], &s.pixel[i]);
   }
   if (total == 0) return;
+  const bool want_foreground = options.want_foreground_distributions;
+  if (want_foreground) {
+    // No clearing: every entry is written below.
+    out->foreground.assign(s.pixel.begin(), s.pixel.begin() + total);
+    out->foreground_sums.resize(size_t(total) * size_t(stride));
+  }
 
   const int num_chunks = (total + kChunk - 1) / kChunk;
   int threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
@@ -665,13 +679,14 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
         TraversePortable<kPortableLanes>(tree.nodes.data(), view, count, tree_leaves);
       }
       const uint32_t* pixel = s.pixel.data() + begin;
+      uint16_t* fg_sums = want_foreground ? out->foreground_sums.data() + size_t(begin) * size_t(stride) : nullptr;
 #ifdef POSEFOREST_CLASSIFIER_AVX512
       if (use_avx512 && stride == 32) {
-        CombineAvx512Stride32(forest, leaves, kChunk, pixel, count, out);
+        CombineAvx512Stride32(forest, leaves, kChunk, pixel, count, fg_sums, out);
         continue;
       }
 #endif
-      CombinePortable(forest, leaves, kChunk, pixel, count, out);
+      CombinePortable(forest, leaves, kChunk, pixel, count, fg_sums, out);
     }
   }
   (void)use_avx512;

@@ -9,8 +9,9 @@ void JointApEvaluator::AddFrame(const FrameProposals& proposals, const std::vect
     for (const PersonJoints& person : people) positives_[size_t(j)] += person.visible[size_t(j)];
     std::vector<const JointProposal*> ranked;
     for (const JointProposal& p : proposals[size_t(j)]) ranked.push_back(&p);
-    std::stable_sort(ranked.begin(), ranked.end(),
-                     [](const JointProposal* a, const JointProposal* b) { return a->confidence > b->confidence; });
+    std::stable_sort(ranked.begin(), ranked.end(), [](const JointProposal* a, const JointProposal* b) {
+      return a->confidence > b->confidence;
+    });
     std::vector<uint8_t> matched(people.size(), 0);
     for (const JointProposal* p : ranked) {
       // The nearest unmatched visible joint within D makes it a true positive.
@@ -43,7 +44,8 @@ void JointApEvaluator::AddFrame(const FrameProposals& proposals, const std::vect
 
 std::vector<PrPoint> JointApEvaluator::Curve(int joint) const {
   std::vector<Scored> s = scored_[size_t(joint)];
-  std::stable_sort(s.begin(), s.end(), [](const Scored& a, const Scored& b) { return a.confidence > b.confidence; });
+  std::stable_sort(s.begin(), s.end(),
+                   [](const Scored& a, const Scored& b) { return a.confidence > b.confidence; });
   std::vector<PrPoint> curve;
   const int pos = positives_[size_t(joint)];
   int tp = 0, fp = 0;
@@ -60,7 +62,8 @@ double JointApEvaluator::AveragePrecision(int joint) const {
   if (positives_[size_t(joint)] == 0) return 0.0;
   std::vector<PrPoint> curve = Curve(joint);
   // All-point interpolation: precision made monotone from the right, integrated over recall.
-  for (size_t i = curve.size(); i-- > 1;) curve[i - 1].precision = std::max(curve[i - 1].precision, curve[i].precision);
+  for (size_t i = curve.size(); i-- > 1;)
+    curve[i - 1].precision = std::max(curve[i - 1].precision, curve[i].precision);
   double ap = 0, last_recall = 0;
   for (const PrPoint& p : curve) {
     ap += (p.recall - last_recall) * p.precision;
@@ -75,6 +78,28 @@ double JointApEvaluator::MeanAveragePrecision() const {
   for (int j = 0; j < core::kNumJoints; ++j)
     if (positives_[size_t(j)] > 0) sum += AveragePrecision(j), ++n;
   return n ? sum / n : 0.0;
+}
+
+std::vector<PrPoint> JointApEvaluator::MeanCurve(int levels) const {
+  levels = std::max(levels, 2);
+  std::vector<PrPoint> mean(static_cast<size_t>(levels));
+  for (int i = 0; i < levels; ++i) mean[size_t(i)] = {0.0f, 0.0, double(i) / double(levels - 1)};
+  int n = 0;
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    if (positives_[size_t(j)] == 0) continue;
+    ++n;
+    std::vector<PrPoint> curve = Curve(j);
+    for (size_t i = curve.size(); i-- > 1;)
+      curve[i - 1].precision = std::max(curve[i - 1].precision, curve[i].precision);
+    size_t k = 0;
+    for (PrPoint& m : mean) {
+      while (k < curve.size() && curve[k].recall < m.recall - 1e-12) ++k;
+      if (k < curve.size()) m.precision += curve[k].precision;
+    }
+  }
+  if (n > 0)
+    for (PrPoint& m : mean) m.precision /= n;
+  return mean;
 }
 
 }  // namespace poseforest::runtime

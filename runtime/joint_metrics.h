@@ -8,10 +8,9 @@
 // proposals near them count neither way. Average precision is the area under the
 // precision-recall curve (all-point interpolation, as PASCAL VOC); mAP averages the 16 joints.
 
+#include <Eigen/Core>
 #include <array>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "runtime/core/body_parts.h"
 #include "runtime/joint_proposals.h"
@@ -42,7 +41,13 @@ class JointApEvaluator {
   double MeanAveragePrecision() const;
   /// The precision-recall curve of joint j as the confidence threshold falls.
   std::vector<PrPoint> Curve(int joint) const;
+  /// The mAP-level curve: at `levels` recalls evenly from 0 to 1, the mean over the joints that
+  /// appeared of each joint's interpolated precision (the best precision at that recall or more;
+  /// 0 past its highest recall). The area under it is MeanAveragePrecision up to the sampling.
+  std::vector<PrPoint> MeanCurve(int levels = 101) const;
   int positives(int joint) const { return positives_[size_t(joint)]; }
+  /// Proposals scored for joint j (true and false positives).
+  size_t scored(int joint) const { return scored_[size_t(joint)].size(); }
 
  private:
   struct Scored {

@@ -1,60 +1,113 @@
 #include "runtime/proposal_tuning.h"
 
+#include <omp.h>
+
+#include <exception>
+
 namespace poseforest::runtime {
+namespace {
+
+// Proposals of every frame with `opt` (frames in parallel, one thread per frame).
+std::vector<FrameProposals> ProposeAll(const std::vector<ValidationFrame>& frames, ProposalOptions opt,
+                                       int threads) {
+  opt.num_threads = 1;
+  std::vector<FrameProposals> out(frames.size());
+  std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (long k = 0; k < long(frames.size()); ++k) {
+    try {
+      out[size_t(k)] = ProposeJoints(frames[size_t(k)].depth, frames[size_t(k)].probs, opt);
+    } catch (...) {
+#pragma omp critical(poseforest_tuning_error)
+      if (!error) error = std::current_exception();
+    }
+  }
+  if (error) std::rethrow_exception(error);
+  return out;
+}
+
+// AP of joint j over all frames with the proposals moved by dz along z.
+double ApShifted(const std::vector<ValidationFrame>& frames, const std::vector<FrameProposals>& proposals,
+                 int j, float dz, float distance_m) {
+  JointApEvaluator ev(distance_m);
+  FrameProposals one;
+  for (size_t k = 0; k < frames.size(); ++k) {
+    one[size_t(j)] = proposals[k][size_t(j)];
+    for (JointProposal& p : one[size_t(j)]) p.position.z() += dz;
+    ev.AddFrame(one, frames[k].people);
+  }
+  return ev.AveragePrecision(j);
+}
+
+}  // namespace
 
 TuningResult TuneProposalParams(const std::vector<ValidationFrame>& frames, const ProposalOptions& base,
                                 const TuningGrid& grid, float distance_m,
-                                const std::function<void(int joint, double ap)>& progress) {
+                                const std::function<void(int done, int total)>& progress) {
+  const int threads = base.num_threads > 0 ? base.num_threads : omp_get_max_threads();
   TuningResult result;
   result.params = base.params;
-  for (int j = 0; j < core::kNumJoints; ++j) {
-    double best_ap = -1;
-    core::JointParams best = base.params[size_t(j)];
-    for (float b : grid.bandwidth_m) {
-      for (float lambda : grid.prob_threshold) {
-        // Proposals at zeta = 0 for every frame; each zeta then only shifts them.
-        ProposalOptions opt = base;
-        opt.params[size_t(j)] = {b, lambda, 0.0f};
-        std::vector<FrameProposals> at_surface;
-        at_surface.reserve(frames.size());
-        for (const ValidationFrame& f : frames) {
-          FrameProposals all = ProposeJoints(f.depth, f.probs, opt);
-          FrameProposals only;
-          only[size_t(j)] = std::move(all[size_t(j)]);
-          at_surface.push_back(std::move(only));
-        }
-        for (float zeta : grid.z_offset_m) {
-          JointApEvaluator ev(distance_m);
-          for (size_t k = 0; k < frames.size(); ++k) {
-            FrameProposals shifted = at_surface[k];
-            for (JointProposal& p : shifted[size_t(j)]) p.position.z() += zeta;
-            ev.AddFrame(shifted, frames[k].people);
-          }
-          if (ev.positives(j) == 0) continue;
-          const double ap = ev.AveragePrecision(j);
-          // Strictly better wins, so ties keep the earlier (smaller) grid values.
-          if (ap > best_ap) {
-            best_ap = ap;
-            best = {b, lambda, zeta};
+  std::array<bool, core::kNumJoints> visible{};
+  for (const auto& f : frames)
+    for (const auto& p : f.people)
+      for (int j = 0; j < core::kNumJoints; ++j) visible[size_t(j)] |= p.visible[size_t(j)];
+
+  {  // The starting point, for the before/after comparison.
+    const auto proposals = ProposeAll(frames, base, threads);
+    JointApEvaluator ev(distance_m);
+    for (size_t k = 0; k < frames.size(); ++k) ev.AddFrame(proposals[k], frames[k].people);
+    for (int j = 0; j < core::kNumJoints; ++j) result.base_ap[size_t(j)] = ev.AveragePrecision(j);
+  }
+
+  std::array<double, core::kNumJoints> best_ap, best_score;
+  best_ap.fill(-1.0);
+  best_score.fill(-1.0);
+  const int total = int(grid.bandwidth_m.size() * grid.prob_threshold.size());
+  int done = 0;
+  for (float b : grid.bandwidth_m) {
+    for (float lambda : grid.prob_threshold) {
+      // Every joint at (b, lambda, 0) in one run: joints do not interact.
+      ProposalOptions opt = base;
+      for (auto& p : opt.params) p = {b, lambda, 0.0f};
+      const auto at_surface = ProposeAll(frames, opt, threads);
+      std::vector<double> aps(size_t(core::kNumJoints) * grid.z_offset_m.size(), -1.0);
+#pragma omp parallel for collapse(2) schedule(dynamic, 1) num_threads(threads)
+      for (int j = 0; j < core::kNumJoints; ++j)
+        for (int z = 0; z < int(grid.z_offset_m.size()); ++z)
+          if (visible[size_t(j)])
+            aps[size_t(j) * grid.z_offset_m.size() + size_t(z)] =
+                ApShifted(frames, at_surface, j, grid.z_offset_m[size_t(z)], distance_m);
+      // Strictly better wins, in grid order, so ties keep the earlier (smaller) grid values.
+      // With mirror_pairs the score of a joint is the mean AP of it and its mirror (over those
+      // of the two that appear), so both sides pick the same point.
+      const size_t nz = grid.z_offset_m.size();
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        if (!visible[size_t(j)]) continue;
+        const int m = grid.mirror_pairs ? core::MirrorJoint(j) : j;
+        for (size_t z = 0; z < nz; ++z) {
+          double score = aps[size_t(j) * nz + z];
+          if (m != j && visible[size_t(m)]) score = (score + aps[size_t(m) * nz + z]) / 2;
+          if (score > best_score[size_t(j)]) {
+            best_score[size_t(j)] = score;
+            best_ap[size_t(j)] = aps[size_t(j) * nz + z];
+            result.params[size_t(j)] = {b, lambda, grid.z_offset_m[z]};
           }
         }
       }
+      if (progress) progress(++done, total);
     }
-    if (best_ap >= 0) {
-      result.params[size_t(j)] = best;
-      result.ap[size_t(j)] = best_ap;
-    }
-    if (progress) progress(j, std::max(best_ap, 0.0));
   }
-  double sum = 0;
+  double sum = 0, base_sum = 0;
   int n = 0;
   for (int j = 0; j < core::kNumJoints; ++j) {
-    bool any = false;
-    for (const auto& f : frames)
-      for (const auto& p : f.people) any |= p.visible[size_t(j)];
-    if (any) sum += result.ap[size_t(j)], ++n;
+    if (!visible[size_t(j)]) continue;
+    result.ap[size_t(j)] = best_ap[size_t(j)];
+    sum += result.ap[size_t(j)];
+    base_sum += result.base_ap[size_t(j)];
+    ++n;
   }
   result.mean_ap = n ? sum / n : 0.0;
+  result.base_mean_ap = n ? base_sum / n : 0.0;
   return result;
 }
 

@@ -1,13 +1,17 @@
 #pragma once
-// Pictures of results for people (no text, so no font dependency): depth as grey, parts in their
-// colours, joint proposals as markers, and front/side/top views of the point cloud with the
-// joints, like Fig. 5 of the paper.
+// Pictures of results for people: depth as grey, parts in their colours, joint proposals as
+// markers, and front/side/top views of the point cloud with the joints, like Fig. 5 of the paper;
+// precision-recall curves (Fig. 7's metric) with axis labels in a tiny built-in 5x7 bitmap font,
+// so the runtime needs no font library.
 
 #include <cstdint>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "runtime/core/camera.h"
 #include "runtime/core/depth_image.h"
+#include "runtime/joint_metrics.h"
 #include "runtime/joint_proposals.h"
 
 namespace poseforest::runtime {
@@ -31,12 +35,41 @@ RgbImage DepthPicture(const core::DepthImage& depth);
 RgbImage PartsPicture(const core::LabelImage& labels);
 /// Draws each joint's proposals with confidence >= min_confidence as a ring in the joint's
 /// colour (the colour of its first part); the most confident one larger.
-void DrawProposals(RgbImage& picture, const FrameProposals& proposals, float min_confidence, float scale = 1.0f);
+void DrawProposals(RgbImage& picture, const FrameProposals& proposals, float min_confidence,
+                   float scale = 1.0f);
 
 /// The paper's Fig. 5 layout, 2 x 3 panels of the frame's size / 2: depth, parts, parts with
 /// joints; front, side (from the right) and top views of the foreground point cloud coloured by
 /// part, with the most confident proposal of each joint (confidence >= min_confidence).
-RgbImage PoseFigure(const core::DepthImage& depth, const core::LabelImage& labels, const FrameProposals& proposals,
-                    const core::CameraIntrinsics& camera, float min_confidence);
+RgbImage PoseFigure(const core::DepthImage& depth, const core::LabelImage& labels,
+                    const FrameProposals& proposals, const core::CameraIntrinsics& camera,
+                    float min_confidence);
+
+/// Writes `text` with the built-in 5x7 font (6 x 8 pixels per character at scale 1), top-left
+/// corner at (x, y). Letters are drawn upper case; characters outside A-Z 0-9 . , - _ : / ( ) = %
+/// + are drawn as blanks.
+void DrawText(RgbImage& picture, int x, int y, std::string_view text, core::Rgb colour, int scale = 1);
+/// Width in pixels of `text` drawn at `scale`.
+int TextWidth(std::string_view text, int scale = 1);
+
+/// One precision-recall curve of a plot.
+struct PrSeries {
+  std::string name;  ///< legend text
+  core::Rgb colour;
+  std::vector<PrPoint> curve;  ///< recall rising (as JointApEvaluator::Curve returns it)
+  double ap = 0;               ///< printed in the panel
+};
+
+/// One plot: a title (e.g. the joint's name) and its curves.
+struct PrPanel {
+  std::string title;
+  std::vector<PrSeries> series;
+};
+
+/// Precision (vertical) against recall (horizontal), both 0..1 with a 0.2 grid, one panel per
+/// entry in `columns` columns, each panel_w x panel_h pixels, with a legend of the first
+/// panel's series names on top. Each panel lists its series' AP.
+RgbImage PrCurvesFigure(const std::vector<PrPanel>& panels, int columns, int panel_w = 260, int panel_h = 230,
+                        int scale = 1);
 
 }  // namespace poseforest::runtime

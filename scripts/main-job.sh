@@ -9,7 +9,10 @@
 #      the runtime format and check it; then train a small job again with the distributed
 #      service (a coordinator and 2 local worker processes over Fast DDS) and check that it
 #      writes the same forest, byte for byte, as the single-process engine;
-#   3. report the average per-class accuracy on held-out renders of the test clips (section 4);
+#   3. learn the joint-proposal parameters (b, lambda, zeta per joint) on validation renders of
+#      the train clips and store them in the forest; report joint AP / mAP (mean shift, fast,
+#      the ground-truth-parts upper bound, also with two people per frame) and the average
+#      per-class accuracy on held-out renders of the test clips (section 4), with PR curves;
 #   4. run the runtime on a held-out render and on a real Kinect v1 frame: body parts and
 #      3D joint proposals (JSON + picture); and PCL's independently trained trees on that frame.
 # Outputs go to ./out (POSEFOREST_OUT); POSEFOREST_DATA_DIR points at the shared data.
@@ -65,7 +68,7 @@ test_set {
       makehuman_kit: "$data/meshes/makehuman_hm08_kit"
     }
   }
-  num_images: 30
+  num_images: 200
 }
 JOB
 
@@ -80,8 +83,14 @@ small="$root/docs/training/smoke_job.textproto"
 cmp "$out/small_single.pff" "$out/small_distributed.pff"
 echo "distributed forest == single-process forest, byte for byte"
 
-echo "== 3. per-class accuracy on held-out renders (test clips)"
-"$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --png "$out/confusion.png"
+echo "== 3. joint proposals: learn b, lambda, zeta per joint on validation renders (train clips, unseen frames)"
+"$bin/poseforest" tune-joints --forest "$out/forest.pff" --validation "$out/job.textproto" --frames 60 --out "$out/forest.pff"
+echo "== 3b. joint AP / mAP and per-class accuracy on held-out renders (test clips)"
+"$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --png "$out/confusion.png" \
+  --pr-png "$out/pr" --quiet | tee "$out/eval.txt"
+echo "== 3c. two people per frame: proposals counted against each person's joints"
+"$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --images 50 --people 2 \
+  --method meanshift --quiet | sed -n '/^joint average precision/,$p'
 
 echo "== 4. runtime: body parts and joint proposals"
 "$bin/poseforest" render --out "$out/heldout" --count 4 --seed 4242 --poses "$out/mocap.pfposes" --clips test \
@@ -92,4 +101,6 @@ frame=$(ls "$data"/real/skeltrack_kinect_depth/depth-data-* | head -n 1)
 "$bin/poseforest" infer --forest "$out/pcl_people.pff" --out-dir "$out/pcl" "$frame"
 
 echo "== done in $(( $(date +%s) - start )) s. In $out: forest.pff, confusion.png, infer/*.parts.png,"
-echo "   infer/*.pose.png (depth | parts | joints; front/side/top views), infer/*.joints.json, pcl/"
+echo "   infer/*.pose.png (depth | parts | joints; front/side/top views), infer/*.joints.json, pcl/,"
+echo "   pr/pr_joints.png + pr/pr_mean.png (precision-recall curves)"
+tail -n 1 "$out/eval.txt"

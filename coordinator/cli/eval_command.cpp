@@ -1,4 +1,5 @@
-// poseforest eval: average per-class accuracy of a forest on held-out labelled frames.
+// poseforest eval: per-class accuracy and joint average precision of a forest on held-out
+// labelled frames.
 #include <cstdio>
 #include <string>
 
@@ -12,30 +13,45 @@ namespace poseforest::cli {
 namespace {
 constexpr const char* kUsage = R"(usage: poseforest eval --forest FOREST.pff --test-set SET [options]
 
-Classifies every body pixel of held-out labelled frames and reports the paper's metric (section
-4): the average per-class accuracy, i.e. the mean of the diagonal of the row-normalized confusion
-matrix between ground-truth and most likely inferred part; then the per-part accuracy table and
-the confusion matrix as text (and as a picture with --png).
+Reports the paper's two metrics (section 4) on held-out labelled frames:
+  * joint average precision: the forest's joint proposals (mean shift, and the fast bottom-up
+    clustering) are ranked by confidence over all frames; the first proposal within D = 0.1 m of
+    a visible ground-truth joint is a true positive, every other one a false positive; AP per
+    joint, mAP over the 16 joints, and Fig. 7's upper bound: mean shift on the ground-truth part
+    labels; the ratio inferred / upper bound. With several people in a frame, proposals are
+    counted against each person's joints. Uses the proposal parameters stored in the forest
+    (`poseforest tune-joints`), else the paper's means. Needs frames with joints: rendered, or
+    a `poseforest render` folder (joints_%06d.json);
+  * the average per-class accuracy: the mean of the diagonal of the row-normalized confusion
+    matrix between ground-truth and most likely inferred part; the per-part table and the
+    confusion matrix as text (and as a picture with --png).
 
 SET is one of:
-  DIR                a folder written by `poseforest render` (depth_%06d.png + labels_%06d.png)
-  JOB.textproto      a training job config: its test_set { } is used
-  procedural:SEED    procedural frames (the test source of the unit tests and benchmarks)
+  DIR                a folder written by `poseforest render` (depth/labels/joints_%06d.*)
+  JOB.textproto      a training job config: its test_set { } is used (held-out mocap clips)
+  procedural:SEED    procedural frames (no joints: accuracy only)
 
 options:
-  --forest PATH   forest file (required)
-  --test-set SET  (required)
-  --images N      frames to evaluate (default: the job's test_set.num_images, else 50; for a
-                  folder at most its frame count)
-  --first N       first frame index (default 0)
-  --threads N     classifier threads (0 = all cores, default)
-  --png PATH      also write the confusion matrix as an RGB PNG
-  --help          this text
+  --forest PATH     forest file (required)
+  --test-set SET    (required)
+  --images N        frames to evaluate (default: the job's test_set.num_images, else 50; for a
+                    folder at most its frame count)
+  --first N         first frame index (default 0)
+  --people N        render exactly N people per frame (rendered sets; default: the set's own)
+  --method M        joint proposals: both (default), meanshift (skips the fast clustering) or
+                    none (accuracy only)
+  --pr-png DIR      write precision-recall curves: DIR/pr_joints.png (each joint: mean shift,
+                    fast, ground-truth parts) and DIR/pr_mean.png (mean over joints)
+  --threads N       threads (0 = all cores, default)
+  --png PATH        also write the confusion matrix as an RGB PNG
+  --quiet           no progress lines
+  --help            this text
 )";
 }  // namespace
 
 int EvalMain(int argc, char** argv) {
-  Args args({"forest", "test-set", "images", "first", "threads", "png"}, {"help"});
+  Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png"},
+            {"help", "quiet"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -51,74 +67,81 @@ int EvalMain(int argc, char** argv) {
   auto images = args.GetInt("images", -1, 1, 10'000'000);
   auto first = args.GetInt("first", 0, 0, 1L << 40);
   auto threads = args.GetInt("threads", 0, 0, 1024);
-  for (const auto* r : {&images, &first, &threads}) {
+  auto people = args.GetInt("people", 0, 1, 8);
+  for (const auto* r : {&images, &first, &threads, &people}) {
     if (!r->ok()) {
       std::fprintf(stderr, "poseforest eval: %s\n", r->status().message().c_str());
       return 2;
     }
   }
-  const std::string set = *args.Get("test-set");
-  worker::SourceSpec source;
-  int num_images = 50;
-  if (set.rfind("procedural:", 0) == 0) {
-    source.kind = worker::SourceKind::kProcedural;
-    try {
-      source.seed = std::stoull(set.substr(11));
-    } catch (...) {
-      std::fprintf(stderr, "poseforest eval: --test-set %s: expected procedural:SEED with an integer seed\n",
-                   set.c_str());
-      return 2;
-    }
-    source.width = 320;
-    source.height = 240;
-  } else if (set.size() > 10 && set.substr(set.size() - 10) == ".textproto") {
-    auto job = worker::LoadJob(set);
-    if (!job.ok()) {
-      std::fprintf(stderr, "poseforest eval: %s\n", job.status().ToString().c_str());
-      return 2;
-    }
-    if (!job->has_test_set) {
-      std::fprintf(stderr, "poseforest eval: %s has no test_set { }\n", set.c_str());
-      return 2;
-    }
-    source = job->test_source;
-    num_images = job->test_images;
-  } else {
-    source.kind = worker::SourceKind::kDataset;
-    source.folder = set;
-    auto probe = worker::MakeImageSource(source);
-    if (!probe.ok()) {
-      std::fprintf(stderr, "poseforest eval: %s\n", probe.status().ToString().c_str());
-      return 1;
-    }
-    num_images = int(std::min<uint64_t>((*probe)->size(), 1'000'000));
+  const std::string method = args.GetOr("method", "both");
+  if (method != "both" && method != "meanshift" && method != "none") {
+    std::fprintf(stderr, "poseforest eval: --method must be both, meanshift or none (got '%s')\n",
+                 method.c_str());
+    return 2;
   }
-  if (*images > 0) num_images = int(*images);
+  const std::string set = *args.Get("test-set");
+  auto named = coordinator::ResolveSourceArgument(set, coordinator::JobSource::kTestSet);
+  if (!named.ok()) {
+    std::fprintf(stderr, "poseforest eval: --test-set %s\n", named.status().ToString().c_str());
+    return named.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
+  }
+  const int num_images = *images > 0 ? int(*images) : named->num_images;
   auto forest = core::LoadForest(*args.Get("forest"));
   if (!forest.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n", forest.status().ToString().c_str());
     return 1;
   }
-  coordinator::EvalOptions eo;
+  coordinator::JointEvalOptions eo;
   eo.num_images = num_images;
   eo.first_index = uint64_t(*first);
   eo.threads = int(*threads);
-  auto m = coordinator::EvaluateForest(*forest, source, eo);
-  if (!m.ok()) {
-    std::fprintf(stderr, "poseforest eval: %s\n", m.status().ToString().c_str());
-    return 1;
+  eo.people = int(*people);
+  eo.fast = method == "both";
+  const bool quiet = args.Has("quiet");
+  if (!quiet)
+    eo.progress = [](int done, int total) {
+      if (done % 25 == 0 || done == total) std::fprintf(stderr, "eval: %d / %d frames\n", done, total);
+    };
+  auto e = coordinator::EvaluateForestJoints(*forest, named->source, eo);
+  if (!e.ok()) {
+    std::fprintf(stderr, "poseforest eval: %s\n", e.status().ToString().c_str());
+    return e.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
   }
   std::printf("forest %s on %s, %d frames\n\n", args.Get("forest")->c_str(), set.c_str(), num_images);
-  std::fputs(coordinator::FormatConfusionText(*m).c_str(), stdout);
+  std::fputs(coordinator::FormatConfusionText(e->confusion).c_str(), stdout);
   std::printf("\n");
-  std::fputs(coordinator::FormatAccuracyTable(*m).c_str(), stdout);
+  std::fputs(coordinator::FormatAccuracyTable(e->confusion).c_str(), stdout);
   if (auto png = args.Get("png")) {
-    if (auto st = coordinator::WriteConfusionPng(*m, *png); !st.ok()) {
+    if (auto st = coordinator::WriteConfusionPng(e->confusion, *png); !st.ok()) {
       std::fprintf(stderr, "poseforest eval: %s\n", st.ToString().c_str());
       return 1;
     }
     std::printf("confusion matrix picture: %s\n", png->c_str());
   }
+  if (method != "none") {
+    std::printf("\n");
+    if (!e->has_joints) {
+      std::printf("no joint average precision: %s has no ground-truth joints\n", set.c_str());
+    } else {
+      std::fputs(coordinator::FormatJointApTable(*e).c_str(), stdout);
+      std::printf("ms/frame: classify %.1f, mean shift %.1f, fast clustering %.1f\n",
+                  e->classify_ms / e->frames, e->mean_shift_ms / e->frames, e->fast_ms / e->frames);
+      if (auto dir = args.Get("pr-png")) {
+        if (auto st = coordinator::WritePrCurves(*e, *dir); !st.ok()) {
+          std::fprintf(stderr, "poseforest eval: %s\n", st.ToString().c_str());
+          return 1;
+        }
+        std::printf("precision-recall curves: %s/pr_joints.png, %s/pr_mean.png\n", dir->c_str(),
+                    dir->c_str());
+      }
+    }
+  }
+  // The headline figures on the last line.
+  if (e->has_joints && method != "none")
+    std::printf("eval: mAP %.3f (mean shift), upper bound %.3f, average per-class accuracy %.2f%%\n",
+                e->mean_shift.MeanAveragePrecision(), e->upper_bound.MeanAveragePrecision(),
+                100.0 * e->confusion.AveragePerClassAccuracy());
   return 0;
 }
 

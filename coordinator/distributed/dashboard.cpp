@@ -108,7 +108,7 @@ function row(tbody, cells, cls) {
 }
 function chart(levels) {
   const W = 900, H = 220, L = 50, R = 10, T = 24, B = 20;
-  const pts = levels.filter(l => l.seconds > 0);
+  const pts = levels.filter(l => l.seconds > 0 && l.evaluations > 0);  // not the all-leaf last levels
   const xmax = Math.max(1e-9, ...pts.map(l => l.elapsed_s));
   const emax = Math.max(1e-9, ...pts.map(l => l.evaluations_per_s || 0));
   const smax = Math.max(1e-9, ...pts.map(l => l.samples_per_s || 0));

@@ -215,7 +215,7 @@ int CoordinatorMain(int argc, char** argv) {
       args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""));
   if (!monitoring.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", monitoring.status().ToString().c_str());
-    return 2;
+    return monitoring.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;  // 1: port in use
   }
   opt.observer = (*monitoring)->observer();
   if (const std::string url = (*monitoring)->url(); !url.empty()) {

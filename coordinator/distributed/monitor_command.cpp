@@ -186,9 +186,8 @@ int MonitorDds(uint32_t domain, dds::TransportKind transport, std::string job_id
   bool have_status = false;
   std::map<std::string, std::string> workers;  // id -> joined / lost / evicted
   std::deque<std::string> events;
-  const auto t0 = std::chrono::steady_clock::now();
-  double p0 = -1, t_p0 = 0;
-  auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  // ETA from the writer's timestamps: the history of a late join arrives all at once.
+  double p0 = -1, t_p0 = 0, t_last = 0;
   auto render = [&] {
     std::string out;
     char line[512];
@@ -198,7 +197,8 @@ int MonitorDds(uint32_t domain, dds::TransportKind transport, std::string job_id
                                                                         : "training";
     double eta = -1;
     if (p0 >= 0 && last.progress() > p0 && last.progress() < 1)
-      eta = (seconds() - t_p0) * (1 - last.progress()) / (last.progress() - p0);
+      eta = std::max(0.0, (t_last - t_p0) * (1 - last.progress()) / (last.progress() - p0) -
+                              (dist::UnixSeconds() - t_last));
     std::snprintf(line, sizeof line, "job %s  state %s  coordinator %s  (DDS domain %u)  ETA %s\n",
                   job_id.c_str(), state.c_str(), coordinator.c_str(), domain,
                   state == "done" ? "done" : Duration(eta).c_str());
@@ -236,7 +236,8 @@ int MonitorDds(uint32_t domain, dds::TransportKind transport, std::string job_id
         } else if (env.has_status()) {
           last = env.status();
           have_status = true;
-          if (p0 < 0 && last.progress() > 0) p0 = last.progress(), t_p0 = seconds();
+          t_last = s->source_timestamp_ns > 0 ? double(s->source_timestamp_ns) * 1e-9 : dist::UnixSeconds();
+          if (p0 < 0 && last.progress() > 0) p0 = last.progress(), t_p0 = t_last;
           const std::string kind = dist::StatusKindName(last.kind());
           if (last.kind() == v1::STATUS_KIND_WORKER_JOINED) workers[last.worker_id()] = "joined";
           if (last.kind() == v1::STATUS_KIND_WORKER_LOST) workers[last.worker_id()] = "lost";

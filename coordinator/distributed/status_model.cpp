@@ -48,7 +48,7 @@ double UnixSeconds() {
 std::string JsonNumber(double v) {
   if (!std::isfinite(v)) return "null";
   char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
+  std::snprintf(buf, sizeof buf, "%.15g", v);
   return buf;
 }
 
@@ -195,7 +195,11 @@ void StatusModel::OnLevelDone(const DistLevelStats& s) {
   ++total_levels_;
   // Throughput over the last few levels (one level can be a few milliseconds).
   double secs = 0, samples = 0, evals = 0;
-  for (size_t i = levels_.size(); i-- > 0 && levels_.size() - i <= 5;) {
+  // A tree's last level (every node a leaf) costs nothing: it would inflate samples/s.
+  int counted = 0;
+  for (size_t i = levels_.size(); i-- > 0 && counted < 5;) {
+    if (levels_[i].evaluations == 0) continue;
+    ++counted;
     secs += levels_[i].level_seconds;
     samples += double(levels_[i].samples);
     evals += double(levels_[i].evaluations);

@@ -19,10 +19,12 @@
 # Environment (defaults = the run in fig6.md, ~1 h on 2 shared cores):
 #   TREES=1 CANDIDATES=500 THRESHOLDS=50 PIXELS=2000 TEST=50 TRAIN_EVAL=50 THREADS=0
 #   IMAGE_STEPS="25 50 100 200 400 800"      (a) at depth 20, offset 129
-#   DEPTH_IMAGES="50 400" DEPTH_STEPS="4 6 8 10 12 14 16 18 20"   (b) offset 129
-#   OFFSET_IMAGES=200 OFFSET_STEPS="10 20 40 65 129 200"          (c) depth 20
+#   DEPTH_IMAGES="50 400"                    (b) at offset 129: the first count at depths
+#   DEPTH_STEPS_FIRST="4 6 8 10 12 14 16 18 20", the others at DEPTH_STEPS="4 8 12 16 20"
+#   OFFSET_IMAGES=100 OFFSET_STEPS="10 20 40 65 129 200"          (c) depth 20
 #   POSELIB (a .pfposes; default: built into OUT_DIR), POSEFOREST_DATA_DIR (default ../shared/data)
-#   CSV_DIR (default docs/training), RESUME=1 reuses forests already in OUT_DIR, PLOT=0 skips PNGs.
+#   CSV_DIR (default docs/training), RESUME=1 reuses the forests and
+#   accuracies already in OUT_DIR (a run that was stopped goes on where it was), PLOT=0 skips PNGs.
 # A configuration shared by two experiments (e.g. 400 images at depth 20) is trained once.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
@@ -37,8 +39,9 @@ TRAIN_EVAL=${TRAIN_EVAL:-50}
 THREADS=${THREADS:-0}
 IMAGE_STEPS=${IMAGE_STEPS-"25 50 100 200 400 800"}
 DEPTH_IMAGES=${DEPTH_IMAGES-"50 400"}
-DEPTH_STEPS=${DEPTH_STEPS-"4 6 8 10 12 14 16 18 20"}
-OFFSET_IMAGES=${OFFSET_IMAGES:-200}
+DEPTH_STEPS_FIRST=${DEPTH_STEPS_FIRST-"4 6 8 10 12 14 16 18 20"}
+DEPTH_STEPS=${DEPTH_STEPS-"4 8 12 16 20"}
+OFFSET_IMAGES=${OFFSET_IMAGES:-100}
 OFFSET_STEPS=${OFFSET_STEPS-"10 20 40 65 129 200"}
 CSV_DIR=${CSV_DIR:-$root/docs/training}
 RESUME=${RESUME:-0}
@@ -115,6 +118,7 @@ point() {  # $1 = images, $2 = depth, $3 = offset -> ROW="test,pixel,train,secon
   local key="i$1_d$2_o$3"
   if [ -n "${done_rows[$key]:-}" ]; then ROW=${done_rows[$key]}; return; fi
   local base=$OUT/$key
+  if [ "$RESUME" = 1 ] && [ -s "$base.row" ]; then ROW=$(cat "$base.row"); done_rows[$key]=$ROW; return; fi
   job "$1" "$2" "$3" "$(rendered 2 CLIP_SET_TEST)" "$TEST" > "$base.textproto"
   local train_n=$(( TRAIN_EVAL < $1 ? TRAIN_EVAL : $1 ))
   job "$1" "$2" "$3" "$(rendered 1 CLIP_SET_TRAIN)" "$train_n" > "$base.train.textproto"
@@ -134,6 +138,7 @@ point() {  # $1 = images, $2 = depth, $3 = offset -> ROW="test,pixel,train,secon
   train=$(accuracy "$base.pff" "$base.train.textproto")
   ROW="${test% *},${test#* },${train% *},$secs,${nodes:-NA}"
   done_rows[$key]=$ROW
+  echo "$ROW" > "$base.row"
 }
 
 header="test_avg_class_acc,test_pixel_acc,train_avg_class_acc,train_wall_s,nodes"
@@ -146,8 +151,10 @@ echo "fig6: $TREES tree(s), $CANDIDATES candidates x $THRESHOLDS thresholds, $PI
 for n in $IMAGE_STEPS; do                                   # Fig. 6(a)
   point "$n" 20 129; row="$n,20,129,$ROW"; echo "(a) $row"; echo "$row" >> "$a.tmp"
 done
+first=1
 for n in $DEPTH_IMAGES; do                                  # Fig. 6(b)
-  for d in $DEPTH_STEPS; do
+  steps=$DEPTH_STEPS; [ "$first" = 1 ] && steps=$DEPTH_STEPS_FIRST; first=0
+  for d in $steps; do
     point "$n" "$d" 129; row="$n,$d,129,$ROW"; echo "(b) $row"; echo "$row" >> "$b.tmp"
   done
 done

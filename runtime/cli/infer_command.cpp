@@ -237,7 +237,9 @@ int InferMain(int argc, char** argv) {
                     100.0 * counts[size_t(order[i])] / std::max(1, fg));
       std::printf("\n");
       if (joints) {
-        std::printf("  joints (%s, %.2f ms; most confident proposal of each, camera frame, metres):\n", method.c_str(),
+        std::printf("  joints (%s with %s, %.2f ms; most confident proposal of each, camera frame, metres):\n",
+                    method.c_str(),
+                    forest->proposal_params ? "the forest's learned parameters" : "the paper's mean parameters",
                     proposal_ms);
         for (int j = 0; j < core::kNumJoints; ++j) {
           const auto& list = proposals[size_t(j)];

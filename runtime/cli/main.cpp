@@ -22,7 +22,8 @@ const Command kCommands[] = {
 #endif
 #ifdef POSEFOREST_HAS_TRAIN
     {"train", poseforest::cli::TrainMain, "train a forest from a job config (protobuf text format)"},
-    {"eval", poseforest::cli::EvalMain, "per-class accuracy of a forest on a held-out test set"},
+    {"eval", poseforest::cli::EvalMain, "joint AP / mAP and per-class accuracy of a forest on a held-out test set"},
+    {"tune-joints", poseforest::cli::TuneJointsMain, "learn the joint-proposal parameters on validation renders"},
 #endif
 #ifdef POSEFOREST_HAS_DISTRIBUTED
     {"coordinator", poseforest::cli::CoordinatorMain, "run a distributed training job (Fast DDS), optionally with local workers"},

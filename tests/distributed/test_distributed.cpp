@@ -8,8 +8,10 @@
 #include <random>
 
 #include "proto/dds/dds_node.h"
+#include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
 #include "tests/distributed/dist_test_util.h"
+#include "worker/distributed/dist_common.h"
 
 using namespace poseforest;
 using namespace poseforest::dist;
@@ -259,4 +261,39 @@ TEST_CASE("a registered worker that sends bad replies is evicted; its frames go 
   CHECK(core::SerializeForest(*forest) == reference);
   CHECK(coordinator.workers_lost() == 1);
   CHECK(coordinator.rejected_messages() > 16);
+}
+
+TEST_CASE("EncodeWireRuns gives the runs of EncodeHistogramRuns(ToWireCounts(...)) to the value",
+          "[distributed][unit]") {
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int k = 1 + int(rng() % 40), bins = 2 + int(rng() % 20);
+    std::vector<uint64_t> part_counts(core::kNumParts, 0);
+    const int present = 1 + int(rng() % core::kNumParts);
+    for (int i = 0; i < present; ++i) part_counts[rng() % core::kNumParts] = 1;
+    worker::NodePlan plan;
+    plan.SetParts(part_counts);
+    const bool per_sample = trial % 3 == 0;
+    worker::NodeHistogram h;
+    h.Reset(uint32_t(trial), k, bins, plan.num_slots, per_sample);
+    // Densities from empty to full, so that runs, isolated zeros and long gaps all occur.
+    const uint32_t density = rng() % 101;
+    if (per_sample) {
+      const int n = int(rng() % 50);
+      for (int i = 0; i < n; ++i) {
+        h.sample_slot.push_back(uint8_t(rng() % uint32_t(plan.num_slots)));
+        for (int c = 0; c < k; ++c) h.sample_bin.push_back(uint8_t(rng() % uint32_t(bins)));
+      }
+    } else {
+      for (uint32_t& c : h.counts)
+        if (rng() % 100 < density) c = 1 + rng() % (trial % 2 ? 3 : 100000);
+    }
+    google::protobuf::RepeatedField<uint64_t> direct, reference;
+    EncodeWireRuns(h, plan, core::kNumParts, &direct);
+    dds::EncodeHistogramRuns(ToWireCounts(h, plan, core::kNumParts), &reference);
+    INFO("trial " << trial << ": " << k << " candidates, " << bins << " bins, " << plan.num_slots << " slots"
+                  << (per_sample ? ", per-sample bins" : ""));
+    REQUIRE(std::vector<uint64_t>(direct.begin(), direct.end()) ==
+            std::vector<uint64_t>(reference.begin(), reference.end()));
+  }
 }

@@ -1,6 +1,7 @@
 // The distributed service as real processes: `poseforest coordinator` and `poseforest worker`
 // started from the built program. A worker SIGKILLed mid-job, and a coordinator SIGKILLed and
 // restarted with --resume, still give LocalTrainer's forest byte for byte.
+// A worker SIGKILLed while a round waits for its reply: the round is asked again.
 // Bad --peers / --interfaces values are refused with an error naming the flag and the value.
 
 #include <catch2/catch.hpp>
@@ -145,11 +146,12 @@ TEST_CASE("SIGKILL of the coordinator, restart with --resume: same forest",
   CHECK(ReadAll(dir.path / "forest.pff") == reference);
 }
 
-TEST_CASE("coordinator and worker: bad --peers / --interfaces get a clear error", "[distributed][integration]") {
+TEST_CASE("coordinator and worker: bad --peers / --interfaces get a clear error",
+          "[distributed][integration]") {
   TempDir dir("pf-dist-peers");
   std::ofstream(dir.path / "job.textproto") << TinyJobText(1, 3);
-  const std::string coordinator = Program() + " coordinator " + (dir.path / "job.textproto").string() + " --out " +
-                                  (dir.path / "f.pff").string() + " ";
+  const std::string coordinator = Program() + " coordinator " + (dir.path / "job.textproto").string() +
+                                  " --out " + (dir.path / "f.pff").string() + " ";
   struct Case {
     std::string cmd, expect;
   };
@@ -169,4 +171,41 @@ TEST_CASE("coordinator and worker: bad --peers / --interfaces get a clear error"
     CHECK(r.output.find(c.expect) != std::string::npos);
   }
   CHECK(!std::filesystem::exists(dir.path / "f.pff"));
+}
+
+TEST_CASE("SIGKILL of a worker while a level's round waits for it: noticed, asked again, same forest",
+          "[distributed][integration][slow]") {
+  TempDir dir("pf-dist-midlevel");
+  const std::string text = TinyJobText(2, 6);
+  std::ofstream(dir.path / "job.textproto") << text;
+  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
+  const uint32_t domain = Domain(27);
+  const std::string job_id = "p-midlevel-" + std::to_string(::getpid());
+  Child w[2];
+  for (int i = 0; i < 2; ++i) StartWorker(w[i], domain, job_id, "mw-" + std::to_string(i));
+  Child coord;
+  std::string error;
+  REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                       (dir.path / "forest.pff").string(), "--domain", std::to_string(domain), "--job-id",
+                       job_id, "--min-workers", "2"},
+                      &error));
+  auto line = coord.WaitForLine("tree 0 level 1:", 90s);
+  INFO(coord.output());
+  REQUIRE(line.has_value());
+  // The coordinator asks level 2 at once; worker 1, stopped, holds the request without answering
+  // (well inside its 1.5 s liveliness lease), so the kill lands while the round waits for it.
+  REQUIRE(::kill(w[1].pid(), SIGSTOP) == 0);
+  std::this_thread::sleep_for(400ms);
+  w[1].Kill(SIGKILL);
+  auto next = coord.WaitForLine("tree 0 level 2:", 60s);
+  REQUIRE(next.has_value());
+  CHECK(next->find("retries") != std::string::npos);  // the round was asked again
+  auto rc = coord.Wait(120s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(coord.output().find("worker mw-1 lost") != std::string::npos);
+  CHECK(coord.output().find("1 workers lost") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  CHECK(w[0].Wait(10s).has_value());
 }

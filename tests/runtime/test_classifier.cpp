@@ -71,7 +71,22 @@ std::vector<Kernel> Kernels() {
   return k;
 }
 
-/// Checks every kernel x thread count x want_distributions against the oracle.
+/// The oracle's foreground output: raster indices of depth != 0 pixels and their sums.
+void ExpectForeground(const Classification& got, const DepthImage& depth, const Reference& want, int stride) {
+  std::vector<uint32_t> pixels;
+  std::vector<uint16_t> sums;
+  for (uint32_t i = 0; i < uint32_t(depth.pixels.size()); ++i) {
+    if (depth.pixels[i] == 0) continue;
+    pixels.push_back(i);
+    sums.insert(sums.end(), want.sums.begin() + std::ptrdiff_t(size_t(i) * size_t(stride)),
+                want.sums.begin() + std::ptrdiff_t(size_t(i + 1) * size_t(stride)));
+  }
+  REQUIRE(got.foreground == pixels);
+  REQUIRE(got.foreground_sums == sums);
+}
+
+/// Checks every kernel x thread count x want_distributions x want_foreground_distributions
+/// against the oracle.
 void ExpectMatches(const Forest& forest, const DepthImage& depth, const std::string& what) {
   INFO(what << " (" << depth.width << "x" << depth.height << ", " << forest.trees.size() << " trees, "
             << forest.num_parts << " parts)");
@@ -79,11 +94,14 @@ void ExpectMatches(const Forest& forest, const DepthImage& depth, const std::str
   const Reference want = Classify(forest, depth);
   for (Kernel kernel : Kernels()) {
     for (int threads : {1, 2, 3}) {
-      for (bool dist : {false, true}) {
-        INFO("kernel " << int(kernel) << ", threads " << threads << ", distributions " << dist);
+      for (int mode = 0; mode < 4; ++mode) {
+        const bool dist = (mode & 1) != 0, fg = (mode & 2) != 0;
+        INFO("kernel " << int(kernel) << ", threads " << threads << ", distributions " << dist << ", foreground "
+                       << fg);
         ClassifyOptions options;
         options.num_threads = threads;
         options.want_distributions = dist;
+        options.want_foreground_distributions = fg;
         Classification got;
         ClassifyWithKernel(forest, depth, options, kernel, &got);
         REQUIRE(got.width == depth.width);
@@ -97,6 +115,12 @@ void ExpectMatches(const Forest& forest, const DepthImage& depth, const std::str
           REQUIRE(got.sums == want.sums);
         } else {
           REQUIRE(got.sums.empty());
+        }
+        if (fg) {
+          ExpectForeground(got, depth, want, forest.leaf_stride());
+        } else {
+          REQUIRE(got.foreground.empty());
+          REQUIRE(got.foreground_sums.empty());
         }
       }
     }
@@ -301,6 +325,15 @@ TEST_CASE("outputs are reused across frames of different sizes", "[classifier]")
   classifier.Classify(zeros, ClassifyOptions{2, true}, &out);
   for (uint8_t l : out.labels.pixels) REQUIRE(l == core::kBackgroundLabel);
   for (uint16_t v : out.sums) REQUIRE(v == 0);
+  // The compact foreground output is reused too: a frame, then one with no foreground.
+  classifier.Classify(a, ClassifyOptions{2, false, true}, &out);
+  const Reference ra = Classify(forest, a);
+  ExpectForeground(out, a, ra, forest.leaf_stride());
+  classifier.Classify(zeros, ClassifyOptions{2, false, true}, &out);
+  REQUIRE(out.foreground.empty());
+  REQUIRE(out.foreground_sums.empty());
+  classifier.Classify(b, ClassifyOptions{1, false, false}, &out);
+  REQUIRE(out.foreground.empty());
 }
 
 TEST_CASE("Classify runs concurrently on different outputs", "[classifier]") {

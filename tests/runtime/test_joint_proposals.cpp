@@ -67,6 +67,163 @@ TEST_CASE("mean shift finds the known modes of weighted point sets", "[proposals
   CHECK(runtime::MeanShiftModes({}, {}, {}, 0.05f, 50, 0.025f).empty());
 }
 
+namespace {
+/// Naive mean shift (eq. 7): every point, std::exp, no cut-off, no voxels, no shortcuts; every
+/// seed iterates to convergence and arrivals within merge_distance of a mode's first arrival
+/// join it.
+std::vector<runtime::Mode> NaiveModes(const std::vector<Eigen::Vector3f>& pts, const std::vector<float>& w,
+                                      const std::vector<float>& seed, float b, float merge_distance) {
+  std::vector<runtime::Mode> modes;
+  std::vector<Eigen::Vector3f> sum;
+  for (size_t s = 0; s < pts.size(); ++s) {
+    if (!(seed[s] > 0)) continue;
+    Eigen::Vector3d x = pts[s].cast<double>();
+    for (int it = 0; it < 500; ++it) {
+      Eigen::Vector3d num = Eigen::Vector3d::Zero();
+      double den = 0;
+      for (size_t i = 0; i < pts.size(); ++i) {
+        const double k = double(w[i]) * std::exp(-(pts[i].cast<double>() - x).squaredNorm() / double(b * b));
+        num += k * pts[i].cast<double>();
+        den += k;
+      }
+      const Eigen::Vector3d next = num / den;
+      const double step = (next - x).norm();
+      x = next;
+      if (step < 1e-5 * b) break;
+    }
+    size_t m = 0;
+    while (m < modes.size() && (modes[m].position - x.cast<float>()).norm() > merge_distance) ++m;
+    if (m == modes.size()) {
+      modes.push_back({x.cast<float>(), 0.0f});
+      sum.push_back(Eigen::Vector3f::Zero());
+    }
+    modes[m].confidence += seed[s];
+    sum[m] += seed[s] * x.cast<float>();
+  }
+  // Positions: the first arrival (the naive one converges tightly, so all arrivals agree).
+  std::stable_sort(modes.begin(), modes.end(), [](const runtime::Mode& a, const runtime::Mode& c) {
+    return a.confidence > c.confidence;
+  });
+  return modes;
+}
+}  // namespace
+
+TEST_CASE("mean shift (grid, cut-off, vector exp, basin shortcut) agrees with a naive one", "[proposals]") {
+  core::RngStream rng(core::CounterRng(11));
+  std::vector<Eigen::Vector3f> pts;
+  std::vector<float> w, seed;
+  // Three blobs of different weight and spread, one elongated, plus sparse noise.
+  const Eigen::Vector3f c[3] = {{0, 0, 2}, {0.25f, 0.05f, 2.1f}, {-0.2f, 0.3f, 1.9f}};
+  for (int i = 0; i < 700; ++i) {
+    const int blob = i % 3;
+    const Eigen::Vector3f spread(blob == 2 ? 0.06f : 0.025f, 0.025f, 0.02f);
+    pts.push_back(c[blob] + spread.cwiseProduct(Eigen::Vector3f(float(rng.Normal()), float(rng.Normal()),
+                                                                float(rng.Normal()))));
+    w.push_back(blob == 0 ? 1.0f : blob == 1 ? 2.5f : 0.7f);
+    seed.push_back(i % 5 == 0 ? 0.0f : w.back());
+  }
+  const float b = 0.05f, merge = 0.025f;
+  const auto want = NaiveModes(pts, w, seed, b, merge);
+  const auto got = runtime::MeanShiftModes(pts, w, seed, b, 30, merge);
+  REQUIRE(want.size() >= 3);
+  REQUIRE(got.size() == want.size());
+  for (size_t m = 0; m < want.size(); ++m) {
+    INFO("mode " << m << ": naive " << want[m].position.transpose() << " (" << want[m].confidence << "), got "
+                 << got[m].position.transpose() << " (" << got[m].confidence << ")");
+    CHECK((got[m].position - want[m].position).norm() < 0.001f);
+    CHECK(got[m].confidence == Approx(want[m].confidence).epsilon(1e-4));
+  }
+}
+
+TEST_CASE("the fast proposal defaults agree with exact mean shift on a soft probability field", "[proposals]") {
+  // The figure at 2.5 m (head on the optical axis, as above) with soft probabilities: the
+  // labelled joint gets 0.8, every other foreground pixel a little of each joint (0.01: below
+  // the default floor), and the torso 0.1 of the neck (density, no seeds).
+  const auto depth = testing::MakePersonDepth(2.5, 640, 480, 0.0, 0.62);
+  const auto labels = LabelFigure(depth, 0.0, 0.62);
+  auto probs = runtime::ProbabilitiesFromLabels(depth, labels);
+  const int kNeck = int(core::Joint::kNeck);
+  for (size_t k = 0; k < probs.pixel.size(); ++k) {
+    const bool torso = labels.pixels[probs.pixel[k]] == uint8_t(core::Part::kLUTorso);
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      float& p = probs.prob[k][size_t(j)];
+      p = p > 0 ? 0.8f : (torso && j == kNeck ? 0.1f : 0.01f);
+    }
+  }
+  runtime::ProposalOptions exact, fast;
+  exact.voxel_fraction = 0;
+  exact.seed_cell_fraction = 0;
+  exact.min_probability = 0;
+  exact.max_iterations = 100;
+  REQUIRE(fast.seed_cell_fraction > 0);  // the defaults are the fast ones
+  REQUIRE(fast.min_probability > 0);
+  const auto want = runtime::ProposeJoints(depth, probs, exact);
+  const auto got = runtime::ProposeJoints(depth, probs, fast);
+  for (int j : {kHead, kLHand, int(core::Joint::kRHand)}) {
+    INFO("joint " << core::JointName(j));
+    REQUIRE_FALSE(want[size_t(j)].empty());
+    REQUIRE_FALSE(got[size_t(j)].empty());
+    INFO("exact " << want[size_t(j)][0].position.transpose() << " fast " << got[size_t(j)][0].position.transpose());
+    CHECK((got[size_t(j)][0].position - want[size_t(j)][0].position).norm() < 0.01f);
+    // The top proposal carries (nearly) all the seed weight in both.
+    CHECK(got[size_t(j)][0].confidence == Approx(want[size_t(j)][0].confidence).epsilon(0.05));
+  }
+}
+
+TEST_CASE("probabilities from the compact foreground output equal those from the dense one", "[proposals]") {
+  testing::RandomForestSpec spec;
+  spec.seed = 41;
+  spec.nodes_per_tree = 3000;
+  spec.max_depth = 12;
+  const core::Forest forest = testing::MakeRandomForest(spec);
+  const runtime::Classifier classifier(forest);
+  const auto depth = testing::MakePersonDepth(2.5, 160, 120);
+  runtime::Classification dense, compact;
+  runtime::ClassifyOptions dense_opt, compact_opt;
+  dense_opt.want_distributions = true;
+  compact_opt.want_foreground_distributions = true;
+  classifier.Classify(depth, dense_opt, &dense);
+  classifier.Classify(depth, compact_opt, &compact);
+  REQUIRE(compact.sums.empty());
+  const auto want = runtime::ProbabilitiesFromClassification(depth, dense);
+  REQUIRE(want.pixel.size() == size_t(core::CountForeground(depth)));
+  for (int threads : {1, 2}) {
+    const auto got = runtime::ProbabilitiesFromClassification(depth, compact, threads);
+    CHECK(got.width == want.width);
+    CHECK(got.height == want.height);
+    CHECK(got.pixel == want.pixel);
+    CHECK(got.prob == want.prob);
+  }
+  // And so the proposals are the same.
+  const auto a = runtime::ProposeJoints(depth, want, runtime::ProposalOptions{});
+  const auto b = runtime::ProposeJoints(depth, runtime::ProbabilitiesFromClassification(depth, compact), runtime::ProposalOptions{});
+  // The fused path (parts pooled inside the proposals' first pass), from either output.
+  const auto fused = runtime::ProposeJointsFromClassification(depth, compact, runtime::ProposalOptions{});
+  const auto fused_dense = runtime::ProposeJointsFromClassification(depth, dense, runtime::ProposalOptions{});
+  size_t total = 0;
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    REQUIRE(a[size_t(j)].size() == b[size_t(j)].size());
+    REQUIRE(a[size_t(j)].size() == fused[size_t(j)].size());
+    REQUIRE(a[size_t(j)].size() == fused_dense[size_t(j)].size());
+    total += a[size_t(j)].size();
+    for (size_t m = 0; m < a[size_t(j)].size(); ++m) {
+      CHECK(a[size_t(j)][m].position == b[size_t(j)][m].position);
+      CHECK(a[size_t(j)][m].position == fused[size_t(j)][m].position);
+      CHECK(a[size_t(j)][m].confidence == fused[size_t(j)][m].confidence);
+      CHECK(a[size_t(j)][m].position == fused_dense[size_t(j)][m].position);
+    }
+  }
+  CHECK(total > 0);
+  // A classification without distributions, or of another size, gives no proposals.
+  runtime::Classification none;
+  classifier.Classify(depth, runtime::ClassifyOptions{}, &none);
+  for (const auto& j : runtime::ProposeJointsFromClassification(depth, none, runtime::ProposalOptions{}))
+    CHECK(j.empty());
+  for (const auto& j : runtime::ProposeJointsFromClassification(testing::MakePersonDepth(2.5, 80, 60), compact,
+                                                                runtime::ProposalOptions{}))
+    CHECK(j.empty());
+}
+
 TEST_CASE("proposals are depth invariant: the same body at 2 m and 4 m", "[proposals]") {
   for (auto method : {runtime::ProposalMethod::kMeanShift, runtime::ProposalMethod::kFastClustering}) {
     runtime::ProposalOptions opt;

@@ -332,3 +332,70 @@ TEST_CASE("small nodes: sample-major kernels and per-sample bins equal the naive
     CHECK(sparse[q].ToDense() == naive);
   }
 }
+
+TEST_CASE("16-bit binning: saturated responses and cuts at the int16 limits equal the naive evaluator",
+          "[training][histogram]") {
+  // A far background (60000 mm) makes responses reach +-6e4, beyond int16: candidates whose cuts
+  // all lie in [-32767, 32766] are binned in 16-bit lanes on saturated responses, the others by
+  // the int32 kernels. 1 frame (300 samples): the sample-major kernels; 4 frames: candidate-major.
+  worker::TrainParams p = SmallParams();
+  p.constants.background_mm = 60000;
+  p.thresholds_per_feature = GENERATE(8, 50);
+  const int frames = GENERATE(1, 4);
+  const worker::SampleSet set = MakeSamples(p, 0, frames);
+  worker::NodePlan plan = PlanFor(p, set, 0);
+  const int stride = plan.cut_stride, t = p.thresholds_per_feature;
+  // Hand-made cuts per candidate (ascending, unique, padded): at the int16 limits [-32767, 32766]
+  // (16-bit kernels on saturated responses) or one past them (int32 kernels). mixed == 0: every
+  // candidate at the limits (every kernel takes its 16-bit form); mixed == 1: k % 3 == 0 at the
+  // limits, k % 3 == 1 past them, k % 3 == 2 drawn from the ranges (which reach beyond int16).
+  const int mixed = GENERATE(0, 1);
+  worker::HistogramBuilder b(p.constants, 2);
+  std::vector<std::vector<worker::ResponseRange>> rr;
+  b.ComputeRanges(set, p, 0, std::span(&plan, 1), &rr);
+  plan.cuts = worker::DrawCuts(p, 0, 0, rr[0]);
+  size_t saturated = 0;
+  for (size_t k = 0; k < plan.features.size(); ++k) {
+    if (mixed && k % 3 == 2) continue;
+    const bool past = mixed && k % 3 == 1;
+    std::vector<int32_t> cuts{past ? -32768 : -32767, -20000, -500, 0, 500, 20000, past ? 32767 : 32766};
+    cuts.resize(std::min<size_t>(cuts.size(), size_t(t)));
+    int32_t* c = &plan.cuts[k * size_t(stride)];
+    std::fill(c, c + stride, worker::kNoCut);
+    std::copy(cuts.begin(), cuts.end(), c);
+  }
+  std::vector<worker::NodeHistogram> dense, sparse;
+  b.Build(set, std::span(&plan, 1), t, &dense);
+  worker::NodePlan sparse_plan = plan;
+  sparse_plan.sample_bins = true;
+  b.Build(set, std::span(&sparse_plan, 1), t, &sparse);
+  worker::NodeHistogram naive;
+  naive.Reset(0, int(plan.features.size()), t + 1, plan.num_slots);
+  for (size_t i = 0; i < set.num_samples(); ++i) {
+    for (size_t k = 0; k < plan.features.size(); ++k) {
+      const int32_t f = NaiveResponse(p, set, i, plan.features[k]);
+      saturated += f > 32767 || f < -32768;
+      int bin = 0;
+      for (int j = 0; j < stride; ++j) bin += f > plan.cuts[k * size_t(stride) + size_t(j)];
+      ++naive.counts[(k * size_t(naive.num_bins) + size_t(bin)) * size_t(naive.num_slots) +
+                     plan.part_slot[set.part()[i]]];
+    }
+  }
+  CHECK(saturated > 100);  // the test reaches responses beyond int16
+  CHECK(dense[0] == naive);
+  CHECK(sparse[0].ToDense() == naive);
+  // The fused pass (cuts from the ranges, which here reach beyond int16) agrees with the
+  // two-phase build on the same node.
+  if (frames == 1) {
+    p.threshold_reference_pixels = 1000000;
+    worker::NodePlan two = PlanFor(p, set, 0), fused = two;
+    b.ComputeRanges(set, p, 0, std::span(&two, 1), &rr);
+    two.cuts = worker::DrawCuts(p, 0, 0, rr[0]);
+    std::vector<worker::NodeHistogram> h2, hf;
+    b.Build(set, std::span(&two, 1), t, &h2);
+    REQUIRE(worker::HistogramBuilder::CanFuse(set, p, fused));
+    b.BuildFused(set, p, 0, std::span(&fused, 1), &hf);
+    CHECK(fused.cuts == two.cuts);
+    CHECK(hf[0] == h2[0]);
+  }
+}

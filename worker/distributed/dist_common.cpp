@@ -19,7 +19,8 @@ Result<dds::TransportKind> ParseProfile(const std::string& name) {
 
 dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bool coordinator,
                                const std::string& name, std::chrono::milliseconds lease,
-                               const std::vector<std::string>& peers, const std::vector<std::string>& interfaces) {
+                               const std::vector<std::string>& peers,
+                               const std::vector<std::string>& interfaces) {
   dds::NodeConfig c;
   c.domain_id = domain;
   c.participant_name = name;
@@ -57,8 +58,8 @@ Result<std::vector<std::string>> ParseAddressList(const std::string& value, cons
     for (size_t p = 0; ok && p <= ip.size(); ++parts) {
       const size_t dot = std::min(ip.find('.', p), ip.size());
       const std::string octet = ip.substr(p, dot - p);
-      ok = !octet.empty() && octet.size() <= 3 && octet.find_first_not_of("0123456789") == std::string::npos &&
-           std::stoi(octet) <= 255;
+      ok = !octet.empty() && octet.size() <= 3 &&
+           octet.find_first_not_of("0123456789") == std::string::npos && std::stoi(octet) <= 255;
       p = dot + 1;
     }
     ok = ok && parts == 4;
@@ -104,6 +105,48 @@ std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const work
     for (size_t s = 0; s < slots; ++s)
       wire[kb * size_t(num_parts) + size_t(part_of_slot[s])] = dense.counts[kb * slots + s];
   return wire;
+}
+
+void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,
+                    google::protobuf::RepeatedField<uint64_t>* runs) {
+  runs->Clear();
+  const int slots = hist.num_slots, bins = hist.num_bins;
+  // Slots in ascending part order: the order of their cells inside a wire row.
+  std::vector<std::pair<int, int>> order;  // (part, slot)
+  for (int p = 0; p < num_parts && p < int(plan.part_slot.size()); ++p)
+    if (plan.part_slot[size_t(p)] != 0xFF && plan.part_slot[size_t(p)] < slots)
+      order.emplace_back(p, plan.part_slot[size_t(p)]);
+  // Same runs as EncodeHistogramRuns over the dense tensor: a literal run goes on over single
+  // zeros (the next non-zero cell 2 further) and ends before two or more zeros.
+  uint64_t next = 0;   // tensor position after the last cell written
+  int len_index = -1;  // index of the open run's length entry, -1 when none is open
+  auto emit = [&](uint64_t pos, uint32_t v) {
+    if (len_index >= 0 && pos == next + 1) {  // an isolated zero stays inside the run
+      runs->Add(0);
+    } else if (len_index < 0 || pos != next) {
+      if (len_index >= 0) runs->Set(len_index, uint64_t(runs->size() - len_index - 1));
+      runs->Add(pos - next);
+      len_index = runs->size();
+      runs->Add(0);  // length, set when the run ends
+    }
+    runs->Add(v);
+    next = pos + 1;
+  };
+  std::vector<uint32_t> row(size_t(bins) * size_t(slots));
+  for (int k = 0; k < hist.num_candidates; ++k) {
+    const uint32_t* c = row.data();
+    if (hist.sample_bins)
+      hist.CandidateCounts(k, row.data());
+    else
+      c = hist.counts.data() + size_t(k) * row.size();
+    for (int b = 0; b < bins; ++b) {
+      const uint64_t base = (uint64_t(k) * uint64_t(bins) + uint64_t(b)) * uint64_t(num_parts);
+      for (const auto& [part, slot] : order)
+        if (const uint32_t v = c[size_t(b) * size_t(slots) + size_t(slot)]; v != 0)
+          emit(base + uint64_t(part), v);
+    }
+  }
+  if (len_index >= 0) runs->Set(len_index, uint64_t(runs->size() - len_index - 1));
 }
 
 bool AddWireCounts(const std::vector<uint32_t>& wire, const worker::NodePlan& plan, int num_parts,

@@ -45,6 +45,12 @@ core::Status ReadExt(const google::protobuf::Message& body, google::protobuf::Me
 /// `plan` (either form); slot -> part through plan.part_slot.
 std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
                                    int num_parts);
+/// dds::EncodeHistogramRuns(ToWireCounts(hist, plan, num_parts)), the same runs to the byte, from
+/// the histogram's non-zero counts only: no dense num_parts-wide tensor is built or scanned, so
+/// the cost follows candidates x bins x parts present (and the samples for per-sample bins).
+void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,
+                    google::protobuf::RepeatedField<uint64_t>* runs);
+
 /// Adds a wire tensor into `hist` (dense, shaped for `plan`). False if a count sits on a part
 /// absent from the node (a worker that disagrees with the coordinator's part counts).
 bool AddWireCounts(const std::vector<uint32_t>& wire, const worker::NodePlan& plan, int num_parts,

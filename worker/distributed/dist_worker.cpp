@@ -366,7 +366,7 @@ struct DistWorker::Impl {
         std::vector<uint64_t> parts(static_cast<size_t>(core::kNumParts), 0);
         samples.CountParts(samples.RangeOf(plan.node), core::kNumParts, parts.data());
         for (uint64_t c : parts) nh->add_part_counts(c);
-        dds::EncodeHistogramRuns(ToWireCounts(fused_hists[j], plan, core::kNumParts), nh->mutable_runs());
+        EncodeWireRuns(fused_hists[j], plan, core::kNumParts, nh->mutable_runs());
         r->set_fused(true);
         for (int c = 0; c < k; ++c) {
           uint32_t count = 0;
@@ -421,8 +421,7 @@ struct DistWorker::Impl {
         std::vector<uint64_t> parts(static_cast<size_t>(core::kNumParts), 0);
         if (r.end > r.begin) samples.CountParts(r, core::kNumParts, parts.data());
         for (uint64_t c : parts) nh->add_part_counts(c);
-        const std::vector<uint32_t> wire = ToWireCounts(hists[size_t(i)], plan, core::kNumParts);
-        dds::EncodeHistogramRuns(wire, nh->mutable_runs());
+        EncodeWireRuns(hists[size_t(i)], plan, core::kNumParts, nh->mutable_runs());
       }
     } else {
       busy = false;

@@ -1,0 +1,4 @@
+# bench/distributed: the distributed service (coordinator + 1 and 2 worker processes) against
+# the single-process engine on one job: bytes and merge time per level, evaluations per CPU-second.
+add_executable(distributed ${CMAKE_CURRENT_LIST_DIR}/distributed.cpp)
+target_link_libraries(distributed PRIVATE poseforest::dist_coordinator poseforest::warnings)

@@ -1,0 +1,315 @@
+// bench/distributed: the distributed training service against the single-process engine, in one
+// run on one job: LocalTrainer (1 thread), then the coordinator (this process) with 1 and with 2
+// worker processes (this program re-started with --worker-process, 1 OpenMP thread each,
+// Fast DDS over shared memory, as `poseforest coordinator --local-workers N` does).
+//
+// Prints per level and per tree: nodes, samples, bytes received (replies) and sent (control),
+// coordinator merge time, level wall time; per run: wall, CPU seconds of every process involved
+// (getrusage: the bench process for the engine and the coordinator, the reaped worker processes
+// for the workers), evaluations/s (wall) and evaluations per CPU-second. "Per core" = per
+// CPU-second actually used, so idle waiting costs nothing and a busy coordinator counts.
+// Every run's forest is checked byte for byte against the engine's.
+//
+//   distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S]
+// Each worker count runs twice: without subtree hand-off (subtree_max_samples 0: every level
+// by histogram rounds) and with it (nodes of at most S samples trained whole by one worker; S
+// defaults to the job's subtree_max_samples, 4096 unless set; 0 skips the second run). The
+// per-level table then also shows the nodes handed off and the nodes decided by results.
+// The last line is `distributed/engine per core: <ratio> ratio` (2 workers, with hand-off as
+// configured, vs the engine); the line before compares bytes received without / with hand-off.
+// --csv writes the per-level rows of the runs without hand-off (input of
+// scripts/traffic_model.py, which models histogram traffic).
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "coordinator/distributed/dist_coordinator.h"
+#include "coordinator/local_trainer.h"
+#include "poseforest/v1/job.pb.h"
+#include "runtime/core/forest_format.h"
+#include "worker/distributed/dist_common.h"
+#include "worker/distributed/dist_worker.h"
+#include "worker/job_spec.h"
+
+extern char** environ;
+
+using namespace poseforest;
+
+namespace {
+
+/// Default job: 1 tree, depth 12, 100 procedural frames of 160x120, 1000 pixels each, 300
+/// candidates x 30 thresholds (about 2 s for the engine on one core).
+const char* kDefaultJob =
+    "seed: 3\nnum_trees: 1\nmax_depth: 12\nimages_per_tree: 100\npixels_per_image: 1000\n"
+    "candidate_features: 300\nthresholds_per_feature: 30\nmax_probe_offset_pixel_m: 80\n"
+    "source { procedural { seed: 4 width: 160 height: 120 } }\n";
+
+double CpuSeconds(int who) {
+  rusage u{};
+  ::getrusage(who, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+double LoadAverage() {
+  double l[1] = {0};
+  return ::getloadavg(l, 1) == 1 ? l[0] : -1;
+}
+
+/// A worker process: this program with --worker-process.
+int WorkerProcess(int argc, char** argv) {
+  // Go when the bench goes (killed or interrupted), as `worker --exit-with-parent` does.
+  ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (::getppid() == 1) return 0;
+  dist::WorkerOptions o;
+  for (int i = 1; i + 1 < argc; ++i) {
+    if (!std::strcmp(argv[i], "--domain"))
+      o.domain = uint32_t(std::atoi(argv[++i]));
+    else if (!std::strcmp(argv[i], "--job"))
+      o.job_id = argv[++i];
+    else if (!std::strcmp(argv[i], "--id"))
+      o.worker_id = argv[++i];
+  }
+  o.threads = 1;
+  o.exit_when_done = true;
+  o.log = [](const std::string&) {};
+  dist::DistWorker w(o);
+  const core::Status st = w.Run();
+  if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.ToString().c_str());
+  return st.ok() ? 0 : 1;
+}
+
+struct RunFigures {
+  double wall = 0, cpu = 0, coordinator_cpu = 0, workers_cpu = 0, levels_wall = 0;
+  uint64_t evaluations = 0, bytes_received = 0, bytes_sent = 0;
+  double merge = 0;
+  bool identical = false;
+};
+
+struct Row {
+  int workers, tree, level;
+  size_t nodes, split;
+  uint64_t samples, evaluations, bytes_received, bytes_sent;
+  double merge_s, level_s;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc > 1 && !std::strcmp(argv[1], "--worker-process")) return WorkerProcess(argc, argv);
+  std::string text = kDefaultJob, csv_path;
+  uint32_t domain = 1 + uint32_t(::getpid()) % 200;
+  long long subtree_max = -1;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--domain") && i + 1 < argc) {
+      domain = uint32_t(std::atoi(argv[++i]));
+    } else if (!std::strcmp(argv[i], "--csv") && i + 1 < argc) {
+      csv_path = argv[++i];
+    } else if (!std::strcmp(argv[i], "--subtree-max") && i + 1 < argc) {
+      subtree_max = std::atoll(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--help") || argv[i][0] == '-') {
+      std::fprintf(stderr,
+                   "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S]\n");
+      return std::strcmp(argv[i], "--help") ? 2 : 0;
+    } else {
+      std::ifstream in(argv[i]);
+      if (!in) return std::fprintf(stderr, "distributed: cannot read %s\n", argv[i]), 1;
+      std::stringstream ss;
+      ss << in.rdbuf();
+      text = ss.str();
+    }
+  }
+  auto config = worker::ParseJobText(text, "bench job");
+  if (!config.ok()) return std::fprintf(stderr, "%s\n", config.status().ToString().c_str()), 1;
+  auto params = worker::ParamsFromConfig(*config, "bench job");
+  if (!params.ok()) return std::fprintf(stderr, "%s\n", params.status().ToString().c_str()), 1;
+  params->threads = 1;
+  if (subtree_max < 0) subtree_max = (long long)params->subtree_max_samples;
+  std::printf("job: %s\n", worker::DescribeParams(*params).c_str());
+  std::printf(
+      "machine: %u hardware threads, load average %.1f at start (a shared machine: timings are noisy)\n",
+      std::thread::hardware_concurrency(), LoadAverage());
+  std::fflush(stdout);
+
+  // 1. The engine.
+  RunFigures engine;
+  std::vector<uint8_t> ref_bytes;
+  {
+    coordinator::LocalTrainer local(*params, {});
+    const double c0 = CpuSeconds(RUSAGE_SELF), t0 = dist::NowSeconds();
+    auto ref = local.Train();
+    engine.wall = dist::NowSeconds() - t0;
+    engine.cpu = CpuSeconds(RUSAGE_SELF) - c0;
+    if (!ref.ok()) return std::fprintf(stderr, "%s\n", ref.status().ToString().c_str()), 1;
+    engine.evaluations = local.stats().evaluations;
+    engine.identical = true;
+    ref_bytes = core::SerializeForest(*ref);
+    std::printf(
+        "\nengine (LocalTrainer, 1 thread): %.2f s wall, %.2f CPU s, %llu evaluations: %.3g evaluations/s, "
+        "%.3g per CPU-second (histogram builder alone: %.3g evaluations/s)\n",
+        engine.wall, engine.cpu, (unsigned long long)engine.evaluations,
+        double(engine.evaluations) / engine.wall, double(engine.evaluations) / engine.cpu,
+        double(engine.evaluations) /
+            std::max(1e-9, local.stats().histogram_seconds + local.stats().range_seconds));
+    std::fflush(stdout);
+  }
+
+  std::string self;
+  {
+    std::error_code ec;
+    self = std::filesystem::read_symlink("/proc/self/exe", ec).string();
+    if (ec) return std::fprintf(stderr, "distributed: cannot find /proc/self/exe\n"), 1;
+  }
+  std::vector<Row> rows;
+  std::map<std::pair<int, uint64_t>, RunFigures> runs;  // (workers, subtree_max_samples)
+  std::vector<std::pair<int, uint64_t>> plan;
+  for (int n : {1, 2}) {
+    plan.push_back({n, 0});
+    if (subtree_max > 0) plan.push_back({n, uint64_t(subtree_max)});
+  }
+  uint32_t run_index = 0;
+  for (const auto& [n, sm] : plan) {
+    ++run_index;
+    config->set_subtree_max_samples(sm);
+    params->subtree_max_samples = sm;
+    const uint32_t dom = (domain + run_index) % 233;
+    const std::string job_id =
+        "bench-" + std::to_string(::getpid()) + "-" + std::to_string(n) + "-" + std::to_string(sm);
+    const double kids_cpu0 = CpuSeconds(RUSAGE_CHILDREN);
+    std::vector<pid_t> pids;
+    for (int i = 0; i < n; ++i) {
+      std::vector<std::string> a = {
+          self,   "--worker-process",           "--domain", std::to_string(dom), "--job", job_id,
+          "--id", "bench-w" + std::to_string(i)};
+      std::vector<char*> c;
+      for (auto& s : a) c.push_back(s.data());
+      c.push_back(nullptr);
+      pid_t pid = -1;
+      if (::posix_spawn(&pid, self.c_str(), nullptr, nullptr, c.data(), environ) != 0)
+        return std::fprintf(stderr, "distributed: cannot start a worker process\n"), 1;
+      pids.push_back(pid);
+    }
+    dist::CoordinatorOptions co;
+    co.domain = dom;
+    co.job_id = job_id;
+    co.min_workers = n;
+    co.log = [](const std::string&) {};
+    RunFigures& f = runs[{n, sm}];
+    std::map<int, RunFigures> trees;
+    std::printf(
+        "\n%d worker process(es), subtree hand-off %s:\n  tree level  nodes  samples  handed  from_sub  "
+        "bytes_received  bytes_sent  merge_ms  level_s  evaluations/s\n",
+        n, sm ? ("at <= " + std::to_string(sm) + " samples").c_str() : "off");
+    co.progress = [&](const dist::DistLevelStats& s) {
+      if (sm == 0)
+        rows.push_back({n, s.tree, s.level, s.frontier_nodes, s.split_nodes, s.samples, s.evaluations,
+                        s.bytes_received, s.bytes_sent, s.merge_seconds, s.level_seconds});
+      for (RunFigures* t : {&f, &trees[s.tree]}) {
+        t->evaluations += s.evaluations;
+        t->bytes_received += s.bytes_received;
+        t->bytes_sent += s.bytes_sent;
+        t->merge += s.merge_seconds;
+        t->levels_wall += s.level_seconds;
+      }
+      std::printf("  %4d %5d  %5zu  %7llu  %6zu  %8zu  %14llu  %10llu  %8.2f  %7.3f  %.3g\n", s.tree, s.level,
+                  s.frontier_nodes, (unsigned long long)s.samples, s.subtree_tasks, s.subtree_nodes,
+                  (unsigned long long)s.bytes_received, (unsigned long long)s.bytes_sent,
+                  s.merge_seconds * 1e3, s.level_seconds, s.evaluations_per_s);
+      std::fflush(stdout);
+    };
+    dist::DistCoordinator coord(*config, *params, co);
+    const double c0 = CpuSeconds(RUSAGE_SELF), t0 = dist::NowSeconds();
+    auto forest = coord.Train();
+    f.wall = dist::NowSeconds() - t0;
+    f.coordinator_cpu = CpuSeconds(RUSAGE_SELF) - c0;
+    // Workers leave on JOB_DONE; reap them so that their CPU time is counted.
+    const double deadline = dist::NowSeconds() + 10;
+    for (pid_t p : pids) {
+      int status = 0;
+      while (::waitpid(p, &status, WNOHANG) == 0) {
+        if (dist::NowSeconds() > deadline) {
+          ::kill(p, SIGKILL);
+          ::waitpid(p, &status, 0);
+          break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+    }
+    f.workers_cpu = CpuSeconds(RUSAGE_CHILDREN) - kids_cpu0;
+    f.cpu = f.coordinator_cpu + f.workers_cpu;
+    if (!forest.ok()) return std::fprintf(stderr, "%s\n", forest.status().ToString().c_str()), 1;
+    f.identical = core::SerializeForest(*forest) == ref_bytes;
+    for (const auto& [t, tf] : trees)
+      std::printf("  tree %d: %llu bytes received, %llu bytes sent, merge %.1f ms, levels %.2f s\n", t,
+                  (unsigned long long)tf.bytes_received, (unsigned long long)tf.bytes_sent, tf.merge * 1e3,
+                  tf.levels_wall);
+    std::printf(
+        "  total: %.2f s wall (levels %.2f s), %.2f CPU s (coordinator %.2f, workers %.2f), %llu "
+        "evaluations, "
+        "%.3g evaluations/s, %.3g per CPU-second, %llu bytes received, merge %.1f ms, identical to the "
+        "engine: %s\n",
+        f.wall, f.levels_wall, f.cpu, f.coordinator_cpu, f.workers_cpu, (unsigned long long)f.evaluations,
+        double(f.evaluations) / f.wall, double(f.evaluations) / f.cpu, (unsigned long long)f.bytes_received,
+        f.merge * 1e3, f.identical ? "yes" : "NO");
+    std::fflush(stdout);
+  }
+
+  if (!csv_path.empty()) {
+    std::ofstream csv(csv_path);
+    csv << "workers,tree,level,nodes,split,samples,evaluations,bytes_received,bytes_sent,merge_s,level_s,"
+           "candidates,bins,images_per_tree,pixels_per_image\n";
+    for (const Row& r : rows)
+      csv << r.workers << ',' << r.tree << ',' << r.level << ',' << r.nodes << ',' << r.split << ','
+          << r.samples << ',' << r.evaluations << ',' << r.bytes_received << ',' << r.bytes_sent << ','
+          << r.merge_s << ',' << r.level_s << ',' << params->candidate_features << ','
+          << (params->thresholds_per_feature + 1) << ',' << config->images_per_tree() << ','
+          << config->pixels_per_image() << '\n';
+    std::printf("\nwrote %zu per-level rows to %s\n", rows.size(), csv_path.c_str());
+  }
+
+  // Same work everywhere: the evaluations of the engine (the service's equal them; checked below).
+  const double engine_per_cpu = double(engine.evaluations) / engine.cpu;
+  std::printf("\n%-26s %10s %10s %14s %16s %12s\n", "", "wall s", "CPU s", "evaluations/s", "per CPU-second",
+              "vs engine");
+  std::printf("%-26s %10.2f %10.2f %14.3g %16.3g %12.2f\n", "engine, 1 thread", engine.wall, engine.cpu,
+              double(engine.evaluations) / engine.wall, engine_per_cpu, 1.0);
+  bool ok = true;
+  for (const auto& [key, f] : runs) {
+    const auto [n, sm] = key;
+    ok = ok && f.identical && f.evaluations == engine.evaluations;
+    std::printf("%-26s %10.2f %10.2f %14.3g %16.3g %12.2f\n",
+                (std::to_string(n) + " worker" + (n > 1 ? "s" : "") + ", hand-off " +
+                 (sm ? std::to_string(sm) : std::string("off")))
+                    .c_str(),
+                f.wall, f.cpu, double(engine.evaluations) / f.wall, double(engine.evaluations) / f.cpu,
+                double(engine.evaluations) / f.cpu / engine_per_cpu);
+  }
+  const RunFigures& two = runs[{2, uint64_t(subtree_max > 0 ? subtree_max : 0)}];
+  const RunFigures& two_off = runs[{2, 0}];
+  std::printf("bytes received, 2 workers: %.1f MB without subtree hand-off, %.1f MB with (%.2f x less)\n",
+              double(two_off.bytes_received) / 1e6, double(two.bytes_received) / 1e6,
+              two.bytes_received ? double(two_off.bytes_received) / double(two.bytes_received) : 0.0);
+  std::printf(
+      "2 workers vs engine, wall per worker: %.2f (evaluations/s / 2 workers / engine evaluations/s)\n",
+      (double(engine.evaluations) / two.wall / 2) / (double(engine.evaluations) / engine.wall));
+  if (!ok) std::printf("WARNING: a service run differs from the engine (forest bytes or evaluation count)\n");
+  std::printf("distributed/engine per core: %.3f ratio\n",
+              double(engine.evaluations) / two.cpu / engine_per_cpu);
+  return ok ? 0 : 1;
+}
