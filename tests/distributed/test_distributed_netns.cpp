@@ -35,11 +35,12 @@ namespace {
 std::string Program() { return (HelperDir() / "poseforest").string(); }
 
 /// Five trees so that a worker returning during tree 0 is put to use in a later tree; sized to
-/// take a few seconds on a loaded 2-core machine.
+/// take a few seconds on a loaded 2-core machine. Every level by histogram rounds (no subtree
+/// hand-off, which would finish the job before the healed worker is back).
 std::string NetJobText() {
   return "seed: 17\nnum_trees: 5\nmax_depth: 10\nimages_per_tree: 40\npixels_per_image: 400\n"
          "candidate_features: 100\nthresholds_per_feature: 16\nmax_probe_offset_pixel_m: 60\n"
-         "threshold_reference_pixels: 200\n"
+         "threshold_reference_pixels: 200\nsubtree_max_samples: 0\n"
          "source { procedural { seed: 21 width: 96 height: 72 } }\n";
 }
 
