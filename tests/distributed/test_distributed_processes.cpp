@@ -73,31 +73,37 @@ TEST_CASE("coordinator --local-workers 2 writes LocalTrainer's forest (shm and u
 }
 
 TEST_CASE("SIGKILL of one of 3 worker processes mid-job: same forest", "[distributed][integration][slow]") {
-  TempDir dir("pf-dist-kill");
-  const std::string text = TinyJobText(2, 6);
-  std::ofstream(dir.path / "job.textproto") << text;
-  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
-  const uint32_t domain = Domain(23);
-  const std::string job_id = "p-kill-" + std::to_string(::getpid());
-  Child w[3];
-  for (int i = 0; i < 3; ++i) StartWorker(w[i], domain, job_id, "pw-" + std::to_string(i));
-  Child coord;
-  std::string error;
-  REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
-                       (dir.path / "forest.pff").string(), "--domain", std::to_string(domain), "--job-id",
-                       job_id, "--min-workers", "3"},
-                      &error));
-  auto line = coord.WaitForLine("tree 0 level 1:", 90s);
-  INFO(coord.output());
-  REQUIRE(line.has_value());
-  w[1].Kill(SIGKILL);
-  auto rc = coord.Wait(120s);
-  INFO(coord.output());
-  REQUIRE(rc.has_value());
-  REQUIRE(*rc == 0);
-  CHECK(coord.output().find("1 workers lost") != std::string::npos);
-  CHECK(ReadAll(dir.path / "forest.pff") == reference);
-  for (int i : {0, 2}) CHECK(w[i].Wait(10s).has_value());  // they exit on JOB_DONE
+  // Without and with subtree hand-off (nodes of <= 300 samples trained whole by one worker,
+  // from about level 2 on: the kill may hit a worker holding a SubtreeTask).
+  for (uint64_t subtree : {uint64_t(0), uint64_t(300)}) {
+    DYNAMIC_SECTION("subtree_max_samples " << subtree) {
+      TempDir dir("pf-dist-kill");
+      const std::string text = TinyJobText(2, 6, subtree);
+      std::ofstream(dir.path / "job.textproto") << text;
+      const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
+      const uint32_t domain = Domain(23);
+      const std::string job_id = "p-kill-" + std::to_string(::getpid()) + "-" + std::to_string(subtree);
+      Child w[3];
+      for (int i = 0; i < 3; ++i) StartWorker(w[i], domain, job_id, "pw-" + std::to_string(i));
+      Child coord;
+      std::string error;
+      REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                           (dir.path / "forest.pff").string(), "--domain", std::to_string(domain), "--job-id",
+                           job_id, "--min-workers", "3"},
+                          &error));
+      auto line = coord.WaitForLine("tree 0 level 1:", 90s);
+      INFO(coord.output());
+      REQUIRE(line.has_value());
+      w[1].Kill(SIGKILL);
+      auto rc = coord.Wait(120s);
+      INFO(coord.output());
+      REQUIRE(rc.has_value());
+      REQUIRE(*rc == 0);
+      CHECK(coord.output().find("1 workers lost") != std::string::npos);
+      CHECK(ReadAll(dir.path / "forest.pff") == reference);
+      for (int i : {0, 2}) CHECK(w[i].Wait(10s).has_value());  // they exit on JOB_DONE
+    }
+  }
 }
 
 TEST_CASE("SIGKILL of the coordinator, restart with --resume: same forest",
