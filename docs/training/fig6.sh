@@ -28,7 +28,7 @@
 # A configuration shared by two experiments (e.g. 400 images at depth 20) is trained once.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
-PF=$(realpath "${1:-$root/build/bin/poseforest}")
+PF=${1:-$root/build/bin/poseforest}
 OUT=${2:-/tmp/poseforest-fig6}
 TREES=${TREES:-1}
 CANDIDATES=${CANDIDATES:-500}
@@ -49,6 +49,7 @@ PLOT=${PLOT:-1}
 data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
   { echo "fig6: no shared data at ${POSEFOREST_DATA_DIR:-$root/../shared/data} (set POSEFOREST_DATA_DIR)" >&2; exit 1; }
 [ -x "$PF" ] || { echo "fig6: $PF is not an executable (build poseforest first)" >&2; exit 1; }
+PF=$(realpath "$PF")
 mkdir -p "$OUT" "$CSV_DIR"
 OUT=$(cd "$OUT" && pwd)
 kit=$data/meshes/makehuman_hm08_kit
@@ -58,12 +59,14 @@ if [ -n "${POSELIB:-}" ]; then
   lib=$(realpath "$POSELIB")
 else
   lib=$OUT/mocap.pfposes
-  "$(dirname "$PF")/poseforest-poselib" build --out "$lib" "$data/mocap" > "$OUT/poselib.log"
+  "$(dirname "$PF")/poseforest-poselib" build --out "$lib" "$data/mocap" > "$OUT/poselib.log" 2>&1 ||
+    { echo "fig6: building the pose library failed, see $OUT/poselib.log" >&2; exit 1; }
 fi
 
-eval_flags=(--quiet)
-"$PF" eval --help | grep -q -- '--method' && eval_flags+=(--method none)  # accuracy only
-"$PF" eval --help | grep -q -- '--quiet' || eval_flags=()
+eval_help=$("$PF" eval --help)
+eval_flags=()
+if grep -q -- '--quiet' <<<"$eval_help"; then eval_flags+=(--quiet); fi
+if grep -q -- '--method' <<<"$eval_help"; then eval_flags+=(--method none); fi  # accuracy only
 
 rendered() {  # $1 = seed, $2 = clip set
   cat <<SRC
