@@ -139,9 +139,13 @@ TEST_CASE("tune-joints and eval refuse bad input with clear messages", "[cli][jo
       RunPoseforest("tune-joints --forest " + forest + " --validation " + job + " --out x --frames 0");
   CHECK(bad_frames.exit_code == 2);
   CHECK_THAT(bad_frames.output, Catch::Contains("--frames"));
+  auto bad_method =
+      RunPoseforest("tune-joints --forest " + forest + " --validation " + job + " --out x --method slow");
+  CHECK(bad_method.exit_code == 2);
+  CHECK_THAT(bad_method.output, Catch::Contains("--method must be meanshift or fast"));
   auto help = RunPoseforest("tune-joints --help");
   CHECK(help.exit_code == 0);
-  CHECK_THAT(help.output, Catch::Contains("usage: poseforest tune-joints"));
+  CHECK_THAT(help.output, Catch::Contains("usage: poseforest tune-joints") && Catch::Contains("--per-joint"));
 
   auto people = RunPoseforest("eval --forest " + forest + " --test-set procedural:3 --people 2");
   CHECK(people.exit_code == 2);
