@@ -78,11 +78,13 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   }
 
   // Two people per frame: proposals are counted against each person's joints.
-  auto two =
-      RunPoseforest("eval --forest " + tuned + " --test-set " + job + " --images 2 --people 2 --quiet");
+  auto two = RunPoseforest("eval --forest " + tuned + " --test-set " + job +
+                           " --images 2 --people 2 --quiet --method meanshift");
   INFO(two.output);
   REQUIRE(two.exit_code == 0);
   CHECK_THAT(two.output, Catch::Contains("2 frames, 4 people"));
+  // The fast clustering did not run: no figures for it, not zeros.
+  CHECK_THAT(two.output, !Catch::Contains("fast clustering") && Catch::Contains("mAP: mean shift"));
 
   // infer uses the stored parameters.
   REQUIRE(RunPoseforest("render --out " + (dir / "frames").string() + " --count 1 --seed 5").exit_code == 0);
