@@ -120,6 +120,11 @@ class RenderedEvalSource final : public EvalFrameSource {
 
 // The ratio, or 0 when the bound is 0.
 double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
+std::string RatioText(double r) {
+  char c[16];
+  std::snprintf(c, sizeof c, "%.2f", r);
+  return c;
+}
 
 }  // namespace
 
@@ -323,6 +328,8 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
                .fast = runtime::JointApEvaluator(options.distance_m),
                .upper_bound = runtime::JointApEvaluator(options.distance_m)};
   e.distance_m = options.distance_m;
+  e.ran_fast = options.fast;
+  e.ran_upper_bound = options.upper_bound;
   e.has_joints = (*src)->has_joints() && HasJointTaxonomy(forest);
   e.learned_params = !options.params && forest.proposal_params.has_value();
   e.params =
@@ -380,26 +387,39 @@ std::string FormatJointApTable(const Evaluation& e) {
       e.learned_params ? "learned (stored in the forest)" : "the paper's means (forest has none)",
       b / core::kNumJoints, lambda / core::kNumJoints, zeta / core::kNumJoints);
   s += line;
-  std::snprintf(line, sizeof line, "%-11s %9s %9s %10s %9s %10s\n", "joint", "visible", "AP mean", "AP fast",
+  std::snprintf(line, sizeof line, "%-11s %9s %9s %9s %11s %9s\n", "joint", "visible", "AP mean", "AP fast",
                 "AP gt-parts", "mean/gt");
   s += line;
+  // A method that did not run prints "-", never a misleading 0.
+  auto cell = [](bool ran, double v) {
+    char c[16];
+    if (ran)
+      std::snprintf(c, sizeof c, "%.3f", v);
+    else
+      std::snprintf(c, sizeof c, "-");
+    return std::string(c);
+  };
   for (int j = 0; j < core::kNumJoints; ++j) {
     const double ms = e.mean_shift.AveragePrecision(j), up = e.upper_bound.AveragePrecision(j);
-    std::snprintf(line, sizeof line, "%-11s %9d %9.3f %9.3f %10.3f %9.2f\n",
+    std::snprintf(line, sizeof line, "%-11s %9d %9.3f %9s %11s %9s\n",
                   std::string(core::JointName(j)).c_str(), e.mean_shift.positives(j), ms,
-                  e.fast.AveragePrecision(j), up, Ratio(ms, up));
+                  cell(e.ran_fast, e.fast.AveragePrecision(j)).c_str(), cell(e.ran_upper_bound, up).c_str(),
+                  e.ran_upper_bound ? RatioText(Ratio(ms, up)).c_str() : "-");
     s += line;
   }
   const double ms = e.mean_shift.MeanAveragePrecision(), up = e.upper_bound.MeanAveragePrecision();
-  std::snprintf(line, sizeof line, "%-11s %9s %9.3f %9.3f %10.3f %9.2f\n", "mAP", "", ms,
-                e.fast.MeanAveragePrecision(), up, Ratio(ms, up));
+  std::snprintf(line, sizeof line, "%-11s %9s %9.3f %9s %11s %9s\n", "mAP", "", ms,
+                cell(e.ran_fast, e.fast.MeanAveragePrecision()).c_str(), cell(e.ran_upper_bound, up).c_str(),
+                e.ran_upper_bound ? RatioText(Ratio(ms, up)).c_str() : "-");
   s += line;
-  std::snprintf(
-      line, sizeof line,
-      "mAP: mean shift %.3f, fast clustering %.3f; upper bound (ground-truth parts) %.3f; "
-      "inferred / upper bound %.2f\n(the paper, synthetic test set: mean shift 0.731, fast 0.677)\n",
-      ms, e.fast.MeanAveragePrecision(), up, Ratio(ms, up));
-  s += line;
+  s += "mAP: mean shift " + cell(true, ms);
+  if (e.ran_fast) s += ", fast clustering " + cell(true, e.fast.MeanAveragePrecision());
+  if (e.ran_upper_bound) {
+    std::snprintf(line, sizeof line, "; upper bound (ground-truth parts) %.3f; inferred / upper bound %.2f",
+                  up, Ratio(ms, up));
+    s += line;
+  }
+  s += "\n(the paper, synthetic test set: mean shift 0.731, fast 0.677)\n";
   return s;
 }
 

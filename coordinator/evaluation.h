@@ -101,7 +101,8 @@ struct Evaluation {
   int frames = 0;
   int people = 0;  ///< people summed over frames
   float distance_m = 0.1f;
-  bool learned_params = false;  ///< the forest's JPAR was used
+  bool learned_params = false;                     ///< the forest's JPAR was used
+  bool ran_fast = false, ran_upper_bound = false;  ///< which of the three were scored
   core::ProposalParams params;
   runtime::JointApEvaluator mean_shift, fast, upper_bound;
   double classify_ms = 0, mean_shift_ms = 0, fast_ms = 0;  ///< summed over frames

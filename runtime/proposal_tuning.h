@@ -24,10 +24,10 @@ struct ValidationFrame {
 
 /// The values tried (the paper's learned means 0.065 m, 0.14 and 0.039 m lie inside). On our
 /// forests no joint chose b = 0.03 m or lambda = 0.05 and many chose the largest values of a
-/// 0.03..0.12 m x 0.05..0.3 grid, so the grid reaches higher.
+/// 0.03..0.12 m x 0.05..0.3 grid, then of lambda 0.4, so the grid reaches higher.
 struct TuningGrid {
   std::vector<float> bandwidth_m = {0.045f, 0.065f, 0.09f, 0.12f, 0.16f};
-  std::vector<float> prob_threshold = {0.1f, 0.14f, 0.2f, 0.3f, 0.4f};
+  std::vector<float> prob_threshold = {0.1f, 0.14f, 0.2f, 0.3f, 0.4f, 0.55f};
   /// Cheap (it only moves proposals), so finer: 0 .. 0.1 m in 1 cm steps.
   std::vector<float> z_offset_m = {0.0f, 0.01f, 0.02f, 0.03f, 0.04f, 0.05f, 0.06f, 0.07f, 0.08f, 0.09f, 0.1f};
   size_t points() const { return bandwidth_m.size() * prob_threshold.size() * z_offset_m.size(); }

@@ -125,8 +125,10 @@ int EvalMain(int argc, char** argv) {
       std::printf("no joint average precision: %s has no ground-truth joints\n", set.c_str());
     } else {
       std::fputs(coordinator::FormatJointApTable(*e).c_str(), stdout);
-      std::printf("ms/frame: classify %.1f, mean shift %.1f, fast clustering %.1f\n",
-                  e->classify_ms / e->frames, e->mean_shift_ms / e->frames, e->fast_ms / e->frames);
+      std::printf("ms/frame: classify %.1f, mean shift %.1f", e->classify_ms / e->frames,
+                  e->mean_shift_ms / e->frames);
+      if (e->ran_fast) std::printf(", fast clustering %.1f", e->fast_ms / e->frames);
+      std::printf("\n");
       if (auto dir = args.Get("pr-png")) {
         if (auto st = coordinator::WritePrCurves(*e, *dir); !st.ok()) {
           std::fprintf(stderr, "poseforest eval: %s\n", st.ToString().c_str());

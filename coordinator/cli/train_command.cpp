@@ -22,6 +22,11 @@ nodes split, samples, feature evaluations per second, elapsed seconds, memory. T
 byte-identical for a given config whatever --threads and --shards are.
 If the job has a test_set, the average per-class accuracy on it is printed at the end.
 
+With --local-workers N (or --domain D / --min-workers N) the same job runs through the
+distributed service instead: a coordinator in this process and N worker processes on this
+machine (or workers that join over Fast DDS), with every option of `poseforest coordinator`
+(see `poseforest coordinator --help`); the forest is byte-identical.
+
 options:
   --out PATH      forest file to write (required)
   --threads N     override the job's thread count (0 = all cores)

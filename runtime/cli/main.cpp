@@ -61,6 +61,18 @@ int main(int argc, char** argv) {
     std::printf("poseforest %s\n", POSEFOREST_VERSION);
     return 0;
   }
+#ifdef POSEFOREST_HAS_DISTRIBUTED
+  // `train JOB --local-workers N` (or --domain / --min-workers) runs the job through the
+  // distributed service: a coordinator plus worker processes over Fast DDS; same forest.
+  if (cmd == "train") {
+    for (int i = 2; i < argc; ++i) {
+      const std::string_view a = argv[i];
+      if (a == "--local-workers" || a == "--domain" || a == "--min-workers" ||
+          a.starts_with("--local-workers=") || a.starts_with("--domain=") || a.starts_with("--min-workers="))
+        return poseforest::cli::CoordinatorMain(argc - 1, argv + 1);
+    }
+  }
+#endif
   for (const Command& c : kCommands)
     if (cmd == c.name) return c.main(argc - 1, argv + 1);
   std::fprintf(stderr, "poseforest: unknown command '%s'\n\n", argv[1]);

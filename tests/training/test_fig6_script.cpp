@@ -95,8 +95,8 @@ TEST_CASE("fig6.sh writes the three CSVs and plot_fig6.py the three plots", "[fi
   CHECK(b[1] == a[1]);
   CHECK(c[1] == a[1]);
   // The held-out test frames come from the test clips of the library the script built.
-  CHECK_THAT(Slurp(out / "i8_d20_o129.textproto"), Catch::Contains("clips: CLIP_SET_TEST") &&
-                                                       Catch::Contains(out.string() + "/mocap.pfposes"));
+  CHECK_THAT(Slurp(out / "i8_d20_o129.textproto"),
+             Catch::Contains("clips: CLIP_SET_TEST") && Catch::Contains(out.string() + "/mocap.pfposes"));
 
   for (const char* name : {"fig6a_images.png", "fig6b_depth.png", "fig6c_offset.png"}) {
     auto bytes = core::ReadFileBytes((csv / name).string());
@@ -127,9 +127,9 @@ TEST_CASE("fig6.sh and plot_fig6.py name what is wrong", "[fig6]") {
   CHECK(no_data.exit_code != 0);
   CHECK_THAT(no_data.output, Catch::Contains("no shared data at /nonexistent/data"));
 
-  auto no_program = testing::RunCommand("POSEFOREST_DATA_DIR='" + testing::DataDir().string() + "' CSV_DIR='" +
-                                        dir.string() + "' " + Script("fig6.sh") + " " + (dir / "nope").string() +
-                                        " " + (dir / "out").string());
+  auto no_program = testing::RunCommand("POSEFOREST_DATA_DIR='" + testing::DataDir().string() +
+                                        "' CSV_DIR='" + dir.string() + "' " + Script("fig6.sh") + " " +
+                                        (dir / "nope").string() + " " + (dir / "out").string());
   CHECK(no_program.exit_code != 0);
   CHECK_THAT(no_program.output, Catch::Contains((dir / "nope").string() + " is not an executable"));
 

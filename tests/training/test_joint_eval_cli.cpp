@@ -78,11 +78,13 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   }
 
   // Two people per frame: proposals are counted against each person's joints.
-  auto two =
-      RunPoseforest("eval --forest " + tuned + " --test-set " + job + " --images 2 --people 2 --quiet");
+  auto two = RunPoseforest("eval --forest " + tuned + " --test-set " + job +
+                           " --images 2 --people 2 --quiet --method meanshift");
   INFO(two.output);
   REQUIRE(two.exit_code == 0);
   CHECK_THAT(two.output, Catch::Contains("2 frames, 4 people"));
+  // The fast clustering did not run: no figures for it, not zeros.
+  CHECK_THAT(two.output, !Catch::Contains("fast clustering") && Catch::Contains("mAP: mean shift"));
 
   // infer uses the stored parameters.
   REQUIRE(RunPoseforest("render --out " + (dir / "frames").string() + " --count 1 --seed 5").exit_code == 0);
@@ -139,9 +141,13 @@ TEST_CASE("tune-joints and eval refuse bad input with clear messages", "[cli][jo
       RunPoseforest("tune-joints --forest " + forest + " --validation " + job + " --out x --frames 0");
   CHECK(bad_frames.exit_code == 2);
   CHECK_THAT(bad_frames.output, Catch::Contains("--frames"));
+  auto bad_method =
+      RunPoseforest("tune-joints --forest " + forest + " --validation " + job + " --out x --method slow");
+  CHECK(bad_method.exit_code == 2);
+  CHECK_THAT(bad_method.output, Catch::Contains("--method must be meanshift or fast"));
   auto help = RunPoseforest("tune-joints --help");
   CHECK(help.exit_code == 0);
-  CHECK_THAT(help.output, Catch::Contains("usage: poseforest tune-joints"));
+  CHECK_THAT(help.output, Catch::Contains("usage: poseforest tune-joints") && Catch::Contains("--per-joint"));
 
   auto people = RunPoseforest("eval --forest " + forest + " --test-set procedural:3 --people 2");
   CHECK(people.exit_code == 2);

@@ -5,6 +5,8 @@
 #include <fstream>
 #include <string>
 
+#include <unistd.h>
+
 #include "runtime/core/forest_format.h"
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
@@ -39,6 +41,28 @@ TEST_CASE("train a forest from a job file, then evaluate it", "[cli][training]")
   CHECK(core::ReadFileBytes(png).ok());
   auto eval_proc = RunPoseforest("eval --forest " + forest + " --test-set procedural:6 --images 2");
   CHECK(eval_proc.exit_code == 0);
+}
+
+TEST_CASE("train --local-workers 2 runs the distributed service and writes the same forest", "[cli][training]") {
+  const auto dir = testing::ScratchDir("cli-train-dist");
+  const std::string job = (dir / "job.textproto").string();
+  const std::string single = (dir / "single.pff").string(), dist = (dir / "dist.pff").string();
+  std::ofstream(job) << "seed: 4 num_trees: 2 max_depth: 7 images_per_tree: 6 pixels_per_image: 300\n"
+                        "candidate_features: 40 thresholds_per_feature: 8 threads: 1\n"
+                        "source { procedural { seed: 7 width: 160 height: 120 } }\n";
+  auto one = RunPoseforest("train " + job + " --out " + single + " --quiet");
+  INFO(one.output);
+  REQUIRE(one.exit_code == 0);
+  // Its own domain (pid based) so parallel test runs do not meet.
+  const std::string domain = std::to_string(100 + ::getpid() % 100);
+  auto two = RunPoseforest("train " + job + " --out " + dist + " --local-workers 2 --domain " + domain);
+  INFO(two.output);
+  REQUIRE(two.exit_code == 0);
+  CHECK_THAT(two.output, Catch::Contains("wrote " + dist) && Catch::Contains("0 messages rejected"));
+  auto a = core::ReadFileBytes(single), b = core::ReadFileBytes(dist);
+  REQUIRE(a.ok());
+  REQUIRE(b.ok());
+  CHECK(*a == *b);
 }
 
 TEST_CASE("train and eval refuse bad input with clear messages", "[cli][training]") {
