@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <charconv>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include "coordinator/distributed/checkpoint_export.h"
 #include "coordinator/distributed/coordinator_monitoring.h"
 #include "coordinator/distributed/dist_coordinator.h"
 #include "poseforest/v1/job.pb.h"
@@ -107,8 +109,8 @@ struct LocalWorkers {
 
 int CoordinatorMain(int argc, char** argv) {
   Args args({"out", "local-workers", "domain", "profile", "checkpoint", "status-file", "min-workers",
-             "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces", "http", "event-log",
-             "http-linger-s"},
+             "min-workers-per-tree", "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces",
+             "http", "event-log", "http-linger-s"},
             {"resume", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || args.positional().size() != 1 || !args.Has("out")) {
@@ -122,7 +124,8 @@ int CoordinatorMain(int argc, char** argv) {
         "          dashboard over HTTP, default 127.0.0.1:0 = a free loopback port, printed; the final\n"
         "          state stays up S s (default 2) if anyone read it; JSON-lines event log)\n"
         "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers, local\n"
-        "          addresses; e.g. on hosts without multicast)\n");
+        "          addresses; e.g. on hosts without multicast)\n"
+        "         [--min-workers-per-tree N0,N1,...]   (tests: before tree t, wait for Nt live workers)\n");
     return args.Has("help") ? 0 : 2;
   }
   const std::string job_path = args.positional()[0];
@@ -173,18 +176,45 @@ int CoordinatorMain(int argc, char** argv) {
   opt.transport = *profile;
   opt.min_workers = *min_workers > 0 ? int(*min_workers) : std::max(1, int(*local));
   opt.worker_wait = std::chrono::seconds(*wait_s);
+  if (args.Has("min-workers-per-tree")) {
+    const std::string list = *args.Get("min-workers-per-tree");
+    std::stringstream items(list);
+    for (std::string item; std::getline(items, item, ',');) {
+      int n = -1;
+      const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), n);
+      if (ec != std::errc() || end != item.data() + item.size() || n < 0 || n > 4096) {
+        std::fprintf(stderr, "coordinator: --min-workers-per-tree: \"%s\" is not a list of counts 0..4096\n",
+                     list.c_str());
+        return 2;
+      }
+      opt.min_workers_per_tree.push_back(n);
+    }
+  }
   opt.checkpoint_dir = args.GetOr("checkpoint", "");
   opt.resume = args.Has("resume");
+  if (opt.resume && !opt.checkpoint_dir.empty()) {
+    // Check every field of the checkpoint before the coordinator replays it: a corrupt file is
+    // an error naming it, never a crash (the same checks as `poseforest export`).
+    const auto ckpt = std::filesystem::path(opt.checkpoint_dir) / "checkpoint.pb";
+    if (std::filesystem::exists(ckpt)) {
+      auto checked = dist::ForestFromCheckpoint(ckpt.string(), dist::PartialTree::kFinishAsLeaves);
+      if (!checked.ok() && checked.status().code() != core::ErrorCode::kInvalidArgument) {
+        std::fprintf(stderr, "coordinator: cannot resume: %s\n", checked.status().message().c_str());
+        return 1;
+      }
+    }
+  }
   const std::string status_file = args.GetOr("status-file", "");
   opt.progress = [&](const dist::DistLevelStats& s) {
     char line[512];
     std::snprintf(
         line, sizeof line,
         "tree %d level %d: %zu nodes (%zu split), %llu samples, %.3g evaluations/s, %d workers alive, "
-        "%s received, %s sent, merge %.1f ms, level %.2f s%s",
+        "%s received, %s sent, merge %.1f ms, level %.2f s%s%s",
         s.tree, s.level, s.frontier_nodes, s.split_nodes, (unsigned long long)s.samples, s.evaluations_per_s,
         s.workers_alive, Human(double(s.bytes_received)).c_str(), Human(double(s.bytes_sent)).c_str(),
         s.merge_seconds * 1e3, s.level_seconds,
+        s.subtree_tasks ? (", " + std::to_string(s.subtree_tasks) + " subtrees handed off").c_str() : "",
         s.retries ? (", " + std::to_string(s.retries) + " retries").c_str() : "");
     std::printf("%s\n", line);
     std::fflush(stdout);

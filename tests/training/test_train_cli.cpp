@@ -2,8 +2,10 @@
 
 #include <catch2/catch.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
@@ -63,6 +65,38 @@ TEST_CASE("train --local-workers 2 runs the distributed service and writes the s
   REQUIRE(a.ok());
   REQUIRE(b.ok());
   CHECK(*a == *b);
+}
+
+TEST_CASE("--resume from a corrupt checkpoint is an error naming the file, not a crash", "[cli][training]") {
+  const auto dir = testing::ScratchDir("cli-resume-bad");
+  const std::string job = (dir / "job.textproto").string(), out = (dir / "forest.pff").string();
+  const std::string ckpt_dir = (dir / "ckpt").string(), ckpt = (dir / "ckpt" / "checkpoint.pb").string();
+  std::ofstream(job) << "seed: 4 num_trees: 2 max_depth: 6 images_per_tree: 4 pixels_per_image: 200\n"
+                        "candidate_features: 30 thresholds_per_feature: 6 threads: 1\n"
+                        "source { procedural { seed: 7 width: 160 height: 120 } }\n";
+  const std::string domain = std::to_string(100 + (::getpid() + 37) % 100);
+  const std::string cmd = "train " + job + " --out " + out + " --local-workers 1 --domain " + domain +
+                          " --checkpoint " + ckpt_dir + " --resume";
+  // A real checkpoint of the finished job first.
+  auto ok = RunPoseforest(cmd);
+  INFO(ok.output);
+  REQUIRE(ok.exit_code == 0);
+  auto bytes = core::ReadFileBytes(ckpt);
+  REQUIRE(bytes.ok());
+  REQUIRE(bytes->size() > 64);
+  std::filesystem::remove(out);
+  // Truncated to half, then garbage: each refused before any replay, naming the file.
+  const std::vector<uint8_t> half(bytes->begin(), bytes->begin() + std::ptrdiff_t(bytes->size() / 2));
+  const std::vector<uint8_t> garbage(300, 0xA7);
+  for (const auto* content : {&half, &garbage}) {
+    std::ofstream(ckpt, std::ios::binary | std::ios::trunc)
+        .write(reinterpret_cast<const char*>(content->data()), std::streamsize(content->size()));
+    auto bad = RunPoseforest(cmd);
+    INFO(bad.output);
+    CHECK(bad.exit_code == 1);
+    CHECK_THAT(bad.output, Catch::Contains("cannot resume") && Catch::Contains("checkpoint.pb"));
+    CHECK_FALSE(std::filesystem::exists(out));
+  }
 }
 
 TEST_CASE("train and eval refuse bad input with clear messages", "[cli][training]") {
