@@ -4,11 +4,12 @@
 #   1. mocap -> pose library: the shared BVH clips retargeted onto the canonical skeleton and
 #      subsampled so no two poses are closer than 5 cm (section 2.2), split by clip into
 #      train and test clips;
-#   2. train a forest on frames rendered on the fly (headless EGL): mocap poses from the train
-#      clips on procedural and MakeHuman bodies, random camera, Kinect-like noise; export it to
-#      the runtime format and check it; then train a small job again with the distributed
-#      service (a coordinator and 2 local worker processes over Fast DDS) and check that it
-#      writes the same forest, byte for byte, as the single-process engine;
+#   2. train a forest with the distributed service - a coordinator and 2 local worker processes
+#      over Fast DDS (`train --local-workers 2`), each worker rendering its shard of frames on
+#      the fly (headless EGL): mocap poses from the train clips on procedural and MakeHuman
+#      bodies, random camera, Kinect-like noise; export the forest from the job's checkpoint
+#      (`poseforest export`) and check it equals the coordinator's file; then train a small job
+#      both ways and check the service writes the single-process engine's forest, byte for byte;
 #   3. learn the joint-proposal parameters (b, lambda, zeta per joint) on validation renders of
 #      the train clips and store them in the forest; report joint AP / mAP (mean shift, fast,
 #      the ground-truth-parts upper bound, also with two people per frame) and the average
@@ -72,14 +73,19 @@ test_set {
 }
 JOB
 
-echo "== 2. training ($out/job.textproto)"
-"$bin/poseforest" train "$out/job.textproto" --out "$out/forest.pff"
+echo "== 2. training ($out/job.textproto): coordinator + 2 local worker processes over Fast DDS"
+rm -rf "$out/checkpoint" "$out/small_checkpoint"
+"$bin/poseforest" train "$out/job.textproto" --out "$out/forest.pff" --local-workers 2 \
+  --checkpoint "$out/checkpoint" --event-log "$out/events.jsonl"
+"$bin/poseforest" export --checkpoint "$out/checkpoint" --out "$out/exported.pff"
+cmp "$out/forest.pff" "$out/exported.pff"
+echo "exported from the checkpoint == the coordinator's forest, byte for byte"
 "$bin/poseforest" inspect "$out/forest.pff"
 
 echo "== 2b. the distributed service (coordinator + 2 local workers over Fast DDS) on a small job"
 small="$root/docs/training/smoke_job.textproto"
 "$bin/poseforest" train "$small" --out "$out/small_single.pff" --quiet
-"$bin/poseforest" coordinator "$small" --out "$out/small_distributed.pff" --local-workers 2 --checkpoint "$out/checkpoint"
+"$bin/poseforest" coordinator "$small" --out "$out/small_distributed.pff" --local-workers 2 --checkpoint "$out/small_checkpoint"
 cmp "$out/small_single.pff" "$out/small_distributed.pff"
 echo "distributed forest == single-process forest, byte for byte"
 
