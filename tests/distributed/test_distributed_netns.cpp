@@ -6,7 +6,9 @@
 //  2. Worker 2's link is cut mid-job: the coordinator notices (liveliness), hands its frames to
 //     worker 1 and goes on; the link comes back while the job still runs: the returning worker
 //     rejoins, its stale replies are dropped and counted, it gets frames of a later tree, and the
-//     forest is still byte-identical.
+//     forest is still byte-identical. The coordinator runs with --min-workers-per-tree 2,2,2,2,2,
+//     so no tree after the cut starts before the worker is back: the rejoin is waited for, not
+//     raced against the job's speed (an idle machine finishes the job in a few seconds).
 //
 // Needs root (CAP_NET_ADMIN) and `ip netns`; without them the test FAILS (it is the only test of
 // the multi-host training path). Namespaces are removed on every exit path (NetnsTopology).
@@ -34,9 +36,10 @@ namespace {
 
 std::string Program() { return (HelperDir() / "poseforest").string(); }
 
-/// Five trees so that a worker returning during tree 0 is put to use in a later tree; sized to
+/// Five trees so that a worker returning during tree 0 is put to use in later trees; sized to
 /// take a few seconds on a loaded 2-core machine. Every level by histogram rounds (no subtree
-/// hand-off, which would finish the job before the healed worker is back).
+/// hand-off), so every level of tree 0 after the cut needs worker 2's replies: the coordinator
+/// notices the cut within tree 0, whatever the machine's speed.
 std::string NetJobText() {
   return "seed: 17\nnum_trees: 5\nmax_depth: 10\nimages_per_tree: 40\npixels_per_image: 400\n"
          "candidate_features: 100\nthresholds_per_feature: 16\nmax_probe_offset_pixel_m: 60\n"
@@ -109,12 +112,13 @@ struct NetRun {
     REQUIRE(c.Start(argv, &error));
   }
 
-  void StartCoordinator(Child& c) {
+  void StartCoordinator(Child& c, const std::vector<std::string>& extra = {}) {
     std::vector<std::string> argv = topo.Exec(0);
     argv.insert(argv.end(), {Program(), "coordinator", (dir / "job.textproto").string(), "--out",
                              (dir / "forest.pff").string(), "--profile", "udp", "--peers",
                              topo.host(1).ip + "," + topo.host(2).ip, "--interfaces", topo.host(0).ip,
                              "--domain", std::to_string(domain), "--job-id", job_id, "--min-workers", "2"});
+    argv.insert(argv.end(), extra.begin(), extra.end());
     std::string error;
     REQUIRE(c.Start(argv, &error));
   }
@@ -177,7 +181,8 @@ TEST_CASE("multi-host: a worker's link cut mid-job and restored: noticed, reassi
   Child w[3], coord;
   run.StartWorker(w[1], 1);
   run.StartWorker(w[2], 2);
-  run.StartCoordinator(coord);
+  // Every tree waits for both workers: the one cut in tree 0 must be back before tree 1 starts.
+  run.StartCoordinator(coord, {"--min-workers-per-tree", "2,2,2,2,2"});
   const std::string w2 = run.WorkerId(2);
   {
     auto line = coord.WaitForLine("tree 0 level 2:", 90s);
@@ -190,8 +195,9 @@ TEST_CASE("multi-host: a worker's link cut mid-job and restored: noticed, reassi
   bool link_down = true;
   auto lost = coord.WaitForLine("worker " + w2 + " lost", 20s);
   const double lost_s = Seconds(cut);
-  // Heal the partition while the job still runs (tree 0 of 5), well inside the participant
-  // lease (10 s), so queued DDS traffic from before the cut is delivered once the link is back.
+  // Heal the partition while the job still runs (tree 0, or the wait before tree 1), well inside
+  // the participant lease (10 s), so queued DDS traffic from before the cut is delivered once the
+  // link is back.
   std::this_thread::sleep_for(300ms);
   const bool coordinator_running = coord.pid() > 0 && ::kill(coord.pid(), 0) == 0;
   if (link_down) link_down = run.topo.SetLink(2, true) != "";
@@ -230,6 +236,15 @@ TEST_CASE("multi-host: a worker's link cut mid-job and restored: noticed, reassi
     auto wrc = w[i].Wait(15s);
     CHECK((wrc && *wrc == 0));
   }
-  // The returning worker was put to use: it got frames of the last tree.
+  // The returning worker was put to use: it rejoined before the last tree started and got frames
+  // of it.
+  const std::string out = coord.output();
+  const std::string joined = "worker " + w2 + " joined";
+  const size_t first_join = out.find(joined);
+  const size_t rejoined = first_join == std::string::npos ? first_join : out.find(joined, first_join + 1);
+  const size_t last_tree = out.find("tree 4 level 0:");
+  CHECK(rejoined != std::string::npos);
+  CHECK(last_tree != std::string::npos);
+  CHECK(rejoined < last_tree);
   CHECK(w[2].output().find("tree 4: shard of") != std::string::npos);
 }
