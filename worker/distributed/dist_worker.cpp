@@ -63,6 +63,9 @@ struct DistWorker::Impl {
   worker::TrainParams params;
 
   int tree = -1;
+  int subtree_log_tree = -1;  ///< progress lines of subtree tasks: tree, count, nodes, seconds
+  uint64_t subtree_done = 0, subtree_nodes_done = 0;
+  double subtree_s = 0;
   bool have_shard = false;
   std::map<uint64_t, FrameData> cache;  // tree-local frame index -> frame
   // Frames of other shards rendered for SubtreeTasks (tree `extra_tree`), kept for the tree's
@@ -577,10 +580,20 @@ struct DistWorker::Impl {
     AttachExt(rext, res);
     uint32_t crc = core::Crc32(res->nodes().data(), res->nodes().size());
     res->set_crc32(core::Crc32(res->leaves().data(), res->leaves().size(), crc));
-    Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(ext.position()) + " (" +
-        std::to_string(routed.end - routed.begin) + " samples from " + std::to_string(wanted.size()) +
-        " frames, " + std::to_string(missing.size()) + " rendered) -> " + std::to_string(out->nodes.size()) +
-        " nodes in " + std::to_string(NowSeconds() - t0) + " s");
+    // One line for a tree's first subtree task, then a running total every 100 tasks (a depth-20
+    // job hands off hundreds per tree).
+    if (t != subtree_log_tree) subtree_log_tree = t, subtree_done = 0, subtree_nodes_done = 0, subtree_s = 0;
+    ++subtree_done;
+    subtree_nodes_done += out->nodes.size();
+    subtree_s += NowSeconds() - t0;
+    if (subtree_done == 1)
+      Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(ext.position()) + " (" +
+          std::to_string(routed.end - routed.begin) + " samples from " + std::to_string(wanted.size()) +
+          " frames, " + std::to_string(missing.size()) + " rendered) -> " + std::to_string(out->nodes.size()) +
+          " nodes in " + std::to_string(NowSeconds() - t0) + " s");
+    else if (subtree_done % 100 == 0)
+      Log("tree " + std::to_string(t) + ": " + std::to_string(subtree_done) + " subtrees trained so far (" +
+          std::to_string(subtree_nodes_done) + " nodes, " + std::to_string(subtree_s) + " s)");
     (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
     return Publish(Topic::kReplies, env);
   }
