@@ -6,7 +6,7 @@
 #include <iterator>
 
 #include "coordinator/tree_assembler.h"
-#include "dist_wire.pb.h"
+#include "poseforest/v1/checkpoint.pb.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/core/forest_format.h"
@@ -32,7 +32,7 @@ class SafeReplay {
     depth_.push_back(0);
   }
 
-  Status Apply(const LoggedDecision& d) {
+  Status Apply(const v1::LoggedDecision& d) {
     const uint32_t n = d.node();
     if (n >= decided_.size() || decided_[n])
       return Bad("node " + std::to_string(n) +
@@ -111,7 +111,7 @@ Result<CheckpointForest> ForestFromCheckpoint(const std::string& path, PartialTr
 
 Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& bytes, const std::string& file,
                                                    PartialTree partial) {
-  Checkpoint ck;
+  v1::Checkpoint ck;
   if (bytes.empty() || !ck.ParseFromString(bytes))
     return Status(ErrorCode::kDataLoss, file + ": not a coordinator checkpoint (does not parse)");
   // 2 adds heap positions and pending subtree nodes, which export does not need.
@@ -140,8 +140,8 @@ Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& bytes, con
   std::vector<core::Tree> trees;
   for (int t = 0; t < ck.finished_size(); ++t) {
     SafeReplay r(file + ": tree " + std::to_string(t), params->max_depth);
-    for (const LoggedLevel& lv : ck.finished(t).levels())
-      for (const LoggedDecision& d : lv.decisions()) POSEFOREST_RETURN_IF_ERROR(r.Apply(d));
+    for (const v1::LoggedLevel& lv : ck.finished(t).levels())
+      for (const v1::LoggedDecision& d : lv.decisions()) POSEFOREST_RETURN_IF_ERROR(r.Apply(d));
     auto tree = r.Finish();
     if (!tree.ok()) return tree.status();
     trees.push_back(std::move(*tree));
@@ -152,14 +152,14 @@ Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& bytes, con
   if (!out.job_finished && out.partial_levels > 0 && partial == PartialTree::kFinishAsLeaves) {
     const int t = int(trees.size());
     SafeReplay r(file + ": tree in progress (" + std::to_string(t) + ")", params->max_depth);
-    for (const LoggedLevel& lv : ck.current().levels())
-      for (const LoggedDecision& d : lv.decisions()) POSEFOREST_RETURN_IF_ERROR(r.Apply(d));
+    for (const v1::LoggedLevel& lv : ck.current().levels())
+      for (const v1::LoggedDecision& d : lv.decisions()) POSEFOREST_RETURN_IF_ERROR(r.Apply(d));
     const std::vector<uint32_t> open = r.Open();
     if (open.size() != size_t(ck.frontier_size()))
       return r.Bad(std::to_string(open.size()) + " open nodes but " + std::to_string(ck.frontier_size()) +
                    " frontier entries");
     for (int i = 0; i < ck.frontier_size(); ++i) {
-      const FrontierEntry& fe = ck.frontier(i);
+      const v1::FrontierEntry& fe = ck.frontier(i);
       if (fe.node() != open[size_t(i)])
         return r.Bad("frontier entry " + std::to_string(i) + " is node " + std::to_string(fe.node()) +
                      ", expected " + std::to_string(open[size_t(i)]));

@@ -17,6 +17,7 @@
 #include "coordinator/split_search.h"
 #include "coordinator/subtree_trainer.h"
 #include "coordinator/tree_assembler.h"
+#include "poseforest/v1/checkpoint.pb.h"
 #include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
 #include "runtime/core/body_parts.h"
@@ -66,7 +67,6 @@ struct WorkerInfo {
 struct Reply {
   std::string sender;
   v1::HistogramReply body;
-  HistogramReplyExt ext;
 };
 
 /// A node handed to one worker whole (SubtreeTask), until its SubtreeResult is in.
@@ -83,7 +83,7 @@ struct SubtreeJob {
   std::vector<coordinator::SubtreeNode> nodes;  ///< the result
 };
 
-coordinator::SubtreeNode FromProto(const SubtreeNode& n) {
+coordinator::SubtreeNode FromProto(const v1::SubtreeNode& n) {
   coordinator::SubtreeNode o;
   o.position = n.position();
   o.split = n.split();
@@ -94,7 +94,7 @@ coordinator::SubtreeNode FromProto(const SubtreeNode& n) {
   return o;
 }
 
-void ToProto(const coordinator::SubtreeNode& n, SubtreeNode* o) {
+void ToProto(const coordinator::SubtreeNode& n, v1::SubtreeNode* o) {
   o->set_position(n.position);
   o->set_split(n.split);
   if (n.split) {
@@ -142,7 +142,7 @@ struct DistCoordinator::Impl {
   int level_retries = 0;
 
   // Checkpoint state.
-  Checkpoint ckpt;
+  v1::Checkpoint ckpt;
 
   void Log(const std::string& m) { opt.log(m); }
 
@@ -196,7 +196,7 @@ struct DistCoordinator::Impl {
     PublishStatus(why == "evicted" ? v1::STATUS_KIND_WORKER_EVICTED : v1::STATUS_KIND_WORKER_LOST, why, id);
   }
 
-  Phase expected_phase = PHASE_UNSPECIFIED;
+  v1::Phase expected_phase = v1::PHASE_UNSPECIFIED;
   int expected_nodes = 0;
 
   Status CheckShape(const Reply& r, const std::string& sender) const {
@@ -204,24 +204,24 @@ struct DistCoordinator::Impl {
     auto bad = [&](const std::string& m) {
       return Status(ErrorCode::kInvalidArgument, "reply of " + sender + ": " + m);
     };
-    if (r.ext.phase() != expected_phase) return bad("wrong phase");
-    if (expected_phase == PHASE_RANGES || expected_phase == PHASE_COUNTS) {
-      if (r.ext.ranges_size() != expected_nodes)
-        return bad("ranges of " + std::to_string(r.ext.ranges_size()) + " nodes");
-      for (const auto& nr : r.ext.ranges()) {
-        if (expected_phase == PHASE_RANGES && nr.fused()) {
+    if (r.body.phase() != expected_phase) return bad("wrong phase");
+    if (expected_phase == v1::PHASE_RANGES || expected_phase == v1::PHASE_COUNTS) {
+      if (r.body.ranges_size() != expected_nodes)
+        return bad("ranges of " + std::to_string(r.body.ranges_size()) + " nodes");
+      for (const auto& nr : r.body.ranges()) {
+        if (expected_phase == v1::PHASE_RANGES && nr.fused()) {
           uint64_t total = 0;
           for (uint32_t c : nr.cut_counts()) {
             if (c > uint32_t(params.thresholds_per_feature)) return bad("cut count");
             total += c;
           }
           if (nr.cut_counts_size() != k || total != uint64_t(nr.cut_deltas_size())) return bad("cut list");
-        } else if (expected_phase == PHASE_RANGES && (nr.lo_size() != k || nr.hi_size() != k)) {
+        } else if (expected_phase == v1::PHASE_RANGES && (nr.lo_size() != k || nr.hi_size() != k)) {
           return bad("range count");
         }
-        if (expected_phase == PHASE_COUNTS && nr.part_counts_size() != kParts)
+        if (expected_phase == v1::PHASE_COUNTS && nr.part_counts_size() != kParts)
           return bad("part count length");
-        if (expected_phase == PHASE_FRAMES) {
+        if (expected_phase == v1::PHASE_FRAMES) {
           for (int j = 0; j < nr.frames_size(); ++j)
             if (nr.frames(j) >= uint32_t(params.images_per_tree) ||
                 (j > 0 && nr.frames(j) <= nr.frames(j - 1)))
@@ -268,9 +268,8 @@ struct DistCoordinator::Impl {
             w.last_seen = NowSeconds();
             if (opt.observer) opt.observer->OnWorkerSeen(out.sender);
             if (env.has_heartbeat()) {
-              HeartbeatExt hx;
-              if (ReadExt(env.heartbeat(), &hx, "Heartbeat").ok())
-                w.seen_epoch = std::max({w.seen_epoch, hx.shard_epoch(), hx.received_shard_epoch()});
+              const v1::Heartbeat& hb = env.heartbeat();
+              w.seen_epoch = std::max({w.seen_epoch, hb.shard_epoch(), hb.received_shard_epoch()});
             }
             w.presence_writer = s->writer_guid;
             w.participant = s->writer_participant;
@@ -285,8 +284,7 @@ struct DistCoordinator::Impl {
               Reply r;
               r.sender = out.sender;
               r.body = env.histogram();
-              Status st = ReadExt(r.body, &r.ext, "HistogramReply from " + out.sender);
-              if (st.ok()) st = CheckShape(r, out.sender);
+              Status st = CheckShape(r, out.sender);
               if (!st.ok()) {
                 // Well-formed for the gate but not what we asked: this worker cannot be trusted.
                 Log(st.ToString());
@@ -410,8 +408,8 @@ struct DistCoordinator::Impl {
 
   /// One request/reply round over the assigned workers, repeated under a new epoch (after
   /// handing lost workers' frames on) until every assigned worker has answered.
-  Result<std::vector<Reply>> Round(Phase phase, const std::vector<uint32_t>& node_ids,
-                                   const std::vector<NodeSpec>& specs, int level) {
+  Result<std::vector<Reply>> Round(v1::Phase phase, const std::vector<uint32_t>& node_ids,
+                                   const std::vector<v1::NodeSpec>& specs, int level) {
     for (;;) {
       if (!orphan_frames.empty()) {
         auto frames = std::move(orphan_frames);
@@ -433,10 +431,8 @@ struct DistCoordinator::Impl {
       req->set_num_thresholds(uint32_t(params.thresholds_per_feature + 1));
       req->set_num_parts(uint32_t(kParts));
       gate->ExpectLevel(*req);
-      LevelRequestExt ext;
-      ext.set_phase(phase);
-      for (const NodeSpec& s : specs) *ext.add_nodes() = s;
-      AttachExt(ext, req);
+      req->set_phase(phase);
+      for (const v1::NodeSpec& s : specs) *req->add_nodes() = s;
       const uint64_t want = req->epoch();
       expected_phase = phase;
       expected_nodes = int(node_ids.size());
@@ -506,13 +502,11 @@ struct DistCoordinator::Impl {
       return RejectSubtree(sender, "tree/node " + std::to_string(res.tree()) + "/" +
                                        std::to_string(res.node_id()) + ", task is " + std::to_string(tree) +
                                        "/" + std::to_string(job->node));
-    SubtreeResultExt ext;
-    if (Status st = ReadExt(res, &ext, "SubtreeResult"); !st.ok()) return RejectSubtree(sender, st.message());
-    if (ext.position() != job->position)
-      return RejectSubtree(sender, "position " + std::to_string(ext.position()) + ", task is " +
+    if (res.position() != job->position)
+      return RejectSubtree(sender, "position " + std::to_string(res.position()) + ", task is " +
                                        std::to_string(job->position));
     std::vector<coordinator::SubtreeNode> nodes;
-    for (const SubtreeNode& n : ext.nodes()) {
+    for (const v1::SubtreeNode& n : res.subtree_nodes()) {
       if (n.split() && !(FitsInt16(n.ux()) && FitsInt16(n.uy()) && FitsInt16(n.vx()) && FitsInt16(n.vy())))
         return RejectSubtree(sender, "feature offsets outside int16");
       nodes.push_back(FromProto(n));
@@ -529,7 +523,7 @@ struct DistCoordinator::Impl {
       return RejectSubtree(sender, "node/leaf bytes do not match its node list");
     job->nodes = std::move(nodes);
     job->done = true;
-    level_subtree_evaluations += ext.evaluations();
+    level_subtree_evaluations += res.evaluations();
   }
 
   /// Sends `job` to the live worker holding most of its samples (ties: smallest id), any live
@@ -582,10 +576,8 @@ struct DistCoordinator::Impl {
     uint64_t total = 0;
     for (uint64_t c : job.parts) total += c;
     t->set_expected_samples(total);
-    SubtreeTaskExt ext;
-    ext.set_position(job.position);
-    for (uint64_t c : job.parts) ext.add_part_counts(c);
-    AttachExt(ext, t);
+    t->set_position(job.position);
+    for (uint64_t c : job.parts) t->add_part_counts(c);
     job.worker = best->id;
     job.epoch = t->epoch();
     job.sent = NowSeconds();
@@ -628,9 +620,9 @@ struct DistCoordinator::Impl {
   }
 
   /// Replays a logged tree's levels into `assembler`; errors if the log is inconsistent.
-  static Status Replay(const LoggedTree& log, coordinator::TreeAssembler* assembler) {
-    for (const LoggedLevel& level : log.levels())
-      for (const LoggedDecision& d : level.decisions()) {
+  static Status Replay(const v1::LoggedTree& log, coordinator::TreeAssembler* assembler) {
+    for (const v1::LoggedLevel& level : log.levels())
+      for (const v1::LoggedDecision& d : level.decisions()) {
         if (d.split()) {
           core::FeatureOffsets f{int16_t(d.ux()), int16_t(d.uy()), int16_t(d.vx()), int16_t(d.vy())};
           if (assembler->MakeSplit(d.node(), f, d.cut()) != d.left_child())
@@ -651,12 +643,12 @@ struct DistCoordinator::Impl {
     split_of.clear();
     delegated.clear();
     tasks.clear();
-    for (const LoggedLevel& lv : ckpt.current().levels())
-      for (const LoggedDecision& d : lv.decisions())
+    for (const v1::LoggedLevel& lv : ckpt.current().levels())
+      for (const v1::LoggedDecision& d : lv.decisions())
         if (d.split())
           split_of[d.position()] = {{int16_t(d.ux()), int16_t(d.uy()), int16_t(d.vx()), int16_t(d.vy())},
                                     d.cut()};
-    for (const SubtreeNode& n : ckpt.subtree_nodes()) delegated[n.position()] = FromProto(n);
+    for (const v1::SubtreeNode& n : ckpt.subtree_nodes()) delegated[n.position()] = FromProto(n);
     // Resumed after its last level, before the tree was filed as finished: nothing left to do.
     if (first_level > 0 && frontier.empty()) return assembler.Finish();
     // Shards: every frame of the tree over the live workers; replays of resumed levels included.
@@ -665,11 +657,11 @@ struct DistCoordinator::Impl {
     POSEFOREST_RETURN_IF_ERROR(Distribute({{0, uint32_t(params.images_per_tree)}}));
     if (frontier.empty()) {
       // Census of the root.
-      auto replies = Round(PHASE_COUNTS, {0}, {NodeSpec{}}, 0);
+      auto replies = Round(v1::PHASE_COUNTS, {0}, {v1::NodeSpec{}}, 0);
       if (!replies.ok()) return replies.status();
       FrontierNode root{0, worker::kRootPosition, std::vector<uint64_t>(kParts, 0)};
       for (const Reply& r : *replies) {
-        for (int p = 0; p < kParts; ++p) root.parts[size_t(p)] += r.ext.ranges(0).part_counts(p);
+        for (int p = 0; p < kParts; ++p) root.parts[size_t(p)] += r.body.ranges(0).part_counts(p);
       }
       if (root.total() == 0)
         return Status(ErrorCode::kInvalidArgument, "tree " + std::to_string(tree) +
@@ -717,13 +709,13 @@ struct DistCoordinator::Impl {
           (frontier[i].total() <= params.subtree_max_samples ? hand : keep).push_back(i);
         if (!hand.empty()) {
           std::vector<uint32_t> ids;
-          std::vector<NodeSpec> specs(hand.size());
+          std::vector<v1::NodeSpec> specs(hand.size());
           for (size_t q = 0; q < hand.size(); ++q) {
             ids.push_back(frontier[hand[q]].node);
             specs[q].set_num_samples(frontier[hand[q]].total());
             specs[q].set_position(frontier[hand[q]].position);
           }
-          auto rf = Round(PHASE_FRAMES, ids, specs, level);
+          auto rf = Round(v1::PHASE_FRAMES, ids, specs, level);
           if (!rf.ok()) return rf.status();
           tasks.clear();
           for (size_t q = 0; q < hand.size(); ++q) {
@@ -734,7 +726,7 @@ struct DistCoordinator::Impl {
             job.parts = f.parts;
             uint64_t held = 0;
             for (const Reply& r : *rf) {
-              const NodeRanges& nr = r.ext.ranges(int(q));
+              const v1::NodeRanges& nr = r.body.ranges(int(q));
               if (nr.num_samples() > 0) job.holders[r.sender] = nr.num_samples();
               held += nr.num_samples();
               job.frames.insert(job.frames.end(), nr.frames().begin(), nr.frames().end());
@@ -781,21 +773,21 @@ struct DistCoordinator::Impl {
         // reference subsample is the whole node builds it in one fused pass (as LocalTrainer
         // does for a shard) and returns its histogram and cuts right away.
         std::vector<uint32_t> ids;
-        std::vector<NodeSpec> specs(plans.size());
+        std::vector<v1::NodeSpec> specs(plans.size());
         for (size_t p = 0; p < plans.size(); ++p) {
           ids.push_back(plans[p].node);
           specs[p].set_num_samples(plans[p].num_samples);
           specs[p].set_position(plans[p].position);
         }
         const double t_ranges = NowSeconds();
-        auto r1 = Round(PHASE_RANGES, ids, specs, level);
+        auto r1 = Round(v1::PHASE_RANGES, ids, specs, level);
         if (!r1.ok()) return r1.status();
         hist_s += NowSeconds() - t_ranges;
         std::vector<size_t> rest;  // plans that need pass 2
         std::vector<int> fused_by(plans.size(), -1);
         for (size_t p = 0; p < plans.size(); ++p) {
           for (size_t r = 0; r < r1->size(); ++r)
-            if ((*r1)[r].ext.ranges(int(p)).fused()) {
+            if ((*r1)[r].body.ranges(int(p)).fused()) {
               if (fused_by[p] >= 0)
                 return Status(ErrorCode::kDataLoss, "node " + std::to_string(plans[p].node) +
                                                         ": two workers claim all of its samples");
@@ -805,7 +797,7 @@ struct DistCoordinator::Impl {
           std::vector<worker::ResponseRange> merged(static_cast<size_t>(k));
           for (const Reply& r : *r1)
             for (int c = 0; c < k; ++c)
-              merged[size_t(c)].Merge({r.ext.ranges(int(p)).lo(c), r.ext.ranges(int(p)).hi(c)});
+              merged[size_t(c)].Merge({r.body.ranges(int(p)).lo(c), r.body.ranges(int(p)).hi(c)});
           plans[p].cuts = worker::DrawCuts(params, tree, plans[p].position, merged);
           const FrontierNode& f = frontier[to_split[b0 + p]];
           for (uint64_t c : f.parts) specs[p].add_part_counts(c);
@@ -821,7 +813,7 @@ struct DistCoordinator::Impl {
           for (size_t p = 0; p < plans.size(); ++p) {
             if (fused_by[p] < 0) continue;
             const Reply& r = (*r1)[size_t(fused_by[p])];
-            const NodeRanges& nr = r.ext.ranges(int(p));
+            const v1::NodeRanges& nr = r.body.ranges(int(p));
             const size_t fi = to_split[b0 + p];
             plans[p].cuts.assign(size_t(k) * size_t(cut_stride), worker::kNoCut);
             int pos = 0;
@@ -853,14 +845,14 @@ struct DistCoordinator::Impl {
         // A reply that counts a part absent from a node comes from a worker that disagrees with
         // the coordinator: it is evicted and the round asked again without it.
         std::vector<uint32_t> ids2;
-        std::vector<NodeSpec> specs2;
+        std::vector<v1::NodeSpec> specs2;
         for (size_t p : rest) {
           ids2.push_back(ids[p]);
           specs2.push_back(std::move(specs[p]));
         }
         for (int attempt = 0; !rest.empty(); ++attempt) {
           const double t_hist = NowSeconds();
-          auto r2 = Round(PHASE_HISTOGRAMS, ids2, specs2, level);
+          auto r2 = Round(v1::PHASE_HISTOGRAMS, ids2, specs2, level);
           if (!r2.ok()) return r2.status();
           hist_s += NowSeconds() - t_hist;
           const double t_merge = NowSeconds();
@@ -934,7 +926,7 @@ struct DistCoordinator::Impl {
       v1::SplitDecisions* dec = env.mutable_decisions();
       dec->set_tree(uint32_t(tree));
       dec->set_level(uint32_t(level));
-      LoggedLevel* logged = ckpt.mutable_current()->add_levels();
+      v1::LoggedLevel* logged = ckpt.mutable_current()->add_levels();
       size_t from_subtrees = 0;
       double entropy_sum = 0, gain_sum = 0;  // for DistLevelStats
       for (size_t i = 0; i < frontier.size(); ++i) {
@@ -942,7 +934,7 @@ struct DistCoordinator::Impl {
         entropy_sum += coordinator::Entropy(f.parts) * double(f.total());
         auto* nd = dec->add_nodes();
         nd->set_node_id(f.node);
-        LoggedDecision* ld = logged->add_decisions();
+        v1::LoggedDecision* ld = logged->add_decisions();
         ld->set_node(f.node);
         ld->set_position(f.position);
         if (auto it = delegated.find(f.position); it != delegated.end()) {
@@ -1077,7 +1069,7 @@ struct DistCoordinator::Impl {
       std::ifstream in(ckpt_path, std::ios::binary);
       std::stringstream ss;
       ss << in.rdbuf();
-      Checkpoint saved;
+      v1::Checkpoint saved;
       if (!saved.ParseFromString(ss.str()) || saved.format() == 0)
         return Status(ErrorCode::kDataLoss, ckpt_path + ": not a checkpoint");
       if (saved.format() != kCheckpointFormat)
@@ -1086,12 +1078,12 @@ struct DistCoordinator::Impl {
                           ", this coordinator reads " + std::to_string(kCheckpointFormat));
       if (saved.config() != config_bytes || saved.job_id() != job_id)
         return Status(ErrorCode::kInvalidArgument, ckpt_path + ": checkpoint of another job");
-      for (const LoggedTree& lt : saved.finished()) {
+      for (const v1::LoggedTree& lt : saved.finished()) {
         coordinator::TreeAssembler a(kParts);
         POSEFOREST_RETURN_IF_ERROR(Replay(lt, &a));
         trees.push_back(a.Finish());
       }
-      for (const FrontierEntry& fe : saved.frontier()) {
+      for (const v1::FrontierEntry& fe : saved.frontier()) {
         if (fe.part_counts_size() != kParts) return Status(ErrorCode::kDataLoss, ckpt_path + ": frontier");
         frontier.push_back({fe.node(), fe.position(),
                             std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end())});
@@ -1126,11 +1118,11 @@ struct DistCoordinator::Impl {
       if (size_t(t) < opt.min_workers_per_tree.size())
         POSEFOREST_RETURN_IF_ERROR(WaitForWorkers(opt.min_workers_per_tree[size_t(t)]));
       // Replays of a resumed tree's levels: rebuild the decisions from the log.
-      for (const LoggedLevel& lv : ckpt.current().levels()) {
+      for (const v1::LoggedLevel& lv : ckpt.current().levels()) {
         v1::SplitDecisions d;
         d.set_tree(uint32_t(t));
         d.set_level(uint32_t(tree_decisions.size()));
-        for (const LoggedDecision& ld : lv.decisions()) {
+        for (const v1::LoggedDecision& ld : lv.decisions()) {
           auto* nd = d.add_nodes();
           nd->set_node_id(ld.node());
           if (ld.delegated())

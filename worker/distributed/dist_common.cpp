@@ -79,18 +79,6 @@ Result<std::vector<std::string>> ParseAddressList(const std::string& value, cons
   return out;
 }
 
-void AttachExt(const google::protobuf::Message& ext, google::protobuf::Message* body) {
-  body->MergeFromString(ext.SerializeAsString());
-}
-
-Status ReadExt(const google::protobuf::Message& body, google::protobuf::Message* ext,
-               const std::string& what) {
-  ext->Clear();
-  if (!ext->ParseFromString(body.SerializeAsString()))
-    return Status(ErrorCode::kDataLoss, what + ": extension fields do not parse");
-  return Status::Ok();
-}
-
 std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
                                    int num_parts) {
   const worker::NodeHistogram dense = hist.sample_bins ? hist.ToDense() : hist;

@@ -1,14 +1,13 @@
 #pragma once
-// Pieces the distributed worker and coordinator share: transport profiles, the wire
-// extensions (dist_wire.proto) carried inside wire.proto bodies, and the conversion between the
-// engine's NodeHistogram (slots) and the wire's dense counts[candidate][bin][part] tensor.
+// Pieces the distributed worker and coordinator share: transport profiles and the conversion
+// between the engine's NodeHistogram (slots) and the wire's dense counts[candidate][bin][part]
+// tensor. Every message they exchange is poseforest.v1 (proto/poseforest/v1/wire.proto).
 
 #include <chrono>
 #include <cstdint>
 #include <string>
 #include <vector>
 
-#include "dist_wire.pb.h"
 #include "poseforest/v1/wire.pb.h"
 #include "proto/dds/dds_node.h"
 #include "proto/dds/histogram_codec.h"
@@ -34,12 +33,6 @@ dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bo
 /// entry that is not an IPv4 address (with an optional :port for peers).
 core::Result<std::vector<std::string>> ParseAddressList(const std::string& value, const std::string& flag,
                                                         bool allow_port);
-
-/// Appends `ext` to the body so that it travels as unknown fields (see dist_wire.proto).
-void AttachExt(const google::protobuf::Message& ext, google::protobuf::Message* body);
-/// Re-reads the unknown fields of `body` as `ext`. DataLoss when they do not parse.
-core::Status ReadExt(const google::protobuf::Message& body, google::protobuf::Message* ext,
-                     const std::string& what);
 
 /// Dense wire tensor (num_candidates x num_bins x num_parts) of a node histogram built with
 /// `plan` (either form); slot -> part through plan.part_slot.

@@ -123,10 +123,8 @@ struct DistWorker::Impl {
           h->set_busy_threads(busy ? uint32_t(std::max(1, opt.threads)) : 0);
           h->set_epoch(newest_epoch);
           h->set_frames_rendered(frames_rendered);
-          HeartbeatExt ext;
-          ext.set_shard_epoch(shard_epoch);
-          ext.set_received_shard_epoch(received_shard_epoch);
-          AttachExt(ext, h);
+          h->set_shard_epoch(shard_epoch);
+          h->set_received_shard_epoch(received_shard_epoch);
         }
         (void)Publish(Topic::kPresence, env);
       }
@@ -279,12 +277,10 @@ struct DistWorker::Impl {
   }
 
   Status Answer(const v1::LevelRequest& req) {
-    LevelRequestExt ext;
-    POSEFOREST_RETURN_IF_ERROR(ReadExt(req, &ext, "LevelRequest"));
     const int n = req.node_ids_size();
     const int k = params.candidate_features;
     const int t = params.thresholds_per_feature;
-    if (ext.nodes_size() != n) return Status(ErrorCode::kInvalidArgument, "node specs do not match node ids");
+    if (req.nodes_size() != n) return Status(ErrorCode::kInvalidArgument, "node specs do not match node ids");
     if (req.num_candidates() != uint32_t(k) || req.num_thresholds() != uint32_t(t + 1) ||
         req.num_parts() != uint32_t(core::kNumParts))
       return Status(ErrorCode::kInvalidArgument, "request dimensions differ from the job's");
@@ -292,14 +288,14 @@ struct DistWorker::Impl {
     busy = true;
     std::vector<worker::NodePlan> plans(static_cast<size_t>(n));
     for (int i = 0; i < n; ++i) {
-      const NodeSpec& spec = ext.nodes(i);
+      const v1::NodeSpec& spec = req.nodes(i);
       worker::NodePlan& plan = plans[size_t(i)];
       plan.node = req.node_ids(i);
       plan.position = spec.position();
       plan.num_samples = spec.num_samples();
-      if (ext.phase() == PHASE_RANGES || ext.phase() == PHASE_HISTOGRAMS)
+      if (req.phase() == v1::PHASE_RANGES || req.phase() == v1::PHASE_HISTOGRAMS)
         plan.features = worker::DrawFeatures(params, tree, plan.position);
-      if (ext.phase() == PHASE_HISTOGRAMS) {
+      if (req.phase() == v1::PHASE_HISTOGRAMS) {
         if (spec.part_counts_size() != core::kNumParts || spec.range_lo_size() != k ||
             spec.range_hi_size() != k) {
           busy = false;
@@ -323,9 +319,8 @@ struct DistWorker::Impl {
     reply->set_num_candidates(uint32_t(k));
     reply->set_num_bins(uint32_t(t + 1));
     reply->set_num_parts(uint32_t(core::kNumParts));
-    HistogramReplyExt rext;
-    rext.set_phase(ext.phase());
-    if (ext.phase() == PHASE_RANGES) {
+    reply->set_phase(req.phase());
+    if (req.phase() == v1::PHASE_RANGES) {
       // Nodes held entirely here with a whole-node reference: one fused pass (LocalTrainer's
       // BuildFused), histogram and cuts sent now; the others: ranges.
       std::vector<worker::NodePlan> normal, fused;
@@ -352,7 +347,7 @@ struct DistWorker::Impl {
       for (int i = 0; i < n; ++i) {
         const auto [is_fused, j] = where[size_t(i)];
         auto* nh = reply->add_nodes();
-        auto* r = rext.add_ranges();
+        auto* r = reply->add_ranges();
         if (!is_fused) {
           nh->set_node_id(normal[j].node);
           nh->set_samples(0);
@@ -384,13 +379,13 @@ struct DistWorker::Impl {
           r->add_cut_counts(count);
         }
       }
-    } else if (ext.phase() == PHASE_FRAMES) {
+    } else if (req.phase() == v1::PHASE_FRAMES) {
       for (int i = 0; i < n; ++i) {
         auto* nh = reply->add_nodes();
         nh->set_node_id(plans[size_t(i)].node);
         nh->set_samples(0);
         for (int p = 0; p < core::kNumParts; ++p) nh->add_part_counts(0);
-        auto* rr = rext.add_ranges();
+        auto* rr = reply->add_ranges();
         const worker::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
         rr->set_num_samples(r.end - r.begin);
         // Samples of a node are ordered by frame: distinct frames are runs.
@@ -400,7 +395,7 @@ struct DistWorker::Impl {
             rr->add_frames(uint32_t(f));
         }
       }
-    } else if (ext.phase() == PHASE_COUNTS) {
+    } else if (req.phase() == v1::PHASE_COUNTS) {
       for (int i = 0; i < n; ++i) {
         auto* nh = reply->add_nodes();
         nh->set_node_id(plans[size_t(i)].node);
@@ -409,10 +404,10 @@ struct DistWorker::Impl {
         std::vector<uint64_t> parts(static_cast<size_t>(core::kNumParts), 0);
         const worker::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
         if (r.end > r.begin) samples.CountParts(r, core::kNumParts, parts.data());
-        auto* rr = rext.add_ranges();
+        auto* rr = reply->add_ranges();
         for (uint64_t c : parts) rr->add_part_counts(c);
       }
-    } else if (ext.phase() == PHASE_HISTOGRAMS) {
+    } else if (req.phase() == v1::PHASE_HISTOGRAMS) {
       std::vector<worker::NodeHistogram> hists;
       builder->Build(samples, plans, t, &hists);
       for (int i = 0; i < n; ++i) {
@@ -430,7 +425,6 @@ struct DistWorker::Impl {
       busy = false;
       return Status(ErrorCode::kInvalidArgument, "unknown phase");
     }
-    AttachExt(rext, reply);
     reply->set_compute_micros(uint64_t((NowSeconds() - t0) * 1e6));
     busy = false;
     // A volatile writer drops what it writes before the coordinator's reader matched.
@@ -468,17 +462,15 @@ struct DistWorker::Impl {
   /// the shard's cache, else rendered and kept for the tree's later tasks), their samples
   /// routed along the task's path, then TrainSubtree (the engine's own loop and keys).
   Status RunSubtree(const v1::SubtreeTask& task) {
-    SubtreeTaskExt ext;
-    POSEFOREST_RETURN_IF_ERROR(ReadExt(task, &ext, "SubtreeTask"));
     const uint64_t ipt = uint64_t(params.images_per_tree);
     const int t = int(task.tree());
     if (task.tree() >= uint32_t(params.num_trees))
       return Status(ErrorCode::kInvalidArgument, "tree out of range");
-    if (ext.part_counts_size() != core::kNumParts)
+    if (task.part_counts_size() != core::kNumParts)
       return Status(ErrorCode::kInvalidArgument, "part counts of the wrong length");
-    if (ext.position() >= (uint64_t(1) << 31) || worker::PositionDepth(ext.position()) != int(task.depth()) ||
-        int(task.depth()) > params.max_depth)
-      return Status(ErrorCode::kInvalidArgument, "position " + std::to_string(ext.position()) +
+    if (task.position() >= (uint64_t(1) << 31) ||
+        worker::PositionDepth(task.position()) != int(task.depth()) || int(task.depth()) > params.max_depth)
+      return Status(ErrorCode::kInvalidArgument, "position " + std::to_string(task.position()) +
                                                      " is not at depth " + std::to_string(task.depth()));
     std::vector<uint64_t> wanted;
     for (const auto& r : task.ranges()) {
@@ -539,9 +531,9 @@ struct DistWorker::Impl {
       set.ApplySplits(std::span<const worker::SampleSet::Split>(&sp, 1), params.constants, params.threads);
       at = step.went_right() ? at + 2 : at + 1;
     }
-    std::vector<uint64_t> parts(ext.part_counts().begin(), ext.part_counts().end());
+    std::vector<uint64_t> parts(task.part_counts().begin(), task.part_counts().end());
     const worker::NodeRange routed = set.RangeOf(at);
-    auto out = coordinator::TrainSubtree(set, at, params, t, ext.position(), parts, *builder);
+    auto out = coordinator::TrainSubtree(set, at, params, t, task.position(), parts, *builder);
     busy = false;
     if (!out.ok()) return out.status();
     v1::Envelope env;
@@ -556,11 +548,10 @@ struct DistWorker::Impl {
     res->set_num_nodes(uint32_t(out->tree.nodes.size()));
     res->set_num_leaves(out->tree.num_leaves);
     res->set_num_parts(uint32_t(core::kNumParts));
-    SubtreeResultExt rext;
-    rext.set_position(ext.position());
-    rext.set_evaluations(out->evaluations);
+    res->set_position(task.position());
+    res->set_evaluations(out->evaluations);
     for (const coordinator::SubtreeNode& n : out->nodes) {
-      SubtreeNode* sn = rext.add_nodes();
+      v1::SubtreeNode* sn = res->add_subtree_nodes();
       sn->set_position(n.position);
       sn->set_split(n.split);
       if (n.split) {
@@ -573,11 +564,10 @@ struct DistWorker::Impl {
     }
     if (corrupt_left > 0) {  // tests: a hostile worker
       if (corrupt_left-- % 2 == 1)
-        rext.set_position(rext.position() + 1), rext.mutable_nodes(0)->set_position(rext.position());
+        res->set_position(res->position() + 1), res->mutable_subtree_nodes(0)->set_position(res->position());
       else
-        rext.mutable_nodes(0)->set_part_counts(0, rext.nodes(0).part_counts(0) + 1);
+        res->mutable_subtree_nodes(0)->set_part_counts(0, res->subtree_nodes(0).part_counts(0) + 1);
     }
-    AttachExt(rext, res);
     uint32_t crc = core::Crc32(res->nodes().data(), res->nodes().size());
     res->set_crc32(core::Crc32(res->leaves().data(), res->leaves().size(), crc));
     // One line for a tree's first subtree task, then a running total every 100 tasks (a depth-20
@@ -587,10 +577,10 @@ struct DistWorker::Impl {
     subtree_nodes_done += out->nodes.size();
     subtree_s += NowSeconds() - t0;
     if (subtree_done == 1)
-      Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(ext.position()) + " (" +
+      Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(task.position()) + " (" +
           std::to_string(routed.end - routed.begin) + " samples from " + std::to_string(wanted.size()) +
-          " frames, " + std::to_string(missing.size()) + " rendered) -> " + std::to_string(out->nodes.size()) +
-          " nodes in " + std::to_string(NowSeconds() - t0) + " s");
+          " frames, " + std::to_string(missing.size()) + " rendered) -> " +
+          std::to_string(out->nodes.size()) + " nodes in " + std::to_string(NowSeconds() - t0) + " s");
     else if (subtree_done % 100 == 0)
       Log("tree " + std::to_string(t) + ": " + std::to_string(subtree_done) + " subtrees trained so far (" +
           std::to_string(subtree_nodes_done) + " nodes, " + std::to_string(subtree_s) + " s)");
