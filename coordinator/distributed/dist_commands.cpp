@@ -109,7 +109,7 @@ struct LocalWorkers {
 
 int CoordinatorMain(int argc, char** argv) {
   Args args({"out", "local-workers", "domain", "profile", "checkpoint", "status-file", "min-workers",
-             "min-workers-per-tree", "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces",
+             "min-workers-per-tree", "pause-file", "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces",
              "http", "event-log", "http-linger-s"},
             {"resume", "help"});
   if (Status st = args.Parse(argc, argv);
@@ -125,7 +125,8 @@ int CoordinatorMain(int argc, char** argv) {
         "          state stays up S s (default 2) if anyone read it; JSON-lines event log)\n"
         "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers, local\n"
         "          addresses; e.g. on hosts without multicast)\n"
-        "         [--min-workers-per-tree N0,N1,...]   (tests: before tree t, wait for Nt live workers)\n");
+        "         [--min-workers-per-tree N0,N1,...]   (tests: before tree t, wait for Nt live workers)\n"
+        "         [--pause-file F]   (while F exists, hold between levels; remove it to go on)\n");
     return args.Has("help") ? 0 : 2;
   }
   const std::string job_path = args.positional()[0];
@@ -192,6 +193,7 @@ int CoordinatorMain(int argc, char** argv) {
   }
   opt.checkpoint_dir = args.GetOr("checkpoint", "");
   opt.resume = args.Has("resume");
+  opt.pause_file = args.GetOr("pause-file", "");
   if (opt.resume && !opt.checkpoint_dir.empty()) {
     // Check every field of the checkpoint before the coordinator replays it: a corrupt file is
     // an error naming it, never a crash (the same checks as `poseforest export`).

@@ -675,6 +675,12 @@ struct DistCoordinator::Impl {
     const int cut_stride = worker::CutStride(t_count);
     const dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
     for (int level = first_level; !frontier.empty(); ++level) {
+      if (!opt.pause_file.empty() && std::filesystem::exists(opt.pause_file)) {
+        Log("paused (next: tree " + std::to_string(tree) + ", level " + std::to_string(level) + "); remove " +
+            opt.pause_file + " to go on");
+        while (std::filesystem::exists(opt.pause_file)) Pump(std::chrono::milliseconds(50), 0, nullptr);
+        Log("resumed");
+      }
       const double t_level = NowSeconds();
       level_bytes_received = level_bytes_sent = 0;
       level_retries = 0;

@@ -91,6 +91,9 @@ struct CoordinatorOptions {
   /// Tests: before tree t (< size), wait until this many workers are alive (late joiners).
   std::vector<int> min_workers_per_tree;
   int stop_after_levels = -1;  ///< tests: fail with kInternal after this many levels (a "crash")
+  /// While this file exists the coordinator holds between levels (workers stay joined and are
+  /// watched); removing it lets the job go on. Empty: never.
+  std::string pause_file;
   std::function<void(const DistLevelStats&)> progress;
   std::function<void(const std::string&)> log;  ///< default: stderr
   CoordinatorObserver* observer = nullptr;       ///< not owned; may be null

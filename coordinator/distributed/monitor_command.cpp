@@ -254,8 +254,9 @@ int MonitorDds(uint32_t domain, dds::TransportKind transport, std::string job_id
     const auto now = std::chrono::steady_clock::now();
     const bool done =
         have_status && (last.kind() == v1::STATUS_KIND_JOB_DONE || last.kind() == v1::STATUS_KIND_ERROR);
-    // --once: print after the history has arrived (a quiet moment after the first status).
-    if ((once && have_status) || done ||
+    // --once: print after the history has arrived (a quiet moment after the first status) and
+    // the job's announcement (trees, depth).
+    if ((once && have_status && !coordinator.empty()) || done ||
         (!once && now - last_print >= std::chrono::milliseconds(interval_ms))) {
       auto [text, state] = render();
       if (tty) std::fputs("\033[H\033[2J", stdout);

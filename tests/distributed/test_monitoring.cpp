@@ -226,11 +226,20 @@ TEST_CASE(
       {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
        (dir.path / "forest.pff").string(), "--local-workers", "2", "--domain", std::to_string(Domain(41)),
        "--job-id", job_id, "--http", "127.0.0.1:0", "--event-log", (dir.path / "events.jsonl").string(),
-       "--checkpoint", (dir.path / "ckpt").string(), "--http-linger-s", "10"},
+       "--checkpoint", (dir.path / "ckpt").string(), "--http-linger-s", "10", "--pause-file",
+       (dir.path / "pause").string()},
       &error));
   const std::string url = WaitForUrl(coord);
   {
     auto line = coord.WaitForLine("tree 0 level 3:", 120s);
+    INFO(coord.output());
+    REQUIRE(line.has_value());
+  }
+  // Hold the job between levels while the live views are checked (on a fast machine the small
+  // job would otherwise end first); it goes on when the file is removed.
+  std::ofstream(dir.path / "pause") << "held by test_monitoring\n";
+  {
+    auto line = coord.WaitForLine("paused (next: tree ", 60s);
     INFO(coord.output());
     REQUIRE(line.has_value());
   }
@@ -302,6 +311,8 @@ TEST_CASE(
   CHECK(CountLines(dom, "class=\"worker-row\"") == 2);
   CHECK(dom.find("<td class=\"l\">local-worker-") != std::string::npos);
   CHECK(std::regex_search(dom, std::regex(R"(id="chart-eps"[^>]*points="[0-9])")));  // the chart is drawn
+  CHECK(coord.output().find("resumed") == std::string::npos);  // still held: the views saw a live job
+  std::filesystem::remove(dir.path / "pause");
 
   // After the run: the final state stays up for --http-linger-s.
   {
