@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -50,19 +51,32 @@ std::string Human(double bytes) {
   return buf;
 }
 
-/// --peers / --interfaces (only with --profile udp).
-Status ParseUdpFlags(const Args& args, dds::TransportKind profile, std::vector<std::string>* peers,
-                     std::vector<std::string>* interfaces) {
-  for (const char* flag : {"peers", "interfaces"}) {
-    if (!args.Has(flag)) continue;
-    if (profile != dds::TransportKind::kUdpOnly)
-      return Status(core::ErrorCode::kInvalidArgument, std::string("--") + flag + " needs --profile udp");
-    auto list = dist::ParseAddressList(*args.Get(flag), flag, std::string(flag) == "peers");
-    if (!list.ok()) return list.status();
-    *(std::string(flag) == "peers" ? peers : interfaces) = std::move(*list);
-  }
-  return Status::Ok();
+/// The DDS flags (dds_flags.h) of a command line, checked.
+core::Result<dist::DdsFlags> ParseDdsFlags(const Args& args) {
+  return dist::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
 }
+
+/// `names` plus the DDS value options, for Args.
+std::set<std::string> WithDdsOptions(std::set<std::string> names) {
+  for (const char* o : dist::kDdsValueOptions) names.insert(o);
+  return names;
+}
+
+/// The DDS flags' part of the usage texts.
+constexpr const char* kDdsUsage =
+    "  DDS transport (docs/distributed/README.md; the same on every participant of a job):\n"
+    "    --profile shm|udp|default     built-in transports: shared memory (default), UDP only, both\n"
+    "    --peers IP[:PORT],...         --profile udp: initial peers (hosts without multicast)\n"
+    "    --interfaces IP,...           --profile udp or --discovery-server: local addresses to use\n"
+    "    --dds-xml FILE --dds-profile NAME   a Fast DDS XML participant profile instead\n"
+    "                                  (deploy/fastdds/profiles.xml); env POSEFOREST_DDS_XML and\n"
+    "                                  POSEFOREST_DDS_PROFILE stand in for them unless a transport\n"
+    "                                  flag is given\n"
+    "    --discovery-server IP[:PORT]  discovery through `fast-discovery-server -i 0` (UDP; port 11811)\n"
+    "    --security DIR                DDS-Security (authentication, access control, encryption):\n"
+    "                                  DIR/cert.pem, key.pem, permissions.p7s and identity_ca.pem,\n"
+    "                                  permissions_ca.pem, governance.p7s in DIR or DIR/..\n"
+    "                                  (deploy/security/make-test-ca.sh OUT NAME -> --security OUT/NAME)\n";
 
 /// Worker processes started by --local-workers; killed (TERM, then KILL) at the end.
 struct LocalWorkers {
@@ -108,25 +122,28 @@ struct LocalWorkers {
 }  // namespace
 
 int CoordinatorMain(int argc, char** argv) {
-  Args args({"out", "local-workers", "domain", "profile", "checkpoint", "status-file", "min-workers",
-             "min-workers-per-tree", "pause-file", "job-id", "worker-threads", "worker-wait-s", "peers", "interfaces",
-             "http", "event-log", "http-linger-s"},
-            {"resume", "help"});
+  Args args(WithDdsOptions({"out", "local-workers", "domain", "checkpoint", "status-file", "min-workers",
+                             "min-workers-per-tree", "pause-file", "job-id", "worker-threads", "worker-wait-s",
+                             "http", "event-log", "http-linger-s", "worker-security"}),
+            {"resume", "check-config", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || args.positional().size() != 1 || !args.Has("out")) {
     if (!st.ok()) std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
     std::fprintf(
         stderr,
         "usage: poseforest coordinator JOB.textproto --out FOREST.pff [--local-workers N] [--domain D]\n"
-        "         [--profile shm|udp|default] [--checkpoint DIR] [--resume] [--status-file F]\n"
+        "         [DDS transport flags, below] [--checkpoint DIR] [--resume] [--status-file F]\n"
         "         [--min-workers N] [--job-id ID] [--worker-threads N] [--worker-wait-s S]\n"
         "         [--http HOST:PORT|off] [--event-log F.jsonl] [--http-linger-s S]   (status, metrics and\n"
         "          dashboard over HTTP, default 127.0.0.1:0 = a free loopback port, printed; the final\n"
         "          state stays up S s (default 2) if anyone read it; JSON-lines event log)\n"
-        "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers, local\n"
-        "          addresses; e.g. on hosts without multicast)\n"
+        "         [--worker-security DIR]   (--local-workers with --security: the workers' credentials)\n"
+        "         [--check-config]   (parse the flags, load the job, the XML profile and the security\n"
+        "          files, print what would run and exit 0, without joining DDS; 2 on a bad setting)\n"
         "         [--min-workers-per-tree N0,N1,...]   (tests: before tree t, wait for Nt live workers)\n"
-        "         [--pause-file F]   (while F exists, hold between levels; remove it to go on)\n");
+        "         [--pause-file F]   (while F exists, hold between levels; remove it to go on)\n"
+        "%s",
+        kDdsUsage);
     return args.Has("help") ? 0 : 2;
   }
   const std::string job_path = args.positional()[0];
@@ -155,26 +172,45 @@ int CoordinatorMain(int argc, char** argv) {
   auto min_workers = args.GetInt("min-workers", -1, 1, 4096);
   auto worker_threads = args.GetInt("worker-threads", 1, 1, 1024);
   auto wait_s = args.GetInt("worker-wait-s", 60, 1, 86400);
-  auto profile = dist::ParseProfile(args.GetOr("profile", "shm"));
+  auto dds_flags = ParseDdsFlags(args);
   if (!local.ok() || !domain.ok() || !min_workers.ok() || !worker_threads.ok() || !wait_s.ok() ||
-      !profile.ok()) {
+      !dds_flags.ok()) {
     for (const Status& st :
          {local.ok() ? Status::Ok() : local.status(), domain.ok() ? Status::Ok() : domain.status(),
           min_workers.ok() ? Status::Ok() : min_workers.status(),
           worker_threads.ok() ? Status::Ok() : worker_threads.status(),
-          wait_s.ok() ? Status::Ok() : wait_s.status(), profile.ok() ? Status::Ok() : profile.status()})
+          wait_s.ok() ? Status::Ok() : wait_s.status(), dds_flags.ok() ? Status::Ok() : dds_flags.status()})
       if (!st.ok()) std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
     return 2;
   }
-  dist::CoordinatorOptions opt;
-  if (Status st = ParseUdpFlags(args, *profile, &opt.udp_peers, &opt.udp_interfaces); !st.ok()) {
-    std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
+  // Local workers under DDS-Security need credentials of their own (a worker grant).
+  std::string worker_security;
+  if (args.Has("worker-security")) {
+    if (*local == 0 || !dds_flags->extras.security.enabled()) {
+      std::fprintf(stderr, "coordinator: --worker-security is for --local-workers N with --security DIR\n");
+      return 2;
+    }
+    auto files = dist::SecurityFilesIn(*args.Get("worker-security"), "--worker-security");
+    if (!files.ok()) {
+      std::fprintf(stderr, "coordinator: %s\n", files.status().message().c_str());
+      return 2;
+    }
+    worker_security = std::filesystem::path(files->identity_certificate).parent_path().string();
+  } else if (*local > 0 && dds_flags->extras.security.enabled()) {
+    std::fprintf(stderr,
+                 "coordinator: --local-workers with --security needs --worker-security DIR (the workers' "
+                 "credentials, e.g. make-test-ca.sh OUT coordinator worker-1 -> --security OUT/coordinator "
+                 "--worker-security OUT/worker-1)\n");
     return 2;
   }
+  dist::CoordinatorOptions opt;
+  opt.udp_peers = dds_flags->peers;
+  opt.udp_interfaces = dds_flags->interfaces;
+  opt.transport_extras = dds_flags->extras;
   opt.job_id = args.GetOr("job-id", "");
   if (opt.job_id.empty()) opt.job_id = dist::DefaultJobId(*config);
   opt.domain = uint32_t(*domain);
-  opt.transport = *profile;
+  opt.transport = dds_flags->transport;
   opt.min_workers = *min_workers > 0 ? int(*min_workers) : std::max(1, int(*local));
   opt.worker_wait = std::chrono::seconds(*wait_s);
   if (args.Has("min-workers-per-tree")) {
@@ -205,6 +241,23 @@ int CoordinatorMain(int argc, char** argv) {
         return 1;
       }
     }
+  }
+  if (args.Has("check-config")) {
+    // Everything a start would read, without joining DDS or opening the HTTP port.
+    const std::filesystem::path out_dir = std::filesystem::absolute(*args.Get("out")).parent_path();
+    if (std::error_code ec; !std::filesystem::is_directory(out_dir, ec)) {
+      std::fprintf(stderr, "coordinator: --out %s: folder %s does not exist\n", args.Get("out")->c_str(),
+                   out_dir.c_str());
+      return 2;
+    }
+    std::printf("coordinator config ok: job %s (%s), %d trees of depth %d, %d images per tree; DDS domain %u, %s; "
+                "%d local workers%s; writes %s%s%s\n",
+                opt.job_id.c_str(), job_path.c_str(), params->num_trees, params->max_depth, params->images_per_tree,
+                opt.domain, dds_flags->Describe().c_str(), int(*local),
+                worker_security.empty() ? "" : (" with credentials of " + worker_security).c_str(),
+                args.Get("out")->c_str(), opt.checkpoint_dir.empty() ? "" : ", checkpoints in ",
+                opt.checkpoint_dir.c_str());
+    return 0;
   }
   const std::string status_file = args.GetOr("status-file", "");
   opt.progress = [&](const dist::DistLevelStats& s) {
@@ -241,7 +294,7 @@ int CoordinatorMain(int argc, char** argv) {
     return 2;
   }
   auto monitoring = dist::CoordinatorMonitoring::Start(
-      {opt.job_id, opt.domain, args.GetOr("profile", "shm"), params->num_trees, params->max_depth,
+      {opt.job_id, opt.domain, dds_flags->Label(), params->num_trees, params->max_depth,
        params->images_per_tree, params->pixels_per_image, params->candidate_features,
        params->thresholds_per_feature, *args.Get("out")},
       args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""));
@@ -257,12 +310,10 @@ int CoordinatorMain(int argc, char** argv) {
   }
   LocalWorkers workers;
   if (*local > 0) {
-    std::vector<std::string> wargs = {"--domain",  std::to_string(*domain),
-                                      "--profile", args.GetOr("profile", "shm"),
-                                      "--job",     opt.job_id,
-                                      "--threads", std::to_string(*worker_threads)};
-    for (const char* flag : {"peers", "interfaces"})
-      if (args.Has(flag)) wargs.insert(wargs.end(), {std::string("--") + flag, *args.Get(flag)});
+    std::vector<std::string> wargs = {"--domain", std::to_string(*domain), "--job", opt.job_id, "--threads",
+                                      std::to_string(*worker_threads)};
+    for (const std::string& a : dds_flags->TransportArgs()) wargs.push_back(a);
+    if (!worker_security.empty()) wargs.insert(wargs.end(), {"--security", worker_security});
     if (!workers.Start(int(*local), wargs)) {
       std::fprintf(stderr, "coordinator: cannot start local workers\n");
       return 1;
@@ -295,38 +346,43 @@ int CoordinatorMain(int argc, char** argv) {
 }
 
 int WorkerMain(int argc, char** argv) {
-  Args args({"domain", "threads", "job", "profile", "id", "peers", "interfaces"},
-            {"stay", "exit-with-parent", "help"});
+  Args args(WithDdsOptions({"domain", "threads", "job", "id"}), {"stay", "exit-with-parent", "check-config", "help"});
   if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
     if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
     std::fprintf(stderr,
-                 "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--profile shm|udp|default] "
-                 "[--id NAME]\n"
-                 "         [--peers IP[:PORT],...] [--interfaces IP,...]   (--profile udp: initial peers,\n"
-                 "          usually the coordinator's address, and the local addresses to use)\n"
-                 "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n");
+                 "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--id NAME] [DDS transport flags]\n"
+                 "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n"
+                 "         [--check-config]   (parse the flags, load the XML profile and the security files,\n"
+                 "          print what would run and exit 0, without joining DDS; 2 on a bad setting)\n"
+                 "%s",
+                 kDdsUsage);
     return args.Has("help") ? 0 : 2;
   }
   auto domain = args.GetInt("domain", 0, 0, 232);
   auto threads = args.GetInt("threads", 1, 1, 1024);
-  auto profile = dist::ParseProfile(args.GetOr("profile", "shm"));
-  if (!domain.ok() || !threads.ok() || !profile.ok()) {
+  auto dds_flags = ParseDdsFlags(args);
+  if (!domain.ok() || !threads.ok() || !dds_flags.ok()) {
     std::fprintf(stderr, "worker: %s\n",
                  (!domain.ok()    ? domain.status()
                   : !threads.ok() ? threads.status()
-                                  : profile.status())
+                                  : dds_flags.status())
                      .message()
                      .c_str());
     return 2;
   }
-  dist::WorkerOptions opt;
-  if (Status st = ParseUdpFlags(args, *profile, &opt.udp_peers, &opt.udp_interfaces); !st.ok()) {
-    std::fprintf(stderr, "worker: %s\n", st.message().c_str());
-    return 2;
+  if (args.Has("check-config")) {
+    std::printf("worker config ok: id %s, job %s, %ld threads; DDS domain %ld, %s\n",
+                args.GetOr("id", "(worker-HOST-PID)").c_str(), args.GetOr("job", "(any)").c_str(), *threads,
+                *domain, dds_flags->Describe().c_str());
+    return 0;
   }
+  dist::WorkerOptions opt;
+  opt.udp_peers = dds_flags->peers;
+  opt.udp_interfaces = dds_flags->interfaces;
+  opt.transport_extras = dds_flags->extras;
   opt.worker_id = args.GetOr("id", "");
   opt.domain = uint32_t(*domain);
-  opt.transport = *profile;
+  opt.transport = dds_flags->transport;
   opt.threads = int(*threads);
   opt.job_id = args.GetOr("job", "");
   opt.exit_when_done = !args.Has("stay");

@@ -1102,7 +1102,7 @@ struct DistCoordinator::Impl {
     }
 
     auto n = dds::DdsNode::Create(MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease,
-                                                 opt.udp_peers, opt.udp_interfaces));
+                                                 opt.udp_peers, opt.udp_interfaces, opt.transport_extras));
     if (!n.ok()) return n.status();
     node = std::move(*n);
     v1::Envelope job_env;

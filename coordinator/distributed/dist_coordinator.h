@@ -21,6 +21,7 @@
 #include "poseforest/v1/job.pb.h"
 #include "poseforest/v1/wire.pb.h"
 #include "proto/dds/dds_node.h"
+#include "worker/distributed/dds_flags.h"
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 #include "worker/job_spec.h"
@@ -77,6 +78,8 @@ struct CoordinatorOptions {
   dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
   /// kUdpOnly: initial peers and local interfaces (MakeNodeConfig); empty = loopback, all.
   std::vector<std::string> udp_peers, udp_interfaces;
+  /// XML profile, discovery server, DDS-Security (the --dds-xml, --discovery-server, --security flags).
+  TransportExtras transport_extras;
   int min_workers = 1;                                ///< workers to wait for before the first tree
   std::chrono::milliseconds worker_wait{60000};       ///< without any live worker this long: error
   std::chrono::milliseconds lease{1500};              ///< liveliness lease (presence, job)

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <deque>
 #include <map>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -163,16 +164,12 @@ std::string Render(const pb::Struct& s) {
 /// `monitor --domain D [--job ID]`: the job announcement and the status events from DDS (the
 /// status topic keeps its last 64 events for late readers). Fewer figures than the HTTP status:
 /// a StatusEvent carries tree, level, progress and the live worker count, not throughput.
-int MonitorDds(uint32_t domain, dds::TransportKind transport, std::string job_id, bool once, long interval_ms,
+int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job_id, bool once, long interval_ms,
                long timeout_s) {
   dds::NodeConfig cfg;
   cfg.domain_id = domain;
   cfg.participant_name = "monitor-" + std::to_string(::getpid());
-  cfg.transport = transport;
-  if (transport == dds::TransportKind::kUdpOnly) {
-    cfg.initial_peers = {"127.0.0.1"};
-    cfg.peer_participant_ids = 16;
-  }
+  dist::ApplyDdsFlags(dds_flags, &cfg);
   cfg.read_topics = {dds::Topic::kJob, dds::Topic::kStatus};
   auto node = dds::DdsNode::Create(cfg);
   if (!node.ok()) {
@@ -277,20 +274,26 @@ int MonitorDds(uint32_t domain, dds::TransportKind transport, std::string job_id
 }  // namespace
 
 int MonitorMain(int argc, char** argv) {
-  Args args({"url", "interval-ms", "timeout-s", "domain", "job", "profile"}, {"once", "help"});
+  std::set<std::string> value_options = {"url", "interval-ms", "timeout-s", "domain", "job"};
+  for (const char* o : dist::kDdsValueOptions) value_options.insert(o);  // the DDS transport flags
+  Args args(value_options, {"once", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || !args.positional().empty() || args.Has("url") == args.Has("domain")) {
     if (!st.ok()) std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
     std::fprintf(
         stderr,
         "usage: poseforest monitor --url http://HOST:PORT [--once] [--interval-ms 1000] [--timeout-s 10]\n"
-        "       poseforest monitor --domain D [--job ID] [--profile shm|udp|default] [--once] ...\n"
+        "       poseforest monitor --domain D [--job ID] [DDS transport flags] [--once] ...\n"
         "  Shows a training job's live status from its coordinator (the URL the coordinator prints,\n"
         "  `--http` there): tree, level, nodes done/total, samples/s, evaluations/s, ETA, workers.\n"
         "  Refreshes every second and exits when the job is done (0) or failed (1); --once prints one\n"
         "  snapshot. Exits 1 when the coordinator cannot be reached for --timeout-s seconds.\n"
         "  --domain: reads the job announcement and status events from DDS instead (tree, level,\n"
-        "  progress, workers joined/lost; no throughput figures); --job picks one job of the domain.\n");
+        "  progress, workers joined/lost; no throughput figures); --job picks one job of the domain.\n"
+        "  DDS transport flags, as for the job's coordinator and workers (`poseforest coordinator --help`):\n"
+        "  --profile shm|udp|default, --peers, --interfaces, --dds-xml FILE --dds-profile NAME,\n"
+        "  --discovery-server IP[:PORT], --security DIR (a worker's credentials: a worker grant reads\n"
+        "  the job and status topics).\n");
     return args.Has("help") ? 0 : 2;
   }
   auto interval = args.GetInt("interval-ms", 1000, 50, 3600000);
@@ -302,13 +305,13 @@ int MonitorMain(int argc, char** argv) {
   }
   if (args.Has("domain")) {
     auto domain = args.GetInt("domain", 0, 0, 232);
-    auto profile = dist::ParseProfile(args.GetOr("profile", "shm"));
-    if (!domain.ok() || !profile.ok()) {
+    auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
+    if (!domain.ok() || !dds_flags.ok()) {
       std::fprintf(stderr, "monitor: %s\n",
-                   (!domain.ok() ? domain.status() : profile.status()).message().c_str());
+                   (!domain.ok() ? domain.status() : dds_flags.status()).message().c_str());
       return 2;
     }
-    return MonitorDds(uint32_t(*domain), *profile, args.GetOr("job", ""), args.Has("once"), *interval,
+    return MonitorDds(uint32_t(*domain), *dds_flags, args.GetOr("job", ""), args.Has("once"), *interval,
                       *timeout);
   }
   std::string url = *args.Get("url");

@@ -62,14 +62,16 @@ int main(int argc, char** argv) {
     return 0;
   }
 #ifdef POSEFOREST_HAS_DISTRIBUTED
-  // `train JOB --local-workers N` (or --domain / --min-workers) runs the job through the
-  // distributed service: a coordinator plus worker processes over Fast DDS; same forest.
+  // `train JOB --local-workers N` (or --domain / --min-workers, or a DDS transport flag) runs
+  // the job through the distributed service: a coordinator plus worker processes over Fast DDS;
+  // same forest.
   if (cmd == "train") {
     for (int i = 2; i < argc; ++i) {
       const std::string_view a = argv[i];
-      if (a == "--local-workers" || a == "--domain" || a == "--min-workers" ||
-          a.starts_with("--local-workers=") || a.starts_with("--domain=") || a.starts_with("--min-workers="))
-        return poseforest::cli::CoordinatorMain(argc - 1, argv + 1);
+      for (const std::string_view flag : {"--local-workers", "--domain", "--min-workers", "--dds-xml", "--dds-profile",
+                                          "--discovery-server", "--security"})
+        if (a == flag || (a.starts_with(flag) && a.size() > flag.size() && a[flag.size()] == '='))
+          return poseforest::cli::CoordinatorMain(argc - 1, argv + 1);
     }
   }
 #endif

@@ -20,17 +20,17 @@ Result<dds::TransportKind> ParseProfile(const std::string& name) {
 dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bool coordinator,
                                const std::string& name, std::chrono::milliseconds lease,
                                const std::vector<std::string>& peers,
-                               const std::vector<std::string>& interfaces) {
+                               const std::vector<std::string>& interfaces, const TransportExtras& extras) {
   dds::NodeConfig c;
   c.domain_id = domain;
   c.participant_name = name;
-  c.transport = transport;
   c.liveliness_lease = lease;
-  if (transport == dds::TransportKind::kUdpOnly) {
-    c.initial_peers = peers.empty() ? std::vector<std::string>{"127.0.0.1"} : peers;
-    c.peer_participant_ids = 16;
-    c.interface_whitelist = interfaces;
-  }
+  DdsFlags flags;
+  flags.transport = transport;
+  flags.peers = peers;
+  flags.interfaces = interfaces;
+  flags.extras = extras;
+  ApplyDdsFlags(flags, &c);
   using dds::Topic;
   if (coordinator) {
     c.write_topics = {Topic::kJob, Topic::kControl, Topic::kStatus};

@@ -12,6 +12,7 @@
 #include "proto/dds/dds_node.h"
 #include "proto/dds/histogram_codec.h"
 #include "runtime/core/result.h"
+#include "worker/distributed/dds_flags.h"
 #include "worker/histogram_builder.h"
 
 namespace poseforest::dist {
@@ -23,11 +24,15 @@ core::Result<dds::TransportKind> ParseProfile(const std::string& name);
 /// Participant settings of a trainer node on `domain` with `transport`, reading/writing the topics
 /// of a coordinator (`coordinator` true) or a worker. `lease`: presence liveliness lease.
 /// kUdpOnly: `peers` ("a.b.c.d[:port]") replace the default initial peer 127.0.0.1 (hosts without
-/// multicast: workers list the coordinator), `interfaces` restricts the local IPv4 addresses used.
+/// multicast: workers list the coordinator), `interfaces` restricts the local IPv4 addresses used
+/// (kUdpOnly, kDiscoveryClient). `extras`: the XML profile (kXmlProfile), the discovery server
+/// (kDiscoveryClient) and DDS-Security credentials (any transport) of the --dds-xml,
+/// --discovery-server and --security flags (dds_flags.h).
 dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bool coordinator,
                                const std::string& name, std::chrono::milliseconds lease,
                                const std::vector<std::string>& peers = {},
-                               const std::vector<std::string>& interfaces = {});
+                               const std::vector<std::string>& interfaces = {},
+                               const TransportExtras& extras = {});
 
 /// Splits a comma-separated --peers / --interfaces value; InvalidArgument naming `flag` for an
 /// entry that is not an IPv4 address (with an optional :port for peers).

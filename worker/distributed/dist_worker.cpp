@@ -656,7 +656,8 @@ Status DistWorker::Run() {
   Impl impl(options_, stop_);
   auto node =
       dds::DdsNode::Create(MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id,
-                                          options_.lease, options_.udp_peers, options_.udp_interfaces));
+                                          options_.lease, options_.udp_peers, options_.udp_interfaces,
+                                          options_.transport_extras));
   if (!node.ok()) return node.status();
   impl.node = std::move(*node);
   std::thread heartbeat([&] { impl.HeartbeatLoop(); });

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "proto/dds/dds_node.h"
+#include "worker/distributed/dds_flags.h"
 #include "runtime/core/result.h"
 
 namespace poseforest::dist {
@@ -34,6 +35,8 @@ struct WorkerOptions {
   /// kUdpOnly: initial peers (usually the coordinator's address) and local interfaces to use;
   /// empty = loopback peer, every interface (MakeNodeConfig).
   std::vector<std::string> udp_peers, udp_interfaces;
+  /// XML profile, discovery server, DDS-Security (the --dds-xml, --discovery-server, --security flags).
+  TransportExtras transport_extras;
   std::function<void(const std::string&)> log;  ///< default: stderr with the worker id
   /// Tests: called when a SubtreeTask arrives; returning true makes the worker drop the task and
   /// stop at once, as if it were killed while holding it.

@@ -1,0 +1,315 @@
+// deploy/ through the real command line: `poseforest coordinator` and `poseforest worker`
+// processes with the DDS flags a deployment uses (docs/distributed/README.md, "Deployment").
+//  - the shipped Fast DDS XML profile (deploy/fastdds/profiles.xml, poseforest_shm) by flags and
+//    by the POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE environment: `poseforest train`'s forest;
+//  - discovery through a real fast-discovery-server process (--discovery-server), and nothing
+//    without the server;
+//  - DDS-Security (--security, credentials from deploy/security/make-test-ca.sh): the job trains,
+//    while a worker without credentials and participants that hello/heartbeat on the presence
+//    topic without credentials or with another CA's certificate are never matched, never get
+//    work and are never counted; same forest;
+//  - flag errors name the file, the profile, the missing credential or the contradiction;
+//  - every command line of deploy/k8s/*.yaml and deploy/docker/Dockerfile.* passes the real
+//    argument parser (`--check-config`), and a manifest with a wrong flag fails the check.
+
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include "tests/dds/dds_test_util.h"
+#include "tests/distributed/dist_test_util.h"
+
+using namespace poseforest;
+using namespace poseforest::dist::testing;
+using poseforest::dds::testing::Child;
+using poseforest::dds::testing::HelperDir;
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+namespace {
+std::string Program() { return (HelperDir() / "poseforest").string(); }
+std::string Peer() { return (HelperDir() / "poseforest_dds_peer").string(); }
+fs::path Source() { return fs::path(POSEFOREST_SOURCE_DIR); }
+std::string ShippedXml() { return (Source() / "deploy/fastdds/profiles.xml").string(); }
+
+struct TempDir {
+  fs::path path;
+  explicit TempDir(const std::string& name)
+      : path(fs::temp_directory_path() / (name + "-" + std::to_string(::getpid()))) {
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+std::vector<uint8_t> ReadAll(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+std::string ReadText(const fs::path& p) {
+  std::ifstream in(p);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// Runs argv to the end; its exit code and output.
+std::pair<int, std::string> Run(const std::vector<std::string>& argv,
+                                std::chrono::milliseconds timeout = 60s) {
+  Child c;
+  std::string error;
+  if (!c.Start(argv, &error)) return {-1, error};
+  auto rc = c.Wait(timeout);
+  return {rc.value_or(-1000), c.output()};
+}
+
+/// The job (1 tree, depth 6) in `dir` and `poseforest train`'s forest of it: the reference.
+std::vector<uint8_t> WriteJobAndTrain(const fs::path& dir) {
+  std::ofstream(dir / "job.textproto") << TinyJobText(1, 6);
+  auto [rc, out] = Run(
+      {Program(), "train", (dir / "job.textproto").string(), "--out", (dir / "ref.pff").string(), "--quiet"});
+  INFO(out);
+  REQUIRE(rc == 0);
+  auto bytes = ReadAll(dir / "ref.pff");
+  REQUIRE(bytes.size() > 100);
+  return bytes;
+}
+
+/// deploy/security/make-test-ca.sh OUT NAMES...
+void MakeCa(const fs::path& out, const std::vector<std::string>& names) {
+  std::vector<std::string> argv = {"sh", (Source() / "deploy/security/make-test-ca.sh").string(),
+                                   out.string()};
+  argv.insert(argv.end(), names.begin(), names.end());
+  auto [rc, text] = Run(argv);
+  INFO(text);
+  REQUIRE(rc == 0);
+}
+}  // namespace
+
+TEST_CASE("deploy: the shipped XML profile poseforest_shm, by flags and by environment, gives train's forest",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-xml");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const std::string domain = std::to_string(Domain(41));
+  const std::string job_id = "deploy-xml-" + std::to_string(::getpid());
+  Child w0, w1, coord;
+  std::string error;
+  REQUIRE(w0.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "xw-0", "--dds-xml",
+                    ShippedXml(), "--dds-profile", "poseforest_shm"},
+                   &error));
+  // The container images set the profile through the environment instead of flags.
+  REQUIRE(w1.Start({"env", "POSEFOREST_DDS_XML=" + ShippedXml(), "POSEFOREST_DDS_PROFILE=poseforest_shm",
+                    Program(), "worker", "--domain", domain, "--job", job_id, "--id", "xw-1"},
+                   &error));
+  REQUIRE(coord.Start(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "forest.pff").string(), "--domain", domain, "--job-id", job_id, "--min-workers", "2",
+       "--http", "off", "--dds-xml", ShippedXml(), "--dds-profile", "poseforest_shm"},
+      &error));
+  auto rc = coord.Wait(90s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(coord.output().find("2 workers alive") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  for (Child* w : {&w0, &w1}) {
+    CHECK(w->Wait(10s).has_value());  // they exit on JOB_DONE
+    INFO(w->output());
+    CHECK(w->output().find("joined job " + job_id) != std::string::npos);
+  }
+}
+
+TEST_CASE("deploy: --discovery-server through a real fast-discovery-server; nothing without it",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-ds");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const int port = 20000 + int((::getpid() * 7) % 20000);
+  Child server;
+  std::string error;
+  REQUIRE(server.Start({"fast-discovery-server", "-i", "0", "-l", "127.0.0.1", "-p", std::to_string(port)},
+                       &error));
+  REQUIRE(server.WaitForLine("Server is running", 10s).has_value());
+  // --local-workers hands the flag on to the worker processes.
+  auto [rc, out] =
+      Run({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+           (dir.path / "forest.pff").string(), "--local-workers", "2", "--domain", std::to_string(Domain(42)),
+           "--http", "off", "--discovery-server", "127.0.0.1:" + std::to_string(port)},
+          90s);
+  INFO(out);
+  REQUIRE(rc == 0);
+  CHECK(out.find("2 workers alive") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  server.Kill(SIGTERM);
+  CHECK(server.Wait(10s).has_value());
+
+  // The same without a server at that address: clients do not discover each other by multicast.
+  auto [rc2, out2] = Run(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "none.pff").string(), "--local-workers", "1", "--domain", std::to_string(Domain(42)),
+       "--http", "off", "--worker-wait-s", "3", "--discovery-server", "127.0.0.1:" + std::to_string(port)},
+      60s);
+  INFO(out2);
+  CHECK(rc2 == 1);
+  CHECK(out2.find("0 of 1 workers") != std::string::npos);
+  CHECK_FALSE(fs::exists(dir.path / "none.pff"));
+}
+
+TEST_CASE("deploy: --security trains; participants without credentials or from another CA get nothing in",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-sec");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const fs::path ca = dir.path / "ca", other = dir.path / "other-ca";
+  MakeCa(ca, {"coordinator", "worker-1", "worker-2"});
+  MakeCa(other, {"worker-1"});  // same names and layout, another CA
+  const std::string domain = std::to_string(Domain(43));
+  const std::string job_id = "deploy-sec-" + std::to_string(::getpid());
+  std::string error;
+  // Intruders first, so that they are there for the whole job: a real worker without
+  // credentials, and participants that say hello and heartbeat for the job on the presence topic
+  // (what a worker does to be counted) without credentials and with another CA's certificate.
+  Child intruder_worker, plain_peer, foreign_peer;
+  REQUIRE(intruder_worker.Start(
+      {Program(), "worker", "--domain", domain, "--job", job_id, "--id", "intruder"}, &error));
+  REQUIRE(plain_peer.Start({Peer(), "--mode=alive", "--transport=shm", "--domain=" + domain,
+                            "--job=" + job_id, "--id=plain-peer", "--seconds=120"},
+                           &error));
+  REQUIRE(
+      foreign_peer.Start({Peer(), "--mode=alive", "--transport=shm", "--domain=" + domain, "--job=" + job_id,
+                          "--id=worker-1", "--sec-dir=" + other.string(), "--seconds=120"},
+                         &error));
+  REQUIRE(plain_peer.WaitForLine("STARTED", 20s).has_value());
+  REQUIRE(foreign_peer.WaitForLine("STARTED", 20s).has_value());
+  Child w1, w2, coord;
+  REQUIRE(w1.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "sw-1", "--security",
+                    (ca / "worker-1").string()},
+                   &error));
+  REQUIRE(w2.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "sw-2", "--security",
+                    (ca / "worker-2").string()},
+                   &error));
+  const fs::path events = dir.path / "events.jsonl";
+  REQUIRE(coord.Start(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "forest.pff").string(), "--domain", domain, "--job-id", job_id, "--min-workers", "2",
+       "--http", "off", "--event-log", events.string(), "--security", (ca / "coordinator").string()},
+      &error));
+  auto rc = coord.Wait(90s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  CHECK(coord.output().find("2 workers alive") != std::string::npos);
+  CHECK(coord.output().find("3 workers alive") == std::string::npos);
+  CHECK(coord.output().find(" 0 messages rejected") != std::string::npos);
+  const std::string log = ReadText(events);
+  INFO(log);
+  CHECK(log.find("sw-1") != std::string::npos);  // the log names the workers it counted...
+  CHECK(log.find("sw-2") != std::string::npos);
+  for (const char* stranger : {"intruder", "plain-peer", "worker-1"})  // ...and none of these
+    CHECK(log.find(stranger) == std::string::npos);
+  for (const char* stranger : {"intruder", "plain-peer", "worker-1"})
+    CHECK(coord.output().find(stranger) == std::string::npos);
+  for (Child* w : {&w1, &w2}) CHECK(w->Wait(10s).has_value());
+  // The intruders never matched anyone of the job: no job for the worker, no reader for the
+  // presence samples (a peer prints "MATCHED presence" when one of its readers appears).
+  intruder_worker.Kill(SIGKILL);
+  plain_peer.Kill(SIGKILL);
+  foreign_peer.Kill(SIGKILL);
+  INFO(intruder_worker.output());
+  INFO(plain_peer.output());
+  INFO(foreign_peer.output());
+  CHECK(intruder_worker.output().find("joined job") == std::string::npos);
+  CHECK(plain_peer.output().find("MATCHED") == std::string::npos);
+  CHECK(foreign_peer.output().find("MATCHED") == std::string::npos);
+}
+
+TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or the contradiction",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-flags");
+  std::ofstream(dir.path / "job.textproto") << TinyJobText(1, 6);
+  const std::string job = (dir.path / "job.textproto").string(), out = (dir.path / "f.pff").string();
+  auto worker = [&](std::vector<std::string> flags) {
+    flags.insert(flags.begin(), {Program(), "worker", "--check-config"});
+    return Run(flags);
+  };
+  auto coordinator = [&](std::vector<std::string> flags) {
+    flags.insert(flags.begin(), {Program(), "coordinator", job, "--out", out, "--check-config"});
+    return Run(flags);
+  };
+  struct Case {
+    std::vector<std::string> flags;
+    std::string expect;
+  };
+  const std::string xml = ShippedXml();
+  const fs::path ca = dir.path / "ca";
+  MakeCa(ca, {"coordinator", "worker-1"});
+  fs::create_directories(dir.path / "incomplete");
+  fs::copy_file(ca / "worker-1" / "cert.pem", dir.path / "incomplete" / "cert.pem");
+  fs::copy_file(ca / "worker-1" / "permissions.p7s", dir.path / "incomplete" / "permissions.p7s");
+  const std::vector<Case> bad = {
+      {{"--dds-xml", "/nonexistent/profiles.xml", "--dds-profile", "x"},
+       "cannot read Fast DDS XML profiles file /nonexistent/profiles.xml"},
+      {{"--dds-xml", xml, "--dds-profile", "poseforest_nope"},
+       "no participant profile 'poseforest_nope' in " + xml + " (it has: poseforest_shm"},
+      {{"--dds-xml", xml}, "needs a participant profile name: --dds-profile NAME"},
+      {{"--dds-profile", "poseforest_shm"}, "needs the XML file: --dds-xml FILE"},
+      {{"--dds-xml", xml, "--dds-profile", "poseforest_shm", "--profile", "udp"},
+       "cannot be combined with --profile"},
+      {{"--dds-xml", xml, "--dds-profile", "poseforest_shm", "--discovery-server", "127.0.0.1"},
+       "cannot be combined with --discovery-server"},
+      {{"--discovery-server", "127.0.0.1:11811", "--profile", "shm"}, "--profile shm contradicts it"},
+      {{"--discovery-server", "127.0.0.1", "--peers", "10.0.0.1"},
+       "--peers cannot be combined with --discovery-server"},
+      {{"--discovery-server", "server.local"}, "'server.local' is not an IPv4 address"},
+      {{"--interfaces", "127.0.0.1"}, "--interfaces needs --profile udp or --discovery-server"},
+      {{"--security", (dir.path / "nothing").string()}, "not a directory"},
+      {{"--security", (dir.path / "incomplete").string()},
+       "missing or unreadable identity_ca.pem (looked in"},
+      {{"--security", (dir.path / "incomplete").string()},
+       "key.pem (looked in " + (dir.path / "incomplete").string() + ")"},
+      {{"--dds-xml", xml, "--dds-profile", "poseforest_secure_template"},
+       "file:///etc/poseforest/dds/identity_ca.pem, which cannot be read"},
+  };
+  for (const Case& c : bad) {
+    for (bool as_worker : {true, false}) {
+      auto [rc, text] = as_worker ? worker(c.flags) : coordinator(c.flags);
+      INFO((as_worker ? "worker " : "coordinator ") << c.flags[0] << " " << c.flags.back() << ": " << text);
+      CHECK(rc == 2);
+      CHECK(text.find(c.expect) != std::string::npos);
+    }
+  }
+  {  // the environment: named in the error; ignored once a transport flag is given
+    auto [rc, text] = Run({"env", "POSEFOREST_DDS_XML=" + xml, Program(), "worker", "--check-config"});
+    INFO(text);
+    CHECK(rc == 2);
+    CHECK(text.find("POSEFOREST_DDS_XML=" + xml + " needs a participant profile name") != std::string::npos);
+    auto [rc2, text2] = Run({"env", "POSEFOREST_DDS_XML=" + xml, "POSEFOREST_DDS_PROFILE=poseforest_nope",
+                             Program(), "worker", "--check-config", "--profile", "udp"});
+    INFO(text2);
+    CHECK(rc2 == 0);
+    CHECK(text2.find("UDP, initial peers 127.0.0.1") != std::string::npos);
+  }
+  // --local-workers under --security: the workers need credentials of their own.
+  auto [rc, text] = coordinator({"--local-workers", "2", "--security", (ca / "coordinator").string()});
+  INFO(text);
+  CHECK(rc == 2);
+  CHECK(text.find("needs --worker-security DIR") != std::string::npos);
+  auto [rc2, text2] = coordinator({"--local-workers", "2", "--security", (ca / "coordinator").string(),
+                                   "--worker-security", (ca / "worker-1").string()});
+  INFO(text2);
+  CHECK(rc2 == 0);
+  CHECK(text2.find("DDS-Security with " + (ca / "coordinator" / "cert.pem").string()) != std::string::npos);
+  auto [rc3, text3] = coordinator({"--dds-xml", xml, "--dds-profile", "poseforest_udp_loopback"});
+  INFO(text3);
+  CHECK(rc3 == 0);
+  CHECK(text3.find("coordinator config ok") != std::string::npos);
+  auto [rc4, text4] =
+      Run({Program(), "coordinator", job, "--out", "/nonexistent-dir/f.pff", "--check-config"});
+  INFO(text4);
+  CHECK(rc4 == 2);
+  CHECK(text4.find("folder /nonexistent-dir does not exist") != std::string::npos);
+  // monitor --domain takes the same flags (and the same checks).
+  auto [rc5, text5] =
+      Run({Program(), "monitor", "--domain", "3", "--dds-xml", xml, "--dds-profile", "poseforest_nope"});
+  INFO(text5);
+  CHECK(rc5 == 2);
+  CHECK(text5.find("no participant profile 'poseforest_nope'") != std::string::npos);
+}

@@ -1,0 +1,83 @@
+#pragma once
+// The DDS flags shared by every command that joins Fast DDS (`coordinator`, `worker`,
+// `train --local-workers`, `monitor --domain`): how the participant reaches its peers and with
+// which credentials. docs/distributed/README.md ("Transports and deployment profiles").
+//
+//   --profile shm|udp|default   built-in transports (default shm)
+//   --peers IP[:PORT],...       --profile udp: initial peers
+//   --interfaces IP,...         --profile udp or --discovery-server: local addresses to use
+//   --dds-xml FILE --dds-profile NAME   a Fast DDS XML participant profile (deploy/fastdds/profiles.xml);
+//                               env POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE when no transport flag is
+//                               given
+//   --discovery-server IP[:PORT]  discovery through fast-discovery-server -i 0 (UDP, no multicast)
+//   --security DIR              DDS-Security with the six files of DIR (deploy/security/make-test-ca.sh)
+
+#include <array>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "proto/dds/dds_node.h"
+#include "runtime/core/result.h"
+
+namespace poseforest::dist {
+
+/// Transport settings beyond the profile, peers and interfaces; empty fields are unused.
+struct TransportExtras {
+  std::string xml_file;          ///< kXmlProfile: absolute path of the Fast DDS XML file
+  std::string xml_profile;       ///< kXmlProfile: participant profile name in it
+  std::string discovery_server;  ///< kDiscoveryClient: "a.b.c.d:port" of fast-discovery-server -i 0
+  dds::SecurityFiles security;   ///< DDS-Security on any transport when enabled() (absolute paths)
+};
+
+/// The value options ParseDdsFlags reads (to register with a command's argument parser).
+inline constexpr std::array<const char*, 7> kDdsValueOptions = {
+    "profile", "peers", "interfaces", "dds-xml", "dds-profile", "discovery-server", "security"};
+
+/// Environment fallbacks of --dds-xml / --dds-profile.
+inline constexpr const char* kEnvDdsXml = "POSEFOREST_DDS_XML";
+inline constexpr const char* kEnvDdsProfile = "POSEFOREST_DDS_PROFILE";
+
+/// Checked DDS settings of one command line.
+struct DdsFlags {
+  dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
+  /// kUdpOnly: initial peers (empty: 127.0.0.1); kUdpOnly / kDiscoveryClient: local interfaces.
+  std::vector<std::string> peers, interfaces;
+  TransportExtras extras;
+  std::string security_dir;  ///< absolute --security DIR, empty without
+  /// Short name for status pages: "shm", "udp", "default", "xml:NAME", "discovery-server", with
+  /// "+security" appended under DDS-Security.
+  std::string Label() const;
+  /// One line for logs: the transport, the XML file or server, the credentials' folder.
+  std::string Describe() const;
+  /// Flags that give another process (a local worker) the same transport and domain-wide
+  /// settings; never the credentials (each participant has its own: --worker-security).
+  std::vector<std::string> TransportArgs() const;
+};
+
+/// Reads and checks the DDS flags; `get(name)` returns the value of --name when it was given.
+/// POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE stand in for a missing --dds-xml / --dds-profile
+/// unless --profile, --peers, --interfaces or --discovery-server is given (flags win; the
+/// environment of a container image never contradicts an explicit command line).
+/// Checks everything that can be checked without joining DDS: contradictory flags, addresses,
+/// that the XML file loads in Fast DDS and has the participant profile (the error lists the
+/// profiles it has), that every security file is readable (the error names the missing one).
+/// Errors: kInvalidArgument / kNotFound / kIo with a message naming the flag or variable.
+core::Result<DdsFlags> ParseDdsFlags(
+    const std::function<std::optional<std::string>(const std::string&)>& get);
+
+/// The six DDS-Security files for --security DIR (`flag` names it in errors). cert.pem, key.pem
+/// and permissions.p7s are this participant's and sit in DIR; identity_ca.pem,
+/// permissions_ca.pem and governance.p7s are shared and are taken from DIR, else from DIR/..
+/// (make-test-ca.sh OUT writes OUT/NAME/{cert.pem,key.pem,permissions.p7s} and the shared
+/// files in OUT; a mounted Kubernetes Secret holds all six in one folder). Paths are absolute.
+/// Errors name each missing file and where it was looked for.
+core::Result<dds::SecurityFiles> SecurityFilesIn(const std::string& dir,
+                                                 const std::string& flag = "--security");
+
+/// Sets `config`'s transport, peers, interfaces, XML profile, discovery server and security
+/// from `flags` (kUdpOnly without peers: 127.0.0.1, participant ids 0..15).
+void ApplyDdsFlags(const DdsFlags& flags, dds::NodeConfig* config);
+
+}  // namespace poseforest::dist
