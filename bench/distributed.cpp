@@ -27,6 +27,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -72,14 +73,42 @@ double LoadAverage() {
   return ::getloadavg(l, 1) == 1 ? l[0] : -1;
 }
 
+/// A worker's CPU breakdown as (name, value) pairs: what a worker process writes to its
+/// --stats file, summed over the workers of a run by the bench.
+std::vector<std::pair<std::string, double>> CpuFields(const dist::WorkerCpu& c) {
+  return {{"process_at_start", c.process_at_start},
+          {"participant", c.participant},
+          {"receive", c.receive},
+          {"shard", c.shard},
+          {"decisions", c.decisions},
+          {"level_compute", c.level_compute},
+          {"level_encode", c.level_encode},
+          {"subtree_render", c.subtree_render},
+          {"subtree_route", c.subtree_route},
+          {"subtree_train", c.subtree_train},
+          {"subtree_encode", c.subtree_encode},
+          {"publish", c.publish},
+          {"run_total", c.run_total},
+          {"other_threads", c.run_total - c.Phases()},
+          {"shard_frames", double(c.shard_frames)},
+          {"task_frames", double(c.task_frames)},
+          {"task_frames_cached", double(c.task_frames_cached)},
+          {"subtree_tasks", double(c.subtree_tasks)},
+          {"task_cache_peak_bytes", double(c.task_cache_peak_bytes)},
+          {"task_cache_evictions", double(c.task_cache_evictions)}};
+}
+
 /// A worker process: this program with --worker-process.
 int WorkerProcess(int argc, char** argv) {
   // Go when the bench goes (killed or interrupted), as `worker --exit-with-parent` does.
   ::prctl(PR_SET_PDEATHSIG, SIGTERM);
   if (::getppid() == 1) return 0;
   dist::WorkerOptions o;
+  std::string stats_path;
   for (int i = 1; i + 1 < argc; ++i) {
-    if (!std::strcmp(argv[i], "--domain"))
+    if (!std::strcmp(argv[i], "--stats"))
+      stats_path = argv[++i];
+    else if (!std::strcmp(argv[i], "--domain"))
       o.domain = uint32_t(std::atoi(argv[++i]));
     else if (!std::strcmp(argv[i], "--job"))
       o.job_id = argv[++i];
@@ -92,6 +121,11 @@ int WorkerProcess(int argc, char** argv) {
   dist::DistWorker w(o);
   const core::Status st = w.Run();
   if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.ToString().c_str());
+  if (!stats_path.empty()) {
+    std::ofstream out(stats_path);
+    for (const auto& [name, value] : CpuFields(w.cpu())) out << name << ' ' << value << '\n';
+    out << "process_at_report " << CpuSeconds(RUSAGE_SELF) << '\n';
+  }
   return st.ok() ? 0 : 1;
 }
 
@@ -100,7 +134,61 @@ struct RunFigures {
   uint64_t evaluations = 0, bytes_received = 0, bytes_sent = 0;
   double merge = 0;
   bool identical = false;
+  std::map<std::string, double> worker_cpu;  ///< CpuFields summed over the run's workers
+  double workers_reported = 0;               ///< process CPU the workers reported before exiting
 };
+
+/// Reads a worker's --stats file into `sum` (adding); false if it is missing or unreadable.
+bool AddStats(const std::string& path, std::map<std::string, double>* sum) {
+  std::ifstream in(path);
+  if (!in) return false;
+  std::string name;
+  double value = 0;
+  bool any = false;
+  while (in >> name >> value) (*sum)[name] += value, any = true;
+  return any;
+}
+
+/// Where a run's CPU went: the coordinator, and the workers by phase (WorkerCpu), next to the
+/// engine's total. "Also in the engine" = work the single-process engine does too (its frames,
+/// histograms and routing); the rest is what the service adds.
+void PrintBreakdown(const RunFigures& f, double engine_cpu) {
+  std::map<std::string, double> c = f.worker_cpu;
+  auto g = [&](const char* k) { return c.count(k) ? c.at(k) : 0.0; };
+  const double exit_cpu = f.workers_cpu - g("process_at_report");
+  const double startup = g("process_at_start") + g("participant");
+  const double shared_work =
+      g("shard") + g("decisions") + g("level_compute") + g("subtree_route") + g("subtree_train");
+  std::printf("  where the CPU went (CPU s; engine %.3f):\n", engine_cpu);
+  std::printf("    %-58s %7.3f\n", "coordinator (this process: merges, rounds, waiting, DDS)", f.coordinator_cpu);
+  std::printf("    %-58s %7.3f\n", "workers, all", f.workers_cpu);
+  auto row = [&](const std::string& what, double v) { std::printf("      %-56s %7.3f\n", what.c_str(), v); };
+  row("start-up: exec, libraries, static init", g("process_at_start"));
+  row("DDS participant, readers, writers", g("participant"));
+  row("own shard: " + std::to_string(int64_t(g("shard_frames"))) + " frames rendered, sampled", g("shard"));
+  row("routing samples (SplitDecisions)", g("decisions"));
+  row("level rounds: ranges, histograms (builder)", g("level_compute"));
+  row("level rounds: plans, counts, reply messages", g("level_encode"));
+  row("subtree tasks (" + std::to_string(int64_t(g("subtree_tasks"))) + "): frames rendered (" +
+          std::to_string(int64_t(g("task_frames"))) + "; " + std::to_string(int64_t(g("task_frames_cached"))) +
+          " held)",
+      g("subtree_render"));
+  row("subtree tasks: SampleSet + routing along the path", g("subtree_route"));
+  row("subtree tasks: training (TrainSubtree)", g("subtree_train"));
+  row("subtree tasks: result messages", g("subtree_encode"));
+  row("receiving: DDS take, gate (decode + checks), polling", g("receive"));
+  row("sending: serialize, DDS write, match waits", g("publish"));
+  row("other threads: DDS (discovery, transport), heartbeats", g("other_threads"));
+  row("exit: participant teardown, destructors", exit_cpu);
+  const double service_only = f.cpu - shared_work;
+  std::printf(
+      "    work the engine does too (frames, routing, histograms, training): %.3f; the rest (start-up %.3f, "
+      "messages, DDS, coordinator, frames rendered again): %.3f = %.0f%% of the service's CPU\n",
+      shared_work, startup, service_only, 100.0 * service_only / std::max(1e-9, f.cpu));
+  if (g("task_cache_peak_bytes") > 0)
+    std::printf("    task frame cache: peak %.1f MB (sum over workers), %lld evictions\n",
+                g("task_cache_peak_bytes") / 1e6, (long long)g("task_cache_evictions"));
+}
 
 struct Row {
   int workers, tree, level;
@@ -116,8 +204,21 @@ int main(int argc, char** argv) {
   std::string text = kDefaultJob, csv_path;
   uint32_t domain = 1 + uint32_t(::getpid()) % 200;
   long long subtree_max = -1;
+  std::vector<int> worker_counts = {1, 2};
+  bool skip_off = false;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--domain") && i + 1 < argc) {
+    if (!std::strcmp(argv[i], "--workers") && i + 1 < argc) {
+      worker_counts.clear();
+      for (std::stringstream ss(argv[++i]); ss.good();) {
+        std::string item;
+        std::getline(ss, item, ',');
+        const int n = std::atoi(item.c_str());
+        if (n < 1 || n > 16) return std::fprintf(stderr, "distributed: --workers wants counts 1..16\n"), 2;
+        worker_counts.push_back(n);
+      }
+    } else if (!std::strcmp(argv[i], "--skip-off")) {
+      skip_off = true;
+    } else if (!std::strcmp(argv[i], "--domain") && i + 1 < argc) {
       domain = uint32_t(std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--csv") && i + 1 < argc) {
       csv_path = argv[++i];
@@ -125,7 +226,8 @@ int main(int argc, char** argv) {
       subtree_max = std::atoll(argv[++i]);
     } else if (!std::strcmp(argv[i], "--help") || argv[i][0] == '-') {
       std::fprintf(stderr,
-                   "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S]\n");
+                   "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] "
+                   "[--workers N,N] [--skip-off]\n");
       return std::strcmp(argv[i], "--help") ? 2 : 0;
     } else {
       std::ifstream in(argv[i]);
@@ -167,6 +269,10 @@ int main(int argc, char** argv) {
         double(engine.evaluations) / engine.wall, double(engine.evaluations) / engine.cpu,
         double(engine.evaluations) /
             std::max(1e-9, local.stats().histogram_seconds + local.stats().range_seconds));
+    std::printf("  engine wall by phase: frames %.3f s, ranges %.3f s, histograms %.3f s, the rest %.3f s\n",
+                local.stats().load_seconds, local.stats().range_seconds, local.stats().histogram_seconds,
+                engine.wall - local.stats().load_seconds - local.stats().range_seconds -
+                    local.stats().histogram_seconds);
     std::fflush(stdout);
   }
 
@@ -179,8 +285,8 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   std::map<std::pair<int, uint64_t>, RunFigures> runs;  // (workers, subtree_max_samples)
   std::vector<std::pair<int, uint64_t>> plan;
-  for (int n : {1, 2}) {
-    plan.push_back({n, 0});
+  for (int n : worker_counts) {
+    if (!skip_off || subtree_max <= 0) plan.push_back({n, 0});
     if (subtree_max > 0) plan.push_back({n, uint64_t(subtree_max)});
   }
   uint32_t run_index = 0;
@@ -193,10 +299,21 @@ int main(int argc, char** argv) {
         "bench-" + std::to_string(::getpid()) + "-" + std::to_string(n) + "-" + std::to_string(sm);
     const double kids_cpu0 = CpuSeconds(RUSAGE_CHILDREN);
     std::vector<pid_t> pids;
+    std::vector<std::string> stats_files;
     for (int i = 0; i < n; ++i) {
-      std::vector<std::string> a = {
-          self,   "--worker-process",           "--domain", std::to_string(dom), "--job", job_id,
-          "--id", "bench-w" + std::to_string(i)};
+      stats_files.push_back((std::filesystem::temp_directory_path() /
+                             (job_id + "-w" + std::to_string(i) + ".stats"))
+                                .string());
+      std::vector<std::string> a = {self,
+                                    "--worker-process",
+                                    "--domain",
+                                    std::to_string(dom),
+                                    "--job",
+                                    job_id,
+                                    "--id",
+                                    "bench-w" + std::to_string(i),
+                                    "--stats",
+                                    stats_files.back()};
       std::vector<char*> c;
       for (auto& s : a) c.push_back(s.data());
       c.push_back(nullptr);
@@ -253,6 +370,11 @@ int main(int argc, char** argv) {
     }
     f.workers_cpu = CpuSeconds(RUSAGE_CHILDREN) - kids_cpu0;
     f.cpu = f.coordinator_cpu + f.workers_cpu;
+    for (const std::string& path : stats_files) {
+      if (!AddStats(path, &f.worker_cpu))
+        std::printf("  (no CPU breakdown from %s: the worker did not finish normally)\n", path.c_str());
+      std::filesystem::remove(path);
+    }
     if (!forest.ok()) return std::fprintf(stderr, "%s\n", forest.status().ToString().c_str()), 1;
     f.identical = core::SerializeForest(*forest) == ref_bytes;
     for (const auto& [t, tf] : trees)
@@ -267,6 +389,7 @@ int main(int argc, char** argv) {
         f.wall, f.levels_wall, f.cpu, f.coordinator_cpu, f.workers_cpu, (unsigned long long)f.evaluations,
         double(f.evaluations) / f.wall, double(f.evaluations) / f.cpu, (unsigned long long)f.bytes_received,
         f.merge * 1e3, f.identical ? "yes" : "NO");
+    PrintBreakdown(f, engine.cpu);
     std::fflush(stdout);
   }
 
@@ -300,8 +423,12 @@ int main(int argc, char** argv) {
                 f.wall, f.cpu, double(engine.evaluations) / f.wall, double(engine.evaluations) / f.cpu,
                 double(engine.evaluations) / f.cpu / engine_per_cpu);
   }
-  const RunFigures& two = runs[{2, uint64_t(subtree_max > 0 ? subtree_max : 0)}];
-  const RunFigures& two_off = runs[{2, 0}];
+  // The headline: 2 workers (else the largest count run), with hand-off as configured.
+  const int head_n = std::count(worker_counts.begin(), worker_counts.end(), 2)
+                         ? 2
+                         : *std::max_element(worker_counts.begin(), worker_counts.end());
+  const RunFigures& two = runs[{head_n, uint64_t(subtree_max > 0 ? subtree_max : 0)}];
+  const RunFigures& two_off = runs.count({head_n, 0}) ? runs[{head_n, 0}] : two;
   std::printf("bytes received, 2 workers: %.1f MB without subtree hand-off, %.1f MB with (%.2f x less)\n",
               double(two_off.bytes_received) / 1e6, double(two.bytes_received) / 1e6,
               two.bytes_received ? double(two_off.bytes_received) / double(two.bytes_received) : 0.0);

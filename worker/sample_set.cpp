@@ -74,7 +74,17 @@ std::vector<PixelSample> SamplePixels(const LabelledFrame& frame, int count, dou
   return out;
 }
 
-void SampleSet::AddFrame(uint64_t frame_index, core::DepthImage depth, std::span<const PixelSample> pixels,
+void SampleSet::Reserve(size_t frames, size_t pixels, size_t samples) {
+  frames_.reserve(frames_.size() + frames);
+  probe_.reserve(probe_.size() + pixels + 32);
+  for (auto* v : {&frame_, &base_}) v->reserve(v->size() + samples);
+  x_.reserve(x_.size() + samples);
+  y_.reserve(y_.size() + samples);
+  scale_.reserve(scale_.size() + samples);
+  part_.reserve(part_.size() + samples);
+}
+
+void SampleSet::AddFrame(uint64_t frame_index, const core::DepthImage& depth, std::span<const PixelSample> pixels,
                          const core::FeatureConstants& c) {
   POSEFOREST_CHECK(frames_.empty() || frame_index > frames_.back().index);
   POSEFOREST_CHECK(frames_.empty() || background_mm_ == c.background_mm);

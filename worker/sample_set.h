@@ -40,8 +40,11 @@ class SampleSet {
  public:
   /// Adds a frame and its samples; frames must be added in increasing `frame_index`
   /// (the index in the tree's frame sequence, which identifies samples globally).
-  void AddFrame(uint64_t frame_index, core::DepthImage depth, std::span<const PixelSample> pixels,
+  void AddFrame(uint64_t frame_index, const core::DepthImage& depth, std::span<const PixelSample> pixels,
                 const core::FeatureConstants& c);
+  /// Room for `frames` more frames of `pixels` pixels in all and `samples` more samples (saves
+  /// the regrowth of a set built many times, as a distributed worker's subtree tasks do).
+  void Reserve(size_t frames, size_t pixels, size_t samples);
   /// Puts every sample in node `root` (call once after the last AddFrame).
   void StartTree(uint32_t root = 0);
 

@@ -13,6 +13,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "coordinator/split_search.h"
 #include "coordinator/subtree_trainer.h"
@@ -75,6 +76,9 @@ struct SubtreeJob {
   uint64_t position = 0;
   std::vector<uint64_t> parts;
   std::vector<uint32_t> frames;             ///< tree-local frames holding its samples
+  /// The samples themselves when every holder listed them (FRAMES round): per frame of
+  /// `frames`, how many, and their delta-coded pixel indices (SubtreeTask.sample_*).
+  std::vector<uint32_t> sample_counts, pixel_deltas;
   std::map<std::string, uint64_t> holders;  ///< worker -> samples of the node in its shard
   std::string worker;                       ///< who has it now
   uint64_t epoch = 0;                       ///< of the task sent to `worker`
@@ -578,6 +582,11 @@ struct DistCoordinator::Impl {
     t->set_expected_samples(total);
     t->set_position(job.position);
     for (uint64_t c : job.parts) t->add_part_counts(c);
+    if (!job.sample_counts.empty() && opt.subtree_sample_lists) {
+      t->mutable_sample_frames()->Add(job.frames.begin(), job.frames.end());
+      t->mutable_sample_counts()->Add(job.sample_counts.begin(), job.sample_counts.end());
+      t->mutable_sample_pixel_deltas()->Add(job.pixel_deltas.begin(), job.pixel_deltas.end());
+    }
     job.worker = best->id;
     job.epoch = t->epoch();
     job.sent = NowSeconds();
@@ -731,11 +740,24 @@ struct DistCoordinator::Impl {
             job.position = f.position;
             job.parts = f.parts;
             uint64_t held = 0;
+            // (frame, reply, first delta, count) of the listed samples; any holder without a
+            // consistent list: the task goes without (the worker routes the frames' samples).
+            std::vector<std::tuple<uint32_t, const v1::NodeRanges*, int, uint32_t>> listed;
+            bool all_listed = true;
             for (const Reply& r : *rf) {
               const v1::NodeRanges& nr = r.body.ranges(int(q));
               if (nr.num_samples() > 0) job.holders[r.sender] = nr.num_samples();
               held += nr.num_samples();
               job.frames.insert(job.frames.end(), nr.frames().begin(), nr.frames().end());
+              uint64_t sum = 0;
+              for (uint32_t c : nr.frame_samples()) sum += c;
+              if (nr.frame_samples_size() != nr.frames_size() || sum != nr.num_samples() ||
+                  uint64_t(nr.pixel_deltas_size()) != sum) {
+                all_listed = all_listed && nr.num_samples() == 0;
+                continue;
+              }
+              for (int e = 0, at = 0; e < nr.frames_size(); at += int(nr.frame_samples(e)), ++e)
+                listed.emplace_back(nr.frames(e), &nr, at, nr.frame_samples(e));
             }
             if (held != f.total())
               return Status(ErrorCode::kDataLoss, "node " + std::to_string(f.node) + ": the workers hold " +
@@ -743,6 +765,16 @@ struct DistCoordinator::Impl {
                                                       std::to_string(f.total()));
             std::sort(job.frames.begin(), job.frames.end());
             job.frames.erase(std::unique(job.frames.begin(), job.frames.end()), job.frames.end());
+            std::sort(listed.begin(), listed.end(),
+                      [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
+            if (all_listed && listed.size() == job.frames.size()) {  // no frame listed twice
+              job.pixel_deltas.reserve(f.total());
+              for (const auto& [frame, nr, at, count] : listed) {
+                job.sample_counts.push_back(count);
+                job.pixel_deltas.insert(job.pixel_deltas.end(), nr->pixel_deltas().begin() + at,
+                                        nr->pixel_deltas().begin() + at + int(count));
+              }
+            }
             SubtreeJob& stored = tasks[f.position] = std::move(job);
             POSEFOREST_RETURN_IF_ERROR(SendTask(stored));
           }

@@ -89,6 +89,9 @@ struct CoordinatorOptions {
   /// Histogram bytes per request batch (also bounded by the job's histogram_memory_bytes): keeps
   /// each reply far below protobuf's 2 GiB message limit. Batching does not change the forest.
   uint64_t max_batch_bytes = uint64_t(64) << 20;
+  /// SubtreeTasks list the node's samples (from the FRAMES round) so that the worker takes them
+  /// without routing its frames along the path; false (tests): the worker routes. Same forest.
+  bool subtree_sample_lists = true;
   std::string checkpoint_dir;  ///< empty: no checkpoints
   bool resume = false;         ///< continue from checkpoint_dir/checkpoint.pb if present
   /// Tests: before tree t (< size), wait until this many workers are alive (late joiners).

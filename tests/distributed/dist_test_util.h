@@ -80,6 +80,7 @@ class ThreadWorkers {
     DistWorker* w = workers_.back().get();
     threads_.emplace_back([w] { (void)w->Run(); });
   }
+  DistWorker& worker(size_t i) { return *workers_[i]; }
   void Stop(size_t i) {
     workers_[i]->Stop();
     if (threads_[i].joinable()) threads_[i].join();

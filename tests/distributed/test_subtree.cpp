@@ -192,3 +192,78 @@ TEST_CASE("coordinator stopped with delegated subtrees pending resumes: same for
   }
   std::filesystem::remove_all(dir);
 }
+
+TEST_CASE("subtree tasks: listed samples or routing, a task-frame cache that evicts: same forest",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(2, 6, kSubtreeMax));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  // A frame of the tiny job: 96 x 72 depth + 150 samples; the cap holds one, so nearly every
+  // frame a task renders pushes another out.
+  constexpr uint64_t kFrameBytes = 96 * 72 * 2 + 150 * sizeof(worker::PixelSample);
+  for (const bool lists : {true, false}) {
+    DYNAMIC_SECTION((lists ? "samples listed in the task" : "samples routed along the path")) {
+      const uint32_t domain = Domain(lists ? 48 : 49);
+      const std::string job_id = std::string("t-subtree-cache-") + (lists ? "l" : "r");
+      ThreadWorkers workers(0, domain, job_id);
+      for (int i = 0; i < 2; ++i) {
+        WorkerOptions w;
+        w.worker_id = "tw-" + std::to_string(::getpid()) + "-c" + std::to_string(i);
+        w.domain = domain;
+        w.job_id = job_id;
+        w.task_cache_bytes = kFrameBytes + kFrameBytes / 2;
+        workers.Add(std::move(w));
+      }
+      CoordinatorOptions o = Options(domain, 2);
+      o.job_id = job_id;
+      o.subtree_sample_lists = lists;
+      HandOff h;
+      o.progress = [&](const DistLevelStats& s) { h.Add(s); };
+      DistCoordinator coordinator(job.config, job.params, o);
+      auto forest = coordinator.Train();
+      INFO(forest.status().ToString());
+      REQUIRE(forest.ok());
+      CHECK(core::SerializeForest(*forest) == reference);
+      CHECK(coordinator.rejected_messages() == 0);
+      workers.Stop(0);
+      workers.Stop(1);
+      WorkerCpu sum;
+      for (size_t i = 0; i < 2; ++i) {
+        const WorkerCpu& c = workers.worker(i).cpu();
+        sum.subtree_tasks += c.subtree_tasks;
+        sum.task_frames += c.task_frames;
+        sum.task_cache_evictions += c.task_cache_evictions;
+        CHECK(c.task_cache_peak_bytes <= kFrameBytes + kFrameBytes / 2);
+        CHECK(c.run_total > 0);
+        CHECK(c.Phases() <= c.run_total + 0.05);  // the main thread's phases are part of the process
+      }
+      CHECK(sum.subtree_tasks == h.tasks);  // every task counted once (no retries here)
+      CHECK(sum.task_frames >= 2);          // frames of the other shard were rendered ...
+      CHECK(sum.task_cache_evictions >= 1);  // ... and the cap pushed some out
+    }
+  }
+}
+
+TEST_CASE("a SubtreeTask's listed samples are checked against the frame's sampled pixels",
+          "[distributed][unit]") {
+  // Sampled pixels (ascending) of a 10-pixel-wide frame: indices 1, 5 and 12.
+  const std::vector<worker::PixelSample> picked = {{1, 0, 3}, {5, 0, 4}, {2, 1, 5}};
+  std::vector<worker::PixelSample> out;
+  auto select = [&](std::vector<uint32_t> deltas) { return SelectListedSamples(picked, 10, 7, deltas, &out); };
+  REQUIRE(select({1, 4, 7}).ok());
+  REQUIRE(out.size() == 3);
+  CHECK(out[2].x == 2);
+  CHECK(out[2].y == 1);
+  CHECK(out[2].part == 5);
+  REQUIRE(select({5}).ok());
+  REQUIRE(out.size() == 1);
+  CHECK(out[0].part == 4);
+  REQUIRE(select({}).ok());
+  CHECK(out.empty());
+  const core::Status twice = select({1, 0});
+  CHECK(twice.code() == core::ErrorCode::kInvalidArgument);
+  CHECK_THAT(twice.message(), Catch::Contains("frame 7") && Catch::Contains("pixel 1 listed twice"));
+  const core::Status absent = select({1, 2});
+  CHECK(absent.code() == core::ErrorCode::kInvalidArgument);
+  CHECK_THAT(absent.message(), Catch::Contains("frame 7: pixel 3 is not one of its sampled pixels"));
+  CHECK_FALSE(select({13}).ok());  // past the last sampled pixel
+}

@@ -1,11 +1,14 @@
 #include "worker/distributed/dist_worker.h"
 
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
+#include <list>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "coordinator/subtree_trainer.h"
@@ -28,9 +31,84 @@ using core::Status;
 using dds::Topic;
 
 namespace {
+double ThreadCpu() {
+  timespec ts{};
+  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+double ProcessCpu() {
+  timespec ts{};
+  ::clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+/// Adds the calling thread's CPU time from construction to destruction to `*into`.
+class CpuTimer {
+ public:
+  explicit CpuTimer(double* into) : into_(into), t0_(ThreadCpu()) {}
+  ~CpuTimer() { *into_ += ThreadCpu() - t0_; }
+  CpuTimer(const CpuTimer&) = delete;
+  CpuTimer& operator=(const CpuTimer&) = delete;
+
+ private:
+  double* into_;
+  double t0_;
+};
+
 struct FrameData {
   core::DepthImage depth;
   std::vector<worker::PixelSample> picked;
+  uint64_t Bytes() const {
+    return uint64_t(depth.width) * uint64_t(depth.height) * sizeof(uint16_t) +
+           picked.size() * sizeof(worker::PixelSample);
+  }
+};
+
+/// Frames of one tree rendered for SubtreeTasks, least recently used dropped first to stay
+/// within `cap_bytes` (a frame larger than the cap is not kept).
+struct TaskFrameCache {
+  uint64_t cap_bytes = 0;
+  int tree = -1;
+  uint64_t bytes = 0, peak_bytes = 0, evictions = 0;
+
+  void Clear(int new_tree) {
+    tree = new_tree;
+    frames_.clear();
+    lru_.clear();
+    bytes = 0;
+  }
+  bool Has(uint64_t i) const { return frames_.count(i) > 0; }
+  /// The frame (marked as used now), or nullptr.
+  const FrameData* Find(uint64_t i) {
+    auto it = frames_.find(i);
+    if (it == frames_.end()) return nullptr;
+    lru_.splice(lru_.begin(), lru_, it->second.second);
+    return &it->second.first;
+  }
+  void Put(uint64_t i, FrameData f) {
+    if (Has(i)) return;
+    const uint64_t b = f.Bytes();
+    if (b > cap_bytes) {
+      ++evictions;
+      return;
+    }
+    while (bytes + b > cap_bytes && !lru_.empty()) {
+      auto it = frames_.find(lru_.back());
+      bytes -= it->second.first.Bytes();
+      frames_.erase(it);
+      lru_.pop_back();
+      ++evictions;
+    }
+    lru_.push_front(i);
+    frames_.emplace(i, std::make_pair(std::move(f), lru_.begin()));
+    bytes += b;
+    peak_bytes = std::max(peak_bytes, bytes);
+  }
+
+ private:
+  std::map<uint64_t, std::pair<FrameData, std::list<uint64_t>::iterator>> frames_;
+  std::list<uint64_t> lru_;  ///< most recently used first
 };
 
 v1::RendererKind RendererOf(const worker::TrainParams& p) {
@@ -50,6 +128,7 @@ struct DistWorker::Impl {
   WorkerOptions& opt;
   std::atomic<bool>& stop;
   std::unique_ptr<dds::DdsNode> node;
+  WorkerCpu cpu;  ///< written by the receiving (Run's) thread only
 
   std::mutex send_mu;  // guards stamper + job identity used by the heartbeat thread
   dds::EnvelopeStamper stamper;
@@ -68,10 +147,9 @@ struct DistWorker::Impl {
   double subtree_s = 0;
   bool have_shard = false;
   std::map<uint64_t, FrameData> cache;  // tree-local frame index -> frame
-  // Frames of other shards rendered for SubtreeTasks (tree `extra_tree`), kept for the tree's
-  // later tasks: at most the tree's frames.
-  int extra_tree = -1;
-  std::map<uint64_t, FrameData> extra;
+  // Frames of other shards rendered for SubtreeTasks, kept for the tree's later tasks within
+  // WorkerOptions::task_cache_bytes.
+  TaskFrameCache task_cache;
   // Renders the few frames a SubtreeTask lacks on the receiving thread (Run's), created once
   // per job: creating a source (renderer context, pose library, bodies) costs seconds.
   std::unique_ptr<worker::ImageSource> task_source;
@@ -88,7 +166,10 @@ struct DistWorker::Impl {
 
   void Log(const std::string& m) { opt.log(m); }
 
-  Status Publish(Topic topic, v1::Envelope& env) {
+  /// Seals and writes `env`; `timed`: counted in cpu.publish (the receiving thread's sends).
+  Status Publish(Topic topic, v1::Envelope& env, bool timed = true) {
+    std::optional<CpuTimer> timer;
+    if (timed) timer.emplace(&cpu.publish);
     std::string bytes;
     {
       std::lock_guard<std::mutex> lock(send_mu);
@@ -126,7 +207,7 @@ struct DistWorker::Impl {
           h->set_shard_epoch(shard_epoch);
           h->set_received_shard_epoch(received_shard_epoch);
         }
-        (void)Publish(Topic::kPresence, env);
+        (void)Publish(Topic::kPresence, env, /*timed=*/false);
       }
       std::this_thread::sleep_for(opt.heartbeat_period);
     }
@@ -158,8 +239,8 @@ struct DistWorker::Impl {
     tree = -1;
     have_shard = false;
     cache.clear();
-    extra_tree = -1;
-    extra.clear();
+    task_cache.Clear(-1);
+    task_cache.cap_bytes = opt.task_cache_bytes;
     task_source.reset();
     corrupt_left = opt.corrupt_subtree_results;
     samples = worker::SampleSet{};
@@ -176,6 +257,7 @@ struct DistWorker::Impl {
   }
 
   Status LoadShard(const v1::ShardAssignment& s) {
+    CpuTimer timer(&cpu.shard);
     const uint64_t ipt = uint64_t(params.images_per_tree);
     if (s.tree() >= uint32_t(params.num_trees))
       return Status(ErrorCode::kInvalidArgument, "tree out of range");
@@ -203,9 +285,10 @@ struct DistWorker::Impl {
     for (uint64_t i : wanted)
       if (!cache.count(i)) missing.push_back(i);
     std::vector<FrameData> loaded;
-    POSEFOREST_RETURN_IF_ERROR(LoadFrames(missing, &loaded));
+    POSEFOREST_RETURN_IF_ERROR(LoadFrames(missing, &loaded, &cpu.shard));
     for (size_t j = 0; j < missing.size(); ++j) cache[missing[j]] = std::move(loaded[j]);
     frames_rendered += missing.size();
+    cpu.shard_frames += missing.size();
     samples = worker::SampleSet{};
     for (const auto& [i, f] : cache) {
       if (f.picked.empty()) continue;  // no body in view (as LocalTrainer)
@@ -220,8 +303,9 @@ struct DistWorker::Impl {
     return Status::Ok();
   }
 
-  /// Renders/loads tree-local frames `missing` of tree `tree` and samples their pixels.
-  Status LoadFrames(const std::vector<uint64_t>& missing, std::vector<FrameData>* out) {
+  /// Renders/loads tree-local frames `missing` of tree `tree` and samples their pixels; the CPU
+  /// time of the loading threads is added to `*pool_cpu`.
+  Status LoadFrames(const std::vector<uint64_t>& missing, std::vector<FrameData>* out, double* pool_cpu) {
     const uint64_t ipt = uint64_t(params.images_per_tree);
     std::vector<FrameData>& loaded = *out;
     loaded.assign(missing.size(), FrameData{});
@@ -229,9 +313,11 @@ struct DistWorker::Impl {
     // Frames in parallel, one ImageSource per thread (a renderer's context is per thread).
     const int threads = std::max(1, std::min<int>(params.threads, int(missing.size())));
     std::vector<Status> errors(static_cast<size_t>(threads));
+    std::vector<double> thread_cpu(static_cast<size_t>(threads), 0.0);
     std::vector<std::thread> pool;
     for (int tid = 0; tid < threads; ++tid) {
       pool.emplace_back([&, tid] {
+        CpuTimer timer(&thread_cpu[size_t(tid)]);
         try {
           auto source = worker::MakeImageSource(params.source);
           if (!source.ok()) {
@@ -256,12 +342,14 @@ struct DistWorker::Impl {
       });
     }
     for (auto& t : pool) t.join();
+    for (double c : thread_cpu) *pool_cpu += c;
     for (const Status& e : errors)
       if (!e.ok()) return e;
     return Status::Ok();
   }
 
   Status ApplyDecisions(const v1::SplitDecisions& d) {
+    CpuTimer timer(&cpu.decisions);
     std::vector<worker::SampleSet::Split> splits;
     for (const auto& n : d.nodes()) {
       if (n.kind_case() != v1::NodeDecision::kSplit) continue;
@@ -285,6 +373,7 @@ struct DistWorker::Impl {
         req.num_parts() != uint32_t(core::kNumParts))
       return Status(ErrorCode::kInvalidArgument, "request dimensions differ from the job's");
     const double t0 = NowSeconds();
+    const double cpu0 = ThreadCpu(), compute0 = cpu.level_compute;
     busy = true;
     std::vector<worker::NodePlan> plans(static_cast<size_t>(n));
     for (int i = 0; i < n; ++i) {
@@ -341,9 +430,12 @@ struct DistWorker::Impl {
         }
       }
       std::vector<std::vector<worker::ResponseRange>> ranges;
-      if (!normal.empty()) builder->ComputeRanges(samples, params, tree, normal, &ranges);
       std::vector<worker::NodeHistogram> fused_hists;
-      if (!fused.empty()) builder->BuildFused(samples, params, tree, fused, &fused_hists);
+      {
+        CpuTimer timer(&cpu.level_compute);
+        if (!normal.empty()) builder->ComputeRanges(samples, params, tree, normal, &ranges);
+        if (!fused.empty()) builder->BuildFused(samples, params, tree, fused, &fused_hists);
+      }
       for (int i = 0; i < n; ++i) {
         const auto [is_fused, j] = where[size_t(i)];
         auto* nh = reply->add_nodes();
@@ -388,11 +480,21 @@ struct DistWorker::Impl {
         auto* rr = reply->add_ranges();
         const worker::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
         rr->set_num_samples(r.end - r.begin);
-        // Samples of a node are ordered by frame: distinct frames are runs.
+        // Samples of a node are ordered by (frame, pixel): distinct frames are runs. The pixel
+        // indices go along, so that a SubtreeTask needs no routing.
+        uint32_t prev_pixel = 0;
         for (uint64_t j = r.begin; j < r.end; ++j) {
           const uint64_t f = samples.frame_index(j);
-          if (rr->frames_size() == 0 || rr->frames(rr->frames_size() - 1) != uint32_t(f))
+          const uint32_t pixel = uint32_t(samples.y()[j]) * uint32_t(samples.frames()[samples.frame()[j]].width) +
+                                 uint32_t(samples.x()[j]);
+          if (rr->frames_size() == 0 || rr->frames(rr->frames_size() - 1) != uint32_t(f)) {
             rr->add_frames(uint32_t(f));
+            rr->add_frame_samples(0);
+            prev_pixel = 0;
+          }
+          rr->set_frame_samples(rr->frames_size() - 1, rr->frame_samples(rr->frames_size() - 1) + 1);
+          rr->add_pixel_deltas(pixel - prev_pixel);
+          prev_pixel = pixel;
         }
       }
     } else if (req.phase() == v1::PHASE_COUNTS) {
@@ -409,7 +511,10 @@ struct DistWorker::Impl {
       }
     } else if (req.phase() == v1::PHASE_HISTOGRAMS) {
       std::vector<worker::NodeHistogram> hists;
-      builder->Build(samples, plans, t, &hists);
+      {
+        CpuTimer timer(&cpu.level_compute);
+        builder->Build(samples, plans, t, &hists);
+      }
       for (int i = 0; i < n; ++i) {
         const worker::NodePlan& plan = plans[size_t(i)];
         auto* nh = reply->add_nodes();
@@ -425,6 +530,7 @@ struct DistWorker::Impl {
       busy = false;
       return Status(ErrorCode::kInvalidArgument, "unknown phase");
     }
+    cpu.level_encode += ThreadCpu() - cpu0 - (cpu.level_compute - compute0);
     reply->set_compute_micros(uint64_t((NowSeconds() - t0) * 1e6));
     busy = false;
     // A volatile writer drops what it writes before the coordinator's reader matched.
@@ -459,8 +565,9 @@ struct DistWorker::Impl {
   }
 
   /// Trains the subtree of a SubtreeTask and sends the SubtreeResult: the node's frames (from
-  /// the shard's cache, else rendered and kept for the tree's later tasks), their samples
-  /// routed along the task's path, then TrainSubtree (the engine's own loop and keys).
+  /// the shard's cache or the task cache, else rendered and then kept in the task cache), the
+  /// node's samples (listed in the task, else every sample of the frames routed along the
+  /// task's path), then TrainSubtree (the engine's own loop and keys).
   Status RunSubtree(const v1::SubtreeTask& task) {
     const uint64_t ipt = uint64_t(params.images_per_tree);
     const int t = int(task.tree());
@@ -485,57 +592,115 @@ struct DistWorker::Impl {
     }
     std::sort(wanted.begin(), wanted.end());
     wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+    // The node's samples listed by the coordinator (then no routing): their frames replace
+    // `wanted`, checked here; each pixel is checked against the frame's sampled pixels below.
+    const bool listed = task.sample_frames_size() > 0;
+    if (listed) {
+      if (task.sample_counts_size() != task.sample_frames_size())
+        return Status(ErrorCode::kInvalidArgument, "sample_counts and sample_frames differ in length");
+      uint64_t total = 0;
+      for (uint32_t c : task.sample_counts()) total += c;
+      if (total != uint64_t(task.sample_pixel_deltas_size()) || total != task.expected_samples())
+        return Status(ErrorCode::kInvalidArgument,
+                      "the task lists " + std::to_string(task.sample_pixel_deltas_size()) + " sample pixels, " +
+                          std::to_string(total) + " by its counts, expects " +
+                          std::to_string(task.expected_samples()));
+      wanted.clear();
+      for (int e = 0; e < task.sample_frames_size(); ++e) {
+        const uint32_t f = task.sample_frames(e);
+        if (f >= ipt || (e > 0 && f <= task.sample_frames(e - 1)))
+          return Status(ErrorCode::kInvalidArgument,
+                        "sample frame " + std::to_string(f) + " out of range or out of order");
+        wanted.push_back(f);
+      }
+    }
     const double t0 = NowSeconds();
     busy = true;
-    if (extra_tree != t) extra.clear(), extra_tree = t;
+    struct Idle {
+      std::atomic<bool>& busy;
+      ~Idle() { busy = false; }
+    } idle{busy};
+    if (task_cache.tree != t) task_cache.Clear(t);
     const bool own = t == tree;
     std::vector<uint64_t> missing;
     for (uint64_t i : wanted)
-      if (!(own && cache.count(i)) && !extra.count(i)) missing.push_back(i);
+      if (!(own && cache.count(i)) && !task_cache.Has(i)) missing.push_back(i);
+    ++cpu.subtree_tasks;
+    cpu.task_frames += missing.size();
+    cpu.task_frames_cached += wanted.size() - missing.size();
+    std::vector<FrameData> loaded;
     {
-      std::vector<FrameData> loaded;
+      CpuTimer timer(&cpu.subtree_render);
       Status st;
       if (missing.size() >= 4 * size_t(params.threads) && params.threads > 1) {
         const int saved_tree = tree;
         tree = t;  // LoadFrames keys the frames by `tree`
-        st = LoadFrames(missing, &loaded);
+        st = LoadFrames(missing, &loaded, &cpu.subtree_render);
         tree = saved_tree;
       } else {
         st = RenderHere(t, missing, &loaded);
       }
-      if (!st.ok()) {
-        busy = false;
-        return st;
-      }
-      for (size_t j = 0; j < missing.size(); ++j) extra[missing[j]] = std::move(loaded[j]);
+      if (!st.ok()) return st;
       frames_rendered += missing.size();
     }
+    std::optional<CpuTimer> route_timer(&cpu.subtree_route);
     worker::SampleSet set;
-    for (uint64_t i : wanted) {
-      const FrameData& f = own && cache.count(i) ? cache.at(i) : extra.at(i);
-      if (f.picked.empty()) continue;
-      set.AddFrame(i, f.depth, f.picked, params.constants);
-    }
-    set.StartTree(0);
-    // Route along the ancestors' splits; the side not taken is dropped at every step.
-    uint32_t at = 0;
-    for (const auto& step : task.path()) {
-      worker::SampleSet::Split sp;
-      sp.node = at;
-      Status st = GetFeatureSplit(step.split(), &sp.offsets, &sp.cut);
-      if (!st.ok()) {
-        busy = false;
-        return st;
+    {
+      std::vector<const FrameData*> src(wanted.size());
+      size_t pixels = 0, picked = 0;
+      for (size_t e = 0, next_loaded = 0; e < wanted.size(); ++e) {
+        const uint64_t i = wanted[e];
+        if (next_loaded < missing.size() && missing[next_loaded] == i)
+          src[e] = &loaded[next_loaded++];
+        else
+          src[e] = own && cache.count(i) ? &cache.at(i) : task_cache.Find(i);
+        pixels += src[e]->depth.pixels.size();
+        picked += src[e]->picked.size();
       }
-      sp.left_child = at + 1;
-      set.ApplySplits(std::span<const worker::SampleSet::Split>(&sp, 1), params.constants, params.threads);
-      at = step.went_right() ? at + 2 : at + 1;
+      set.Reserve(wanted.size(), pixels, listed ? size_t(task.expected_samples()) : picked);
+      size_t delta_at = 0;
+      std::vector<worker::PixelSample> chosen;
+      for (size_t e = 0; e < wanted.size(); ++e) {
+        const uint64_t i = wanted[e];
+        const FrameData* f = src[e];
+        if (!listed) {
+          if (!f->picked.empty()) set.AddFrame(i, f->depth, f->picked, params.constants);
+          continue;
+        }
+        const uint32_t count = task.sample_counts(int(e));
+        POSEFOREST_RETURN_IF_ERROR(SelectListedSamples(
+            f->picked, f->depth.width, i,
+            std::span<const uint32_t>(task.sample_pixel_deltas().data() + delta_at, count), &chosen));
+        delta_at += count;
+        if (!chosen.empty()) set.AddFrame(i, f->depth, chosen, params.constants);
+      }
     }
+    // Rendered frames are kept (within the cache's cap) for the tree's later tasks.
+    for (size_t j = 0; j < missing.size(); ++j) task_cache.Put(missing[j], std::move(loaded[j]));
+    cpu.task_cache_peak_bytes = std::max(cpu.task_cache_peak_bytes, task_cache.peak_bytes);
+    cpu.task_cache_evictions = task_cache.evictions;
+    set.StartTree(0);
+    // Without a sample list: route along the ancestors' splits; the side not taken is dropped
+    // at every step.
+    uint32_t at = 0;
+    if (!listed)
+      for (const auto& step : task.path()) {
+        worker::SampleSet::Split sp;
+        sp.node = at;
+        POSEFOREST_RETURN_IF_ERROR(GetFeatureSplit(step.split(), &sp.offsets, &sp.cut));
+        sp.left_child = at + 1;
+        set.ApplySplits(std::span<const worker::SampleSet::Split>(&sp, 1), params.constants, params.threads);
+        at = step.went_right() ? at + 2 : at + 1;
+      }
     std::vector<uint64_t> parts(task.part_counts().begin(), task.part_counts().end());
     const worker::NodeRange routed = set.RangeOf(at);
+    route_timer.reset();
+    std::optional<CpuTimer> train_timer(&cpu.subtree_train);
     auto out = coordinator::TrainSubtree(set, at, params, t, task.position(), parts, *builder);
+    train_timer.reset();
     busy = false;
     if (!out.ok()) return out.status();
+    std::optional<CpuTimer> encode_timer(&cpu.subtree_encode);
     v1::Envelope env;
     v1::SubtreeResult* res = env.mutable_subtree_result();
     res->set_tree(task.tree());
@@ -583,7 +748,10 @@ struct DistWorker::Impl {
           std::to_string(out->nodes.size()) + " nodes in " + std::to_string(NowSeconds() - t0) + " s");
     else if (subtree_done % 100 == 0)
       Log("tree " + std::to_string(t) + ": " + std::to_string(subtree_done) + " subtrees trained so far (" +
-          std::to_string(subtree_nodes_done) + " nodes, " + std::to_string(subtree_s) + " s)");
+          std::to_string(subtree_nodes_done) + " nodes, " + std::to_string(subtree_s) + " s; task frame cache " +
+          std::to_string(task_cache.bytes >> 20) + " of " + std::to_string(task_cache.cap_bytes >> 20) +
+          " MiB, " + std::to_string(task_cache.evictions) + " evicted)");
+    encode_timer.reset();
     (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
     return Publish(Topic::kReplies, env);
   }
@@ -595,7 +763,9 @@ struct DistWorker::Impl {
       return;
     }
     if (!gate) return;
+    std::optional<CpuTimer> gate_timer(&cpu.receive);
     auto out = gate->Check(s.topic, s.bytes, s.writer_guid);
+    gate_timer.reset();
     if (out.verdict != dds::MessageGate::Verdict::kAccepted) return;
     const v1::Envelope& env = out.envelope;
     Status st;
@@ -637,6 +807,26 @@ struct DistWorker::Impl {
   }
 };
 
+Status SelectListedSamples(std::span<const worker::PixelSample> picked, int width, uint64_t frame,
+                           std::span<const uint32_t> deltas, std::vector<worker::PixelSample>* out) {
+  out->clear();
+  uint64_t pixel = 0;
+  size_t k = 0;
+  auto index = [&](size_t j) { return uint64_t(picked[j].y) * uint64_t(width) + uint64_t(picked[j].x); };
+  for (size_t c = 0; c < deltas.size(); ++c) {
+    if (c > 0 && deltas[c] == 0)
+      return Status(ErrorCode::kInvalidArgument,
+                    "frame " + std::to_string(frame) + ": pixel " + std::to_string(pixel) + " listed twice");
+    pixel += deltas[c];
+    while (k < picked.size() && index(k) < pixel) ++k;
+    if (k == picked.size() || index(k) != pixel)
+      return Status(ErrorCode::kInvalidArgument, "frame " + std::to_string(frame) + ": pixel " +
+                                                     std::to_string(pixel) + " is not one of its sampled pixels");
+    out->push_back(picked[k]);
+  }
+  return Status::Ok();
+}
+
 DistWorker::DistWorker(WorkerOptions options) : options_(std::move(options)) {
   if (options_.worker_id.empty()) {
     char host[256] = {};
@@ -653,21 +843,34 @@ DistWorker::DistWorker(WorkerOptions options) : options_(std::move(options)) {
 DistWorker::~DistWorker() = default;
 
 Status DistWorker::Run() {
+  const double process0 = ProcessCpu();
   Impl impl(options_, stop_);
+  impl.cpu.process_at_start = process0;
+  std::optional<CpuTimer> participant_timer(&impl.cpu.participant);
   auto node =
       dds::DdsNode::Create(MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id,
                                           options_.lease, options_.udp_peers, options_.udp_interfaces,
                                           options_.transport_extras));
   if (!node.ok()) return node.status();
   impl.node = std::move(*node);
+  participant_timer.reset();
   std::thread heartbeat([&] { impl.HeartbeatLoop(); });
   while (!stop_) {
-    auto s = impl.node->Receive(std::chrono::milliseconds(50));
+    std::optional<dds::ReceivedSample> s;
+    {
+      CpuTimer timer(&impl.cpu.receive);
+      s = impl.node->Receive(std::chrono::milliseconds(50));
+    }
     if (s) impl.OnSample(*s);
   }
   heartbeat.join();
   // Let the last replies reach the coordinator before the participant goes away.
-  (void)impl.node->WaitForAcknowledgments(Topic::kReplies, std::chrono::milliseconds(500));
+  {
+    CpuTimer timer(&impl.cpu.publish);
+    (void)impl.node->WaitForAcknowledgments(Topic::kReplies, std::chrono::milliseconds(500));
+  }
+  impl.cpu.run_total = ProcessCpu() - process0;
+  cpu_ = impl.cpu;
   return Status::Ok();
 }
 

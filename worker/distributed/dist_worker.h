@@ -14,12 +14,14 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "proto/dds/dds_node.h"
 #include "worker/distributed/dds_flags.h"
 #include "runtime/core/result.h"
+#include "worker/sample_set.h"
 
 namespace poseforest::dist {
 
@@ -37,6 +39,9 @@ struct WorkerOptions {
   std::vector<std::string> udp_peers, udp_interfaces;
   /// XML profile, discovery server, DDS-Security (the --dds-xml, --discovery-server, --security flags).
   TransportExtras transport_extras;
+  /// Most bytes of frames of other shards kept between SubtreeTasks of a tree (rendered for one
+  /// task, reused by the next ones); least recently used dropped first. Never changes a result.
+  uint64_t task_cache_bytes = uint64_t(256) << 20;
   std::function<void(const std::string&)> log;  ///< default: stderr with the worker id
   /// Tests: called when a SubtreeTask arrives; returning true makes the worker drop the task and
   /// stop at once, as if it were killed while holding it.
@@ -46,6 +51,43 @@ struct WorkerOptions {
   /// gate: a hostile worker.
   int corrupt_subtree_results = 0;
 };
+
+/// Where a worker's CPU time goes (DistWorker::cpu(), bench/distributed's breakdown): CPU
+/// seconds by phase, each measured on the thread doing the work (CLOCK_THREAD_CPUTIME_ID, plus
+/// the frame-loading threads it starts).
+struct WorkerCpu {
+  double process_at_start = 0;  ///< process CPU when Run() began (exec, libraries, static init)
+  double participant = 0;       ///< creating the DDS participant, readers and writers
+  double receive = 0;           ///< taking samples off DDS, the gate (decode + checks), idle polling
+  double shard = 0;             ///< ShardAssignment: rendering the own frames, sampling, SampleSet
+  double decisions = 0;         ///< SplitDecisions: routing the samples
+  double level_compute = 0;     ///< LevelRequests: ranges, histograms, fused nodes, census, frame lists
+  double level_encode = 0;      ///< LevelRequests: part counts and histogram runs into the reply
+  double subtree_render = 0;    ///< SubtreeTasks: rendering the frames not held
+  double subtree_route = 0;     ///< SubtreeTasks: the frames' SampleSet, routing along the path
+  double subtree_train = 0;     ///< SubtreeTasks: TrainSubtree
+  double subtree_encode = 0;    ///< SubtreeTasks: the SubtreeResult message
+  double publish = 0;           ///< serializing envelopes and writing them (DDS), waits for a match
+  double run_total = 0;         ///< process CPU spent from Run()'s start to its end (all threads)
+  uint64_t shard_frames = 0;    ///< frames rendered/loaded for shards
+  uint64_t task_frames = 0;     ///< frames rendered for SubtreeTasks
+  uint64_t task_frames_cached = 0;  ///< task frames found in the shard or the task cache
+  uint64_t subtree_tasks = 0;
+  uint64_t task_cache_peak_bytes = 0;  ///< most bytes the task-frame cache held
+  uint64_t task_cache_evictions = 0;   ///< frames dropped from it to stay under its cap
+  /// The main thread's phases above (not process_at_start / run_total).
+  double Phases() const {
+    return participant + receive + shard + decisions + level_compute + level_encode + subtree_render +
+           subtree_route + subtree_train + subtree_encode + publish;
+  }
+};
+
+/// The samples of one frame that a SubtreeTask lists (SubtreeTask.sample_pixel_deltas): `deltas`
+/// are pixel indices y * width + x, ascending and delta-coded (the first absolute), each one of
+/// `picked`, the frame's sampled pixels (ascending, as SamplePixels returns them); `*out` gets
+/// those samples. InvalidArgument naming the frame and the pixel otherwise.
+core::Status SelectListedSamples(std::span<const worker::PixelSample> picked, int width, uint64_t frame,
+                                 std::span<const uint32_t> deltas, std::vector<worker::PixelSample>* out);
 
 class DistWorker {
  public:
@@ -58,12 +100,15 @@ class DistWorker {
   /// Asks Run() to return (thread-safe).
   void Stop() { stop_ = true; }
   const std::string& id() const { return options_.worker_id; }
+  /// Where the CPU went in the last Run() (complete once Run() returned).
+  const WorkerCpu& cpu() const { return cpu_; }
 
   struct Impl;
 
  private:
   WorkerOptions options_;
   std::atomic<bool> stop_{false};
+  WorkerCpu cpu_;
 };
 
 }  // namespace poseforest::dist
