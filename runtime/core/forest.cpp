@@ -63,16 +63,21 @@ Status ValidateForest(const Forest& forest, const std::string& source) {
   if (!std::isfinite(forest.constants.offset_unit) || forest.constants.offset_unit <= 0 ||
       forest.constants.offset_unit > 64)
     return fail("offset unit " + std::to_string(forest.constants.offset_unit) + " is not in (0, 64] pixel*m");
-  if (forest.proposal_params) {
+  for (const bool fast : {false, true}) {
+    const auto& params = fast ? forest.fast_proposal_params : forest.proposal_params;
+    if (!params) continue;
     for (int j = 0; j < kNumJoints; ++j) {
-      const JointParams& p = (*forest.proposal_params)[size_t(j)];
-      const std::string joint(JointName(j));
+      const JointParams& p = (*params)[size_t(j)];
+      const std::string joint =
+          std::string(fast ? "fast clustering parameters (JPFC)" : "mean shift parameters (JPAR)") +
+          ", joint " + std::string(JointName(j));
       if (!std::isfinite(p.bandwidth_m) || p.bandwidth_m <= 0 || p.bandwidth_m > 2)
-        return fail("joint " + joint + ": bandwidth " + std::to_string(p.bandwidth_m) + " m outside (0, 2]");
+        return fail(joint + ": bandwidth " + std::to_string(p.bandwidth_m) + " m outside (0, 2]");
       if (!std::isfinite(p.prob_threshold) || p.prob_threshold < 0 || p.prob_threshold > 1)
-        return fail("joint " + joint + ": probability threshold " + std::to_string(p.prob_threshold) + " outside [0, 1]");
+        return fail(joint + ": probability threshold " + std::to_string(p.prob_threshold) +
+                    " outside [0, 1]");
       if (!std::isfinite(p.z_offset_m) || std::abs(p.z_offset_m) > 1)
-        return fail("joint " + joint + ": z offset " + std::to_string(p.z_offset_m) + " m outside [-1, 1]");
+        return fail(joint + ": z offset " + std::to_string(p.z_offset_m) + " m outside [-1, 1]");
     }
   }
   const int stride = forest.leaf_stride();

@@ -86,14 +86,27 @@ struct Forest {
   int num_parts = kNumParts;
   std::vector<std::string> part_names;  ///< num_parts names (the taxonomy's, by default)
   std::vector<Tree> trees;
-  /// Joint-proposal parameters learned for this forest (format >= 1.1), if any.
+  /// Joint-proposal parameters learned for this forest, if any: for mean shift (format >= 1.1,
+  /// section JPAR; a 1.1 file's one set, which served both methods, loads here) ...
   std::optional<ProposalParams> proposal_params;
+  /// ... and for the fast clustering (format >= 1.2, section JPFC).
+  std::optional<ProposalParams> fast_proposal_params;
 
   int leaf_stride() const { return LeafStride(num_parts); }
   /// Maximum depth over trees.
   uint32_t max_depth() const;
   /// Total nodes over trees.
   size_t total_nodes() const;
+  /// The parameters a proposal method runs with: its own learned set; for the fast clustering
+  /// without one, the mean-shift set (format 1.1's rule); else the paper's means.
+  ProposalParamsChoice ProposalParamsFor(bool fast_clustering) const {
+    if (fast_clustering && fast_proposal_params)
+      return {*fast_proposal_params, ProposalParamsSource::kLearned};
+    if (proposal_params)
+      return {*proposal_params,
+              fast_clustering ? ProposalParamsSource::kMeanShiftSet : ProposalParamsSource::kLearned};
+    return {DefaultProposalParams(), ProposalParamsSource::kPaperMeans};
+  }
   /// Part names of the paper's 31-part taxonomy.
   static std::vector<std::string> DefaultPartNames();
 };

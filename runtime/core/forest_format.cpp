@@ -34,7 +34,8 @@ constexpr uint32_t Tag(const char (&s)[5]) {
 }
 constexpr uint32_t kTagMeta = Tag("META");
 constexpr uint32_t kTagTree = Tag("TREE");
-constexpr uint32_t kTagJointParams = Tag("JPAR");
+constexpr uint32_t kTagJointParams = Tag("JPAR");      // mean shift (1.1: both methods)
+constexpr uint32_t kTagFastJointParams = Tag("JPFC");  // the fast clustering (1.2)
 
 std::string TagName(uint32_t tag) {
   std::string s;
@@ -131,7 +132,8 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   w.U32(kEndianMarker);
   w.U64(0);  // file size, patched below
   w.U32(kHeaderSize);
-  const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0);
+  const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
+                                 (forest.fast_proposal_params ? 1 : 0);
   w.U32(section_count);
   while (w.size() < kHeaderSize) w.U8(0);
 
@@ -170,11 +172,14 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
     EndSection(w, at);
   }
 
-  if (forest.proposal_params) {
-    // Optional: a 1.0 reader skips it and proposes joints with default parameters.
-    at = BeginSection(w, kTagJointParams, 0);
+  // Optional sections: a 1.0 reader skips both and proposes joints with the paper's means; a
+  // 1.1 reader reads JPAR (for both methods, its rule) and skips JPFC.
+  for (const bool fast : {false, true}) {
+    const auto& params = fast ? forest.fast_proposal_params : forest.proposal_params;
+    if (!params) continue;
+    at = BeginSection(w, fast ? kTagFastJointParams : kTagJointParams, 0);
     w.U32(uint32_t(kNumJoints));
-    for (const JointParams& p : *forest.proposal_params) {
+    for (const JointParams& p : *params) {
       w.F32(p.bandwidth_m);
       w.F32(p.prob_threshold);
       w.F32(p.z_offset_m);
@@ -304,20 +309,24 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       }
       tree.leaves.assign(p.Ptr(), p.Ptr() + size_t(leaf_count) * stride);
       forest.trees.push_back(std::move(tree));
-    } else if (tag == kTagJointParams) {
-      if (forest.proposal_params) return loss(where + "second JPAR section");
-      if (!p.Has(4)) return loss(where + "JPAR section too short");
+    } else if (tag == kTagJointParams || tag == kTagFastJointParams) {
+      // One set of joint-proposal parameters: JPAR for mean shift, JPFC for the fast clustering.
+      const std::string name = TagName(tag);
+      auto& slot = tag == kTagJointParams ? forest.proposal_params : forest.fast_proposal_params;
+      if (slot) return loss(where + "second " + name + " section");
+      if (!p.Has(4))
+        return loss(where + name + " section too short (" + std::to_string(p.remaining()) + " bytes)");
       const uint32_t count = p.U32();
       if (count != uint32_t(kNumJoints) || p.remaining() != size_t(count) * 12)
-        return loss(where + "JPAR holds " + std::to_string(p.remaining()) + " bytes for " + std::to_string(count) +
-                    " joints, expected " + std::to_string(kNumJoints) + " x 12");
+        return loss(where + name + " holds " + std::to_string(p.remaining()) + " bytes for " +
+                    std::to_string(count) + " joints, expected " + std::to_string(kNumJoints) + " x 12");
       ProposalParams params;
       for (JointParams& jp : params) {
         jp.bandwidth_m = p.F32();
         jp.prob_threshold = p.F32();
         jp.z_offset_m = p.F32();
       }
-      forest.proposal_params = params;
+      slot = params;
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");

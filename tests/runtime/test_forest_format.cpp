@@ -206,6 +206,183 @@ TEST_CASE("joint-proposal parameters (format 1.1) round trip and are validated",
   CHECK_THAT(core::ValidateForest(forest, "d").message(), Catch::Contains("neck") && Catch::Contains("threshold"));
 }
 
+namespace {
+
+// A forest's bytes with one more section (tag, flags, payload) before the trailer: section
+// count, file size and checksum fixed, so the section's own checks are what is tested.
+std::vector<uint8_t> WithSection(const std::vector<uint8_t>& bytes, const char (&tag)[5], uint32_t flags,
+                                 const std::vector<uint8_t>& payload) {
+  std::vector<uint8_t> out(bytes.begin(), bytes.end() - 8);
+  for (int i = 0; i < 4; ++i) out.push_back(uint8_t(tag[i]));
+  for (int i = 0; i < 4; ++i) out.push_back(uint8_t(flags >> (8 * i)));
+  for (int i = 0; i < 8; ++i) out.push_back(uint8_t(uint64_t(payload.size()) >> (8 * i)));
+  out.insert(out.end(), payload.begin(), payload.end());
+  while (out.size() % 8) out.push_back(0);
+  out.resize(out.size() + 8);
+  const uint64_t size = out.size();
+  for (int i = 0; i < 8; ++i) out[16 + size_t(i)] = uint8_t(size >> (8 * i));
+  out[28] += 1;  // section count
+  out[size - 4] = 'P', out[size - 3] = 'F', out[size - 2] = 'N', out[size - 1] = 'D';
+  RepairChecksum(out);
+  return out;
+}
+
+// A JPAR/JPFC payload: joint count, then (b, lambda, zeta) per joint.
+std::vector<uint8_t> ParamsPayload(const core::ProposalParams& params, uint32_t count = core::kNumJoints) {
+  std::vector<uint8_t> out;
+  auto u32 = [&](uint32_t v) {
+    for (int i = 0; i < 4; ++i) out.push_back(uint8_t(v >> (8 * i)));
+  };
+  auto f32 = [&](float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, 4);
+    u32(u);
+  };
+  u32(count);
+  for (const auto& p : params) f32(p.bandwidth_m), f32(p.prob_threshold), f32(p.z_offset_m);
+  return out;
+}
+
+core::ProposalParams Distinct(float b) {
+  core::ProposalParams params = core::DefaultProposalParams();
+  for (int j = 0; j < core::kNumJoints; ++j)
+    params[size_t(j)] = {b + 0.001f * float(j), 0.1f + 0.01f * float(j), 0.002f * float(j)};
+  return params;
+}
+
+}  // namespace
+
+TEST_CASE("one parameter set per proposal method (format 1.2) round trips; the rules of each", "[format]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(7));
+  // Nothing stored: both methods run with the paper's means.
+  for (bool fast : {false, true}) {
+    const auto choice = forest.ProposalParamsFor(fast);
+    CHECK(choice.source == core::ProposalParamsSource::kPaperMeans);
+    CHECK(choice.params == core::DefaultProposalParams());
+  }
+  const auto mean_shift = Distinct(0.07f), fast = Distinct(0.11f);
+  REQUIRE(mean_shift != fast);
+
+  // Both sets: each method its own; the file is 1.2 and holds both sections.
+  forest.proposal_params = mean_shift;
+  forest.fast_proposal_params = fast;
+  const auto bytes = core::SerializeForest(forest);
+  CHECK(bytes[10] == core::kFormatMinor);
+  CHECK(core::kFormatMinor == 2);
+  auto parsed = core::ParseForest(bytes, "both.pff");
+  REQUIRE(parsed.ok());
+  REQUIRE(parsed->proposal_params.has_value());
+  REQUIRE(parsed->fast_proposal_params.has_value());
+  CHECK(*parsed->proposal_params == mean_shift);
+  CHECK(*parsed->fast_proposal_params == fast);
+  CHECK(parsed->ProposalParamsFor(false).params == mean_shift);
+  CHECK(parsed->ProposalParamsFor(false).source == core::ProposalParamsSource::kLearned);
+  CHECK(parsed->ProposalParamsFor(true).params == fast);
+  CHECK(parsed->ProposalParamsFor(true).source == core::ProposalParamsSource::kLearned);
+  CHECK(core::SerializeForest(*parsed) == bytes);
+
+  // Only the fast clustering's: mean shift keeps the paper's means.
+  forest.proposal_params.reset();
+  parsed = core::ParseForest(core::SerializeForest(forest), "fast.pff");
+  REQUIRE(parsed.ok());
+  CHECK_FALSE(parsed->proposal_params.has_value());
+  CHECK(parsed->ProposalParamsFor(false).source == core::ProposalParamsSource::kPaperMeans);
+  CHECK(parsed->ProposalParamsFor(true).params == fast);
+
+  // Only mean shift's (what a 1.1 file holds): the fast clustering runs with it, as in 1.1.
+  forest.proposal_params = mean_shift;
+  forest.fast_proposal_params.reset();
+  parsed = core::ParseForest(core::SerializeForest(forest), "ms.pff");
+  REQUIRE(parsed.ok());
+  CHECK_FALSE(parsed->fast_proposal_params.has_value());
+  CHECK(parsed->ProposalParamsFor(true).params == mean_shift);
+  CHECK(parsed->ProposalParamsFor(true).source == core::ProposalParamsSource::kMeanShiftSet);
+
+  // The fast clustering's set is validated like the other, and the error says which set.
+  auto bad = fast;
+  bad[2].bandwidth_m = std::numeric_limits<float>::quiet_NaN();
+  forest.fast_proposal_params = bad;
+  const auto st = core::ValidateForest(forest, "v.pff");
+  CHECK_THAT(st.message(), Catch::Contains("fast clustering parameters (JPFC)") &&
+                               Catch::Contains("L_shoulder") && Catch::Contains("bandwidth"));
+}
+
+TEST_CASE("a format 1.1 file written by the code before per-method parameters still loads", "[format]") {
+  // tests/runtime/data/forest_v1_1_jpar.pff was written by `poseforest train` + `poseforest
+  // tune-joints` built from commit 19dc8d3 (format 1.1, one JPAR set); see data/README.md.
+  const auto path = std::filesystem::path(POSEFOREST_SOURCE_DIR) / "tests/runtime/data/forest_v1_1_jpar.pff";
+  auto bytes = core::ReadFileBytes(path.string());
+  REQUIRE(bytes.ok());
+  CHECK((*bytes)[8] == 1);
+  CHECK((*bytes)[10] == 1);  // minor version 1
+  auto forest = core::ParseForest(*bytes, path.string());
+  REQUIRE(forest.ok());
+  CHECK(forest->trees.size() == 1);
+  CHECK(forest->total_nodes() == 31);
+  REQUIRE(forest->proposal_params.has_value());
+  CHECK_FALSE(forest->fast_proposal_params.has_value());
+  // The values the old `poseforest inspect --joints` printed for it.
+  const auto& p = *forest->proposal_params;
+  CHECK(p[0].bandwidth_m == 0.045f);
+  CHECK(p[0].prob_threshold == 0.55f);
+  CHECK(p[0].z_offset_m == 0.0f);
+  CHECK(p[6].prob_threshold == 0.14f);  // L_wrist
+  CHECK(p[6].z_offset_m == 0.07f);
+  CHECK(p[10].bandwidth_m == 0.16f);  // L_knee
+  CHECK(p[10].z_offset_m == 0.02f);
+  // 1.1's rule: the one set served both methods; it still does.
+  CHECK(forest->ProposalParamsFor(false).params == p);
+  CHECK(forest->ProposalParamsFor(true).params == p);
+  // Written again it is a 1.2 file with the same set, and the trees are untouched.
+  const auto again = core::SerializeForest(*forest);
+  CHECK(again[10] == core::kFormatMinor);
+  auto reparsed = core::ParseForest(again, "again.pff");
+  REQUIRE(reparsed.ok());
+  CHECK(SameForest(*forest, *reparsed));
+  CHECK(reparsed->proposal_params == forest->proposal_params);
+  CHECK_FALSE(reparsed->fast_proposal_params.has_value());
+}
+
+TEST_CASE("corrupt or truncated JPAR and JPFC sections give errors naming the section", "[format][hostile]") {
+  const auto plain = core::SerializeForest(testing::MakeRandomForest(SmallSpec(8)));
+  const auto payload = ParamsPayload(Distinct(0.08f));
+  for (const char* tag : {"JPAR", "JPFC"}) {
+    const char name[5] = {tag[0], tag[1], tag[2], tag[3], 0};
+    INFO(name);
+    // Sanity: the well-formed section loads.
+    auto ok = core::ParseForest(WithSection(plain, name, 0, payload), "ok.pff");
+    REQUIRE(ok.ok());
+    CHECK((std::string(name) == "JPAR" ? ok->proposal_params : ok->fast_proposal_params) == Distinct(0.08f));
+    // Every shorter (truncated) payload: an error naming the file and the section.
+    for (size_t n = 0; n < payload.size(); ++n) {
+      std::vector<uint8_t> cut(payload.begin(), payload.begin() + std::ptrdiff_t(n));
+      auto r = core::ParseForest(WithSection(plain, name, 0, cut), "cut.pff");
+      INFO("payload of " << n << " bytes");
+      REQUIRE_FALSE(r.ok());
+      CHECK(r.status().code() == ErrorCode::kDataLoss);
+      CHECK_THAT(r.status().message(), Catch::Contains("cut.pff") && Catch::Contains(name));
+    }
+    // Trailing bytes, another joint count, a second copy, values out of range.
+    auto longer = payload;
+    longer.resize(longer.size() + 4);
+    auto r = core::ParseForest(WithSection(plain, name, 0, longer), "long.pff");
+    REQUIRE_FALSE(r.ok());
+    CHECK_THAT(r.status().message(), Catch::Contains(name) && Catch::Contains("16 x 12"));
+    r = core::ParseForest(WithSection(plain, name, 0, ParamsPayload(Distinct(0.08f), 15)), "count.pff");
+    REQUIRE_FALSE(r.ok());
+    CHECK_THAT(r.status().message(), Catch::Contains(name) && Catch::Contains("15 joints"));
+    r = core::ParseForest(WithSection(WithSection(plain, name, 0, payload), name, 0, payload), "twice.pff");
+    REQUIRE_FALSE(r.ok());
+    CHECK_THAT(r.status().message(), Catch::Contains(std::string("second ") + name));
+    auto wild = Distinct(0.08f);
+    wild[5].prob_threshold = 3;
+    r = core::ParseForest(WithSection(plain, name, 0, ParamsPayload(wild)), "wild.pff");
+    REQUIRE_FALSE(r.ok());
+    CHECK_THAT(r.status().message(),
+               Catch::Contains("wild.pff") && Catch::Contains("R_elbow") && Catch::Contains("threshold"));
+  }
+}
+
 TEST_CASE("ValidateForest names each broken invariant", "[format]") {
   const core::Forest good = testing::MakeRandomForest(SmallSpec(5));
   REQUIRE(core::ValidateForest(good, "x").ok());
