@@ -1,5 +1,6 @@
 // Multi-host test on one machine: three network namespaces (A, B, C) joined by veth pairs to a
-// bridge in a fourth (hub) namespace, 10.77.0.0/24 addresses assigned inside them. Workers run
+// bridge in a fourth (hub) namespace (tests/support/netns.h), addresses from a private /24 that
+// the test assigns inside them. Workers run
 // the poseforest_dds_peer helper in A and B (UDPv4 only, interface whitelist, initial peers), a
 // monitor runs in C. Traffic crosses the bridge; then A's link is cut and C must see A's
 // liveliness lost while B keeps delivering; the link comes back and A recovers.
@@ -12,6 +13,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "tests/support/netns.h"
 #include "tests/support/process.h"
 #include "tests/dds/dds_test_util.h"
 
@@ -19,71 +21,37 @@ namespace pdt = poseforest::dds::testing;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
-namespace {
-
-using poseforest::testing::CommandResult;
-
-CommandResult Run(const std::string& cmd) { return poseforest::testing::RunCommand(cmd); }
-
-/// The namespaces of one test run; the destructor removes them (and with them the veths/bridge).
-struct Topology {
-  std::string suffix = std::to_string(::getpid() % 100000);
-  std::string hub = "pfhub" + suffix, a = "pfa" + suffix, b = "pfb" + suffix, c = "pfc" + suffix;
-  std::vector<std::string> created;
-
-  ~Topology() {
-    for (auto it = created.rbegin(); it != created.rend(); ++it) Run("ip netns delete " + *it);
-  }
-  void Must(const std::string& cmd) {
-    auto r = Run(cmd);
-    if (r.exit_code != 0)
-      FAIL("network namespace set-up failed (the multi-host test needs root and `ip netns`): `" << cmd
-                                                                                                 << "` -> " << r.output);
-  }
-  void Build() {
-    for (const auto& ns : {hub, a, b, c}) {
-      Must("ip netns add " + ns);
-      created.push_back(ns);
-      Must("ip -n " + ns + " link set lo up");
-    }
-    Must("ip -n " + hub + " link add br0 type bridge");
-    Must("ip -n " + hub + " link set br0 up");
-    const std::vector<std::pair<std::string, std::string>> hosts = {{a, "10.77.0.1"}, {b, "10.77.0.2"}, {c, "10.77.0.3"}};
-    for (size_t i = 0; i < hosts.size(); ++i) {
-      const std::string port = "port" + std::to_string(i);
-      Must("ip -n " + hub + " link add " + port + " type veth peer name eth0 netns " + hosts[i].first);
-      Must("ip -n " + hub + " link set " + port + " master br0 up");
-      Must("ip -n " + hosts[i].first + " addr add " + hosts[i].second + "/24 dev eth0");
-      Must("ip -n " + hosts[i].first + " link set eth0 up");
-      // Multicast discovery may use the link too; the route keeps it on eth0.
-      Must("ip -n " + hosts[i].first + " route add 224.0.0.0/4 dev eth0");
-    }
-  }
-};
-
-}  // namespace
 
 TEST_CASE("three hosts in network namespaces: traffic crosses, a cut link is noticed", "[dds][integration][slow]") {
   if (::geteuid() != 0)
     FAIL("the multi-host test needs root to create network namespaces (ip netns); run it as root or in a "
          "privileged container");
-  Topology topo;
-  topo.Build();
+  poseforest::testing::NetnsTopology topo("pfd");
+  if (std::string e = topo.Build({"a", "b", "c"}); !e.empty())
+    FAIL("network namespace set-up failed (the multi-host test needs root and `ip netns`): " << e);
+  // Multicast discovery may use the link too; the route keeps it on eth0.
+  if (std::string e = topo.AddMulticastRoutes(); !e.empty()) FAIL("multicast route: " << e);
+  const std::string ip_a = topo.host(0).ip, ip_b = topo.host(1).ip, ip_c = topo.host(2).ip;
+  const auto in = [&](size_t host, std::vector<std::string> argv) {
+    std::vector<std::string> full = topo.Exec(host);
+    full.insert(full.end(), argv.begin(), argv.end());
+    return full;
+  };
 
   const std::string peer = pdt::PeerBinary();
   pdt::Child wa, wb, mon;
   std::string error;
-  REQUIRE(mon.Start({"ip", "netns", "exec", topo.c, peer, "--mode=monitor", "--id=coordinator", "--transport=udp",
-                     "--whitelist=10.77.0.3", "--peers=10.77.0.1,10.77.0.2", "--job=job-NS", "--lease-ms=1000",
-                     "--seconds=45", "--participant-id=0"},
+  REQUIRE(mon.Start(in(2, {peer, "--mode=monitor", "--id=coordinator", "--transport=udp",
+                     "--whitelist=" + ip_c, "--peers=" + ip_a + "," + ip_b, "--job=job-NS", "--lease-ms=1000",
+                     "--seconds=45", "--participant-id=0"}),
                     &error));
-  REQUIRE(wa.Start({"ip", "netns", "exec", topo.a, peer, "--mode=alive", "--id=worker-a", "--transport=udp",
-                    "--whitelist=10.77.0.1", "--peers=10.77.0.3", "--job=job-NS", "--lease-ms=1000", "--seconds=45",
-                    "--period-ms=100", "--participant-id=0"},
+  REQUIRE(wa.Start(in(0, {peer, "--mode=alive", "--id=worker-a", "--transport=udp",
+                    "--whitelist=" + ip_a, "--peers=" + ip_c, "--job=job-NS", "--lease-ms=1000", "--seconds=45",
+                    "--period-ms=100", "--participant-id=0"}),
                    &error));
-  REQUIRE(wb.Start({"ip", "netns", "exec", topo.b, peer, "--mode=alive", "--id=worker-b", "--transport=udp",
-                    "--whitelist=10.77.0.2", "--peers=10.77.0.3", "--job=job-NS", "--lease-ms=1000", "--seconds=45",
-                    "--period-ms=100", "--participant-id=0"},
+  REQUIRE(wb.Start(in(1, {peer, "--mode=alive", "--id=worker-b", "--transport=udp",
+                    "--whitelist=" + ip_b, "--peers=" + ip_c, "--job=job-NS", "--lease-ms=1000", "--seconds=45",
+                    "--period-ms=100", "--participant-id=0"}),
                    &error));
 
   // 1. Both workers' heartbeats reach the monitor in namespace C.
@@ -103,7 +71,7 @@ TEST_CASE("three hosts in network namespaces: traffic crosses, a cut link is not
 
   // 2. Cut A's link at the bridge: the monitor reports worker-a's liveliness lost, B goes on.
   const auto cut = Clock::now();
-  topo.Must("ip -n " + topo.hub + " link set port0 down");
+  REQUIRE(topo.SetLink(0, false) == "");
   bool lost_a = false, b_after = false;
   double lost_ms = 0;
   while (!(lost_a && b_after) && Clock::now() - cut < 15s) {
@@ -133,7 +101,7 @@ TEST_CASE("three hosts in network namespaces: traffic crosses, a cut link is not
   CHECK(b_samples >= 5);  // B heartbeats every 100 ms
 
   // 3. Restore the link: A's liveliness recovers and its heartbeats arrive again.
-  topo.Must("ip -n " + topo.hub + " link set port0 up");
+  REQUIRE(topo.SetLink(0, true) == "");
   bool recovered = false, a_again = false;
   const auto up = Clock::now();
   while (!(recovered && a_again) && Clock::now() - up < 20s) {
@@ -150,9 +118,9 @@ TEST_CASE("three hosts in network namespaces: traffic crosses, a cut link is not
 
   // 4. Large samples across the bridge (MTU 1500: every 1 MiB sample is many IP fragments).
   pdt::Child sender;
-  REQUIRE(sender.Start({"ip", "netns", "exec", topo.b, peer, "--mode=send", "--id=worker-b-data", "--transport=udp",
-                        "--whitelist=10.77.0.2", "--peers=10.77.0.3", "--job=job-NS", "--count=8", "--size=1048576",
-                        "--seconds=30", "--participant-id=1"},
+  REQUIRE(sender.Start(in(1, {peer, "--mode=send", "--id=worker-b-data", "--transport=udp",
+                        "--whitelist=" + ip_b, "--peers=" + ip_c, "--job=job-NS", "--count=8", "--size=1048576",
+                        "--seconds=30", "--participant-id=1"}),
                        &error));
   int big = 0;
   const auto t_send = Clock::now();

@@ -82,6 +82,14 @@ class NetnsTopology {
     return "";
   }
 
+  /// Routes multicast (224.0.0.0/4) out of every host's eth0, so multicast discovery crosses the
+  /// bridge as well. "" or the error.
+  std::string AddMulticastRoutes() {
+    for (const Host& h : hosts_)
+      if (std::string e = Must("ip -n " + h.ns + " route add 224.0.0.0/4 dev eth0"); !e.empty()) return e;
+    return "";
+  }
+
   const Host& host(size_t i) const { return hosts_.at(i); }
   const std::string& hub() const { return hub_; }
 
