@@ -180,9 +180,15 @@ struct DistCoordinator::Impl {
     s->set_worker_id(worker);
     s->set_message(message);
     s->set_active_workers(uint32_t(AliveCount()));
-    if (opt.observer) opt.observer->OnStatus(*s);
+    if (opt.observer) {
+      if (kind != v1::STATUS_KIND_PROGRESS) opt.observer->OnStatus(*s);
+      opt.observer->FillStatus(s);  // throughput, ETA, workers (monitor --domain)
+    }
+    last_status_time = NowSeconds();
     (void)Send(Topic::kStatus, env);
   }
+  double last_status_time = 0;  ///< of the last StatusEvent: a PROGRESS one 2 s after it
+  double last_progress = 0;     ///< of the last LEVEL_DONE / TREE_DONE, for PROGRESS events
 
   void MarkLost(const std::string& id, const std::string& why) {
     auto it = workers.find(id);
@@ -274,6 +280,7 @@ struct DistCoordinator::Impl {
             if (env.has_heartbeat()) {
               const v1::Heartbeat& hb = env.heartbeat();
               w.seen_epoch = std::max({w.seen_epoch, hb.shard_epoch(), hb.received_shard_epoch()});
+              if (opt.observer) opt.observer->OnWorkerHeartbeat(out.sender, hb);
             }
             w.presence_writer = s->writer_guid;
             w.participant = s->writer_participant;
@@ -320,6 +327,9 @@ struct DistCoordinator::Impl {
     const double limit = std::chrono::duration<double>(opt.heartbeat_timeout).count();
     for (auto& [id, w] : workers)
       if (w.alive && now - w.last_seen > limit) MarkLost(id, "heartbeat timeout");
+    // Live figures for `monitor --domain` between events (a level can take minutes).
+    if (opt.observer && now - last_status_time >= 2.0)
+      PublishStatus(v1::STATUS_KIND_PROGRESS, "", "", 0, last_progress);
   }
 
   Status WaitForWorkers(int n) {
@@ -1069,6 +1079,7 @@ struct DistCoordinator::Impl {
           (double(tree) + std::min(1.0, double(level + 1) / double(params.max_depth + 1))) /
           double(params.num_trees);
       PublishStatus(v1::STATUS_KIND_LEVEL_DONE, "level done", "", level, progress);
+      last_progress = progress;
       ++*levels_done;
       if (opt.stop_after_levels >= 0 && *levels_done >= opt.stop_after_levels)
         return Status(ErrorCode::kInternal,
@@ -1187,7 +1198,8 @@ struct DistCoordinator::Impl {
       ckpt.clear_frontier();
       ckpt.set_tree(uint32_t(t + 1));
       POSEFOREST_RETURN_IF_ERROR(SaveCheckpoint());
-      PublishStatus(v1::STATUS_KIND_TREE_DONE, "tree done", "", 0, double(t + 1) / params.num_trees);
+      last_progress = double(t + 1) / params.num_trees;
+      PublishStatus(v1::STATUS_KIND_TREE_DONE, "tree done", "", 0, last_progress);
     }
     core::Forest forest;
     forest.constants = params.constants;

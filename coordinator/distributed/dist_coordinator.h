@@ -70,6 +70,11 @@ class CoordinatorObserver {
   virtual void OnWorkerAssigned(const std::string& /*id*/, int /*tree*/, uint64_t /*frames*/) {}
   /// A reply of the current round from worker `id` was accepted (`bytes`: its payload).
   virtual void OnWorkerReply(const std::string& /*id*/, uint64_t /*bytes*/, const v1::HistogramReply&) {}
+  /// An accepted heartbeat of worker `id` (after OnWorkerSeen): its own throughput figures.
+  virtual void OnWorkerHeartbeat(const std::string& /*id*/, const v1::Heartbeat&) {}
+  /// Fills the live figures (throughput, ETA, nodes, workers) of a StatusEvent about to be
+  /// published, after OnStatus saw it; STATUS_KIND_PROGRESS events only come here.
+  virtual void FillStatus(v1::StatusEvent*) {}
 };
 
 struct CoordinatorOptions {

@@ -1,5 +1,5 @@
 // `poseforest monitor`: a live terminal view of a training job, read from the coordinator's
-// /status.json (docs/distributed/monitoring.md).
+// /status.json (--url) or its status events on DDS (--domain) (docs/distributed/monitoring.md).
 
 #include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
@@ -161,11 +161,89 @@ std::string Render(const pb::Struct& s) {
   return out;
 }
 
+std::string WorkerStateName(v1::WorkerState s) {
+  switch (s) {
+    case v1::WORKER_STATE_JOINED:
+      return "joined";
+    case v1::WORKER_STATE_TRAINING:
+      return "training";
+    case v1::WORKER_STATE_LOST:
+      return "lost";
+    case v1::WORKER_STATE_EVICTED:
+      return "evicted";
+    case v1::WORKER_STATE_DONE:
+      return "done";
+    default:
+      return "?";
+  }
+}
+
+/// A StatusEvent (checked by the gate) as the /status.json object Render() shows. `age_s`: how
+/// long ago the coordinator wrote it (elapsed and ETA move on by that much).
+pb::Struct StatusAsJson(const v1::StatusEvent& e, const std::string& job_id, int trees, int depth,
+                        double age_s) {
+  pb::Struct s;
+  auto& f = *s.mutable_fields();
+  auto num = [](double v) {
+    pb::Value x;
+    x.set_number_value(v);
+    return x;
+  };
+  auto str = [](const std::string& v) {
+    pb::Value x;
+    x.set_string_value(v);
+    return x;
+  };
+  const bool done = e.kind() == v1::STATUS_KIND_JOB_DONE, failed = e.kind() == v1::STATUS_KIND_ERROR;
+  const bool live = !done && !failed;
+  f["job_id"] = str(job_id);
+  f["state"] = str(done ? "done" : failed ? "failed" : "training");
+  if (failed) f["message"] = str(e.message());
+  f["elapsed_s"] = num(e.elapsed_s() + (live ? age_s : 0));
+  if (e.has_eta_s()) f["eta_s"] = num(std::max(0.0, e.eta_s() - (live ? age_s : 0)));
+  f["progress"] = num(e.progress());
+  pb::Value cfg;
+  (*cfg.mutable_struct_value()->mutable_fields())["num_trees"] = num(trees);
+  (*cfg.mutable_struct_value()->mutable_fields())["max_depth"] = num(depth);
+  f["config"] = cfg;
+  f["trees_done"] = num(done ? trees : e.trees_done());
+  f["tree"] = num(e.tree());
+  f["level"] = num(e.level());
+  f["level_nodes_done"] = num(e.level_nodes_done());
+  f["level_nodes_total"] = num(e.level_nodes_total());
+  f["forest_nodes"] = num(double(e.forest_nodes()));
+  f["samples_per_s"] = num(e.samples_per_s());
+  f["evaluations_per_s"] = num(e.evaluations_per_s());
+  pb::Value totals;
+  auto& t = *totals.mutable_struct_value()->mutable_fields();
+  t["evaluations"] = num(double(e.evaluations()));
+  t["bytes_received"] = num(double(e.bytes_received()));
+  t["retries"] = num(double(e.retries()));
+  f["totals"] = totals;
+  pb::Value workers;
+  for (const v1::WorkerStatus& w : e.workers()) {
+    pb::Value wv;
+    auto& ws = *wv.mutable_struct_value()->mutable_fields();
+    ws["id"] = str(w.id());
+    ws["state"] = str(WorkerStateName(w.state()));
+    ws["frames"] = num(double(w.frames()));
+    ws["replies"] = num(double(w.replies()));
+    ws["evaluations"] = num(double(w.evaluations()));
+    ws["evaluations_per_s"] = num(w.evaluations_per_s());
+    ws["last_seen_s"] = num(w.last_seen_s() >= 0 ? w.last_seen_s() + age_s : -1);
+    *workers.mutable_list_value()->add_values() = wv;
+  }
+  workers.mutable_list_value();  // an empty list, not null
+  f["workers"] = workers;
+  return s;
+}
+
 /// `monitor --domain D [--job ID]`: the job announcement and the status events from DDS (the
-/// status topic keeps its last 64 events for late readers). Fewer figures than the HTTP status:
-/// a StatusEvent carries tree, level, progress and the live worker count, not throughput.
-int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job_id, bool once, long interval_ms,
-               long timeout_s) {
+/// status topic keeps its last 64 events for late readers; the coordinator sends one at least
+/// every 2 s). Every event carries the figures of the coordinator's /status.json, so the view is
+/// the one of --url, less the per-level table; the last events are listed below it.
+int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job_id, bool once,
+               long interval_ms, long timeout_s) {
   dds::NodeConfig cfg;
   cfg.domain_id = domain;
   cfg.participant_name = "monitor-" + std::to_string(::getpid());
@@ -176,41 +254,39 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
     std::fprintf(stderr, "monitor: %s\n", node.status().ToString().c_str());
     return 1;
   }
+  // Hostile or garbled status events (NaN or negative rates, absurd counts) are dropped here
+  // and counted; the count is shown.
   dds::MessageGate gate(dds::GateConfig{cfg.participant_name, job_id, 16, [](const std::string&) {}});
   std::string coordinator;
   int trees = 0, depth = 0;
   v1::StatusEvent last;
   bool have_status = false;
-  std::map<std::string, std::string> workers;  // id -> joined / lost / evicted
   std::deque<std::string> events;
-  // ETA from the writer's timestamps: the history of a late join arrives all at once.
-  double p0 = -1, t_p0 = 0, t_last = 0;
+  double t_last = 0;  // the writer's timestamp of `last`
   auto render = [&] {
-    std::string out;
-    char line[512];
     const std::string state = !have_status                              ? "waiting"
                               : last.kind() == v1::STATUS_KIND_JOB_DONE ? "done"
                               : last.kind() == v1::STATUS_KIND_ERROR    ? "failed"
                                                                         : "training";
-    double eta = -1;
-    if (p0 >= 0 && last.progress() > p0 && last.progress() < 1)
-      eta = std::max(0.0, (t_last - t_p0) * (1 - last.progress()) / (last.progress() - p0) -
-                              (dist::UnixSeconds() - t_last));
-    std::snprintf(line, sizeof line, "job %s  state %s  coordinator %s  (DDS domain %u)  ETA %s\n",
-                  job_id.c_str(), state.c_str(), coordinator.c_str(), domain,
-                  state == "done" ? "done" : Duration(eta).c_str());
+    std::string out;
+    char line[512];
+    std::snprintf(line, sizeof line, "DDS domain %u  coordinator %s\n", domain,
+                  coordinator.empty() ? "-" : coordinator.c_str());
     out += line;
-    const double p = std::clamp(last.progress(), 0.0, 1.0);
-    std::string bar(30, '.');
-    for (int i = 0; i < int(std::lround(p * 30)); ++i) bar[size_t(i)] = '#';
-    std::snprintf(line, sizeof line, "progress [%s] %5.1f %%  tree %u/%d  level %u/%d  workers alive %u\n",
-                  bar.c_str(), p * 100, last.tree() + 1, trees, last.level(), depth, last.active_workers());
-    out += line;
-    out += "workers seen in the status events:\n";
-    for (const auto& [id, st] : workers) out += "  " + id + "  " + st + "\n";
+    if (!have_status) {
+      out +=
+          "job " + (job_id.empty() ? std::string("-") : job_id) + "  state waiting (no status event yet)\n";
+    } else {
+      const double age = std::clamp(dist::UnixSeconds() - t_last, 0.0, 5.0);
+      out += Render(StatusAsJson(last, job_id, trees, depth, age));
+    }
     out += "last events:\n";
     for (const std::string& e : events) out += "  " + e + "\n";
-    out += "(throughput, nodes and per-worker figures: poseforest monitor --url, the coordinator's --http)\n";
+    if (gate.total_rejected() > 0) {
+      std::snprintf(line, sizeof line, "(%llu malformed status messages dropped)\n",
+                    static_cast<unsigned long long>(gate.total_rejected()));
+      out += line;
+    }
     return std::make_pair(out, state);
   };
   auto last_print = std::chrono::steady_clock::now() - std::chrono::hours(1);
@@ -234,16 +310,13 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
           last = env.status();
           have_status = true;
           t_last = s->source_timestamp_ns > 0 ? double(s->source_timestamp_ns) * 1e-9 : dist::UnixSeconds();
-          if (p0 < 0 && last.progress() > 0) p0 = last.progress(), t_p0 = t_last;
-          const std::string kind = dist::StatusKindName(last.kind());
-          if (last.kind() == v1::STATUS_KIND_WORKER_JOINED) workers[last.worker_id()] = "joined";
-          if (last.kind() == v1::STATUS_KIND_WORKER_LOST) workers[last.worker_id()] = "lost";
-          if (last.kind() == v1::STATUS_KIND_WORKER_EVICTED) workers[last.worker_id()] = "evicted";
-          events.push_back(kind + " tree " + std::to_string(last.tree()) + " level " +
-                           std::to_string(last.level()) +
-                           (last.worker_id().empty() ? "" : " " + last.worker_id()) +
-                           (last.message().empty() ? "" : " (" + last.message() + ")"));
-          while (events.size() > 8) events.pop_front();
+          if (last.kind() != v1::STATUS_KIND_PROGRESS) {
+            events.push_back(dist::StatusKindName(last.kind()) + " tree " + std::to_string(last.tree()) +
+                             " level " + std::to_string(last.level()) +
+                             (last.worker_id().empty() ? "" : " " + last.worker_id()) +
+                             (last.message().empty() ? "" : " (" + last.message() + ")"));
+            while (events.size() > 8) events.pop_front();
+          }
         }
       }
       continue;  // drain what is there before printing
@@ -288,8 +361,8 @@ int MonitorMain(int argc, char** argv) {
         "  `--http` there): tree, level, nodes done/total, samples/s, evaluations/s, ETA, workers.\n"
         "  Refreshes every second and exits when the job is done (0) or failed (1); --once prints one\n"
         "  snapshot. Exits 1 when the coordinator cannot be reached for --timeout-s seconds.\n"
-        "  --domain: reads the job announcement and status events from DDS instead (tree, level,\n"
-        "  progress, workers joined/lost; no throughput figures); --job picks one job of the domain.\n"
+        "  --domain: reads the job announcement and the coordinator's status events from DDS instead\n"
+        "  (the same figures and worker table, no URL needed); --job picks one job of the domain.\n"
         "  DDS transport flags, as for the job's coordinator and workers (`poseforest coordinator --help`):\n"
         "  --profile shm|udp|default, --peers, --interfaces, --dds-xml FILE --dds-profile NAME,\n"
         "  --discovery-server IP[:PORT], --security DIR (a worker's credentials: a worker grant reads\n"

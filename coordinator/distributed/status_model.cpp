@@ -243,6 +243,61 @@ void StatusModel::OnWorkerReply(const std::string& id, uint64_t bytes, const v1:
   while (!w.recent.empty() && now - w.recent.front().first > kWorkerWindowS) w.recent.pop_front();
 }
 
+void StatusModel::OnWorkerHeartbeat(const std::string& id, const v1::Heartbeat& hb) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = workers_.find(id);
+  if (it == workers_.end()) return;
+  // The gate has checked the figures (finite, 0..1e13); a restarted worker counts from 0 again.
+  it->second.reported_evaluations = hb.evaluations();
+  it->second.reported_rate = hb.evaluations_per_s();
+}
+
+void StatusModel::FillStatus(v1::StatusEvent* e) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const double now = SteadySeconds();
+  const double end = end_steady_ >= 0 ? end_steady_ : now;
+  // Within what the gate accepts (ValidateStatus), so that a reader never drops our own event.
+  constexpr double kMaxRate = 1e13, kMaxSeconds = 1e9;
+  auto bounded = [](double v, double hi) { return std::isfinite(v) ? std::clamp(v, 0.0, hi) : 0.0; };
+  if (e->kind() == v1::STATUS_KIND_PROGRESS) {
+    e->set_tree(uint32_t(std::max(0, tree_)));
+    e->set_level(uint32_t(std::max(0, level_)));
+    e->set_progress(std::clamp(Progress(), 0.0, 1.0));
+  }
+  e->set_samples_per_s(bounded(samples_per_s_, kMaxRate));
+  e->set_evaluations_per_s(bounded(evaluations_per_s_, kMaxRate));
+  const double eta = Eta();
+  if (eta >= 0 && std::isfinite(eta))
+    e->set_eta_s(std::min(eta, kMaxSeconds));
+  else
+    e->clear_eta_s();
+  e->set_elapsed_s(bounded(end - start_steady_, kMaxSeconds));
+  e->set_trees_done(uint32_t(std::max(0, trees_done_)));
+  e->set_level_nodes_total(uint32_t(std::min<size_t>(nodes_total_, UINT32_MAX)));
+  e->set_level_nodes_done(uint32_t(std::min(nodes_done_, std::min<size_t>(nodes_total_, UINT32_MAX))));
+  e->set_forest_nodes(nodes_finished_trees_ + nodes_current_tree_);
+  e->set_evaluations(total_evaluations_);
+  e->set_bytes_received(total_bytes_received_);
+  e->set_retries(total_retries_);
+  e->clear_workers();
+  for (const auto& [id, w] : workers_) {
+    if (e->workers_size() >= kMaxStatusWorkers) break;
+    if (id.empty() || id.size() > 256) continue;  // the gate accepts 1..256 bytes
+    v1::WorkerStatus* ws = e->add_workers();
+    ws->set_id(id);
+    ws->set_state(w.state == "training"  ? v1::WORKER_STATE_TRAINING
+                  : w.state == "lost"    ? v1::WORKER_STATE_LOST
+                  : w.state == "evicted" ? v1::WORKER_STATE_EVICTED
+                  : w.state == "done"    ? v1::WORKER_STATE_DONE
+                                         : v1::WORKER_STATE_JOINED);
+    ws->set_frames(w.frames);
+    ws->set_replies(w.replies);
+    ws->set_evaluations(w.reported_evaluations);
+    ws->set_evaluations_per_s(w.state == "training" ? bounded(w.reported_rate, kMaxRate) : 0);
+    ws->set_last_seen_s(w.last_seen > 0 ? std::min(now - w.last_seen, kMaxSeconds) : -1);
+  }
+}
+
 void StatusModel::Finish(bool ok, const std::string& message) {
   std::lock_guard<std::mutex> lock(mu_);
   state_ = ok ? "done" : "failed";
@@ -343,6 +398,8 @@ std::string StatusModel::Json() const {
          ",\"samples\":" + Int(w.samples) + ",\"evaluations\":" + Int(w.evaluations) +
          ",\"evaluations_per_s\":" + Num(WorkerRate(w, now)) +
          ",\"compute_evaluations_per_s\":" + Num(w.compute_s > 0 ? double(w.evaluations) / w.compute_s : 0) +
+         ",\"reported_evaluations\":" + Int(w.reported_evaluations) +
+         ",\"reported_evaluations_per_s\":" + Num(w.state == "training" ? w.reported_rate : 0) +
          ",\"bytes_received\":" + Int(w.bytes) + ",\"joined_unix\":" + Num(w.joined) +
          ",\"last_seen_s\":" + Num(w.last_seen > 0 ? now - w.last_seen : -1) + "}";
     first = false;

@@ -42,6 +42,10 @@ class StatusModel : public CoordinatorObserver {
   void OnWorkerSeen(const std::string& id) override;
   void OnWorkerAssigned(const std::string& id, int tree, uint64_t frames) override;
   void OnWorkerReply(const std::string& id, uint64_t bytes, const v1::HistogramReply& reply) override;
+  void OnWorkerHeartbeat(const std::string& id, const v1::Heartbeat& hb) override;
+  /// The figures of Json() in a StatusEvent (monitor --domain); a PROGRESS event also gets the
+  /// tree and level in training and the progress. Clamped to what the message gate accepts.
+  void FillStatus(v1::StatusEvent* e) override;
 
   /// The run ended: state "done" (ok) or "failed", with `message` (the error or what was written).
   void Finish(bool ok, const std::string& message);
@@ -56,6 +60,8 @@ class StatusModel : public CoordinatorObserver {
   /// Most events kept for "events" in the JSON; levels kept for "levels".
   static constexpr size_t kMaxEvents = 50;
   static constexpr size_t kMaxLevels = 2000;
+  /// Most workers listed in a StatusEvent (the gate allows 4096).
+  static constexpr int kMaxStatusWorkers = 1024;
 
  private:
   struct Worker {
@@ -69,6 +75,9 @@ class StatusModel : public CoordinatorObserver {
     uint64_t evaluations = 0;
     uint64_t bytes = 0;
     double compute_s = 0;  ///< its own reported compute time
+    // Its heartbeats' figures: histogram rounds and subtree tasks (those replies lack).
+    uint64_t reported_evaluations = 0;
+    double reported_rate = 0;
     // Throughput over its recent replies (a sliding window of ~10 s of compute).
     std::deque<std::pair<double, uint64_t>> recent;  ///< (steady time, evaluations)
   };
@@ -124,6 +133,12 @@ class ObserverFanOut : public CoordinatorObserver {
   }
   void OnWorkerReply(const std::string& id, uint64_t bytes, const v1::HistogramReply& r) override {
     for (auto* t : targets_) t->OnWorkerReply(id, bytes, r);
+  }
+  void OnWorkerHeartbeat(const std::string& id, const v1::Heartbeat& hb) override {
+    for (auto* t : targets_) t->OnWorkerHeartbeat(id, hb);
+  }
+  void FillStatus(v1::StatusEvent* e) override {
+    for (auto* t : targets_) t->FillStatus(e);
   }
 
  private:

@@ -110,10 +110,30 @@ Status ValidateJob(const v1::JobAnnouncement& m) {
   return Status::Ok();
 }
 
+namespace {
+// Throughput figures of heartbeats and status events (monitoring): finite, >= 0, bounded.
+constexpr double kMaxRate = 1e13;    // per second: ~10^4 of today's fastest workers
+constexpr double kMaxSeconds = 1e9;  // ~32 years
+constexpr uint64_t kMaxCount = uint64_t(1) << 62;
+constexpr int kMaxStatusWorkers = 4096;
+constexpr size_t kMaxWorkerId = 256;
+
+Status ValidateFigure(const char* name, double v, double max) {
+  if (!std::isfinite(v) || v < 0 || v > max) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return Bad(std::string(name) + " " + buf + " outside 0.." + S(uint64_t(max)));
+  }
+  return Status::Ok();
+}
+}  // namespace
+
 Status ValidateHello(const v1::WorkerHello& m) { return ValidateCapacity(m.capacity()); }
 Status ValidateHeartbeat(const v1::Heartbeat& m) {
   POSEFOREST_RETURN_IF_ERROR(ValidateCapacity(m.capacity()));
   if (m.busy_threads() > m.capacity().threads()) return Bad("busy threads above capacity");
+  POSEFOREST_RETURN_IF_ERROR(ValidateFigure("evaluations_per_s", m.evaluations_per_s(), kMaxRate));
+  if (m.evaluations() > kMaxCount) return Bad("evaluations " + S(m.evaluations()) + " above 2^62");
   return Status::Ok();
 }
 
@@ -202,6 +222,25 @@ Status ValidateSubtreeResult(const v1::SubtreeResult& m) {
 Status ValidateStatus(const v1::StatusEvent& m) {
   if (m.kind() == v1::STATUS_KIND_UNSPECIFIED) return Bad("status kind unspecified");
   if (!(m.progress() >= 0.0 && m.progress() <= 1.0)) return Bad("progress outside 0..1");
+  POSEFOREST_RETURN_IF_ERROR(ValidateFigure("samples_per_s", m.samples_per_s(), kMaxRate));
+  POSEFOREST_RETURN_IF_ERROR(ValidateFigure("evaluations_per_s", m.evaluations_per_s(), kMaxRate));
+  if (m.has_eta_s()) POSEFOREST_RETURN_IF_ERROR(ValidateFigure("eta_s", m.eta_s(), kMaxSeconds));
+  POSEFOREST_RETURN_IF_ERROR(ValidateFigure("elapsed_s", m.elapsed_s(), kMaxSeconds));
+  if (m.level_nodes_done() > m.level_nodes_total()) return Bad("level nodes done above total");
+  for (uint64_t c : {m.forest_nodes(), m.evaluations(), m.bytes_received(), m.retries()})
+    if (c > kMaxCount) return Bad("count " + S(c) + " above 2^62");
+  if (m.workers_size() > kMaxStatusWorkers)
+    return Bad(S(uint64_t(m.workers_size())) + " workers above 4096");
+  for (const v1::WorkerStatus& w : m.workers()) {
+    if (w.id().empty() || w.id().size() > kMaxWorkerId)
+      return Bad("worker id of " + S(w.id().size()) + " bytes");
+    if (w.state() == v1::WORKER_STATE_UNSPECIFIED) return Bad("worker " + w.id() + ": state unspecified");
+    POSEFOREST_RETURN_IF_ERROR(ValidateFigure("worker evaluations_per_s", w.evaluations_per_s(), kMaxRate));
+    if (!std::isfinite(w.last_seen_s()) || w.last_seen_s() > kMaxSeconds)
+      return Bad("worker " + w.id() + ": last_seen_s not finite or above 1e9");
+    if (w.evaluations() > kMaxCount || w.frames() > kMaxCount || w.replies() > kMaxCount)
+      return Bad("worker " + w.id() + ": count above 2^62");
+  }
   return Status::Ok();
 }
 

@@ -2,6 +2,7 @@
 // started from the built program. A worker SIGKILLed mid-job, and a coordinator SIGKILLed and
 // restarted with --resume, still give LocalTrainer's forest byte for byte.
 // A worker SIGKILLed while a round waits for its reply: the round is asked again.
+// Five worker processes (uneven shards, subtree hand-off) give `poseforest train`'s forest.
 // Bad --peers / --interfaces values are refused with an error naming the flag and the value.
 
 #include <catch2/catch.hpp>
@@ -69,6 +70,44 @@ TEST_CASE("coordinator --local-workers 2 writes LocalTrainer's forest (shm and u
       CHECK(ReadAll(dir.path / "forest.pff") == reference);
       CHECK(std::filesystem::exists(dir.path / "status.json"));
     }
+  }
+}
+
+TEST_CASE("5 worker processes: the forest of `poseforest train`, byte for byte",
+          "[distributed][integration][slow]") {
+  // 12 frames per tree over 5 workers: shards of 3, 3, 2, 2, 2 frames; nodes of <= 300 samples
+  // are trained whole by one worker (SubtreeTask) from level 1 on.
+  TempDir dir("pf-dist-five");
+  const std::string text = TinyJobText(2, 6, 300);
+  std::ofstream(dir.path / "job.textproto") << text;
+  // The single-process engine, as a user runs it.
+  auto train = poseforest::testing::RunCommand(Program() + " train " + (dir.path / "job.textproto").string() +
+                                               " --out " + (dir.path / "engine.pff").string() + " --quiet");
+  INFO(train.output);
+  REQUIRE(train.exit_code == 0);
+  const std::vector<uint8_t> reference = ReadAll(dir.path / "engine.pff");
+  REQUIRE(reference.size() > 1000);
+  const uint32_t domain = Domain(29);
+  const std::string job_id = "p-five-" + std::to_string(::getpid());
+  Child w[5];
+  for (int i = 0; i < 5; ++i) StartWorker(w[i], domain, job_id, "fw-" + std::to_string(i));
+  Child coord;
+  std::string error;
+  REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                       (dir.path / "forest.pff").string(), "--domain", std::to_string(domain), "--job-id",
+                       job_id, "--min-workers", "5", "--http", "off"},
+                      &error));
+  auto rc = coord.Wait(120s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(coord.output().find("5 workers alive") != std::string::npos);
+  CHECK(coord.output().find("0 workers lost") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  for (int i = 0; i < 5; ++i) {
+    CHECK(w[i].Wait(10s).has_value());  // it exits on JOB_DONE
+    INFO("worker " << i << ": " << w[i].output());
+    CHECK(w[i].output().find("shard of ") != std::string::npos);  // and it held frames
   }
 }
 

@@ -16,7 +16,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
+#include <limits>
 #include <regex>
 #include <sstream>
 
@@ -188,6 +190,15 @@ int CountLines(const std::string& text, const std::string& needle) {
   return n;
 }
 
+/// A figure as `monitor` prints it ("127.31 M", "290.1 k", "12").
+double SiValue(const std::string& text) {
+  double v = std::stod(text);
+  if (text.back() == 'k') v *= 1e3;
+  if (text.back() == 'M') v *= 1e6;
+  if (text.back() == 'G') v *= 1e9;
+  return v;
+}
+
 /// The dashboard's DOM after its script has run, from headless Chromium (Debian `chromium`).
 std::string DumpDom(const std::string& url) {
   REQUIRE(fs::exists("/usr/bin/chromium"));  // scripts/setup.sh installs it
@@ -243,6 +254,47 @@ TEST_CASE(
     INFO(coord.output());
     REQUIRE(line.has_value());
   }
+  // `monitor --once --domain` first (the workers' rates cover their last 10 s): the same view
+  // from the DDS status topic, no URL needed, throughput figures and worker table included.
+  {
+    auto mon_dds = poseforest::testing::RunPoseforest(
+        "monitor --once --domain " + std::to_string(Domain(41)) + " --job " + job_id + " --timeout-s 30");
+    INFO(mon_dds.output);
+    CHECK(mon_dds.exit_code == 0);
+    CHECK(mon_dds.output.find("DDS domain " + std::to_string(Domain(41)) + "  coordinator coordinator-") !=
+          std::string::npos);
+    CHECK(mon_dds.output.find("job " + job_id + "  state training") != std::string::npos);
+    CHECK(std::regex_search(mon_dds.output, std::regex(R"(ETA [0-9]+[hms])")));  // known, not "-"
+    CHECK(std::regex_search(mon_dds.output,
+                            std::regex(R"(tree [12]/2  level [0-9]+/14  nodes [0-9]+/[0-9]+)")));
+    std::smatch m;
+    REQUIRE(std::regex_search(
+        mon_dds.output, m,
+        std::regex(
+            R"(samples/s ([0-9.]+(?: [kMG])?)  evaluations/s ([0-9.]+(?: [kMG])?)  \(([0-9.]+(?: [kMG])?) evaluations)")));
+    CHECK(SiValue(m[1]) > 0);
+    CHECK(SiValue(m[2]) > 0);
+    CHECK(SiValue(m[3]) > 0);
+    CHECK(mon_dds.output.find("workers: 2 alive, 0 lost or evicted") != std::string::npos);
+    // The worker table: id, state, frames, replies, evaluations/s (its heartbeats' rate over
+    // its last 10 s), evaluations, last seen.
+    static const std::regex row(
+        R"(  (local-worker-\S+) +training +30 +([0-9]+) +([0-9.]+(?: [kMG])?) +([0-9.]+(?: [kMG])?) +[0-9]+s ago)");
+    std::istringstream in(mon_dds.output);
+    std::string line;
+    int rows = 0;
+    while (std::getline(in, line)) {
+      if (line.rfind("  local-worker-", 0) != 0) continue;
+      INFO(line);
+      std::smatch r;
+      REQUIRE(std::regex_match(line, r, row));
+      CHECK(std::stoi(r[2]) > 0);
+      CHECK(SiValue(r[3]) > 0);
+      CHECK(SiValue(r[4]) > 0);
+      ++rows;
+    }
+    CHECK(rows == 2);
+  }
   // During the run.
   const pb::Struct s = GetStatus(url);
   CHECK(Str(s, "job_id") == job_id);
@@ -290,14 +342,6 @@ TEST_CASE(
   CHECK(mon.output.find("workers: 2 alive, 0 lost or evicted") != std::string::npos);
   CHECK(CountLines(mon.output, "  local-worker-") == 2);
   CHECK(std::regex_search(mon.output, std::regex(R"(tree [12]/2  level [0-9]+/14  nodes [0-9]+/[0-9]+)")));
-  // The same from the DDS status topic (no URL needed).
-  auto mon_dds = poseforest::testing::RunPoseforest("monitor --once --domain " + std::to_string(Domain(41)) +
-                                                    " --job " + job_id + " --timeout-s 30");
-  INFO(mon_dds.output);
-  CHECK(mon_dds.exit_code == 0);
-  CHECK(mon_dds.output.find("job " + job_id + "  state training") != std::string::npos);
-  CHECK(std::regex_search(mon_dds.output, std::regex(R"(tree [12]/2  level [0-9]+/14  workers alive 2)")));
-  CHECK(CountLines(mon_dds.output, "  local-worker-") == 2);
   // Hostile clients against the live coordinator: answered, and training goes on.
   CHECK(StatusCode(RawExchange(PortOf(url), "BREW /pot HTCPCP/1.0\r\n\r\n")) == 400);
   CHECK(StatusCode(RawExchange(PortOf(url), "GET / HTTP/1.1\r\nX: " + std::string(100000, 'a'))) == 431);
@@ -656,4 +700,158 @@ TEST_CASE("status JSON and metrics escape hostile worker ids", "[distributed][mo
   CHECK(Str(w.values(0).struct_value(), "id") == "w\"1\\\n<script>alert(1)</script>\x01\xef\xbf\xbd");
   CheckPrometheusSyntax(model.Prometheus());
   CHECK(model.Prometheus().find("worker=\"w\\\"1\\\\\\n<script>") != std::string::npos);
+}
+
+TEST_CASE("throughput figures on the wire: hostile values are dropped and counted, ours always pass",
+          "[distributed][monitoring][unit]") {
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  // Heartbeat: evaluations_per_s must be finite, 0..1e13; evaluations at most 2^62.
+  v1::Heartbeat hb;
+  *hb.mutable_capacity() = poseforest::dds::testing::Capacity(2);
+  hb.set_evaluations(123456);
+  hb.set_evaluations_per_s(5e6);
+  CHECK(poseforest::dds::ValidateHeartbeat(hb).ok());
+  for (double bad : {nan, inf, -inf, -1.0, 2e13, 1e300}) {
+    v1::Heartbeat h = hb;
+    h.set_evaluations_per_s(bad);
+    INFO(bad);
+    CHECK_FALSE(poseforest::dds::ValidateHeartbeat(h).ok());
+  }
+  {
+    v1::Heartbeat h = hb;
+    h.set_evaluations(uint64_t(1) << 63);
+    CHECK_FALSE(poseforest::dds::ValidateHeartbeat(h).ok());
+  }
+
+  // The coordinator's gate drops them, counts them against the sender, and flags it.
+  {
+    std::vector<std::string> log;
+    poseforest::dds::MessageGate gate(
+        poseforest::dds::GateConfig{"coord", "job-1", 2, [&](const std::string& l) { log.push_back(l); }});
+    poseforest::dds::EnvelopeStamper w("job-1", "w-hostile", v1::SENDER_KIND_WORKER);
+    auto send = [&](double rate) {
+      v1::Envelope env;
+      *env.mutable_heartbeat() = hb;
+      env.mutable_heartbeat()->set_evaluations_per_s(rate);
+      const std::string bytes = w.Seal(poseforest::dds::Topic::kPresence, env);
+      return gate.Check(
+          poseforest::dds::Topic::kPresence,
+          std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
+          "p1|writer1");
+    };
+    CHECK(send(1e6).verdict == poseforest::dds::MessageGate::Verdict::kAccepted);
+    auto out = send(nan);
+    CHECK(out.verdict == poseforest::dds::MessageGate::Verdict::kRejected);
+    CHECK(out.sender == "w-hostile");
+    CHECK(out.detail.find("evaluations_per_s") != std::string::npos);
+    CHECK(send(-5).verdict == poseforest::dds::MessageGate::Verdict::kRejected);
+    CHECK(send(1e300).verdict == poseforest::dds::MessageGate::Verdict::kRejected);
+    CHECK(gate.total_rejected() == 3);
+    CHECK(gate.TakeOffenders() == std::vector<std::string>{"w-hostile"});  // budget 2
+    REQUIRE(!log.empty());
+    CHECK(log.front().find("w-hostile") != std::string::npos);  // logged with the sender
+  }
+
+  // StatusEvent: rates, times, counts and the worker table.
+  v1::StatusEvent ok;
+  ok.set_kind(v1::STATUS_KIND_PROGRESS);
+  ok.set_progress(0.25);
+  ok.set_samples_per_s(1e5);
+  ok.set_evaluations_per_s(1e8);
+  ok.set_eta_s(30);
+  ok.set_elapsed_s(10);
+  ok.set_level_nodes_done(3);
+  ok.set_level_nodes_total(8);
+  auto* w = ok.add_workers();
+  w->set_id("w-0");
+  w->set_state(v1::WORKER_STATE_TRAINING);
+  w->set_evaluations_per_s(4e7);
+  w->set_last_seen_s(0.2);
+  CHECK(poseforest::dds::ValidateStatus(ok).ok());
+  std::vector<std::pair<std::string, std::function<void(v1::StatusEvent&)>>> hostile = {
+      {"NaN samples/s", [&](v1::StatusEvent& e) { e.set_samples_per_s(nan); }},
+      {"negative evaluations/s", [&](v1::StatusEvent& e) { e.set_evaluations_per_s(-1); }},
+      {"huge evaluations/s", [&](v1::StatusEvent& e) { e.set_evaluations_per_s(1e200); }},
+      {"negative ETA", [&](v1::StatusEvent& e) { e.set_eta_s(-3); }},
+      {"infinite ETA", [&](v1::StatusEvent& e) { e.set_eta_s(inf); }},
+      {"NaN elapsed", [&](v1::StatusEvent& e) { e.set_elapsed_s(nan); }},
+      {"nodes done above total", [&](v1::StatusEvent& e) { e.set_level_nodes_done(9); }},
+      {"huge count", [&](v1::StatusEvent& e) { e.set_evaluations(uint64_t(1) << 63); }},
+      {"worker rate NaN", [&](v1::StatusEvent& e) { e.mutable_workers(0)->set_evaluations_per_s(nan); }},
+      {"worker rate negative", [&](v1::StatusEvent& e) { e.mutable_workers(0)->set_evaluations_per_s(-2); }},
+      {"worker last seen NaN", [&](v1::StatusEvent& e) { e.mutable_workers(0)->set_last_seen_s(nan); }},
+      {"worker without id", [&](v1::StatusEvent& e) { e.mutable_workers(0)->clear_id(); }},
+      {"worker id of 1000 bytes",
+       [&](v1::StatusEvent& e) { e.mutable_workers(0)->set_id(std::string(1000, 'w')); }},
+      {"worker state unspecified", [&](v1::StatusEvent& e) { e.mutable_workers(0)->clear_state(); }},
+      {"5000 workers",
+       [&](v1::StatusEvent& e) {
+         for (int i = 0; i < 5000; ++i) *e.add_workers() = e.workers(0);
+       }},
+  };
+  for (auto& [name, spoil] : hostile) {
+    v1::StatusEvent e = ok;
+    spoil(e);
+    INFO(name);
+    CHECK_FALSE(poseforest::dds::ValidateStatus(e).ok());
+  }
+
+  // The status model fills events the gate accepts, whatever it was fed: a 300-byte worker id
+  // is left out of the table, a level of no measurable time does not give an infinite rate.
+  StatusModel model({"job-1", 0, "shm", 2, 4, 10, 100, 20, 8, ""});
+  const std::string long_id(300, 'x');
+  for (const std::string& id : {std::string("w-a"), long_id}) {
+    v1::StatusEvent j;
+    j.set_kind(v1::STATUS_KIND_WORKER_JOINED);
+    j.set_worker_id(id);
+    model.OnStatus(j);
+    model.OnWorkerAssigned(id, 0, 5);
+  }
+  model.OnLevelStart(0, 0, 1, 1000);
+  v1::Heartbeat beat = hb;
+  beat.set_evaluations(777);
+  beat.set_evaluations_per_s(3e6);
+  model.OnWorkerHeartbeat("w-a", beat);
+  model.OnWorkerHeartbeat("unknown-worker", beat);  // never joined: ignored
+  DistLevelStats st;
+  st.frontier_nodes = 1;
+  st.split_nodes = 1;
+  st.samples = 1000;
+  st.evaluations = 20000;
+  st.level_seconds = 0;  // too fast to measure
+  model.OnLevelDone(st);
+  st.level = 1;
+  st.level_seconds = 0.5;
+  model.OnLevelDone(st);
+  model.OnLevelStart(0, 2, 4, 1000);
+  model.OnNodesDecided(1, 4);
+  v1::StatusEvent filled;
+  filled.set_kind(v1::STATUS_KIND_PROGRESS);
+  model.FillStatus(&filled);
+  INFO(filled.DebugString());
+  CHECK(poseforest::dds::ValidateStatus(filled).ok());
+  CHECK(filled.level() == 2);
+  CHECK(filled.level_nodes_done() == 1);
+  CHECK(filled.level_nodes_total() == 4);
+  CHECK(filled.evaluations() == 40000);
+  CHECK(filled.evaluations_per_s() == Approx(80000));  // 40000 evaluations over 0.5 s
+  CHECK(filled.samples_per_s() == Approx(4000));
+  CHECK(filled.progress() > 0);
+  CHECK(filled.has_eta_s());
+  REQUIRE(filled.workers_size() == 1);
+  CHECK(filled.workers(0).id() == "w-a");
+  CHECK(filled.workers(0).state() == v1::WORKER_STATE_TRAINING);
+  CHECK(filled.workers(0).evaluations() == 777);
+  CHECK(filled.workers(0).evaluations_per_s() == 3e6);
+  CHECK(filled.workers(0).frames() == 5);
+  // The job done: workers "done", no rate, ETA 0.
+  v1::StatusEvent done;
+  done.set_kind(v1::STATUS_KIND_JOB_DONE);
+  model.OnStatus(done);
+  model.FillStatus(&done);
+  CHECK(poseforest::dds::ValidateStatus(done).ok());
+  CHECK(done.workers(0).state() == v1::WORKER_STATE_DONE);
+  CHECK(done.workers(0).evaluations_per_s() == 0);
+  CHECK(done.eta_s() == 0);
+  CHECK(done.trees_done() == 2);
 }

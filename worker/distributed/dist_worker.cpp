@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <deque>
 #include <list>
 #include <map>
 #include <mutex>
@@ -135,6 +136,7 @@ struct DistWorker::Impl {
   std::atomic<bool> has_job{false}, assigned_any{false}, busy{false};
   std::atomic<uint64_t> newest_epoch{0}, frames_rendered{0}, shard_epoch{0}, received_shard_epoch{0};
   std::atomic<v1::RendererKind> renderer{v1::RENDERER_KIND_PROCEDURAL};
+  std::atomic<uint64_t> evaluations{0};  ///< sample x candidate evaluations binned (heartbeats)
 
   dds::MessageGate job_gate;
   std::unique_ptr<dds::MessageGate> gate;
@@ -187,6 +189,7 @@ struct DistWorker::Impl {
   }
 
   void HeartbeatLoop() {
+    std::deque<std::pair<double, uint64_t>> recent;  // (time, evaluations): the rate over ~10 s
     while (!stop) {
       if (has_job) {
         v1::Envelope env;
@@ -206,6 +209,13 @@ struct DistWorker::Impl {
           h->set_frames_rendered(frames_rendered);
           h->set_shard_epoch(shard_epoch);
           h->set_received_shard_epoch(received_shard_epoch);
+          const double now = NowSeconds();
+          const uint64_t e = evaluations;
+          recent.emplace_back(now, e);
+          while (recent.size() > 2 && now - recent[1].first >= 10) recent.pop_front();
+          const double span = now - recent.front().first;
+          h->set_evaluations(e);
+          h->set_evaluations_per_s(span > 0 ? double(e - recent.front().second) / span : 0);
         }
         (void)Publish(Topic::kPresence, env, /*timed=*/false);
       }
@@ -532,6 +542,9 @@ struct DistWorker::Impl {
     }
     cpu.level_encode += ThreadCpu() - cpu0 - (cpu.level_compute - compute0);
     reply->set_compute_micros(uint64_t((NowSeconds() - t0) * 1e6));
+    uint64_t binned = 0;  // samples in the histograms (fused or pass 2), as the coordinator counts
+    for (const auto& nh : reply->nodes()) binned += nh.samples();
+    evaluations += binned * uint64_t(k);
     busy = false;
     // A volatile writer drops what it writes before the coordinator's reader matched.
     (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
@@ -715,6 +728,7 @@ struct DistWorker::Impl {
     res->set_num_parts(uint32_t(core::kNumParts));
     res->set_position(task.position());
     res->set_evaluations(out->evaluations);
+    evaluations += out->evaluations;
     for (const coordinator::SubtreeNode& n : out->nodes) {
       v1::SubtreeNode* sn = res->add_subtree_nodes();
       sn->set_position(n.position);
