@@ -132,7 +132,9 @@ int main(int argc, char** argv) {
   copt.want_foreground_distributions = true;
   dense.want_distributions = true;
   runtime::ProposalOptions mean_shift, fast;
-  mean_shift.params = fast.params = forest->proposal_params.value_or(core::DefaultProposalParams());
+  // Each method with the forest's set for it (the fast clustering without one: the mean-shift set).
+  mean_shift.params = forest->ProposalParamsFor(false).params;
+  fast.params = forest->ProposalParamsFor(true).params;
   mean_shift.num_threads = fast.num_threads = threads;
   if (auto v = args.Get("seed-cell")) mean_shift.seed_cell_fraction = std::stof(*v);
   if (auto v = args.Get("min-probability")) mean_shift.min_probability = std::stof(*v);

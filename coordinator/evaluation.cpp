@@ -331,18 +331,27 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
   e.ran_fast = options.fast;
   e.ran_upper_bound = options.upper_bound;
   e.has_joints = (*src)->has_joints() && HasJointTaxonomy(forest);
-  e.learned_params = !options.params && forest.proposal_params.has_value();
-  e.params =
-      options.params ? *options.params : forest.proposal_params.value_or(core::DefaultProposalParams());
+  // Each method with its own set (core::Forest::ProposalParamsFor), unless given.
+  const auto ms_choice = forest.ProposalParamsFor(false), fast_choice = forest.ProposalParamsFor(true);
+  e.params_given = options.params.has_value();
+  e.params = e.params_given ? *options.params : ms_choice.params;
+  e.params_source = ms_choice.source;
+  e.learned_params = !e.params_given && ms_choice.source == core::ProposalParamsSource::kLearned;
+  e.fast_params_given = options.fast_params.has_value();
+  e.fast_params = e.fast_params_given ? *options.fast_params : fast_choice.params;
+  e.fast_params_source = fast_choice.source;
   runtime::Classifier classifier(forest);
   runtime::ClassifyOptions copt;
   copt.num_threads = options.threads;
-  copt.want_distributions = e.has_joints;
+  // The compact per-foreground-pixel sums (what the proposals read; the confusion matrix uses
+  // the classifier's argmax labels, computed from the same sums).
+  copt.want_foreground_distributions = e.has_joints;
   runtime::ProposalOptions ms;
   ms.params = e.params;
   ms.num_threads = options.threads;
   runtime::ProposalOptions fast = ms;
   fast.method = runtime::ProposalMethod::kFastClustering;
+  fast.params = e.fast_params;
   runtime::Classification out;
   for (int i = 0; i < options.num_images; ++i) {
     auto frame = (*src)->Frame(options.first_index + uint64_t(i));
@@ -354,13 +363,12 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
     ++e.frames;
     if (e.has_joints) {
       e.people += int(frame->people.size());
-      const auto probs = runtime::ProbabilitiesFromClassification(frame->depth, out);
       t = std::chrono::steady_clock::now();
-      e.mean_shift.AddFrame(runtime::ProposeJoints(frame->depth, probs, ms), frame->people);
+      e.mean_shift.AddFrame(runtime::ProposeJointsFromClassification(frame->depth, out, ms), frame->people);
       e.mean_shift_ms += MsSince(t);
       if (options.fast) {
         t = std::chrono::steady_clock::now();
-        e.fast.AddFrame(runtime::ProposeJoints(frame->depth, probs, fast), frame->people);
+        e.fast.AddFrame(runtime::ProposeJointsFromClassification(frame->depth, out, fast), frame->people);
         e.fast_ms += MsSince(t);
       }
       if (options.upper_bound)
@@ -377,16 +385,25 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
 std::string FormatJointApTable(const Evaluation& e) {
   std::string s;
   char line[320];
-  double b = 0, lambda = 0, zeta = 0;
-  for (const auto& p : e.params) b += p.bandwidth_m, lambda += p.prob_threshold, zeta += p.z_offset_m;
   std::snprintf(
       line, sizeof line,
-      "joint average precision (section 4: D = %.2f m, every proposal counts), %d frames, %d people;\n"
-      "proposal parameters: %s, mean b = %.3f m, lambda = %.3f, zeta = %.3f m\n",
-      double(e.distance_m), e.frames, e.people,
-      e.learned_params ? "learned (stored in the forest)" : "the paper's means (forest has none)",
-      b / core::kNumJoints, lambda / core::kNumJoints, zeta / core::kNumJoints);
+      "joint average precision (section 4: D = %.2f m, every proposal counts), %d frames, %d people;\n",
+      double(e.distance_m), e.frames, e.people);
   s += line;
+  // Each method's own parameter set, and where it came from.
+  auto params_line = [&](const char* method, const core::ProposalParams& params,
+                         core::ProposalParamsSource source, bool given) {
+    double b = 0, lambda = 0, zeta = 0;
+    for (const auto& p : params) b += p.bandwidth_m, lambda += p.prob_threshold, zeta += p.z_offset_m;
+    std::snprintf(line, sizeof line,
+                  "proposal parameters, %s: %s, mean b = %.3f m, lambda = %.3f, zeta = %.3f m\n", method,
+                  given ? "given" : core::DescribeProposalParamsSource(source), b / core::kNumJoints,
+                  lambda / core::kNumJoints, zeta / core::kNumJoints);
+    s += line;
+  };
+  params_line(e.ran_upper_bound ? "mean shift (and gt-parts)" : "mean shift", e.params, e.params_source,
+              e.params_given);
+  if (e.ran_fast) params_line("fast clustering", e.fast_params, e.fast_params_source, e.fast_params_given);
   std::snprintf(line, sizeof line, "%-11s %9s %9s %9s %11s %9s\n", "joint", "visible", "AP mean", "AP fast",
                 "AP gt-parts", "mean/gt");
   s += line;
@@ -506,7 +523,7 @@ Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
   runtime::Classifier classifier(forest);
   runtime::ClassifyOptions copt;
   copt.num_threads = threads;
-  copt.want_distributions = true;
+  copt.want_foreground_distributions = true;  // compact sums: ProbabilitiesFromClassification reads them
   runtime::Classification out;
   std::vector<runtime::ValidationFrame> frames;
   frames.reserve(size_t(num_images));
@@ -515,7 +532,7 @@ Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
     if (!frame.ok()) return frame.status();
     classifier.Classify(frame->depth, copt, &out);
     runtime::ValidationFrame v;
-    v.probs = runtime::ProbabilitiesFromClassification(frame->depth, out);
+    v.probs = runtime::ProbabilitiesFromClassification(frame->depth, out, threads);
     v.depth = std::move(frame->depth);
     v.people = std::move(frame->people);
     frames.push_back(std::move(v));

@@ -89,8 +89,10 @@ struct JointEvalOptions {
   int people = 0;           ///< see MakeEvalFrameSource
   bool fast = true;         ///< also the fast clustering
   bool upper_bound = true;  ///< also mean shift on the ground-truth parts
-  /// Proposal parameters; unset = the forest's learned ones (JPAR), else the paper's means.
+  /// Proposal parameters of mean shift (and the upper bound) and of the fast clustering; unset =
+  /// the forest's for each method (core::Forest::ProposalParamsFor).
   std::optional<core::ProposalParams> params;
+  std::optional<core::ProposalParams> fast_params;
   float distance_m = 0.1f;  ///< the AP's D
   std::function<void(int done, int total)> progress;
 };
@@ -101,9 +103,15 @@ struct Evaluation {
   int frames = 0;
   int people = 0;  ///< people summed over frames
   float distance_m = 0.1f;
-  bool learned_params = false;                     ///< the forest's JPAR was used
+  bool learned_params = false;                     ///< mean shift ran with the forest's learned set
   bool ran_fast = false, ran_upper_bound = false;  ///< which of the three were scored
-  core::ProposalParams params;
+  core::ProposalParams params;                     ///< mean shift's (and the upper bound's)
+  core::ProposalParams fast_params;                ///< the fast clustering's
+  /// Where each set came from: the forest (core::Forest::ProposalParamsFor) or, when given,
+  /// JointEvalOptions.
+  core::ProposalParamsSource params_source = core::ProposalParamsSource::kPaperMeans;
+  core::ProposalParamsSource fast_params_source = core::ProposalParamsSource::kPaperMeans;
+  bool params_given = false, fast_params_given = false;
   runtime::JointApEvaluator mean_shift, fast, upper_bound;
   double classify_ms = 0, mean_shift_ms = 0, fast_ms = 0;  ///< summed over frames
 };

@@ -1,5 +1,6 @@
 // poseforest tune-joints: learns the joint-proposal parameters (b, lambda, zeta per joint) of a
-// forest on rendered validation frames and stores them in the forest (format 1.1, JPAR).
+// forest on rendered validation frames and stores them in the forest, one set per proposal
+// method (format 1.2: JPAR for mean shift, JPFC for the fast clustering).
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -19,8 +20,11 @@ Learns the joint-proposal parameters of section 3.4 for this forest: for each of
 the mean-shift bandwidth b, the seed probability threshold lambda and the surface-to-interior
 z offset zeta that maximize the joint's average precision (D = 0.1 m) on validation frames, by
 grid search (b in 0.045..0.16 m, lambda in 0.1..0.55, zeta in 0..0.1 m). The forest's inferred
-parts are used, as at run time. Writes the forest with the parameters stored in it (format 1.1,
-section JPAR), so `poseforest infer --joints` and `poseforest eval` use them with no other file.
+parts are used, as at run time. Each proposal method gets its own set (by default both: mean
+shift and the fast bottom-up clustering, on the same validation frames). Writes the forest with
+the parameters stored in it (format 1.2: section JPAR for mean shift, JPFC for the fast
+clustering), so `poseforest infer --joints` and `poseforest eval` use each method's own set with
+no other file.
 
 SET is one of:
   JOB.textproto   render validation frames from the job: by default from its training source
@@ -37,8 +41,10 @@ options:
   --from train|test which source of a job to render from (default train)
   --seed S          render seed of the validation frames (default: the source's seed + 1000003)
   --people N        render exactly N people per frame (default: the source's setting)
-  --method M        tune for `meanshift` (default) or for the `fast` clustering (it uses the same
-                    b, lambda, zeta per joint; the forest stores one set, so pick the method you run)
+  --method M        which method's parameters to learn: both (default), meanshift or fast; the
+                    other method's stored set is kept as it was (a fast clustering with no set of
+                    its own runs with the mean-shift set, so tuning only mean shift then stores
+                    the set the fast clustering ran with as its own)
   --per-joint       search each joint alone; by default left and right joints of a pair share
                     parameters (chosen by the pair's mean AP: less noise from few frames)
   --threads N       threads (0 = all cores, default)
@@ -77,12 +83,13 @@ int TuneJointsMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest tune-joints: --from must be train or test (got '%s')\n", from.c_str());
     return 2;
   }
-  const std::string method = args.GetOr("method", "meanshift");
-  if (method != "meanshift" && method != "fast") {
-    std::fprintf(stderr, "poseforest tune-joints: --method must be meanshift or fast (got '%s')\n",
+  const std::string method = args.GetOr("method", "both");
+  if (method != "both" && method != "meanshift" && method != "fast") {
+    std::fprintf(stderr, "poseforest tune-joints: --method must be both, meanshift or fast (got '%s')\n",
                  method.c_str());
     return 2;
   }
+  const bool tune_ms = method != "fast", tune_fast = method != "meanshift";
   const std::string set = *args.Get("validation");
   auto named = coordinator::ResolveSourceArgument(
       set, from == "test" ? coordinator::JobSource::kTestSet : coordinator::JobSource::kTraining);
@@ -125,43 +132,66 @@ int TuneJointsMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest tune-joints: %s\n", valid.status().ToString().c_str());
     return valid.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
   }
-  runtime::ProposalOptions base;
-  base.params = forest->proposal_params.value_or(core::DefaultProposalParams());
-  base.num_threads = int(*threads);
-  if (method == "fast") base.method = runtime::ProposalMethod::kFastClustering;
   runtime::TuningGrid grid;
   grid.mirror_pairs = !args.Has("per-joint");
   if (!quiet)
     std::printf("grid: %zu bandwidths x %zu thresholds x %zu z offsets per %s\n", grid.bandwidth_m.size(),
                 grid.prob_threshold.size(), grid.z_offset_m.size(),
                 grid.mirror_pairs ? "joint pair (left and right share)" : "joint");
-  const auto result = runtime::TuneProposalParams(*valid, base, grid, 0.1f, [&](int d, int t) {
-    if (!quiet && (d % 5 == 0 || d == t))
-      std::fprintf(stderr, "tune-joints: grid %d / %d (b, lambda) points (%.0f s)\n", d, t, seconds());
-  });
-
-  std::printf("%-11s %8s %8s %8s %9s %9s\n", "joint", "b (m)", "lambda", "zeta (m)", "AP before", "AP after");
-  double b = 0, lambda = 0, zeta = 0;
-  for (int j = 0; j < core::kNumJoints; ++j) {
-    const auto& p = result.params[size_t(j)];
-    b += p.bandwidth_m, lambda += p.prob_threshold, zeta += p.z_offset_m;
-    std::printf("%-11s %8.3f %8.2f %8.3f %9.3f %9.3f\n", std::string(core::JointName(j)).c_str(),
-                double(p.bandwidth_m), double(p.prob_threshold), double(p.z_offset_m),
-                result.base_ap[size_t(j)], result.ap[size_t(j)]);
-  }
-  std::printf("mean: b = %.3f m, lambda = %.3f, zeta = %.3f m (the paper: 0.065 m, 0.14, 0.039 m)\n",
-              b / core::kNumJoints, lambda / core::kNumJoints, zeta / core::kNumJoints);
-  std::printf("validation mAP (%s): %.3f with the %s parameters -> %.3f tuned\n",
-              method == "fast" ? "fast clustering" : "mean shift", result.base_mean_ap,
-              forest->proposal_params ? "forest's previous" : "paper's mean", result.mean_ap);
 
   core::Forest tuned = std::move(*forest);
-  tuned.proposal_params = result.params;
+  // What each method ran with before, for the other method's set and the report.
+  const core::ProposalParamsChoice before[2] = {tuned.ProposalParamsFor(false),
+                                                tuned.ProposalParamsFor(true)};
+  for (const bool fast : {false, true}) {
+    if (!(fast ? tune_fast : tune_ms)) continue;
+    const char* name = fast ? "fast clustering" : "mean shift";
+    runtime::ProposalOptions base;
+    base.params = before[fast].params;  // the starting point, kept for joints never visible
+    base.num_threads = int(*threads);
+    if (fast) base.method = runtime::ProposalMethod::kFastClustering;
+    const auto result = runtime::TuneProposalParams(*valid, base, grid, 0.1f, [&](int d, int t) {
+      if (!quiet && (d % 5 == 0 || d == t))
+        std::fprintf(stderr, "tune-joints: %s: grid %d / %d (b, lambda) points (%.0f s)\n", name, d, t,
+                     seconds());
+    });
+    std::printf("\n%s:\n", name);
+    std::printf("%-11s %8s %8s %8s %9s %9s\n", "joint", "b (m)", "lambda", "zeta (m)", "AP before",
+                "AP after");
+    double b = 0, lambda = 0, zeta = 0;
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      const auto& p = result.params[size_t(j)];
+      b += p.bandwidth_m, lambda += p.prob_threshold, zeta += p.z_offset_m;
+      std::printf("%-11s %8.3f %8.2f %8.3f %9.3f %9.3f\n", std::string(core::JointName(j)).c_str(),
+                  double(p.bandwidth_m), double(p.prob_threshold), double(p.z_offset_m),
+                  result.base_ap[size_t(j)], result.ap[size_t(j)]);
+    }
+    std::printf("mean: b = %.3f m, lambda = %.3f, zeta = %.3f m (the paper: 0.065 m, 0.14, 0.039 m)\n",
+                b / core::kNumJoints, lambda / core::kNumJoints, zeta / core::kNumJoints);
+    const char* from = before[fast].source == core::ProposalParamsSource::kLearned ? "forest's previous"
+                       : before[fast].source == core::ProposalParamsSource::kMeanShiftSet
+                           ? "forest's mean-shift"
+                           : "paper's mean";
+    std::printf("validation mAP (%s): %.3f with the %s parameters -> %.3f tuned\n", name, result.base_mean_ap,
+                from, result.mean_ap);
+    (fast ? tuned.fast_proposal_params : tuned.proposal_params) = result.params;
+  }
+  // Tuning mean shift alone must not change what the fast clustering runs with: without a set
+  // of its own it ran with the old mean-shift set, which becomes its own.
+  if (tune_ms && !tune_fast && !tuned.fast_proposal_params &&
+      before[1].source == core::ProposalParamsSource::kMeanShiftSet) {
+    tuned.fast_proposal_params = before[1].params;
+    std::printf("fast clustering: keeps the set it ran with (the previous mean-shift set), now its own\n");
+  }
   if (auto st = core::SaveForest(tuned, *args.Get("out")); !st.ok()) {
     std::fprintf(stderr, "poseforest tune-joints: %s\n", st.ToString().c_str());
     return 1;
   }
-  std::printf("wrote %s with the learned parameters (%.0f s)\n", args.Get("out")->c_str(), seconds());
+  std::printf("wrote %s with the learned parameters (%s; %.0f s)\n", args.Get("out")->c_str(),
+              tune_ms && tune_fast ? "mean shift and fast clustering"
+              : tune_ms            ? "mean shift"
+                                   : "fast clustering",
+              seconds());
   return 0;
 }
 

@@ -40,7 +40,9 @@ options:
   --joints             also propose 3D joints (section 3.4): <name>.joints.json (per joint, every
                        proposal: position in metres, camera frame; pixel; confidence) and
                        <name>.pose.png (depth, parts, joints, front/side/top views); uses the
-                       forest's learned proposal parameters, or the paper's means
+                       proposal parameters the forest stores for the method (`tune-joints`; the
+                       fast clustering without a set of its own uses the mean-shift set), or the
+                       paper's means
   --method M           joint proposals by `meanshift` (default) or `fast` (bottom-up clustering)
   --min-confidence C   joints drawn in the picture need this confidence (default 0.05)
   --raw-size WxH       size of raw depth frames (default 640x480)
@@ -98,8 +100,13 @@ core::Status WriteProbabilitiesNpy(const std::string& path, const runtime::Class
   bytes.resize(offset + size_t(c.width) * size_t(c.height) * size_t(c.num_parts) * 4);
   float* out = reinterpret_cast<float*>(bytes.data() + offset);  // offset is a multiple of 64
   const float norm = 1.0f / float(core::kLeafTotal * c.num_trees);
-  for (size_t px = 0; px < size_t(c.width) * size_t(c.height); ++px)
-    for (int p = 0; p < c.num_parts; ++p) *out++ = float(c.sums[px * size_t(c.stride) + size_t(p)]) * norm;
+  // From the compact foreground sums (want_foreground_distributions); background pixels keep
+  // the zeros of the resize.
+  for (size_t k = 0; k < c.foreground.size(); ++k) {
+    float* row = out + size_t(c.foreground[k]) * size_t(c.num_parts);
+    const uint16_t* sums = c.foreground_sums.data() + k * size_t(c.stride);
+    for (int p = 0; p < c.num_parts; ++p) row[p] = float(sums[p]) * norm;
+  }
   return core::WriteFileAtomic(path, bytes);
 }
 
@@ -177,13 +184,17 @@ int InferMain(int argc, char** argv) {
                      std::to_string(forest->num_parts) + " parts)"});
   runtime::ProposalOptions proposal_options;
   proposal_options.method = method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
-  proposal_options.params = forest->proposal_params.value_or(core::DefaultProposalParams());
+  const auto params =
+      forest->ProposalParamsFor(proposal_options.method == runtime::ProposalMethod::kFastClustering);
+  proposal_options.params = params.params;
   proposal_options.num_threads = int(*threads);
 
   runtime::Classifier classifier(*forest);
   runtime::ClassifyOptions options;
   options.num_threads = int(*threads);
-  options.want_distributions = args.Has("distributions") || joints;
+  // The compact per-foreground-pixel sums serve both the proposals and the .npy (no dense
+  // W*H*stride array is cleared or written).
+  options.want_foreground_distributions = args.Has("distributions") || joints;
   runtime::Classification result;
   int failures = 0;
   for (const std::string& depth_path : args.positional()) {
@@ -206,7 +217,7 @@ int InferMain(int argc, char** argv) {
     double proposal_ms = 0;
     if (st.ok() && joints) {
       const auto t1 = std::chrono::steady_clock::now();
-      proposals = runtime::ProposeJoints(*depth, runtime::ProbabilitiesFromClassification(*depth, result), proposal_options);
+      proposals = runtime::ProposeJointsFromClassification(*depth, result, proposal_options);
       proposal_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
       const std::string json = JointsJson(depth_path, *depth, proposals, method.c_str());
       st = core::WriteFileAtomic(OutPath(depth_path, out_dir, ".joints.json"),
@@ -237,10 +248,14 @@ int InferMain(int argc, char** argv) {
                     100.0 * counts[size_t(order[i])] / std::max(1, fg));
       std::printf("\n");
       if (joints) {
-        std::printf("  joints (%s with %s, %.2f ms; most confident proposal of each, camera frame, metres):\n",
-                    method.c_str(),
-                    forest->proposal_params ? "the forest's learned parameters" : "the paper's mean parameters",
-                    proposal_ms);
+        std::printf(
+            "  joints (%s with %s, %.2f ms; most confident proposal of each, camera frame, metres):\n",
+            method.c_str(),
+            params.source == core::ProposalParamsSource::kLearned ? "the forest's learned parameters"
+            : params.source == core::ProposalParamsSource::kMeanShiftSet
+                ? "the forest's learned mean-shift parameters (none learned for the fast clustering)"
+                : "the paper's mean parameters",
+            proposal_ms);
         for (int j = 0; j < core::kNumJoints; ++j) {
           const auto& list = proposals[size_t(j)];
           if (list.empty()) {

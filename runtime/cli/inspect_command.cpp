@@ -12,12 +12,13 @@ constexpr const char* kUsage = R"(usage: poseforest inspect [--parts] [--joints]
 
 Loads each forest file, runs every validity check of the loader (sizes, checksum, child and leaf
 indices, thresholds, leaf sums), and prints its format version, trees, depth, node and leaf counts,
-bytes, feature constants and the joint-proposal parameters stored by `poseforest tune-joints`
-(JPAR; means over joints). Exit status 1 if any file is invalid.
+bytes, feature constants and the joint-proposal parameters stored by `poseforest tune-joints`,
+one set per method (JPAR: mean shift, JPFC: the fast clustering; means over joints) and which
+set each method runs with. Exit status 1 if any file is invalid.
 
 options:
   --parts   also list the part table
-  --joints  also list the joint-proposal parameters of each joint (b, lambda, zeta)
+  --joints  also list each joint's proposal parameters (b, lambda, zeta) for each method
   --help    this text
 )";
 }  // namespace
@@ -65,20 +66,44 @@ int InspectMain(int argc, char** argv) {
                   tree.depth, tree.nodes.size(), tree.nodes.size() - tree.num_leaves, tree.num_leaves,
                   tree.nodes.size() * sizeof(core::Node), tree.leaves.size());
     }
-    if (f.proposal_params) {
+    // Each method's set: its own, the mean-shift set (the fast clustering without one; a 1.1
+    // file's one set served both methods), or the paper's means.
+    const int minor = (*bytes)[10] | (*bytes)[11] << 8;
+    core::ProposalParamsChoice choice[2];
+    for (const bool fast : {false, true}) {
+      choice[fast] = f.ProposalParamsFor(fast);
       double b = 0, lambda = 0, zeta = 0;
-      for (const auto& p : *f.proposal_params) b += p.bandwidth_m, lambda += p.prob_threshold, zeta += p.z_offset_m;
-      std::printf("  joint proposals: learned parameters (JPAR), mean b %.3f m, lambda %.3f, zeta %.3f m\n",
-                  b / core::kNumJoints, lambda / core::kNumJoints, zeta / core::kNumJoints);
-    } else {
-      std::printf("  joint proposals: no learned parameters (infer uses the paper's means)\n");
+      for (const auto& p : choice[fast].params)
+        b += p.bandwidth_m, lambda += p.prob_threshold, zeta += p.z_offset_m;
+      const char* method = fast ? "fast clustering" : "mean shift";
+      switch (choice[fast].source) {
+        case core::ProposalParamsSource::kLearned:
+          std::printf(
+              "  joint proposals, %s: learned parameters (%s), mean b %.3f m, lambda %.3f, zeta %.3f m\n",
+              method, fast ? "JPFC" : "JPAR", b / core::kNumJoints, lambda / core::kNumJoints,
+              zeta / core::kNumJoints);
+          break;
+        case core::ProposalParamsSource::kMeanShiftSet:
+          std::printf("  joint proposals, %s: none of its own; runs with the mean-shift set (JPAR)%s\n",
+                      method, minor < 2 ? ", format 1.1's one set for both methods" : "");
+          break;
+        case core::ProposalParamsSource::kPaperMeans:
+          std::printf("  joint proposals, %s: no learned parameters (infer uses the paper's means)\n",
+                      method);
+          break;
+      }
     }
     if (args.Has("joints")) {
-      const auto params = f.proposal_params.value_or(core::DefaultProposalParams());
-      for (int j = 0; j < core::kNumJoints; ++j)
-        std::printf("  joint %-11s b %.3f m, lambda %.3f, zeta %.3f m\n", std::string(core::JointName(j)).c_str(),
-                    double(params[size_t(j)].bandwidth_m), double(params[size_t(j)].prob_threshold),
-                    double(params[size_t(j)].z_offset_m));
+      std::printf("  %-17s %26s   %26s\n", "", "mean shift: b, lambda, zeta",
+                  "fast clustering: b, lambda, zeta");
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        const auto& m = choice[0].params[size_t(j)];
+        const auto& q = choice[1].params[size_t(j)];
+        std::printf("  joint %-11s %7.3f m, %5.3f, %6.3f m   %7.3f m, %5.3f, %6.3f m\n",
+                    std::string(core::JointName(j)).c_str(), double(m.bandwidth_m), double(m.prob_threshold),
+                    double(m.z_offset_m), double(q.bandwidth_m), double(q.prob_threshold),
+                    double(q.z_offset_m));
+      }
     }
     if (args.Has("parts"))
       for (size_t p = 0; p < f.part_names.size(); ++p) std::printf("  part %2zu: %s\n", p, f.part_names[p].c_str());

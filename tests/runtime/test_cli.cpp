@@ -1,6 +1,5 @@
 // The `poseforest` program end to end, as a user runs it: real files, a real process.
 #include <catch2/catch.hpp>
-
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -8,8 +7,10 @@
 #include <string>
 
 #include "runtime/classifier.h"
+#include "runtime/core/crc32.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
+#include "runtime/joint_proposals.h"
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
 #include "tests/support/synthetic.h"
@@ -73,6 +74,24 @@ TEST_CASE("infer classifies a depth PNG and writes the part picture, labels and 
   in.read(head.data(), 128);
   CHECK_THAT(head, Catch::Contains("'shape': (480, 640, 31)"));
   CHECK(fs::file_size(npy) == 128 + size_t(480) * 640 * 31 * 4);
+  // infer writes it from the compact foreground sums; every value equals the dense classifier's
+  // P(part | pixel), background pixels all zero.
+  runtime::ClassifyOptions dense;
+  dense.want_distributions = true;
+  classifier.Classify(depth, dense, &expected);
+  std::vector<float> probs(size_t(480) * 640 * 31);
+  in.read(reinterpret_cast<char*>(probs.data()), std::streamsize(probs.size() * 4));
+  REQUIRE(in.good());
+  size_t mismatches = 0, nonzero = 0;
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x)
+      for (int c = 0; c < 31; ++c) {
+        const float v = probs[(size_t(y) * 640 + size_t(x)) * 31 + size_t(c)];
+        mismatches += v != expected.Probability(x, y, c);
+        nonzero += v != 0;
+      }
+  CHECK(mismatches == 0);
+  CHECK(nonzero > 1000);
   fs::remove_all(dir);
 }
 
@@ -81,6 +100,15 @@ TEST_CASE("infer --joints writes proposals as JSON and the pose picture", "[cli]
   const core::Forest forest = testing::MakeRandomForest({.max_depth = 10, .nodes_per_tree = 2000});
   REQUIRE(core::SaveForest(forest, (dir / "f.pff").string()).ok());
   REQUIRE(runtime::WriteDepthPng((dir / "d.png").string(), testing::MakePersonDepth(2.5)).ok());
+  // What the dense route (W*H*32 sums -> per-pixel joint probabilities -> proposals) gives
+  // in-process; infer takes the compact route and must print the same proposals.
+  const core::DepthImage depth = testing::MakePersonDepth(2.5);
+  runtime::Classifier classifier(forest);
+  runtime::ClassifyOptions dense;
+  dense.want_distributions = true;
+  runtime::Classification c;
+  classifier.Classify(depth, dense, &c);
+  const auto probs = runtime::ProbabilitiesFromClassification(depth, c);
   for (const char* method : {"meanshift", "fast"}) {
     auto run = RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --joints --method " + method + " " +
                              (dir / "d.png").string());
@@ -91,6 +119,24 @@ TEST_CASE("infer --joints writes proposals as JSON and the pose picture", "[cli]
     const std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
     CHECK_THAT(text, Catch::Contains("\"joint\": \"head\"") && Catch::Contains("\"joint\": \"R_foot\"") &&
                          Catch::Contains("position_m") && Catch::Contains(method));
+    runtime::ProposalOptions po;
+    po.method = std::string(method) == "fast" ? runtime::ProposalMethod::kFastClustering
+                                              : runtime::ProposalMethod::kMeanShift;
+    const auto expected = runtime::ProposeJoints(depth, probs, po);
+    size_t total = 0, count_in_json = 0;
+    for (const auto& list : expected) {
+      total += list.size();
+      for (const auto& p : list) {
+        char pos[96];
+        std::snprintf(pos, sizeof pos, "\"position_m\": [%.4f, %.4f, %.4f]", p.position.x(), p.position.y(),
+                      p.position.z());
+        CHECK_THAT(text, Catch::Contains(pos));
+      }
+    }
+    for (size_t at = text.find("position_m"); at != std::string::npos; at = text.find("position_m", at + 1))
+      ++count_in_json;
+    CHECK(total > 0);
+    CHECK(count_in_json == total);
     auto png = core::ReadFileBytes((dir / "d.pose.png").string());
     REQUIRE(png.ok());
     auto fig = runtime::DecodePng(*png, "d.pose.png");
@@ -168,5 +214,34 @@ TEST_CASE("infer and inspect give clear errors on bad input and lose nothing", "
   auto r5 = RunPoseforest("infer --forest " + good + " --threads many " + depth_path);
   CHECK(r5.exit_code == 2);
   CHECK_THAT(r5.output, Catch::Contains("--threads"));
+
+  // Joint-proposal sections that do not hold 16 joints (behind a valid checksum): infer and
+  // inspect name the file and the section, and write nothing.
+  core::Forest tuned = forest;
+  tuned.proposal_params = core::DefaultProposalParams();
+  tuned.fast_proposal_params = core::DefaultProposalParams();
+  (*tuned.fast_proposal_params)[0].bandwidth_m = 0.1f;
+  for (const char* tag : {"JPAR", "JPFC"}) {
+    auto b = core::SerializeForest(tuned);
+    const std::string bytes_text(b.begin(), b.end());
+    const size_t at = bytes_text.rfind(tag);
+    REQUIRE(at != std::string::npos);
+    b[at + 16] = 15;  // joint count 15: the payload no longer matches
+    const uint32_t crc = core::Crc32(b.data(), b.size() - 8);
+    for (int i = 0; i < 4; ++i) b[b.size() - 8 + size_t(i)] = uint8_t(crc >> (8 * i));
+    const std::string bad_path = (dir / (std::string(tag) + ".pff")).string();
+    REQUIRE(core::WriteFileAtomic(bad_path, b).ok());
+    const auto out_dir = dir / (std::string("out_") + tag);
+    auto infer = RunPoseforest("infer --forest " + bad_path + " --joints --out-dir " + out_dir.string() +
+                               " " + depth_path);
+    INFO(infer.output);
+    CHECK(infer.exit_code == 1);
+    CHECK_THAT(infer.output, Catch::Contains(bad_path) && Catch::Contains(std::string(tag) + " holds") &&
+                                 Catch::Contains("15 joints"));
+    CHECK_FALSE(fs::exists(out_dir / "d.parts.png"));
+    auto inspect = RunPoseforest("inspect " + bad_path);
+    CHECK(inspect.exit_code == 1);
+    CHECK_THAT(inspect.output, Catch::Contains(bad_path) && Catch::Contains(tag));
+  }
   fs::remove_all(dir);
 }

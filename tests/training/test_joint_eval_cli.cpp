@@ -41,32 +41,44 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
                             " --frames 3");
   INFO(tune.output);
   REQUIRE(tune.exit_code == 0);
-  CHECK_THAT(tune.output, Catch::Contains("train clips, frames not trained on") &&
-                              Catch::Contains("AP before") && Catch::Contains("mean: b =") &&
-                              Catch::Contains("wrote " + tuned));
+  // By default both methods are tuned, each its own set, on the same frames.
+  CHECK_THAT(tune.output,
+             Catch::Contains("train clips, frames not trained on") && Catch::Contains("AP before") &&
+                 Catch::Contains("mean: b =") && Catch::Contains("\nmean shift:\n") &&
+                 Catch::Contains("\nfast clustering:\n") &&
+                 Catch::Contains("validation mAP (fast clustering)") &&
+                 Catch::Contains("wrote " + tuned + " with the learned parameters (mean shift and fast"));
   auto before = core::LoadForest(forest);
   auto after = core::LoadForest(tuned);
   REQUIRE(before.ok());
   REQUIRE(after.ok());
   CHECK_FALSE(before->proposal_params.has_value());
+  CHECK_FALSE(before->fast_proposal_params.has_value());
   REQUIRE(after->proposal_params.has_value());
+  REQUIRE(after->fast_proposal_params.has_value());
   CHECK(after->total_nodes() == before->total_nodes());  // the trees are untouched
-  CHECK(*after->proposal_params !=
-        core::DefaultProposalParams());  // the grid holds none of the means' triples
+  // The grid holds none of the means' triples.
+  CHECK(*after->proposal_params != core::DefaultProposalParams());
+  CHECK(*after->fast_proposal_params != core::DefaultProposalParams());
 
   auto inspect = RunPoseforest("inspect --joints " + tuned);
   CHECK(inspect.exit_code == 0);
-  CHECK_THAT(inspect.output, Catch::Contains("learned parameters (JPAR)") && Catch::Contains("joint head"));
+  CHECK_THAT(inspect.output, Catch::Contains("mean shift: learned parameters (JPAR)") &&
+                                 Catch::Contains("fast clustering: learned parameters (JPFC)") &&
+                                 Catch::Contains("joint head"));
 
   const auto pr = dir / "pr";
   auto eval =
       RunPoseforest("eval --forest " + tuned + " --test-set " + job + " --images 3 --pr-png " + pr.string());
   INFO(eval.output);
   REQUIRE(eval.exit_code == 0);
-  CHECK_THAT(eval.output,
-             Catch::Contains("AP gt-parts") && Catch::Contains("learned (stored in the forest)") &&
-                 Catch::Contains("L_shoulder") && Catch::Contains("mAP: mean shift") &&
-                 Catch::Contains("average per-class accuracy:") && Catch::Contains("3 frames, 3 people"));
+  CHECK_THAT(
+      eval.output,
+      Catch::Contains("AP gt-parts") &&
+          Catch::Contains("proposal parameters, mean shift (and gt-parts): learned (stored in the forest)") &&
+          Catch::Contains("proposal parameters, fast clustering: learned (stored in the forest)") &&
+          Catch::Contains("L_shoulder") && Catch::Contains("mAP: mean shift") &&
+          Catch::Contains("average per-class accuracy:") && Catch::Contains("3 frames, 3 people"));
   // The ground-truth parts locate visible joints well even on three frames.
   CHECK(NumberAfter(eval.output, "upper bound ") > 0.6);
   for (const char* name : {"pr_joints.png", "pr_mean.png"}) {
@@ -102,6 +114,67 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   REQUIRE(tuned_json.ok());
   REQUIRE(plain_json.ok());
   CHECK(*tuned_json != *plain_json);
+
+  // Each method runs with its own set: a forest whose fast-clustering set is changed (mean
+  // shift's kept) gives other fast proposals and the same mean-shift ones, in infer and eval.
+  core::Forest planted = *after;
+  for (auto& p : *planted.fast_proposal_params) p = {0.3f, 0.02f, 0.09f};
+  const std::string planted_path = (dir / "planted.pff").string();
+  REQUIRE(core::SaveForest(planted, planted_path).ok());
+  auto json_of = [&](const std::string& f, const std::string& method, const std::string& out) {
+    auto r = RunPoseforest("infer --forest " + f + " --joints --quiet --method " + method + " --out-dir " +
+                           (dir / out).string() + " " + (dir / "frames" / "depth_000000.png").string());
+    REQUIRE(r.exit_code == 0);
+    auto bytes = core::ReadFileBytes((dir / out / "depth_000000.joints.json").string());
+    REQUIRE(bytes.ok());
+    return *bytes;
+  };
+  CHECK(json_of(tuned, "meanshift", "t_ms") == json_of(planted_path, "meanshift", "p_ms"));
+  CHECK(json_of(tuned, "fast", "t_fast") != json_of(planted_path, "fast", "p_fast"));
+  auto planted_eval =
+      RunPoseforest("eval --forest " + planted_path + " --test-set " + job + " --images 3 --quiet");
+  REQUIRE(planted_eval.exit_code == 0);
+  CHECK(NumberAfter(planted_eval.output, "mAP: mean shift ") == NumberAfter(eval.output, "mAP: mean shift "));
+  CHECK_THAT(planted_eval.output,
+             Catch::Contains("fast clustering: learned (stored in the forest), mean b = 0.300 m"));
+
+  // Tuning one method keeps the other's set.
+  const std::string fast_only = (dir / "fast_only.pff").string();
+  auto tune_fast = RunPoseforest("tune-joints --forest " + planted_path + " --validation " + job + " --out " +
+                                 fast_only + " --frames 2 --method fast --quiet");
+  INFO(tune_fast.output);
+  REQUIRE(tune_fast.exit_code == 0);
+  CHECK_THAT(tune_fast.output, Catch::Contains("fast clustering:") && !Catch::Contains("mean shift:"));
+  auto fast_tuned = core::LoadForest(fast_only);
+  REQUIRE(fast_tuned.ok());
+  CHECK(fast_tuned->proposal_params == planted.proposal_params);
+  CHECK(fast_tuned->fast_proposal_params != planted.fast_proposal_params);
+
+  // A format 1.1 forest (one set, written by the code before per-method sets) works as before:
+  // both methods run with its set; tuning mean shift alone keeps the fast clustering's.
+  const std::string old_file =
+      std::string(POSEFOREST_SOURCE_DIR) + "/tests/runtime/data/forest_v1_1_jpar.pff";
+  auto old_inspect = RunPoseforest("inspect " + old_file);
+  CHECK(old_inspect.exit_code == 0);
+  CHECK_THAT(old_inspect.output, Catch::Contains("format 1.1") &&
+                                     Catch::Contains("mean shift: learned parameters (JPAR)") &&
+                                     Catch::Contains("format 1.1's one set for both methods"));
+  auto old_infer =
+      RunPoseforest("infer --forest " + old_file + " --joints --method fast --out-dir " +
+                    (dir / "old").string() + " " + (dir / "frames" / "depth_000000.png").string());
+  CHECK(old_infer.exit_code == 0);
+  CHECK_THAT(old_infer.output, Catch::Contains("learned mean-shift parameters (none learned for the fast"));
+  const std::string old_tuned = (dir / "old_tuned.pff").string();
+  auto old_tune = RunPoseforest("tune-joints --forest " + old_file + " --validation " + job + " --out " +
+                                old_tuned + " --frames 2 --method meanshift --quiet");
+  INFO(old_tune.output);
+  REQUIRE(old_tune.exit_code == 0);
+  CHECK_THAT(old_tune.output, Catch::Contains("keeps the set it ran with"));
+  auto old_forest = core::LoadForest(old_file);
+  auto new_forest = core::LoadForest(old_tuned);
+  REQUIRE(old_forest.ok());
+  REQUIRE(new_forest.ok());
+  CHECK(new_forest->fast_proposal_params == old_forest->proposal_params);
 
   // A rendered folder (with joints_*.json) works as a test set too.
   auto folder =
@@ -144,7 +217,7 @@ TEST_CASE("tune-joints and eval refuse bad input with clear messages", "[cli][jo
   auto bad_method =
       RunPoseforest("tune-joints --forest " + forest + " --validation " + job + " --out x --method slow");
   CHECK(bad_method.exit_code == 2);
-  CHECK_THAT(bad_method.output, Catch::Contains("--method must be meanshift or fast"));
+  CHECK_THAT(bad_method.output, Catch::Contains("--method must be both, meanshift or fast"));
   auto help = RunPoseforest("tune-joints --help");
   CHECK(help.exit_code == 0);
   CHECK_THAT(help.output, Catch::Contains("usage: poseforest tune-joints") && Catch::Contains("--per-joint"));
