@@ -94,6 +94,7 @@ std::vector<std::pair<std::string, double>> CpuFields(const dist::WorkerCpu& c) 
           {"task_frames", double(c.task_frames)},
           {"task_frames_cached", double(c.task_frames_cached)},
           {"subtree_tasks", double(c.subtree_tasks)},
+          {"subtree_batches", double(c.subtree_batches)},
           {"task_cache_peak_bytes", double(c.task_cache_peak_bytes)},
           {"task_cache_evictions", double(c.task_cache_evictions)}};
 }
@@ -169,7 +170,8 @@ void PrintBreakdown(const RunFigures& f, double engine_cpu) {
   row("routing samples (SplitDecisions)", g("decisions"));
   row("level rounds: ranges, histograms (builder)", g("level_compute"));
   row("level rounds: plans, counts, reply messages", g("level_encode"));
-  row("subtree tasks (" + std::to_string(int64_t(g("subtree_tasks"))) + "): frames rendered (" +
+  row("subtree tasks (" + std::to_string(int64_t(g("subtree_tasks"))) + ", " +
+          std::to_string(int64_t(g("subtree_batches"))) + " batches of several): frames rendered (" +
           std::to_string(int64_t(g("task_frames"))) + "; " + std::to_string(int64_t(g("task_frames_cached"))) +
           " held)",
       g("subtree_render"));
@@ -190,6 +192,24 @@ void PrintBreakdown(const RunFigures& f, double engine_cpu) {
                 g("task_cache_peak_bytes") / 1e6, (long long)g("task_cache_evictions"));
 }
 
+/// The headline run's CPU against the engine's, in a few lines: what the service spends that the
+/// engine does not (from PrintBreakdown's figures).
+void PrintWhy(const RunFigures& f, double engine_cpu, int n, uint64_t sm) {
+  const std::map<std::string, double>& c = f.worker_cpu;
+  auto g = [&](const char* k) { return c.count(k) ? c.at(k) : 0.0; };
+  const double work = g("shard") + g("decisions") + g("level_compute") + g("subtree_route") + g("subtree_train");
+  const double startup_exit = g("process_at_start") + g("participant") + (f.workers_cpu - g("process_at_report"));
+  const double messages = g("level_encode") + g("subtree_encode") + g("receive") + g("publish");
+  std::printf(
+      "why the ratio (%d workers, hand-off %s): service %.3f CPU s vs engine %.3f = "
+      "training work on the workers %.3f (frames, routing, histograms, subtrees incl. their sample sets %.3f)"
+      " + coordinator %.3f (merges, split choice, rounds, its DDS) + worker start-up and exit %.3f"
+      " + messages (encode, send, receive, gate) %.3f + workers' DDS and heartbeat threads %.3f"
+      " + frames rendered again for subtree tasks %.3f\n",
+      n, sm ? std::to_string(sm).c_str() : "off", f.cpu, engine_cpu, work, g("subtree_route"), f.coordinator_cpu,
+      startup_exit, messages, g("other_threads"), g("subtree_render"));
+}
+
 struct Row {
   int workers, tree, level;
   size_t nodes, split;
@@ -206,6 +226,8 @@ int main(int argc, char** argv) {
   long long subtree_max = -1;
   std::vector<int> worker_counts = {1, 2};
   bool skip_off = false;
+  int repeat = 1;
+  bool engine_only = false;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--workers") && i + 1 < argc) {
       worker_counts.clear();
@@ -218,6 +240,11 @@ int main(int argc, char** argv) {
       }
     } else if (!std::strcmp(argv[i], "--skip-off")) {
       skip_off = true;
+    } else if (!std::strcmp(argv[i], "--engine-only")) {
+      engine_only = true;
+    } else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) {
+      repeat = std::atoi(argv[++i]);
+      if (repeat < 1 || repeat > 50) return std::fprintf(stderr, "distributed: --repeat wants 1..50\n"), 2;
     } else if (!std::strcmp(argv[i], "--domain") && i + 1 < argc) {
       domain = uint32_t(std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--csv") && i + 1 < argc) {
@@ -227,7 +254,7 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--help") || argv[i][0] == '-') {
       std::fprintf(stderr,
                    "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] "
-                   "[--workers N,N] [--skip-off]\n");
+                   "[--workers N,N] [--skip-off] [--repeat R] [--engine-only]\n");
       return std::strcmp(argv[i], "--help") ? 2 : 0;
     } else {
       std::ifstream in(argv[i]);
@@ -252,7 +279,7 @@ int main(int argc, char** argv) {
   // 1. The engine.
   RunFigures engine;
   std::vector<uint8_t> ref_bytes;
-  {
+  auto run_engine = [&](RunFigures& engine, bool verbose) -> int {
     coordinator::LocalTrainer local(*params, {});
     const double c0 = CpuSeconds(RUSAGE_SELF), t0 = dist::NowSeconds();
     auto ref = local.Train();
@@ -260,8 +287,9 @@ int main(int argc, char** argv) {
     engine.cpu = CpuSeconds(RUSAGE_SELF) - c0;
     if (!ref.ok()) return std::fprintf(stderr, "%s\n", ref.status().ToString().c_str()), 1;
     engine.evaluations = local.stats().evaluations;
-    engine.identical = true;
-    ref_bytes = core::SerializeForest(*ref);
+    engine.identical = ref_bytes.empty() || core::SerializeForest(*ref) == ref_bytes;
+    if (ref_bytes.empty()) ref_bytes = core::SerializeForest(*ref);
+    if (!verbose) return 0;
     std::printf(
         "\nengine (LocalTrainer, 1 thread): %.2f s wall, %.2f CPU s, %llu evaluations: %.3g evaluations/s, "
         "%.3g per CPU-second (histogram builder alone: %.3g evaluations/s)\n",
@@ -274,7 +302,10 @@ int main(int argc, char** argv) {
                 engine.wall - local.stats().load_seconds - local.stats().range_seconds -
                     local.stats().histogram_seconds);
     std::fflush(stdout);
-  }
+    return 0;
+  };
+  if (int rc = run_engine(engine, true); rc != 0) return rc;
+  if (engine_only) return 0;
 
   std::string self;
   {
@@ -290,7 +321,9 @@ int main(int argc, char** argv) {
     if (subtree_max > 0) plan.push_back({n, uint64_t(subtree_max)});
   }
   uint32_t run_index = 0;
-  for (const auto& [n, sm] : plan) {
+  // One service run: n worker processes, hand-off at sm samples; figures into f; verbose: the
+  // per-level table, totals and breakdown.
+  auto run_service = [&](int n, uint64_t sm, RunFigures& f, bool verbose) -> int {
     ++run_index;
     config->set_subtree_max_samples(sm);
     params->subtree_max_samples = sm;
@@ -314,11 +347,21 @@ int main(int argc, char** argv) {
                                     "bench-w" + std::to_string(i),
                                     "--stats",
                                     stats_files.back()};
+      // POSEFOREST_BENCH_WORKER_WRAP="valgrind --tool=callgrind ...": workers run under that
+      // command (instruction counts on a loaded machine).
+      std::vector<std::string> wrap;
+      if (const char* w = std::getenv("POSEFOREST_BENCH_WORKER_WRAP"))
+        for (std::stringstream ss(w); ss.good();) {
+          std::string word;
+          ss >> word;
+          if (!word.empty()) wrap.push_back(word);
+        }
+      a.insert(a.begin(), wrap.begin(), wrap.end());
       std::vector<char*> c;
       for (auto& s : a) c.push_back(s.data());
       c.push_back(nullptr);
       pid_t pid = -1;
-      if (::posix_spawn(&pid, self.c_str(), nullptr, nullptr, c.data(), environ) != 0)
+      if (::posix_spawnp(&pid, c[0], nullptr, nullptr, c.data(), environ) != 0)
         return std::fprintf(stderr, "distributed: cannot start a worker process\n"), 1;
       pids.push_back(pid);
     }
@@ -327,14 +370,14 @@ int main(int argc, char** argv) {
     co.job_id = job_id;
     co.min_workers = n;
     co.log = [](const std::string&) {};
-    RunFigures& f = runs[{n, sm}];
     std::map<int, RunFigures> trees;
-    std::printf(
+    if (verbose)
+      std::printf(
         "\n%d worker process(es), subtree hand-off %s:\n  tree level  nodes  samples  handed  from_sub  "
         "bytes_received  bytes_sent  merge_ms  level_s  evaluations/s\n",
         n, sm ? ("at <= " + std::to_string(sm) + " samples").c_str() : "off");
     co.progress = [&](const dist::DistLevelStats& s) {
-      if (sm == 0)
+      if (sm == 0 && verbose)
         rows.push_back({n, s.tree, s.level, s.frontier_nodes, s.split_nodes, s.samples, s.evaluations,
                         s.bytes_received, s.bytes_sent, s.merge_seconds, s.level_seconds});
       for (RunFigures* t : {&f, &trees[s.tree]}) {
@@ -344,6 +387,7 @@ int main(int argc, char** argv) {
         t->merge += s.merge_seconds;
         t->levels_wall += s.level_seconds;
       }
+      if (!verbose) return;
       std::printf("  %4d %5d  %5zu  %7llu  %6zu  %8zu  %14llu  %10llu  %8.2f  %7.3f  %.3g\n", s.tree, s.level,
                   s.frontier_nodes, (unsigned long long)s.samples, s.subtree_tasks, s.subtree_nodes,
                   (unsigned long long)s.bytes_received, (unsigned long long)s.bytes_sent,
@@ -377,6 +421,7 @@ int main(int argc, char** argv) {
     }
     if (!forest.ok()) return std::fprintf(stderr, "%s\n", forest.status().ToString().c_str()), 1;
     f.identical = core::SerializeForest(*forest) == ref_bytes;
+    if (!verbose) return 0;
     for (const auto& [t, tf] : trees)
       std::printf("  tree %d: %llu bytes received, %llu bytes sent, merge %.1f ms, levels %.2f s\n", t,
                   (unsigned long long)tf.bytes_received, (unsigned long long)tf.bytes_sent, tf.merge * 1e3,
@@ -391,7 +436,10 @@ int main(int argc, char** argv) {
         f.merge * 1e3, f.identical ? "yes" : "NO");
     PrintBreakdown(f, engine.cpu);
     std::fflush(stdout);
-  }
+    return 0;
+  };
+  for (const auto& [n, sm] : plan)
+    if (int rc = run_service(n, sm, runs[{n, sm}], true); rc != 0) return rc;
 
   if (!csv_path.empty()) {
     std::ofstream csv(csv_path);
@@ -435,8 +483,31 @@ int main(int argc, char** argv) {
   std::printf(
       "2 workers vs engine, wall per worker: %.2f (evaluations/s / 2 workers / engine evaluations/s)\n",
       (double(engine.evaluations) / two.wall / 2) / (double(engine.evaluations) / engine.wall));
+  PrintWhy(two, engine.cpu, head_n, subtree_max > 0 ? uint64_t(subtree_max) : 0);
+  // --repeat: more (engine, headline run) pairs, one after the other, and the median ratio (a
+  // loaded machine's CPU seconds vary from run to run by more than the overhead measured).
+  std::vector<double> ratios = {engine.cpu / two.cpu};
+  for (int r = 1; r < repeat; ++r) {
+    RunFigures e, f;
+    if (int rc = run_engine(e, false); rc != 0) return rc;
+    if (int rc = run_service(head_n, subtree_max > 0 ? uint64_t(subtree_max) : 0, f, false); rc != 0) return rc;
+    ok = ok && e.identical && f.identical && f.evaluations == e.evaluations;
+    ratios.push_back(e.cpu / f.cpu);
+    std::printf("repeat %d: engine %.2f CPU s, service %.2f CPU s (coordinator %.2f, workers %.2f), ratio %.3f, "
+                "load average %.1f\n",
+                r + 1, e.cpu, f.cpu, f.coordinator_cpu, f.workers_cpu, ratios.back(), LoadAverage());
+    std::fflush(stdout);
+  }
+  std::vector<double> sorted = ratios;
+  std::sort(sorted.begin(), sorted.end());
+  const double median = sorted.size() % 2 ? sorted[sorted.size() / 2]
+                                          : (sorted[sorted.size() / 2 - 1] + sorted[sorted.size() / 2]) / 2;
+  if (repeat > 1)
+    std::printf("ratio over %d pairs: median %.3f, min %.3f, max %.3f\n", repeat, median, sorted.front(),
+                sorted.back());
   if (!ok) std::printf("WARNING: a service run differs from the engine (forest bytes or evaluation count)\n");
-  std::printf("distributed/engine per core: %.3f ratio\n",
-              double(engine.evaluations) / two.cpu / engine_per_cpu);
+  // Same evaluations in both (checked): the ratio of evaluations per CPU-second is engine CPU /
+  // service CPU.
+  std::printf("distributed/engine per core: %.3f ratio\n", median);
   return ok ? 0 : 1;
 }

@@ -31,9 +31,11 @@ bool WantsSplit(const worker::TrainParams& params, int depth, std::span<const ui
 
 struct Open {
   uint32_t sample_node;  ///< where its samples sit in the SampleSet
-  uint32_t local;        ///< index in the subtree (TreeAssembler)
+  uint32_t local;        ///< index in its root's subtree (TreeAssembler)
   uint64_t position;
   std::vector<uint64_t> parts;
+  size_t root;  ///< index in the roots
+  int depth;
 };
 
 }  // namespace
@@ -43,26 +45,45 @@ Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sam
                                    std::span<const uint64_t> root_parts, worker::HistogramBuilder& builder) {
   if (root_parts.size() != size_t(core::kNumParts))
     return Status(ErrorCode::kInvalidArgument, "subtree root: part counts of the wrong length");
-  {
+  const SubtreeRoot root{root_sample_node, root_position, {root_parts.begin(), root_parts.end()}};
+  auto out = TrainSubtrees(samples, std::span<const SubtreeRoot>(&root, 1), params, tree, builder);
+  if (!out.ok()) return out.status();
+  return std::move((*out)[0]);
+}
+
+Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples, std::span<const SubtreeRoot> roots,
+                                                 const worker::TrainParams& params, int tree,
+                                                 worker::HistogramBuilder& builder) {
+  uint32_t next_sample_node = 0;  // children get fresh sample node ids, increasing in frontier order
+  std::vector<Open> frontier;
+  for (size_t r = 0; r < roots.size(); ++r) {
+    const SubtreeRoot& root = roots[r];
+    if (root.parts.size() != size_t(core::kNumParts))
+      return Status(ErrorCode::kInvalidArgument, "subtree root: part counts of the wrong length");
+    if (r > 0 && root.sample_node <= roots[r - 1].sample_node)
+      return Status(ErrorCode::kInternal, "subtree roots out of sample-node order");
     std::vector<uint64_t> have(static_cast<size_t>(core::kNumParts), 0);
-    const worker::NodeRange r = samples.RangeOf(root_sample_node);
-    if (r.end > r.begin) samples.CountParts(r, core::kNumParts, have.data());
-    if (!std::equal(have.begin(), have.end(), root_parts.begin()))
-      return Status(ErrorCode::kInvalidArgument, "subtree at position " + std::to_string(root_position) +
-                                                     ": " + std::to_string(r.end - r.begin) +
+    const worker::NodeRange range = samples.RangeOf(root.sample_node);
+    if (range.end > range.begin) samples.CountParts(range, core::kNumParts, have.data());
+    if (!std::equal(have.begin(), have.end(), root.parts.begin()))
+      return Status(ErrorCode::kInvalidArgument, "subtree at position " + std::to_string(root.position) + ": " +
+                                                     std::to_string(range.end - range.begin) +
                                                      " samples routed here, the coordinator counts " +
-                                                     std::to_string(Total(root_parts)));
+                                                     std::to_string(Total(root.parts)));
+    frontier.push_back({root.sample_node, 0, root.position, root.parts, r, worker::PositionDepth(root.position)});
+    next_sample_node = std::max(next_sample_node, root.sample_node + 1);
   }
-  SubtreeOutput out;
+  for (const worker::NodeRange& range : samples.ranges())
+    next_sample_node = std::max(next_sample_node, range.node + 1);
+  std::vector<SubtreeOutput> out(roots.size());
   const uint64_t evals_before = builder.evaluations();
-  TreeAssembler assembler(core::kNumParts);
+  std::vector<TreeAssembler> assemblers(roots.size(), TreeAssembler(core::kNumParts));
   const int t_count = params.thresholds_per_feature;
   const int cut_stride = worker::CutStride(t_count);
-  std::vector<Open> frontier{{root_sample_node, 0, root_position, {root_parts.begin(), root_parts.end()}}};
-  for (int depth = worker::PositionDepth(root_position); !frontier.empty(); ++depth) {
+  while (!frontier.empty()) {
     std::vector<size_t> to_split;
     for (size_t i = 0; i < frontier.size(); ++i)
-      if (WantsSplit(params, depth, frontier[i].parts)) to_split.push_back(i);
+      if (WantsSplit(params, frontier[i].depth, frontier[i].parts)) to_split.push_back(i);
     std::vector<SplitChoice> choices(frontier.size());
     std::vector<core::FeatureOffsets> chosen(frontier.size());
     std::vector<uint8_t> is_split(frontier.size(), 0);
@@ -111,6 +132,8 @@ Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sam
         const worker::NodePlan& plan = f ? fused[j] : normal[j];
         const worker::NodeHistogram& hist = f ? fused_hists[j] : normal_hists[j];
         const size_t fi = to_split[b0 + p];
+        // Every node tried is binned once over all its samples and candidates.
+        out[frontier[fi].root].evaluations += plan.num_samples * uint64_t(plan.features.size());
         choices[fi] = FindBestSplit(hist, plan, frontier[fi].parts);
         if (choices[fi].valid && choices[fi].gain >= params.min_gain) {
           is_split[fi] = 1;
@@ -119,11 +142,12 @@ Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sam
       }
       b0 = b1;
     }
-    // Decide in node order: the subtree's breadth-first layout.
+    // Decide in node order: each subtree's breadth-first layout.
     std::vector<Open> next;
     std::vector<worker::SampleSet::Split> splits;
     for (size_t i = 0; i < frontier.size(); ++i) {
       Open& f = frontier[i];
+      TreeAssembler& assembler = assemblers[f.root];
       SubtreeNode n;
       n.position = f.position;
       n.parts = f.parts;
@@ -136,17 +160,22 @@ Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sam
         n.cut = c.cut;
         n.gain = c.gain;
         const uint32_t left = assembler.MakeSplit(f.local, chosen[i], c.cut);
-        splits.push_back({f.sample_node, chosen[i], c.cut, left});
-        next.push_back({left, left, worker::LeftChildPosition(f.position), c.left_parts});
-        next.push_back({left + 1, left + 1, worker::RightChildPosition(f.position), c.right_parts});
+        const uint32_t left_node = next_sample_node;
+        next_sample_node += 2;
+        splits.push_back({f.sample_node, chosen[i], c.cut, left_node});
+        next.push_back({left_node, left, worker::LeftChildPosition(f.position), c.left_parts, f.root, f.depth + 1});
+        next.push_back(
+            {left_node + 1, left + 1, worker::RightChildPosition(f.position), c.right_parts, f.root, f.depth + 1});
       }
-      out.nodes.push_back(std::move(n));
+      out[f.root].nodes.push_back(std::move(n));
     }
     samples.ApplySplits(splits, params.constants, params.threads > 0 ? params.threads : 1);
     frontier.swap(next);
   }
-  out.tree = assembler.Finish();
-  out.evaluations = builder.evaluations() - evals_before;
+  uint64_t evaluations = 0;
+  for (size_t r = 0; r < roots.size(); ++r) out[r].tree = assemblers[r].Finish(), evaluations += out[r].evaluations;
+  if (evaluations != builder.evaluations() - evals_before)
+    return Status(ErrorCode::kInternal, "subtree evaluations do not add up to the histogram builder's");
   return out;
 }
 

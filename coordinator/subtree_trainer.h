@@ -45,6 +45,22 @@ core::Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t ro
                                          std::span<const uint64_t> root_parts,
                                          worker::HistogramBuilder& builder);
 
+/// One root of TrainSubtrees.
+struct SubtreeRoot {
+  uint32_t sample_node = 0;  ///< where its samples sit in the SampleSet
+  uint64_t position = 0;     ///< heap position in the tree (depth PositionDepth of it)
+  std::vector<uint64_t> parts;  ///< kNumParts counts, checked against the samples
+};
+
+/// Several subtrees of tree `tree` trained together on one SampleSet (a worker's batch of
+/// SubtreeTasks: one set of frames, histogram batches shared): outputs[r] is exactly
+/// TrainSubtree's for roots[r] alone. Roots in increasing sample_node order; samples of other
+/// nodes are ignored. InvalidArgument naming the root whose counts do not match its samples.
+core::Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
+                                                       std::span<const SubtreeRoot> roots,
+                                                       const worker::TrainParams& params, int tree,
+                                                       worker::HistogramBuilder& builder);
+
 /// Checks a subtree received from elsewhere: nodes[0] is `root_position` with `root_parts`;
 /// every split's children follow in TreeAssembler order at positions 2p + 1 / 2p + 2 with part
 /// counts that sum to the parent's; no split beyond max_depth or below min_samples_split or

@@ -122,6 +122,40 @@ void SampleSet::StartTree(uint32_t root) {
   if (!x_.empty()) ranges_.push_back({root, 0, x_.size()});
 }
 
+void SampleSet::StartTree(std::span<const uint32_t> node_of_sample) {
+  POSEFOREST_CHECK(node_of_sample.size() == x_.size());
+  // A stable counting sort by node.
+  std::vector<uint32_t> nodes(node_of_sample.begin(), node_of_sample.end());
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  std::vector<uint64_t> start(nodes.size() + 1, 0);
+  for (uint32_t n : node_of_sample)
+    ++start[size_t(std::lower_bound(nodes.begin(), nodes.end(), n) - nodes.begin()) + 1];
+  for (size_t k = 0; k < nodes.size(); ++k) start[k + 1] += start[k];
+  ranges_.clear();
+  for (size_t k = 0; k < nodes.size(); ++k) ranges_.push_back({nodes[k], start[k], start[k + 1]});
+  std::vector<uint32_t> frame(x_.size()), base(x_.size());
+  std::vector<int16_t> x(x_.size()), y(x_.size());
+  std::vector<float> scale(x_.size());
+  std::vector<uint8_t> part(x_.size());
+  for (size_t i = 0; i < x_.size(); ++i) {
+    const size_t k = size_t(std::lower_bound(nodes.begin(), nodes.end(), node_of_sample[i]) - nodes.begin());
+    const uint64_t o = start[k]++;
+    frame[o] = frame_[i];
+    base[o] = base_[i];
+    x[o] = x_[i];
+    y[o] = y_[i];
+    scale[o] = scale_[i];
+    part[o] = part_[i];
+  }
+  frame_.swap(frame);
+  base_.swap(base);
+  x_.swap(x);
+  y_.swap(y);
+  scale_.swap(scale);
+  part_.swap(part);
+}
+
 NodeRange SampleSet::RangeOf(uint32_t node) const {
   auto it = std::lower_bound(ranges_.begin(), ranges_.end(), node,
                              [](const NodeRange& r, uint32_t n) { return r.node < n; });

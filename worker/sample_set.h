@@ -47,6 +47,9 @@ class SampleSet {
   void Reserve(size_t frames, size_t pixels, size_t samples);
   /// Puts every sample in node `root` (call once after the last AddFrame).
   void StartTree(uint32_t root = 0);
+  /// Puts sample i in node `node_of_sample[i]` (one entry per sample), keeping the (frame,
+  /// pixel) order inside each node: several roots in one set (a worker's batch of subtrees).
+  void StartTree(std::span<const uint32_t> node_of_sample);
 
   size_t num_samples() const { return x_.size(); }
   size_t num_frames() const { return frames_.size(); }

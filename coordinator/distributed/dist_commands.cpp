@@ -346,12 +346,15 @@ int CoordinatorMain(int argc, char** argv) {
 }
 
 int WorkerMain(int argc, char** argv) {
-  Args args(WithDdsOptions({"domain", "threads", "job", "id"}), {"stay", "exit-with-parent", "check-config", "help"});
+  Args args(WithDdsOptions({"domain", "threads", "job", "id", "task-cache-mb"}),
+            {"stay", "exit-with-parent", "check-config", "help"});
   if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
     if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
     std::fprintf(stderr,
                  "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--id NAME] [DDS transport flags]\n"
                  "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n"
+                 "         [--task-cache-mb M]   (frames of other shards kept between subtree tasks of a\n"
+                 "          tree, least recently used dropped first; default 256)\n"
                  "         [--check-config]   (parse the flags, load the XML profile and the security files,\n"
                  "          print what would run and exit 0, without joining DDS; 2 on a bad setting)\n"
                  "%s",
@@ -360,12 +363,14 @@ int WorkerMain(int argc, char** argv) {
   }
   auto domain = args.GetInt("domain", 0, 0, 232);
   auto threads = args.GetInt("threads", 1, 1, 1024);
+  auto task_cache_mb = args.GetInt("task-cache-mb", 256, 0, 1 << 20);
   auto dds_flags = ParseDdsFlags(args);
-  if (!domain.ok() || !threads.ok() || !dds_flags.ok()) {
+  if (!domain.ok() || !threads.ok() || !task_cache_mb.ok() || !dds_flags.ok()) {
     std::fprintf(stderr, "worker: %s\n",
-                 (!domain.ok()    ? domain.status()
-                  : !threads.ok() ? threads.status()
-                                  : dds_flags.status())
+                 (!domain.ok()           ? domain.status()
+                  : !threads.ok()        ? threads.status()
+                  : !task_cache_mb.ok()  ? task_cache_mb.status()
+                                         : dds_flags.status())
                      .message()
                      .c_str());
     return 2;
@@ -384,6 +389,7 @@ int WorkerMain(int argc, char** argv) {
   opt.domain = uint32_t(*domain);
   opt.transport = dds_flags->transport;
   opt.threads = int(*threads);
+  opt.task_cache_bytes = uint64_t(*task_cache_mb) << 20;
   opt.job_id = args.GetOr("job", "");
   opt.exit_when_done = !args.Has("stay");
   dist::DistWorker worker(opt);

@@ -4,6 +4,7 @@
 // coordinator restart. Workers on threads, real DDS participants over shared memory.
 
 #include <catch2/catch.hpp>
+#include <cstring>
 #include <filesystem>
 
 #include "coordinator/subtree_trainer.h"
@@ -266,4 +267,68 @@ TEST_CASE("a SubtreeTask's listed samples are checked against the frame's sample
   CHECK(absent.code() == core::ErrorCode::kInvalidArgument);
   CHECK_THAT(absent.message(), Catch::Contains("frame 7: pixel 3 is not one of its sampled pixels"));
   CHECK_FALSE(select({13}).ok());  // past the last sampled pixel
+}
+
+TEST_CASE("TrainSubtrees: several roots in one sample set give each root's TrainSubtree result",
+          "[distributed][unit]") {
+  const Job job = ParseJob(TinyJobText(1, 8, 0));
+  const worker::TrainParams& p = job.params;
+  auto source = worker::MakeImageSource(p.source);
+  REQUIRE(source.ok());
+  // Root A: the samples of the even frames, at heap position 3; root B: the odd frames', at 5.
+  worker::SampleSet all, even, odd;
+  std::vector<uint32_t> node_of_sample;
+  std::vector<uint64_t> parts_a(size_t(core::kNumParts), 0), parts_b(size_t(core::kNumParts), 0);
+  for (uint64_t i = 0; i < 12; ++i) {
+    auto frame = (*source)->Frame(i);
+    REQUIRE(frame.ok());
+    const auto picked = worker::SamplePixels(*frame, p.pixels_per_image, p.part_balance,
+                                             core::CounterRng(p.seed, 0, i, worker::kSamplingStream));
+    if (picked.empty()) continue;
+    all.AddFrame(i, frame->depth, picked, p.constants);
+    (i % 2 ? odd : even).AddFrame(i, frame->depth, picked, p.constants);
+    for (const worker::PixelSample& s : picked) {
+      node_of_sample.push_back(uint32_t(i % 2));
+      ++(i % 2 ? parts_b : parts_a)[s.part];
+    }
+  }
+  all.StartTree(node_of_sample);
+  even.StartTree(0);
+  odd.StartTree(0);
+  REQUIRE(all.RangeOf(0).end - all.RangeOf(0).begin == even.num_samples());
+  REQUIRE(all.RangeOf(1).end - all.RangeOf(1).begin == odd.num_samples());
+  worker::HistogramBuilder b1(p.constants, 1), b2(p.constants, 1), b3(p.constants, 1);
+  auto a = coordinator::TrainSubtree(even, 0, p, 0, 3, parts_a, b1);
+  auto b = coordinator::TrainSubtree(odd, 0, p, 0, 5, parts_b, b2);
+  REQUIRE(a.ok());
+  REQUIRE(b.ok());
+  // Counts that do not match a root's samples: an error naming that root (checked before any
+  // training, so `all` is untouched).
+  std::vector<uint64_t> off_by_one = parts_b;
+  ++off_by_one[0];
+  const std::vector<coordinator::SubtreeRoot> wrong = {{0, 3, parts_a}, {1, 5, off_by_one}};
+  auto bad = coordinator::TrainSubtrees(all, wrong, p, 0, b3);
+  CHECK_FALSE(bad.ok());
+  CHECK_THAT(bad.status().message(), Catch::Contains("position 5"));
+  const std::vector<coordinator::SubtreeRoot> roots = {{0, 3, parts_a}, {1, 5, parts_b}};
+  auto both = coordinator::TrainSubtrees(all, roots, p, 0, b3);
+  INFO(both.status().ToString());
+  REQUIRE(both.ok());
+  REQUIRE(both->size() == 2);
+  for (const auto& [one, together] : {std::pair{&*a, &(*both)[0]}, std::pair{&*b, &(*both)[1]}}) {
+    CHECK(one->nodes.size() > 3);  // a real subtree, deeper than one split
+    REQUIRE(one->nodes.size() == together->nodes.size());
+    for (size_t n = 0; n < one->nodes.size(); ++n) {
+      CHECK(one->nodes[n].position == together->nodes[n].position);
+      CHECK(one->nodes[n].split == together->nodes[n].split);
+      CHECK(one->nodes[n].cut == together->nodes[n].cut);
+      CHECK(one->nodes[n].parts == together->nodes[n].parts);
+    }
+    REQUIRE(one->tree.nodes.size() == together->tree.nodes.size());
+    CHECK(std::memcmp(one->tree.nodes.data(), together->tree.nodes.data(),
+                      one->tree.nodes.size() * sizeof(core::Node)) == 0);
+    CHECK(one->tree.leaves == together->tree.leaves);
+    CHECK(one->evaluations == together->evaluations);
+  }
+  CHECK(b3.evaluations() == b1.evaluations() + b2.evaluations());
 }

@@ -581,9 +581,13 @@ struct DistWorker::Impl {
   /// the shard's cache or the task cache, else rendered and then kept in the task cache), the
   /// node's samples (listed in the task, else every sample of the frames routed along the
   /// task's path), then TrainSubtree (the engine's own loop and keys).
-  Status RunSubtree(const v1::SubtreeTask& task) {
+  /// Checks a SubtreeTask; `*wanted`: the tree-local frames it needs (its sample frames when it
+  /// lists its samples, else its ranges' frames), ascending.
+  Status CheckTask(const v1::SubtreeTask& task, std::vector<uint64_t>* wanted_out) {
     const uint64_t ipt = uint64_t(params.images_per_tree);
     const int t = int(task.tree());
+    std::vector<uint64_t>& wanted = *wanted_out;
+    wanted.clear();
     if (task.tree() >= uint32_t(params.num_trees))
       return Status(ErrorCode::kInvalidArgument, "tree out of range");
     if (task.part_counts_size() != core::kNumParts)
@@ -592,7 +596,6 @@ struct DistWorker::Impl {
         worker::PositionDepth(task.position()) != int(task.depth()) || int(task.depth()) > params.max_depth)
       return Status(ErrorCode::kInvalidArgument, "position " + std::to_string(task.position()) +
                                                      " is not at depth " + std::to_string(task.depth()));
-    std::vector<uint64_t> wanted;
     for (const auto& r : task.ranges()) {
       if (r.seed() != params.source.seed)
         return Status(ErrorCode::kInvalidArgument, "image range of another seed");
@@ -627,49 +630,74 @@ struct DistWorker::Impl {
         wanted.push_back(f);
       }
     }
+    return Status::Ok();
+  }
+
+  /// The frames `wanted` (ascending) of tree `t` for subtree tasks: from the shard's cache or the
+  /// task cache, else rendered (into `*loaded`, parallel to `*missing`; the caller puts them in
+  /// the task cache once done). `*src`: each wanted frame.
+  Status TaskFrames(int t, const std::vector<uint64_t>& wanted, std::vector<uint64_t>* missing,
+                    std::vector<FrameData>* loaded, std::vector<const FrameData*>* src) {
+    if (task_cache.tree != t) task_cache.Clear(t);
+    const bool own = t == tree;
+    missing->clear();
+    for (uint64_t i : wanted)
+      if (!(own && cache.count(i)) && !task_cache.Has(i)) missing->push_back(i);
+    cpu.task_frames += missing->size();
+    cpu.task_frames_cached += wanted.size() - missing->size();
+    {
+      CpuTimer timer(&cpu.subtree_render);
+      Status st;
+      if (missing->size() >= 4 * size_t(params.threads) && params.threads > 1) {
+        const int saved_tree = tree;
+        tree = t;  // LoadFrames keys the frames by `tree`
+        st = LoadFrames(*missing, loaded, &cpu.subtree_render);
+        tree = saved_tree;
+      } else {
+        st = RenderHere(t, *missing, loaded);
+      }
+      if (!st.ok()) return st;
+      frames_rendered += missing->size();
+    }
+    src->assign(wanted.size(), nullptr);
+    for (size_t e = 0, next_loaded = 0; e < wanted.size(); ++e) {
+      const uint64_t i = wanted[e];
+      if (next_loaded < missing->size() && (*missing)[next_loaded] == i)
+        (*src)[e] = &(*loaded)[next_loaded++];
+      else
+        (*src)[e] = own && cache.count(i) ? &cache.at(i) : task_cache.Find(i);
+    }
+    return Status::Ok();
+  }
+
+  /// Rendered task frames into the task cache (within its cap) for the tree's later tasks.
+  void KeepTaskFrames(const std::vector<uint64_t>& missing, std::vector<FrameData>& loaded) {
+    for (size_t j = 0; j < missing.size(); ++j) task_cache.Put(missing[j], std::move(loaded[j]));
+    cpu.task_cache_peak_bytes = std::max(cpu.task_cache_peak_bytes, task_cache.peak_bytes);
+    cpu.task_cache_evictions = task_cache.evictions;
+  }
+
+  Status RunSubtree(const v1::SubtreeTask& task) {
+    const int t = int(task.tree());
+    std::vector<uint64_t> wanted;
+    POSEFOREST_RETURN_IF_ERROR(CheckTask(task, &wanted));
+    const bool listed = Listed(task);
     const double t0 = NowSeconds();
     busy = true;
     struct Idle {
       std::atomic<bool>& busy;
       ~Idle() { busy = false; }
     } idle{busy};
-    if (task_cache.tree != t) task_cache.Clear(t);
-    const bool own = t == tree;
-    std::vector<uint64_t> missing;
-    for (uint64_t i : wanted)
-      if (!(own && cache.count(i)) && !task_cache.Has(i)) missing.push_back(i);
     ++cpu.subtree_tasks;
-    cpu.task_frames += missing.size();
-    cpu.task_frames_cached += wanted.size() - missing.size();
+    std::vector<uint64_t> missing;
     std::vector<FrameData> loaded;
-    {
-      CpuTimer timer(&cpu.subtree_render);
-      Status st;
-      if (missing.size() >= 4 * size_t(params.threads) && params.threads > 1) {
-        const int saved_tree = tree;
-        tree = t;  // LoadFrames keys the frames by `tree`
-        st = LoadFrames(missing, &loaded, &cpu.subtree_render);
-        tree = saved_tree;
-      } else {
-        st = RenderHere(t, missing, &loaded);
-      }
-      if (!st.ok()) return st;
-      frames_rendered += missing.size();
-    }
+    std::vector<const FrameData*> src;
+    POSEFOREST_RETURN_IF_ERROR(TaskFrames(t, wanted, &missing, &loaded, &src));
     std::optional<CpuTimer> route_timer(&cpu.subtree_route);
     worker::SampleSet set;
     {
-      std::vector<const FrameData*> src(wanted.size());
       size_t pixels = 0, picked = 0;
-      for (size_t e = 0, next_loaded = 0; e < wanted.size(); ++e) {
-        const uint64_t i = wanted[e];
-        if (next_loaded < missing.size() && missing[next_loaded] == i)
-          src[e] = &loaded[next_loaded++];
-        else
-          src[e] = own && cache.count(i) ? &cache.at(i) : task_cache.Find(i);
-        pixels += src[e]->depth.pixels.size();
-        picked += src[e]->picked.size();
-      }
+      for (const FrameData* f : src) pixels += f->depth.pixels.size(), picked += f->picked.size();
       set.Reserve(wanted.size(), pixels, listed ? size_t(task.expected_samples()) : picked);
       size_t delta_at = 0;
       std::vector<worker::PixelSample> chosen;
@@ -688,10 +716,8 @@ struct DistWorker::Impl {
         if (!chosen.empty()) set.AddFrame(i, f->depth, chosen, params.constants);
       }
     }
-    // Rendered frames are kept (within the cache's cap) for the tree's later tasks.
-    for (size_t j = 0; j < missing.size(); ++j) task_cache.Put(missing[j], std::move(loaded[j]));
-    cpu.task_cache_peak_bytes = std::max(cpu.task_cache_peak_bytes, task_cache.peak_bytes);
-    cpu.task_cache_evictions = task_cache.evictions;
+    src.clear();
+    KeepTaskFrames(missing, loaded);
     set.StartTree(0);
     // Without a sample list: route along the ancestors' splits; the side not taken is dropped
     // at every step.
@@ -713,6 +739,14 @@ struct DistWorker::Impl {
     train_timer.reset();
     busy = false;
     if (!out.ok()) return out.status();
+    return SendResult(task, *out, t0, routed.end - routed.begin, wanted.size(), missing.size());
+  }
+
+  /// Sends the SubtreeResult of `task` (+ the progress lines); t0: when the task started.
+  Status SendResult(const v1::SubtreeTask& task, const coordinator::SubtreeOutput& result, double t0,
+                    uint64_t num_samples, size_t num_frames, size_t rendered) {
+    const int t = int(task.tree());
+    const coordinator::SubtreeOutput* out = &result;
     std::optional<CpuTimer> encode_timer(&cpu.subtree_encode);
     v1::Envelope env;
     v1::SubtreeResult* res = env.mutable_subtree_result();
@@ -757,8 +791,8 @@ struct DistWorker::Impl {
     subtree_s += NowSeconds() - t0;
     if (subtree_done == 1)
       Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(task.position()) + " (" +
-          std::to_string(routed.end - routed.begin) + " samples from " + std::to_string(wanted.size()) +
-          " frames, " + std::to_string(missing.size()) + " rendered) -> " +
+          std::to_string(num_samples) + " samples from " + std::to_string(num_frames) + " frames, " +
+          std::to_string(rendered) + " rendered) -> " +
           std::to_string(out->nodes.size()) + " nodes in " + std::to_string(NowSeconds() - t0) + " s");
     else if (subtree_done % 100 == 0)
       Log("tree " + std::to_string(t) + ": " + std::to_string(subtree_done) + " subtrees trained so far (" +
@@ -768,6 +802,125 @@ struct DistWorker::Impl {
     encode_timer.reset();
     (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
     return Publish(Topic::kReplies, env);
+  }
+
+  /// SubtreeTasks of one tree that all list their samples, trained together: one SampleSet of
+  /// the union of their frames (each frame copied once), the node of each task a root of
+  /// TrainSubtrees (the same subtrees as one by one), one SubtreeResult each. A task that fails
+  /// its checks is dropped (logged); if the batch as a whole fails, the tasks run one by one.
+  void RunSubtreeBatch(const std::vector<v1::Envelope>& batch, const std::string& sender) {
+    auto drop = [&](const v1::SubtreeTask& task, const Status& st) {
+      Log("dropped SubtreeTask (position " + std::to_string(task.position()) + ") from " + sender + ": " +
+          st.ToString());
+    };
+    std::vector<const v1::SubtreeTask*> tasks;
+    std::vector<std::vector<uint64_t>> wanted_of;
+    for (const v1::Envelope& env : batch) {
+      std::vector<uint64_t> w;
+      if (Status st = CheckTask(env.subtree_task(), &w); !st.ok()) {
+        drop(env.subtree_task(), st);
+        continue;
+      }
+      tasks.push_back(&env.subtree_task());
+      wanted_of.push_back(std::move(w));
+    }
+    if (tasks.empty()) return;
+    const int t = int(tasks[0]->tree());
+    const double t0 = NowSeconds();
+    busy = true;
+    struct Idle {
+      std::atomic<bool>& busy;
+      ~Idle() { busy = false; }
+    } idle{busy};
+    cpu.subtree_tasks += tasks.size();
+    ++cpu.subtree_batches;
+    // The union of the tasks' frames; per frame, which tasks list samples there and where.
+    std::map<uint64_t, std::vector<std::pair<size_t, size_t>>> users;  // frame -> (task, entry)
+    for (size_t k = 0; k < tasks.size(); ++k)
+      for (size_t e = 0; e < wanted_of[k].size(); ++e) users[wanted_of[k][e]].push_back({k, e});
+    std::vector<uint64_t> wanted;
+    for (const auto& [frame, u] : users) wanted.push_back(frame);
+    std::vector<uint64_t> missing;
+    std::vector<FrameData> loaded;
+    std::vector<const FrameData*> src;
+    auto one_by_one = [&](const Status& why) {
+      Log("a batch of " + std::to_string(tasks.size()) + " subtree tasks failed (" + why.ToString() +
+          "): one by one");
+      cpu.subtree_tasks -= tasks.size();
+      --cpu.subtree_batches;
+      for (const v1::SubtreeTask* task : tasks)
+        if (Status st = RunSubtree(*task); !st.ok()) drop(*task, st);
+    };
+    if (Status st = TaskFrames(t, wanted, &missing, &loaded, &src); !st.ok()) return one_by_one(st);
+    std::optional<CpuTimer> route_timer(&cpu.subtree_route);
+    // Where each task's pixel list of each frame starts.
+    std::vector<std::vector<size_t>> delta_at(tasks.size());
+    for (size_t k = 0; k < tasks.size(); ++k) {
+      delta_at[k].resize(size_t(tasks[k]->sample_counts_size()));
+      for (size_t e = 0, at = 0; e < delta_at[k].size(); at += tasks[k]->sample_counts(int(e)), ++e)
+        delta_at[k][e] = at;
+    }
+    worker::SampleSet set;
+    std::vector<uint32_t> node_of_sample;
+    {
+      size_t pixels = 0, samples_total = 0;
+      for (const FrameData* f : src) pixels += f->depth.pixels.size();
+      for (const v1::SubtreeTask* task : tasks) samples_total += size_t(task->expected_samples());
+      set.Reserve(wanted.size(), pixels, samples_total);
+      node_of_sample.reserve(samples_total);
+      std::vector<worker::PixelSample> chosen, merged;
+      std::vector<std::pair<uint64_t, uint32_t>> order;  // (pixel index, task) of `merged`
+      for (size_t w = 0; w < wanted.size(); ++w) {
+        const FrameData* f = src[w];
+        merged.clear();
+        order.clear();
+        for (const auto& [k, e] : users[wanted[w]]) {
+          const uint32_t count = tasks[k]->sample_counts(int(e));
+          const Status st = SelectListedSamples(
+              f->picked, f->depth.width, wanted[w],
+              std::span<const uint32_t>(tasks[k]->sample_pixel_deltas().data() + delta_at[k][e], count), &chosen);
+          if (!st.ok()) {
+            route_timer.reset();
+            src.clear();
+            KeepTaskFrames(missing, loaded);
+            return one_by_one(st);
+          }
+          for (const worker::PixelSample& p : chosen) {
+            order.push_back({uint64_t(p.y) * uint64_t(f->depth.width) + uint64_t(p.x), uint32_t(k)});
+            merged.push_back(p);
+          }
+        }
+        // One frame's samples in pixel order (as SamplePixels gives them), each tagged with its task.
+        std::vector<size_t> idx(merged.size());
+        for (size_t j = 0; j < idx.size(); ++j) idx[j] = j;
+        std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return order[a] < order[b]; });
+        std::vector<worker::PixelSample> sorted;
+        sorted.reserve(merged.size());
+        for (size_t j : idx) sorted.push_back(merged[j]), node_of_sample.push_back(order[j].second);
+        if (!sorted.empty()) set.AddFrame(wanted[w], f->depth, sorted, params.constants);
+      }
+    }
+    src.clear();
+    KeepTaskFrames(missing, loaded);
+    set.StartTree(node_of_sample);
+    std::vector<coordinator::SubtreeRoot> roots(tasks.size());
+    for (size_t k = 0; k < tasks.size(); ++k) {
+      roots[k].sample_node = uint32_t(k);
+      roots[k].position = tasks[k]->position();
+      roots[k].parts.assign(tasks[k]->part_counts().begin(), tasks[k]->part_counts().end());
+    }
+    route_timer.reset();
+    std::optional<CpuTimer> train_timer(&cpu.subtree_train);
+    auto out = coordinator::TrainSubtrees(set, roots, params, t, *builder);
+    train_timer.reset();
+    if (!out.ok()) return one_by_one(out.status());
+    busy = false;
+    for (size_t k = 0; k < tasks.size(); ++k) {
+      uint64_t n = 0;
+      for (uint64_t c : roots[k].parts) n += c;
+      if (Status st = SendResult(*tasks[k], (*out)[k], t0, n, wanted_of[k].size(), missing.size()); !st.ok())
+        drop(*tasks[k], st);
+    }
   }
 
   void OnSample(const dds::ReceivedSample& s) {
@@ -781,7 +934,52 @@ struct DistWorker::Impl {
     auto out = gate->Check(s.topic, s.bytes, s.writer_guid);
     gate_timer.reset();
     if (out.verdict != dds::MessageGate::Verdict::kAccepted) return;
-    const v1::Envelope& env = out.envelope;
+    Dispatch(out.envelope, out.sender);
+  }
+
+  /// Messages taken off DDS while collecting a batch of SubtreeTasks, handled next (in order).
+  struct Pending {
+    bool checked = false;       ///< passed the gate: env/sender; else a raw sample for OnSample
+    dds::ReceivedSample raw;
+    v1::Envelope env;
+    std::string sender;
+  };
+  std::deque<Pending> pending;
+
+  static bool Listed(const v1::SubtreeTask& t) { return t.sample_frames_size() > 0; }
+
+  /// After a SubtreeTask with a sample list: the tasks queued right behind it (the coordinator
+  /// sends a level's tasks in one burst) of the same tree, also listed, join `batch`; the first
+  /// other message is kept in `pending`. False: the test hook says die.
+  bool DrainTasks(std::vector<v1::Envelope>* batch) {
+    for (;;) {
+      std::optional<dds::ReceivedSample> more;
+      {
+        CpuTimer timer(&cpu.receive);
+        more = node->Receive(std::chrono::milliseconds(0));
+      }
+      if (!more) return true;
+      if (more->topic == Topic::kJob) {
+        pending.push_back({false, std::move(*more), {}, {}});
+        return true;
+      }
+      std::optional<CpuTimer> gate_timer(&cpu.receive);
+      auto out = gate->Check(more->topic, more->bytes, more->writer_guid);
+      gate_timer.reset();
+      if (out.verdict != dds::MessageGate::Verdict::kAccepted) continue;
+      if (out.envelope.body_case() == v1::Envelope::kSubtreeTask &&
+          out.envelope.subtree_task().tree() == batch->front().subtree_task().tree() &&
+          Listed(out.envelope.subtree_task())) {
+        if (opt.die_on_subtree_task && opt.die_on_subtree_task()) return false;
+        batch->push_back(std::move(out.envelope));
+        continue;
+      }
+      pending.push_back({true, {}, std::move(out.envelope), std::move(out.sender)});
+      return true;
+    }
+  }
+
+  void Dispatch(const v1::Envelope& env, const std::string& sender) {
     Status st;
     switch (env.body_case()) {
       case v1::Envelope::kShard:
@@ -804,6 +1002,18 @@ struct DistWorker::Impl {
           stop = true;
           return;
         }
+        if (Listed(env.subtree_task())) {
+          std::vector<v1::Envelope> batch{env};
+          if (!DrainTasks(&batch)) {
+            Log("test hook: dying with subtree tasks");
+            stop = true;
+            return;
+          }
+          if (batch.size() > 1) {
+            RunSubtreeBatch(batch, sender);
+            break;
+          }
+        }
         st = RunSubtree(env.subtree_task());
         break;
       case v1::Envelope::kStatus:
@@ -816,8 +1026,7 @@ struct DistWorker::Impl {
         break;
     }
     if (!st.ok())
-      Log(std::string("dropped ") + dds::BodyName(env.body_case()) + " from " + out.sender + ": " +
-          st.ToString());
+      Log(std::string("dropped ") + dds::BodyName(env.body_case()) + " from " + sender + ": " + st.ToString());
   }
 };
 
@@ -870,6 +1079,15 @@ Status DistWorker::Run() {
   participant_timer.reset();
   std::thread heartbeat([&] { impl.HeartbeatLoop(); });
   while (!stop_) {
+    if (!impl.pending.empty()) {  // taken off DDS while a batch of subtree tasks was collected
+      Impl::Pending p = std::move(impl.pending.front());
+      impl.pending.pop_front();
+      if (p.checked)
+        impl.Dispatch(p.env, p.sender);
+      else
+        impl.OnSample(p.raw);
+      continue;
+    }
     std::optional<dds::ReceivedSample> s;
     {
       CpuTimer timer(&impl.cpu.receive);

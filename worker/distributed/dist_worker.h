@@ -73,6 +73,7 @@ struct WorkerCpu {
   uint64_t task_frames = 0;     ///< frames rendered for SubtreeTasks
   uint64_t task_frames_cached = 0;  ///< task frames found in the shard or the task cache
   uint64_t subtree_tasks = 0;
+  uint64_t subtree_batches = 0;     ///< sets of several tasks trained together (one SampleSet)
   uint64_t task_cache_peak_bytes = 0;  ///< most bytes the task-frame cache held
   uint64_t task_cache_evictions = 0;   ///< frames dropped from it to stay under its cap
   /// The main thread's phases above (not process_at_start / run_total).
