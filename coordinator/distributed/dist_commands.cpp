@@ -22,6 +22,7 @@
 #include "coordinator/distributed/checkpoint_export.h"
 #include "coordinator/distributed/coordinator_monitoring.h"
 #include "coordinator/distributed/dist_coordinator.h"
+#include "coordinator/distributed/http_server.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
@@ -249,6 +250,21 @@ int CoordinatorMain(int argc, char** argv) {
       std::fprintf(stderr, "coordinator: --out %s: folder %s does not exist\n", args.Get("out")->c_str(),
                    out_dir.c_str());
       return 2;
+    }
+    if (const std::string http = args.GetOr("http", dist::kDefaultHttp); http != "off") {
+      dist::HttpServerOptions http_opt;
+      if (Status st = dist::ParseHttpAddress(http, &http_opt); !st.ok()) {
+        std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
+        return 2;
+      }
+    }
+    if (args.Has("event-log")) {
+      const auto log_dir = std::filesystem::absolute(*args.Get("event-log")).parent_path();
+      if (std::error_code ec; !std::filesystem::is_directory(log_dir, ec)) {
+        std::fprintf(stderr, "coordinator: --event-log %s: folder %s does not exist\n",
+                     args.Get("event-log")->c_str(), log_dir.c_str());
+        return 2;
+      }
     }
     std::printf("coordinator config ok: job %s (%s), %d trees of depth %d, %d images per tree; DDS domain %u, %s; "
                 "%d local workers%s; writes %s%s%s\n",

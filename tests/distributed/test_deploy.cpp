@@ -313,3 +313,64 @@ TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or
   CHECK(rc5 == 2);
   CHECK(text5.find("no participant profile 'poseforest_nope'") != std::string::npos);
 }
+
+namespace {
+/// tests/distributed/check_deploy_commands.py on `deploy` (a deploy/ folder).
+std::pair<int, std::string> CheckDeployCommands(const fs::path& deploy) {
+  return Run({"python3", (Source() / "tests/distributed/check_deploy_commands.py").string(), "--bin",
+              Program(), "--source", Source().string(), "--deploy", deploy.string()},
+             120s);
+}
+
+void Replace(const fs::path& file, const std::string& from, const std::string& to) {
+  std::string text = ReadText(file);
+  const size_t at = text.find(from);
+  REQUIRE(at != std::string::npos);
+  text.replace(at, from.size(), to);
+  std::ofstream(file) << text;
+}
+}  // namespace
+
+TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the real parser",
+          "[deploy][integration]") {
+  auto [rc, out] = CheckDeployCommands(Source() / "deploy");
+  INFO(out);
+  CHECK(rc == 0);
+  for (const char* what :
+       {"ok   deploy/docker/Dockerfile.coordinator: poseforest coordinator",
+        "ok   deploy/docker/Dockerfile.worker: poseforest worker",
+        "ok   deploy/docker/Dockerfile.discovery-server",
+        "ok   deploy/k8s/coordinator.yaml Deployment/coordinator",
+        "ok   deploy/k8s/workers.yaml StatefulSet/worker",
+        "ok   deploy/k8s/discovery-server.yaml Deployment/dds-discovery", "coordinator config ok",
+        "worker config ok: id worker-0", "Fast DDS XML profile poseforest_k8s", " 0 problems"})
+    CHECK(out.find(what) != std::string::npos);
+
+  // A manifest or image with a wrong flag, profile or value fails the check, naming it.
+  struct Mutation {
+    std::string file, from, to, expect;
+  };
+  const std::vector<Mutation> mutations = {
+      {"k8s/coordinator.yaml", "\"--checkpoint\", \"/var/lib/poseforest/checkpoint\"",
+       "\"--checkpoint-dir=/var/lib/poseforest/checkpoint\"", "unknown option --checkpoint-dir"},
+      {"k8s/workers.yaml", "value: poseforest_k8s", "value: poseforest_k9s",
+       "no participant profile 'poseforest_k9s'"},
+      {"k8s/workers.yaml", "\"--threads\", \"4\"", "\"--threads\", \"four\"", "--threads"},
+      {"k8s/coordinator.yaml", "/etc/poseforest/job.textproto", "/etc/poseforest/jobs.textproto",
+       "jobs.textproto"},
+      {"docker/Dockerfile.worker", "CMD [\"--stay\"]", "CMD [\"--stay\", \"--profile\", \"tcp\"]",
+       "expected shm, udp or default"},
+      {"docker/Dockerfile.coordinator", "POSEFOREST_DDS_PROFILE=poseforest_discovery_client",
+       "POSEFOREST_DDS_PROFILE=poseforest_discovery", "no participant profile 'poseforest_discovery'"},
+  };
+  for (const Mutation& m : mutations) {
+    TempDir dir("pf-deploy-mutant");
+    fs::copy(Source() / "deploy", dir.path / "deploy", fs::copy_options::recursive);
+    Replace(dir.path / "deploy" / m.file, m.from, m.to);
+    auto [mrc, mout] = CheckDeployCommands(dir.path / "deploy");
+    INFO(m.file << ": " << m.to << "\n" << mout);
+    CHECK(mrc == 1);
+    CHECK(mout.find("FAIL deploy/" + m.file) != std::string::npos);
+    CHECK(mout.find(m.expect) != std::string::npos);
+  }
+}

@@ -1,0 +1,305 @@
+#!/usr/bin/env python3
+"""Runs every poseforest command line of deploy/ through the real argument parser.
+
+  check_deploy_commands.py --bin build/bin/poseforest [--deploy DIR] [--source ROOT]
+
+Extracts the command lines a deployment would run:
+  - deploy/docker/Dockerfile.*: ENTRYPOINT + CMD (exec form) with the image's ENV;
+  - deploy/k8s/*.yaml: each container of a Deployment/StatefulSet/DaemonSet/Job/Pod: its
+    command/args (or the image's ENTRYPOINT/CMD; images are matched to Dockerfiles through the
+    `docker build -f deploy/docker/Dockerfile.X -t IMAGE` line in each Dockerfile), the image's
+    ENV overlaid with the container's env (fieldRef metadata.name -> "<name>-0"), $(VAR) expanded.
+and runs `poseforest <command> ARGS --check-config` (parses the flags, loads the job, the Fast DDS
+XML profile and the security files, exits 0 without joining DDS) inside a fake file-system root:
+absolute paths in arguments and environment values are moved under a temporary folder that holds
+what the container would see: files the Dockerfile COPYs from the repository, its VOLUMEs,
+ConfigMap data at their mountPaths, emptyDirs, Secrets filled with test DDS credentials from
+deploy/security/make-test-ca.sh, and for an image run without Kubernetes, the ConfigMap's job at
+/etc/poseforest/job.textproto (the documented mount). A command of another program (the
+discovery server) is checked to exist on PATH and listed.
+
+Exit 0 when every command passes; 1 naming each file, container and the parser's message.
+Needs python3-yaml (Debian).
+"""
+
+import argparse
+import glob
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import yaml
+
+WORKLOAD_KINDS = {"Deployment", "StatefulSet", "DaemonSet", "Job", "Pod", "ReplicaSet"}
+
+
+def dockerfile_instructions(path):
+    """(instruction, argument text) pairs, continuation lines joined, comments dropped."""
+    out, cur = [], ""
+    with open(path) as f:
+        for raw in f:
+            line = raw.rstrip("\n")
+            if not cur and (not line.strip() or line.lstrip().startswith("#")):
+                continue
+            if cur and line.lstrip().startswith("#"):  # comment inside a continued instruction
+                continue
+            if line.endswith("\\"):
+                cur += line[:-1] + " "
+                continue
+            cur += line
+            parts = cur.strip().split(None, 1)
+            out.append((parts[0].upper(), parts[1] if len(parts) > 1 else ""))
+            cur = ""
+    if cur.strip():
+        parts = cur.strip().split(None, 1)
+        out.append((parts[0].upper(), parts[1] if len(parts) > 1 else ""))
+    return out
+
+
+class Image:
+    def __init__(self, path):
+        self.path = path
+        self.name = None
+        self.entrypoint, self.cmd, self.env, self.copies, self.volumes = [], [], {}, [], []
+        self.errors = []
+        with open(path) as f:
+            m = re.search(r"docker build -f deploy/docker/(\S+) -t (\S+)", f.read())
+        if m:
+            if m.group(1) != os.path.basename(path):
+                self.errors.append(f"its docker build line names {m.group(1)}")
+            self.name = m.group(2).split(":")[0]
+        stage = 0
+        for ins, arg in dockerfile_instructions(path):
+            if ins == "FROM":
+                stage += 1
+                self.entrypoint, self.cmd, self.env, self.copies, self.volumes = [], [], {}, [], []
+            elif ins in ("ENTRYPOINT", "CMD"):
+                try:
+                    value = json.loads(arg)
+                except json.JSONDecodeError:
+                    self.errors.append(f"{ins} {arg}: use the exec form [\"prog\", \"arg\", ...]")
+                    continue
+                if ins == "ENTRYPOINT":
+                    self.entrypoint, self.cmd = value, []  # Docker: a new ENTRYPOINT resets CMD
+                else:
+                    self.cmd = value
+            elif ins == "ENV":
+                tokens = shlex.split(arg)
+                if tokens and "=" not in tokens[0]:  # legacy "ENV KEY value"
+                    self.env[tokens[0]] = " ".join(tokens[1:])
+                else:
+                    for t in tokens:
+                        k, _, v = t.partition("=")
+                        self.env[k] = re.sub(r"\$\{?(\w+)\}?", lambda mm: self.env.get(mm.group(1), ""), v)
+            elif ins == "COPY":
+                tokens = shlex.split(arg)
+                if any(t.startswith("--from") for t in tokens):
+                    continue  # build outputs: the binaries
+                tokens = [t for t in tokens if not t.startswith("--")]
+                for src in tokens[:-1]:
+                    self.copies.append((src, tokens[-1]))
+            elif ins == "VOLUME":
+                try:
+                    self.volumes += json.loads(arg)
+                except json.JSONDecodeError:
+                    self.volumes += arg.split()
+
+
+def fake_path(root, value):
+    """An absolute path moved under root; "--flag=/path" too; anything else unchanged."""
+    if value.startswith("/"):
+        return root + value
+    m = re.match(r"^(--[\w-]+=)(/.*)$", value)
+    if m:
+        return m.group(1) + root + m.group(2)
+    return value
+
+
+def place_image_files(image, root, source):
+    for src, dst in image.copies:
+        s = os.path.join(source, src)
+        d = root + dst
+        if dst.endswith("/") or os.path.isdir(s):
+            d = os.path.join(d, os.path.basename(src))
+        os.makedirs(os.path.dirname(d), exist_ok=True)
+        if os.path.isdir(s):
+            shutil.copytree(s, d, dirs_exist_ok=True)
+        elif os.path.exists(s):
+            shutil.copy(s, d)
+        else:
+            raise RuntimeError(f"COPY {src}: no such file in {source}")
+    for v in image.volumes:
+        os.makedirs(root + v, exist_ok=True)
+
+
+def run_check(binary, argv, env, root, label, source):
+    """argv: the container's command line (argv[0] a program name). Returns an error or None."""
+    if not argv:
+        return f"{label}: no command (no command/args and no image ENTRYPOINT)"
+    prog = os.path.basename(argv[0])
+    if prog != "poseforest":
+        if shutil.which(prog) is None:
+            return f"{label}: {prog} is not on PATH here (Debian: fastdds-tools for fast-discovery-server)"
+        print(f"ok   {label}: {' '.join(argv)}  (not a poseforest command: {prog} exists)")
+        return None
+    args = [fake_path(root, a) for a in argv[1:]]
+    full_env = {k: fake_path(root, v) for k, v in env.items() if k != "PATH"}
+    full_env["PATH"] = os.environ.get("PATH", "/usr/bin:/bin")
+    for k in ("POSEFOREST_DATA_DIR", "HOME"):
+        if k in os.environ:
+            full_env.setdefault(k, os.environ[k])
+    r = subprocess.run([binary] + args + ["--check-config"], env=full_env, cwd=root, capture_output=True, text=True,
+                       timeout=60)
+    text = (r.stdout + r.stderr).strip().replace(root, "")
+    shown = " ".join(argv)
+    if r.returncode != 0:
+        return f"{label}: `{shown}` (env {json.dumps(env)}) fails the parser (exit {r.returncode}):\n    " + \
+            text.replace("\n", "\n    ")
+    print(f"ok   {label}: {shown}\n     -> {text.splitlines()[-1] if text else ''}")
+    return None
+
+
+def make_credentials(dest, source, tmp):
+    """A test CA's credentials for one participant, all six files flat in dest (a Secret mount)."""
+    ca = os.path.join(tmp, "ca")
+    if not os.path.isdir(ca):
+        subprocess.run(["sh", os.path.join(source, "deploy/security/make-test-ca.sh"), ca, "participant"], check=True,
+                       capture_output=True)
+    os.makedirs(dest, exist_ok=True)
+    for f in ("identity_ca.pem", "permissions_ca.pem", "governance.p7s"):
+        shutil.copy(os.path.join(ca, f), dest)
+    for f in ("cert.pem", "key.pem", "permissions.p7s"):
+        shutil.copy(os.path.join(ca, "participant", f), dest)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bin", required=True, help="the built poseforest program")
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap.add_argument("--source", default=os.path.normpath(os.path.join(here, "..", "..")))
+    ap.add_argument("--deploy", default=None, help="deploy folder (default SOURCE/deploy)")
+    a = ap.parse_args()
+    binary = os.path.abspath(a.bin)
+    deploy = os.path.abspath(a.deploy or os.path.join(a.source, "deploy"))
+    errors, checked = [], 0
+
+    images = {}
+    dockerfiles = sorted(p for p in glob.glob(os.path.join(deploy, "docker", "Dockerfile.*"))
+                         if not p.endswith(".dockerignore"))
+    for p in dockerfiles:
+        img = Image(p)
+        label = os.path.relpath(p, os.path.dirname(deploy))
+        errors += [f"{label}: {e}" for e in img.errors]
+        if img.name is None:
+            errors.append(f"{label}: no `docker build -f deploy/docker/{os.path.basename(p)} -t IMAGE` line")
+        else:
+            images[img.name] = img
+
+    docs = []
+    for p in sorted(glob.glob(os.path.join(deploy, "k8s", "*.yaml"))):
+        try:
+            with open(p) as f:
+                docs += [(p, d) for d in yaml.safe_load_all(f) if d]
+        except yaml.YAMLError as e:
+            errors.append(f"{os.path.relpath(p, os.path.dirname(deploy))}: not valid YAML: {e}")
+    configmaps = {d["metadata"]["name"]: d.get("data", {}) for _, d in docs if d.get("kind") == "ConfigMap"}
+    job_text = next((data["job.textproto"] for data in configmaps.values() if "job.textproto" in data), None)
+
+    with tempfile.TemporaryDirectory(prefix="pf-deploy-check-") as tmp:
+        # The images as `docker run IMAGE` starts them (a job mounted at the documented place).
+        for name, img in images.items():
+            root = tempfile.mkdtemp(dir=tmp)
+            label = os.path.relpath(img.path, os.path.dirname(deploy))
+            try:
+                place_image_files(img, root, a.source)
+            except RuntimeError as e:
+                errors.append(f"{label}: {e}")
+                continue
+            if job_text is not None:
+                os.makedirs(root + "/etc/poseforest", exist_ok=True)
+                with open(root + "/etc/poseforest/job.textproto", "w") as f:
+                    f.write(job_text)
+            e = run_check(binary, img.entrypoint + img.cmd, img.env, root, label, a.source)
+            checked += 1
+            if e:
+                errors.append(e)
+
+        # Kubernetes workloads.
+        for path, d in docs:
+            if d.get("kind") not in WORKLOAD_KINDS:
+                continue
+            spec = d["spec"] if d["kind"] == "Pod" else d["spec"]["template"]["spec"]
+            if d["kind"] == "Job":
+                spec = d["spec"]["template"]["spec"]
+            volumes = {v["name"]: v for v in spec.get("volumes", [])}
+            pod_name = d["metadata"]["name"] + "-0"
+            for c in spec.get("initContainers", []) + spec.get("containers", []):
+                label = f"{os.path.relpath(path, os.path.dirname(deploy))} {d['kind']}/{d['metadata']['name']} " \
+                        f"container {c['name']}"
+                image_name = c.get("image", "").split("/")[-1].split(":")[0]
+                img = images.get(image_name)
+                if img is None and "command" not in c:
+                    errors.append(f"{label}: image {c.get('image')} has no Dockerfile in deploy/docker "
+                                  f"(known: {', '.join(sorted(images))}) and the container gives no command")
+                    continue
+                root = tempfile.mkdtemp(dir=tmp)
+                if img is not None:
+                    try:
+                        place_image_files(img, root, a.source)
+                    except RuntimeError as e:
+                        errors.append(f"{label}: {e}")
+                        continue
+                for m in c.get("volumeMounts", []):
+                    v = volumes.get(m["name"])
+                    if v is None:
+                        errors.append(f"{label}: volumeMount {m['name']} has no volume")
+                        continue
+                    mount = root + m["mountPath"]
+                    os.makedirs(mount, exist_ok=True)
+                    if "configMap" in v:
+                        data = configmaps.get(v["configMap"]["name"])
+                        if data is None:
+                            errors.append(f"{label}: ConfigMap {v['configMap']['name']} is not in deploy/k8s")
+                            continue
+                        for key, text in data.items():
+                            with open(os.path.join(mount, key), "w") as f:
+                                f.write(text)
+                    elif "secret" in v:
+                        make_credentials(mount, a.source, tmp)
+                env = dict(img.env) if img else {}
+                for e in c.get("env", []):
+                    if "value" in e:
+                        env[e["name"]] = re.sub(r"\$\((\w+)\)", lambda mm: env.get(mm.group(1), mm.group(0)),
+                                                str(e["value"]))
+                    elif e.get("valueFrom", {}).get("fieldRef", {}).get("fieldPath") == "metadata.name":
+                        env[e["name"]] = pod_name
+                    else:
+                        env[e["name"]] = "value-from-" + e["name"]
+
+                def expand(s):
+                    return re.sub(r"\$\((\w+)\)", lambda mm: env.get(mm.group(1), mm.group(0)), str(s))
+
+                if "command" in c:
+                    argv = [expand(x) for x in c["command"]] + [expand(x) for x in c.get("args", [])]
+                else:
+                    argv = list(img.entrypoint) + ([expand(x) for x in c["args"]] if "args" in c else list(img.cmd))
+                err = run_check(binary, argv, env, root, label, a.source)
+                checked += 1
+                if err:
+                    errors.append(err)
+
+    if checked == 0:
+        errors.append(f"no command lines found under {deploy}")
+    for e in errors:
+        print("FAIL " + e)
+    print(f"{checked} command lines checked, {len(errors)} problems")
+    return 1 if errors else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
