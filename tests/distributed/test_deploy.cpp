@@ -7,7 +7,7 @@
 //  - DDS-Security (--security, credentials from deploy/security/make-test-ca.sh): the job trains,
 //    while a worker without credentials and participants that hello/heartbeat on the presence
 //    topic without credentials or with another CA's certificate are never matched, never get
-//    work and are never counted; same forest;
+//    work and are never counted; same forest; `monitor --domain` sees the job only with credentials;
 //  - flag errors name the file, the profile, the missing credential or the contradiction;
 //  - every command line of deploy/k8s/*.yaml and deploy/docker/Dockerfile.* passes the real
 //    argument parser (`--check-config`), and a manifest with a wrong flag fails the check.
@@ -185,12 +185,30 @@ TEST_CASE("deploy: --security trains; participants without credentials or from a
   REQUIRE(w2.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "sw-2", "--security",
                     (ca / "worker-2").string()},
                    &error));
-  const fs::path events = dir.path / "events.jsonl";
-  REQUIRE(coord.Start(
-      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
-       (dir.path / "forest.pff").string(), "--domain", domain, "--job-id", job_id, "--min-workers", "2",
-       "--http", "off", "--event-log", events.string(), "--security", (ca / "coordinator").string()},
-      &error));
+  const fs::path events = dir.path / "events.jsonl", pause = dir.path / "pause";
+  std::ofstream(pause) << "hold\n";
+  REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                       (dir.path / "forest.pff").string(), "--domain", domain, "--job-id", job_id,
+                       "--min-workers", "2", "--http", "off", "--event-log", events.string(), "--pause-file",
+                       pause.string(), "--security", (ca / "coordinator").string()},
+                      &error));
+  {  // Held before level 0 with both workers assigned: `monitor --domain` sees the job only with
+     // credentials (a worker's grant reads the job and status topics).
+    auto paused = coord.WaitForLine("paused (next: tree 0, level 0)", 60s);
+    INFO(coord.output());
+    REQUIRE(paused.has_value());
+    auto [mrc, mout] = Run({Program(), "monitor", "--domain", domain, "--job", job_id, "--once",
+                            "--timeout-s", "20", "--security", (ca / "worker-2").string()});
+    INFO(mout);
+    CHECK(mrc == 0);
+    CHECK(mout.find("job " + job_id) != std::string::npos);
+    auto [mrc2, mout2] =
+        Run({Program(), "monitor", "--domain", domain, "--job", job_id, "--once", "--timeout-s", "3"});
+    INFO(mout2);
+    CHECK(mrc2 == 1);
+    CHECK(mout2.find("no status of " + job_id) != std::string::npos);
+    fs::remove(pause);
+  }
   auto rc = coord.Wait(90s);
   INFO(coord.output());
   REQUIRE(rc.has_value());
