@@ -12,6 +12,7 @@
 #include <poll.h>
 #include <sys/socket.h>
 
+#include <atomic>
 #include <catch2/catch.hpp>
 #include <cstring>
 #include <filesystem>
@@ -19,8 +20,10 @@
 #include <functional>
 #include <iterator>
 #include <limits>
+#include <mutex>
 #include <regex>
 #include <sstream>
+#include <thread>
 
 #include "coordinator/distributed/checkpoint_export.h"
 #include "coordinator/distributed/dashboard.h"
@@ -854,4 +857,140 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
   CHECK(done.workers(0).evaluations_per_s() == 0);
   CHECK(done.eta_s() == 0);
   CHECK(done.trees_done() == 2);
+}
+
+TEST_CASE("a live job: status events carry the figures, a worker's hostile heartbeats are dropped",
+          "[distributed][monitoring][integration]") {
+  const std::string text = TinyJobText(1, 5);
+  const Job job = ParseJob(text);
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(49);
+  const std::string job_id = "mon-hb-" + std::to_string(::getpid());
+  ThreadWorkers workers(2, domain, job_id);
+  // A participant that speaks as worker "rogue-w" with well-formed heartbeats whose throughput
+  // figures are NaN, negative or huge.
+  dds::NodeConfig rc;
+  rc.domain_id = domain;
+  rc.participant_name = "rogue";
+  rc.transport = dds::TransportKind::kSharedMemoryOnly;
+  rc.liveliness_lease = CoordinatorOptions{}.lease;
+  rc.write_topics = {dds::Topic::kPresence};
+  auto rogue = dds::DdsNode::Create(rc);
+  REQUIRE(rogue.ok());
+  // A reader of the status topic, through its own gate, as `monitor --domain` reads it.
+  dds::NodeConfig sc;
+  sc.domain_id = domain;
+  sc.participant_name = "status-reader";
+  sc.transport = dds::TransportKind::kSharedMemoryOnly;
+  sc.read_topics = {dds::Topic::kStatus};
+  auto reader = dds::DdsNode::Create(sc);
+  REQUIRE(reader.ok());
+  std::atomic<bool> done{false};
+  std::atomic<int> sent{0};
+  std::thread rogue_thread([&] {
+    dds::EnvelopeStamper stamper(job_id, "rogue-w", v1::SENDER_KIND_WORKER);
+    const double bad[] = {std::numeric_limits<double>::quiet_NaN(), -1.0, 1e300,
+                          std::numeric_limits<double>::infinity()};
+    for (int i = 0; !done; ++i) {
+      v1::Envelope env;
+      auto* hb = env.mutable_heartbeat();
+      *hb->mutable_capacity() = poseforest::dds::testing::Capacity(1);
+      hb->set_evaluations_per_s(bad[i % 4]);
+      (void)(*rogue)->Publish(dds::Topic::kPresence, stamper.Seal(dds::Topic::kPresence, env));
+      ++sent;
+      std::this_thread::sleep_for(20ms);
+    }
+  });
+  std::vector<v1::StatusEvent> events;
+  std::thread status_thread([&] {
+    dds::MessageGate gate(dds::GateConfig{"status-reader", job_id, 16, [](const std::string&) {}});
+    while (!done) {
+      auto s = (*reader)->Receive(50ms);
+      if (!s) continue;
+      auto out = gate.Check(s->topic, s->bytes, s->writer_guid);
+      if (out.verdict == dds::MessageGate::Verdict::kAccepted && out.envelope.has_status())
+        events.push_back(out.envelope.status());
+    }
+  });
+  StatusModel model({job_id, domain, "shm", 1, 5, 12, 150, 40, 12, ""});
+  std::mutex log_mu;
+  std::string log;
+  // Held 3 s after level 2 (the tiny job would end before a heartbeat or a PROGRESS event):
+  // the file is made on the training thread, before the next level looks for it.
+  TempDir dir("pf-mon-hb");
+  const fs::path pause = dir.path / "pause";
+  std::atomic<bool> held{false};
+  std::thread release([&] {
+    while (!held && !done) std::this_thread::sleep_for(10ms);
+    std::this_thread::sleep_for(3s);
+    fs::remove(pause);
+  });
+  CoordinatorOptions opt;
+  opt.job_id = job_id;
+  opt.domain = domain;
+  opt.min_workers = 2;
+  opt.observer = &model;
+  opt.pause_file = pause.string();
+  opt.progress = [&](const DistLevelStats& st) {
+    if (st.level == 2 && !held) {
+      std::ofstream(pause) << "held\n";
+      held = true;
+    }
+  };
+  opt.log = [&](const std::string& l) {
+    std::lock_guard<std::mutex> lock(log_mu);
+    log += l + "\n";
+  };
+  DistCoordinator coordinator(job.config, job.params, opt);
+  auto forest = coordinator.Train();
+  std::this_thread::sleep_for(300ms);  // the last events reach the reader
+  done = true;
+  rogue_thread.join();
+  status_thread.join();
+  release.join();
+  REQUIRE(forest.ok());
+  CHECK(core::SerializeForest(*forest) == reference);
+  CHECK(held);
+  CHECK(sent > 0);
+  CHECK(coordinator.rejected_messages() > 0);
+  INFO(log);
+  CHECK(log.find("dropped message from rogue-w") != std::string::npos);
+  CHECK(log.find("evaluations_per_s") != std::string::npos);
+  CHECK(model.Json().find("rogue-w") == std::string::npos);  // never a worker of the job
+  // The events, as the monitor sees them: throughput while training, both real workers with
+  // their own (heartbeat) figures, the rogue nowhere.
+  REQUIRE(!events.empty());
+  CHECK(events.back().kind() == v1::STATUS_KIND_JOB_DONE);
+  int progress_events = 0;
+  for (const v1::StatusEvent& e : events) {
+    for (const v1::WorkerStatus& w : e.workers()) CHECK(w.id() != "rogue-w");
+    if (e.kind() != v1::STATUS_KIND_PROGRESS) continue;
+    // While held after level 2: the coordinator's figures and the workers' heartbeat figures.
+    ++progress_events;
+    INFO(e.DebugString());
+    CHECK(e.level() == 2);
+    CHECK(e.progress() > 0);
+    CHECK(e.has_eta_s());
+    CHECK(e.evaluations_per_s() > 0);
+    CHECK(e.samples_per_s() > 0);
+    CHECK(e.evaluations() > 0);
+    CHECK(e.active_workers() == 2);
+    REQUIRE(e.workers_size() == 2);
+    for (const v1::WorkerStatus& w : e.workers()) {
+      CHECK(w.state() == v1::WORKER_STATE_TRAINING);
+      CHECK(w.frames() == 6);  // 12 frames over 2 workers
+      CHECK(w.replies() > 0);
+      CHECK(w.evaluations() > 0);
+      CHECK(w.evaluations_per_s() > 0);
+      CHECK(w.last_seen_s() >= 0);
+      CHECK(w.last_seen_s() < 2);
+    }
+  }
+  CHECK(progress_events >= 1);  // 3 s held: one after 2 s without other events
+  const v1::StatusEvent& last = events.back();
+  CHECK(last.workers_size() == 2);
+  CHECK(last.trees_done() == 1);
+  CHECK(last.level_nodes_done() == last.level_nodes_total());
+  CHECK(last.evaluations() > 0);
+  for (const v1::WorkerStatus& w : last.workers()) CHECK(w.state() == v1::WORKER_STATE_DONE);
 }

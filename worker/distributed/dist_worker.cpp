@@ -189,7 +189,9 @@ struct DistWorker::Impl {
   }
 
   void HeartbeatLoop() {
-    std::deque<std::pair<double, uint64_t>> recent;  // (time, evaluations): the rate over ~10 s
+    // (time, evaluations): the rate over the last ~10 s, from the start (work done before the
+    // first heartbeat counts).
+    std::deque<std::pair<double, uint64_t>> recent{{NowSeconds(), evaluations.load()}};
     while (!stop) {
       if (has_job) {
         v1::Envelope env;
