@@ -89,7 +89,7 @@ small="$root/docs/training/smoke_job.textproto"
 cmp "$out/small_single.pff" "$out/small_distributed.pff"
 echo "distributed forest == single-process forest, byte for byte"
 
-echo "== 3. joint proposals: learn b, lambda, zeta per joint on validation renders (train clips, unseen frames)"
+echo "== 3. joint proposals: learn b, lambda, zeta per joint, for mean shift and for the fast clustering, on validation renders (train clips, unseen frames)"
 "$bin/poseforest" tune-joints --forest "$out/forest.pff" --validation "$out/job.textproto" --frames 60 --out "$out/forest.pff"
 echo "== 3b. joint AP / mAP and per-class accuracy on held-out renders (test clips)"
 "$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --png "$out/confusion.png" \
