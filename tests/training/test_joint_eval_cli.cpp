@@ -127,7 +127,7 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
     REQUIRE(r.exit_code == 0);
     auto bytes = core::ReadFileBytes((dir / out / "depth_000000.joints.json").string());
     REQUIRE(bytes.ok());
-    return *bytes;
+    return std::string(bytes->begin(), bytes->end());
   };
   CHECK(json_of(tuned, "meanshift", "t_ms") == json_of(planted_path, "meanshift", "p_ms"));
   CHECK(json_of(tuned, "fast", "t_fast") != json_of(planted_path, "fast", "p_fast"));
