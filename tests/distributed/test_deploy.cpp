@@ -305,6 +305,12 @@ TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or
     CHECK(rc2 == 0);
     CHECK(text2.find("UDP, initial peers 127.0.0.1") != std::string::npos);
   }
+  {  // make-test-ca.sh's layout, also written with a trailing slash: the CA files come from the parent
+    auto [rc, text] = worker({"--security", (ca / "worker-1").string() + "/"});
+    INFO(text);
+    CHECK(rc == 0);
+    CHECK(text.find("DDS-Security with " + (ca / "worker-1" / "cert.pem").string()) != std::string::npos);
+  }
   // --local-workers under --security: the workers need credentials of their own.
   auto [rc, text] = coordinator({"--local-workers", "2", "--security", (ca / "coordinator").string()});
   INFO(text);

@@ -125,7 +125,8 @@ std::vector<std::string> DdsFlags::TransportArgs() const {
 
 Result<dds::SecurityFiles> SecurityFilesIn(const std::string& dir, const std::string& flag) {
   std::error_code ec;
-  const fs::path d = fs::path(Absolute(dir));
+  fs::path d = fs::path(Absolute(dir));
+  if (d.filename().empty()) d = d.parent_path();  // "ca/worker-1/": the parent is ca, not worker-1
   if (!fs::is_directory(d, ec))
     return Status(ErrorCode::kIo, flag + " " + dir +
                                       ": not a directory (expected the folder of cert.pem, key.pem, "
