@@ -16,9 +16,18 @@
 // defaults to the job's subtree_max_samples, 4096 unless set; 0 skips the second run). The
 // per-level table then also shows the nodes handed off and the nodes decided by results.
 // The last line is `distributed/engine per core: <ratio> ratio` (2 workers, with hand-off as
-// configured, vs the engine); the line before compares bytes received without / with hand-off.
+// configured, vs the engine; the median over --repeat pairs).
 // --csv writes the per-level rows of the runs without hand-off (input of
 // scripts/traffic_model.py, which models histogram traffic).
+//
+// Every run also prints where its CPU went: the coordinator, and the workers by phase (each
+// worker process writes its dist::WorkerCpu to a --stats file when it exits), and a "why the
+// ratio" line splits the headline run's CPU into the training work the engine also does and
+// what the service adds (docs/distributed/service.md, "Per-core overhead").
+//   --workers N,N   worker counts to run (default 1,2)     --skip-off   only runs with hand-off
+//   --repeat R      R (engine, headline run) pairs; the last line is the median ratio
+//   --engine-only   the engine alone (e.g. under a profiler)
+// POSEFOREST_BENCH_WORKER_WRAP="CMD ARGS": worker processes run under CMD (a profiler).
 
 #include <signal.h>
 #include <spawn.h>
