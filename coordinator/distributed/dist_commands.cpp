@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 #include <set>
 #include <string>
@@ -368,6 +369,7 @@ int WorkerMain(int argc, char** argv) {
     if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
     std::fprintf(stderr,
                  "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--id NAME] [DDS transport flags]\n"
+                 "         (--id: the sender id, unique per job; default worker-HOST-PID-RANDOM)\n"
                  "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n"
                  "         [--task-cache-mb M]   (frames of other shards kept between subtree tasks of a\n"
                  "          tree, least recently used dropped first; default 256)\n"
@@ -393,7 +395,7 @@ int WorkerMain(int argc, char** argv) {
   }
   if (args.Has("check-config")) {
     std::printf("worker config ok: id %s, job %s, %ld threads; DDS domain %ld, %s\n",
-                args.GetOr("id", "(worker-HOST-PID)").c_str(), args.GetOr("job", "(any)").c_str(), *threads,
+                args.GetOr("id", "(worker-HOST-PID-RANDOM)").c_str(), args.GetOr("job", "(any)").c_str(), *threads,
                 *domain, dds_flags->Describe().c_str());
     return 0;
   }
@@ -402,6 +404,15 @@ int WorkerMain(int argc, char** argv) {
   opt.udp_interfaces = dds_flags->interfaces;
   opt.transport_extras = dds_flags->extras;
   opt.worker_id = args.GetOr("id", "");
+  if (opt.worker_id.empty()) {
+    // Host and pid alone collide between containers on the host network (each worker is pid 1
+    // on the same hostname): the coordinator would take two workers for one. A random suffix.
+    char host[256] = {};
+    ::gethostname(host, sizeof host - 1);
+    char suffix[16];
+    std::snprintf(suffix, sizeof suffix, "%06x", unsigned(std::random_device{}() & 0xFFFFFF));
+    opt.worker_id = "worker-" + std::string(host) + "-" + std::to_string(::getpid()) + "-" + suffix;
+  }
   opt.domain = uint32_t(*domain);
   opt.transport = dds_flags->transport;
   opt.threads = int(*threads);
