@@ -763,6 +763,11 @@ struct DistCoordinator::Impl {
               for (uint32_t c : nr.frame_samples()) sum += c;
               if (nr.frame_samples_size() != nr.frames_size() || sum != nr.num_samples() ||
                   uint64_t(nr.pixel_deltas_size()) != sum) {
+                if (nr.frame_samples_size() > 0 || nr.pixel_deltas_size() > 0)
+                  Log("FRAMES reply from " + r.sender + ", node " + std::to_string(f.node) + ": " +
+                      std::to_string(nr.pixel_deltas_size()) + " sample pixels, " + std::to_string(sum) +
+                      " by its counts, " + std::to_string(nr.num_samples()) +
+                      " samples: the task goes without sample lists (the worker routes)");
                 all_listed = all_listed && nr.num_samples() == 0;
                 continue;
               }
