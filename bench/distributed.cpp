@@ -27,6 +27,8 @@
 //   --workers N,N   worker counts to run (default 1,2)     --skip-off   only runs with hand-off
 //   --repeat R      R (engine, headline run) pairs; the last line is the median ratio
 //   --engine-only   the engine alone (e.g. under a profiler)
+//   --no-sample-lists  subtree tasks without their sample lists (workers route every sample of
+//                   the tasks' frames, one task at a time): the service before that change
 // POSEFOREST_BENCH_WORKER_WRAP="CMD ARGS": worker processes run under CMD (a profiler).
 
 #include <signal.h>
@@ -236,7 +238,7 @@ int main(int argc, char** argv) {
   std::vector<int> worker_counts = {1, 2};
   bool skip_off = false;
   int repeat = 1;
-  bool engine_only = false;
+  bool engine_only = false, sample_lists = true;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--workers") && i + 1 < argc) {
       worker_counts.clear();
@@ -251,6 +253,8 @@ int main(int argc, char** argv) {
       skip_off = true;
     } else if (!std::strcmp(argv[i], "--engine-only")) {
       engine_only = true;
+    } else if (!std::strcmp(argv[i], "--no-sample-lists")) {
+      sample_lists = false;
     } else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) {
       repeat = std::atoi(argv[++i]);
       if (repeat < 1 || repeat > 50) return std::fprintf(stderr, "distributed: --repeat wants 1..50\n"), 2;
@@ -263,7 +267,7 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--help") || argv[i][0] == '-') {
       std::fprintf(stderr,
                    "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] "
-                   "[--workers N,N] [--skip-off] [--repeat R] [--engine-only]\n");
+                   "[--workers N,N] [--skip-off] [--repeat R] [--engine-only] [--no-sample-lists]\n");
       return std::strcmp(argv[i], "--help") ? 2 : 0;
     } else {
       std::ifstream in(argv[i]);
@@ -378,6 +382,7 @@ int main(int argc, char** argv) {
     co.domain = dom;
     co.job_id = job_id;
     co.min_workers = n;
+    co.subtree_sample_lists = sample_lists;
     co.log = [](const std::string&) {};
     std::map<int, RunFigures> trees;
     if (verbose)
