@@ -491,12 +491,12 @@ int main(int argc, char** argv) {
                          : *std::max_element(worker_counts.begin(), worker_counts.end());
   const RunFigures& two = runs[{head_n, uint64_t(subtree_max > 0 ? subtree_max : 0)}];
   const RunFigures& two_off = runs.count({head_n, 0}) ? runs[{head_n, 0}] : two;
-  std::printf("bytes received, 2 workers: %.1f MB without subtree hand-off, %.1f MB with (%.2f x less)\n",
-              double(two_off.bytes_received) / 1e6, double(two.bytes_received) / 1e6,
+  std::printf("bytes received, %d worker(s): %.1f MB without subtree hand-off, %.1f MB with (%.2f x less)\n",
+              head_n, double(two_off.bytes_received) / 1e6, double(two.bytes_received) / 1e6,
               two.bytes_received ? double(two_off.bytes_received) / double(two.bytes_received) : 0.0);
   std::printf(
-      "2 workers vs engine, wall per worker: %.2f (evaluations/s / 2 workers / engine evaluations/s)\n",
-      (double(engine.evaluations) / two.wall / 2) / (double(engine.evaluations) / engine.wall));
+      "%d worker(s) vs engine, wall per worker: %.2f (evaluations/s / workers / engine evaluations/s)\n",
+      head_n, (double(engine.evaluations) / two.wall / head_n) / (double(engine.evaluations) / engine.wall));
   PrintWhy(two, engine.cpu, head_n, subtree_max > 0 ? uint64_t(subtree_max) : 0);
   // --repeat: more (engine, headline run) pairs, one after the other, and the median ratio (a
   // loaded machine's CPU seconds vary from run to run by more than the overhead measured).
