@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# The forest recipe behind the README's "Joint accuracy (mAP)" figures: the main job's job with
+# more training images per tree, then the proposal parameters learned on validation renders of
+# the train clips, then `poseforest eval` on 200 held-out test-clip frames (section 4 of the paper).
+#
+#   scripts/accuracy-recipe.sh [IMAGES_PER_TREE]      (default 4000: 12,000 images, 3 trees)
+#
+# Needs a build (scripts/build.sh) and the shared data (POSEFOREST_DATA_DIR, default
+# ../shared/data). Outputs go to $POSEFOREST_OUT/accuracy-N (default ./out/accuracy-N): job, forest,
+# tuned forest, training/tuning/eval logs and PR curves. Extra training flags (for instance
+# `--local-workers 2` to train through the distributed service, same forest) come from
+# POSEFOREST_TRAIN_ARGS.
+#
+# Time and memory on two cores (quiet machine, engine): 667 images per tree ~6 min and 5.6 GiB;
+# 2000 per tree ~18 min and 7.2 GiB; 4000 per tree ~40 min and ~10 GiB (docs/runtime/joints.md).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+per_tree=${1:-4000}
+[[ "$per_tree" =~ ^[1-9][0-9]*$ ]] || { echo "accuracy-recipe: IMAGES_PER_TREE must be a positive integer, got '$per_tree'" >&2; exit 2; }
+data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
+  { echo "accuracy-recipe: no shared data at ${POSEFOREST_DATA_DIR:-$root/../shared/data} (set POSEFOREST_DATA_DIR)" >&2; exit 1; }
+bin=$root/build/bin
+[[ -x "$bin/poseforest" ]] || { echo "accuracy-recipe: $bin/poseforest not built (run scripts/build.sh)" >&2; exit 1; }
+out=${POSEFOREST_OUT:-$root/out}/accuracy-$per_tree
+mkdir -p "$out"
+out=$(cd "$out" && pwd)
+start=$(date +%s)
+
+echo "== pose library from $data/mocap"
+"$bin/poseforest-poselib" build --out "$out/mocap.pfposes" "$data/mocap"
+
+# The main job's job (scripts/main-job.sh) with images_per_tree raised.
+cat > "$out/job.textproto" <<JOB
+seed: 2011
+num_trees: 3
+max_depth: 20
+images_per_tree: $per_tree
+pixels_per_image: 2000
+candidate_features: 1000
+thresholds_per_feature: 50
+max_probe_offset_pixel_m: 129
+source {
+  rendered {
+    seed: 1
+    rotation_range_deg: 120
+    pose_library: "$out/mocap.pfposes"
+    clips: CLIP_SET_TRAIN
+    test_fraction: 0.2
+    split_seed: 1
+    makehuman_kit: "$data/meshes/makehuman_hm08_kit"
+  }
+}
+test_set {
+  source {
+    rendered {
+      seed: 99
+      rotation_range_deg: 120
+      pose_library: "$out/mocap.pfposes"
+      clips: CLIP_SET_TEST
+      test_fraction: 0.2
+      split_seed: 1
+      makehuman_kit: "$data/meshes/makehuman_hm08_kit"
+    }
+  }
+  num_images: 30
+}
+JOB
+
+echo "== training: 3 trees x $per_tree images ($out/job.textproto)"
+# shellcheck disable=SC2086
+"$bin/poseforest" train "$out/job.textproto" --out "$out/forest.pff" ${POSEFOREST_TRAIN_ARGS:-} 2>&1 | tee "$out/train.log"
+echo "== learning b, lambda, zeta on 150 validation renders of the train clips"
+"$bin/poseforest" tune-joints --forest "$out/forest.pff" --validation "$out/job.textproto" --frames 150 \
+  --out "$out/forest_tuned.pff" 2>&1 | tee "$out/tune.log"
+echo "== eval on 200 held-out test-clip frames"
+"$bin/poseforest" eval --forest "$out/forest_tuned.pff" --test-set "$out/job.textproto" --images 200 \
+  --pr-png "$out/pr" 2>&1 | tee "$out/eval.txt"
+echo "== done in $(( $(date +%s) - start )) s: $(grep '^eval: mAP' "$out/eval.txt")"
