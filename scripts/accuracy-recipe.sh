@@ -12,7 +12,7 @@
 # POSEFOREST_TRAIN_ARGS.
 #
 # Time and memory on two cores (quiet machine, engine): 667 images per tree ~6 min and 5.6 GiB;
-# 2000 per tree ~18 min and 7.2 GiB; 4000 per tree ~40 min and ~10 GiB (docs/runtime/joints.md).
+# 2000 per tree 7.2 GiB; 4000 per tree 34 min (lightly loaded) and 9.1 GiB (docs/runtime/joints.md).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
