@@ -16,6 +16,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
+# shellcheck source=scripts/default-job.sh
+source "$root/scripts/default-job.sh"
 per_tree=${1:-4000}
 [[ "$per_tree" =~ ^[1-9][0-9]*$ ]] || { echo "accuracy-recipe: IMAGES_PER_TREE must be a positive integer, got '$per_tree'" >&2; exit 2; }
 data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
@@ -31,41 +33,7 @@ echo "== pose library from $data/mocap"
 "$bin/poseforest-poselib" build --out "$out/mocap.pfposes" "$data/mocap"
 
 # The main job's job (scripts/main-job.sh) with images_per_tree raised.
-cat > "$out/job.textproto" <<JOB
-seed: 2011
-num_trees: 3
-max_depth: 20
-images_per_tree: $per_tree
-pixels_per_image: 2000
-candidate_features: 1000
-thresholds_per_feature: 50
-max_probe_offset_pixel_m: 129
-source {
-  rendered {
-    seed: 1
-    rotation_range_deg: 120
-    pose_library: "$out/mocap.pfposes"
-    clips: CLIP_SET_TRAIN
-    test_fraction: 0.2
-    split_seed: 1
-    makehuman_kit: "$data/meshes/makehuman_hm08_kit"
-  }
-}
-test_set {
-  source {
-    rendered {
-      seed: 99
-      rotation_range_deg: 120
-      pose_library: "$out/mocap.pfposes"
-      clips: CLIP_SET_TEST
-      test_fraction: 0.2
-      split_seed: 1
-      makehuman_kit: "$data/meshes/makehuman_hm08_kit"
-    }
-  }
-  num_images: 30
-}
-JOB
+write_default_job "$out/job.textproto" "$per_tree" 30 "$out/mocap.pfposes" "$data"
 
 echo "== training: 3 trees x $per_tree images ($out/job.textproto)"
 # shellcheck disable=SC2086

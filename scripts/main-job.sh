@@ -20,6 +20,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
+# shellcheck source=scripts/default-job.sh
+source "$root/scripts/default-job.sh"
 data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
   { echo "main-job: no shared data at ${POSEFOREST_DATA_DIR:-$root/../shared/data} (set POSEFOREST_DATA_DIR)" >&2; exit 1; }
 out=${POSEFOREST_OUT:-$root/out}
@@ -37,41 +39,7 @@ echo "== 1. pose library from $data/mocap"
 
 # The embedded default job (proto/poseforest/v1/job.proto). Sized to train in minutes on two
 # cores; the paper used 300k images per tree.
-cat > "$out/job.textproto" <<JOB
-seed: 2011
-num_trees: 3
-max_depth: 20
-images_per_tree: 300
-pixels_per_image: 2000
-candidate_features: 1000
-thresholds_per_feature: 50
-max_probe_offset_pixel_m: 129
-source {
-  rendered {
-    seed: 1
-    rotation_range_deg: 120
-    pose_library: "$out/mocap.pfposes"
-    clips: CLIP_SET_TRAIN
-    test_fraction: 0.2
-    split_seed: 1
-    makehuman_kit: "$data/meshes/makehuman_hm08_kit"
-  }
-}
-test_set {
-  source {
-    rendered {
-      seed: 99
-      rotation_range_deg: 120
-      pose_library: "$out/mocap.pfposes"
-      clips: CLIP_SET_TEST
-      test_fraction: 0.2
-      split_seed: 1
-      makehuman_kit: "$data/meshes/makehuman_hm08_kit"
-    }
-  }
-  num_images: 200
-}
-JOB
+write_default_job "$out/job.textproto" 300 200 "$out/mocap.pfposes" "$data"
 
 echo "== 2. training ($out/job.textproto): coordinator + 2 local worker processes over Fast DDS"
 rm -rf "$out/checkpoint" "$out/small_checkpoint"

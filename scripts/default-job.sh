@@ -1,0 +1,42 @@
+# Sourced by scripts/main-job.sh and scripts/accuracy-recipe.sh: the main job's embedded default
+# job (proto/poseforest/v1/job.proto), with the training images per tree and the test-set size as
+# parameters.
+#   write_default_job FILE IMAGES_PER_TREE TEST_IMAGES POSE_LIBRARY DATA_DIR
+# Sized (300 images per tree) to train in minutes on two cores; the paper used 300k per tree.
+write_default_job() {
+  cat > "$1" <<JOB
+seed: 2011
+num_trees: 3
+max_depth: 20
+images_per_tree: $2
+pixels_per_image: 2000
+candidate_features: 1000
+thresholds_per_feature: 50
+max_probe_offset_pixel_m: 129
+source {
+  rendered {
+    seed: 1
+    rotation_range_deg: 120
+    pose_library: "$4"
+    clips: CLIP_SET_TRAIN
+    test_fraction: 0.2
+    split_seed: 1
+    makehuman_kit: "$5/meshes/makehuman_hm08_kit"
+  }
+}
+test_set {
+  source {
+    rendered {
+      seed: 99
+      rotation_range_deg: 120
+      pose_library: "$4"
+      clips: CLIP_SET_TEST
+      test_fraction: 0.2
+      split_seed: 1
+      makehuman_kit: "$5/meshes/makehuman_hm08_kit"
+    }
+  }
+  num_images: $3
+}
+JOB
+}
