@@ -33,25 +33,6 @@ std::string Peer() { return (HelperDir() / "poseforest_dds_peer").string(); }
 fs::path Source() { return fs::path(POSEFOREST_SOURCE_DIR); }
 std::string ShippedXml() { return (Source() / "deploy/fastdds/profiles.xml").string(); }
 
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / (name + "-" + std::to_string(::getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
-
-std::vector<uint8_t> ReadAll(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-std::string ReadText(const fs::path& p) {
-  std::ifstream in(p);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 /// Runs argv to the end; its exit code and output.
 std::pair<int, std::string> Run(const std::vector<std::string>& argv,
                                 std::chrono::milliseconds timeout = 60s) {

@@ -24,21 +24,6 @@ using namespace std::chrono_literals;
 namespace {
 std::string Program() { return (HelperDir() / "poseforest").string(); }
 
-struct TempDir {
-  std::filesystem::path path;
-  explicit TempDir(const std::string& name)
-      : path(std::filesystem::temp_directory_path() / (name + "-" + std::to_string(::getpid()))) {
-    std::filesystem::remove_all(path);
-    std::filesystem::create_directories(path);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-};
-
-std::vector<uint8_t> ReadAll(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 void StartWorker(Child& c, uint32_t domain, const std::string& job_id, const std::string& id) {
   std::string error;
   REQUIRE(c.Start({Program(), "worker", "--domain", std::to_string(domain), "--job", job_id, "--id", id},

@@ -45,21 +45,6 @@ namespace fs = std::filesystem;
 namespace {
 std::string Program() { return (HelperDir() / "poseforest").string(); }
 
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& name)
-      : path(fs::temp_directory_path() / (name + "-" + std::to_string(::getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
-
-std::string ReadText(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 std::string SmokeJob() {
   const std::string text = ReadText(fs::path(POSEFOREST_SOURCE_DIR) / "docs/training/smoke_job.textproto");
   REQUIRE(!text.empty());
