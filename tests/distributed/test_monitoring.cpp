@@ -245,8 +245,20 @@ TEST_CASE(
   // `monitor --once --domain` first (the workers' rates cover their last 10 s): the same view
   // from the DDS status topic, no URL needed, throughput figures and worker table included.
   {
-    auto mon_dds = poseforest::testing::RunPoseforest(
-        "monitor --once --domain " + std::to_string(Domain(41)) + " --job " + job_id + " --timeout-s 30");
+    // The newest status at the moment of the pause may predate the workers' first heartbeat
+    // with counted work (a fast machine reaches level 3 within a second); while the job is held
+    // the coordinator publishes PROGRESS every 2 s with the heartbeats' figures, so ask again,
+    // for a few seconds, until the worker rows carry work (the checks below then hold or fail).
+    static const std::regex busy_row(R"(  local-worker-\S+ +training +30 +[0-9]+ +[1-9][0-9.]*(?: [kMG])? +[1-9])");
+    poseforest::testing::CommandResult mon_dds;
+    for (int attempt = 0; attempt < 8; ++attempt) {
+      if (attempt > 0) std::this_thread::sleep_for(1s);
+      mon_dds = poseforest::testing::RunPoseforest(
+          "monitor --once --domain " + std::to_string(Domain(41)) + " --job " + job_id + " --timeout-s 30");
+      const std::string& o = mon_dds.output;
+      const auto rows_busy = std::distance(std::sregex_iterator(o.begin(), o.end(), busy_row), std::sregex_iterator());
+      if (rows_busy >= 2) break;
+    }
     INFO(mon_dds.output);
     CHECK(mon_dds.exit_code == 0);
     CHECK(mon_dds.output.find("DDS domain " + std::to_string(Domain(41)) + "  coordinator coordinator-") !=
