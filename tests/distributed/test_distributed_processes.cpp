@@ -213,21 +213,26 @@ TEST_CASE("SIGKILL of a worker while a level's round waits for it: noticed, aske
   const std::string job_id = "p-midlevel-" + std::to_string(::getpid());
   Child w[2];
   for (int i = 0; i < 2; ++i) StartWorker(w[i], domain, job_id, "mw-" + std::to_string(i));
+  // The coordinator holds before tree 0's level 0 while the pause file exists. Worker 1 is
+  // stopped there and the file removed: the level's request goes out and worker 1 holds it
+  // without answering (well inside its 1.5 s liveliness lease), so the kill lands while the round
+  // waits for it. (Stopping it after a level line raced the next level on a fast machine.)
+  const auto pause = dir.path / "pause";
+  std::ofstream(pause) << "held by the test\n";
   Child coord;
   std::string error;
   REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
                        (dir.path / "forest.pff").string(), "--domain", std::to_string(domain), "--job-id",
-                       job_id, "--min-workers", "2"},
+                       job_id, "--min-workers", "2", "--pause-file", pause.string()},
                       &error));
-  auto line = coord.WaitForLine("tree 0 level 1:", 90s);
+  auto line = coord.WaitForLine("paused (next: tree 0, level 0)", 90s);
   INFO(coord.output());
   REQUIRE(line.has_value());
-  // The coordinator asks level 2 at once; worker 1, stopped, holds the request without answering
-  // (well inside its 1.5 s liveliness lease), so the kill lands while the round waits for it.
   REQUIRE(::kill(w[1].pid(), SIGSTOP) == 0);
+  std::filesystem::remove(pause);
   std::this_thread::sleep_for(400ms);
   w[1].Kill(SIGKILL);
-  auto next = coord.WaitForLine("tree 0 level 2:", 60s);
+  auto next = coord.WaitForLine("tree 0 level 0:", 60s);
   REQUIRE(next.has_value());
   CHECK(next->find("retries") != std::string::npos);  // the round was asked again
   auto rc = coord.Wait(120s);
