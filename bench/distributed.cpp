@@ -152,6 +152,7 @@ int WorkerProcess(int argc, char** argv) {
 struct RunFigures {
   double wall = 0, cpu = 0, coordinator_cpu = 0, workers_cpu = 0, levels_wall = 0;
   uint64_t evaluations = 0, bytes_received = 0, bytes_sent = 0;
+  uint64_t subtree_samples = 0, subtree_busiest = 0;  ///< handed samples; of which to each level's busiest worker
   double merge = 0;
   bool identical = false;
   std::map<std::string, double> worker_cpu;  ///< CpuFields summed over the run's workers
@@ -426,6 +427,8 @@ int main(int argc, char** argv) {
         t->bytes_sent += s.bytes_sent;
         t->merge += s.merge_seconds;
         t->levels_wall += s.level_seconds;
+        t->subtree_samples += s.subtree_samples;
+        t->subtree_busiest += s.subtree_samples_busiest;
       }
       if (!verbose) return;
       std::printf("  %4d %5d  %5zu  %7llu  %6zu  %8zu  %14llu  %10llu  %8.2f  %7.3f  %.3g\n", s.tree, s.level,
@@ -474,6 +477,12 @@ int main(int argc, char** argv) {
         f.wall, f.levels_wall, f.cpu, f.coordinator_cpu, f.workers_cpu, (unsigned long long)f.evaluations,
         double(f.evaluations) / f.wall, double(f.evaluations) / f.cpu, (unsigned long long)f.bytes_received,
         f.merge * 1e3, f.identical ? "yes" : "NO");
+    if (f.subtree_samples > 0)
+      std::printf(
+          "  subtree hand-off balance: %llu samples handed; the busiest worker of each level got %.1f %% of "
+          "them (even: %.1f %%)\n",
+          (unsigned long long)f.subtree_samples, 100.0 * double(f.subtree_busiest) / double(f.subtree_samples),
+          100.0 / n);
     PrintBreakdown(f, engine.cpu);
     std::fflush(stdout);
     return 0;

@@ -138,6 +138,10 @@ struct DistCoordinator::Impl {
   /// Decided nodes of delegated subtrees not placed in the tree yet, by heap position.
   std::map<uint64_t, coordinator::SubtreeNode> delegated;
   std::map<uint64_t, SubtreeJob> tasks;  ///< outstanding SubtreeTasks of this level, by position
+  /// Samples of each worker's unfinished SubtreeTasks of this level (SendTask balances them).
+  std::map<std::string, uint64_t> subtree_load;
+  std::map<std::string, uint64_t> level_handed;  ///< samples of SubtreeTasks sent this level, per worker
+  uint64_t level_largest_task = 0;               ///< samples of the largest SubtreeTask of this level
   std::set<std::string> banned;          ///< senders of hostile SubtreeResults: never rejoin
   uint64_t subtree_rejected = 0;
   uint64_t level_subtree_evaluations = 0;
@@ -537,19 +541,38 @@ struct DistCoordinator::Impl {
       return RejectSubtree(sender, "node/leaf bytes do not match its node list");
     job->nodes = std::move(nodes);
     job->done = true;
+    ReleaseLoad(*job);
     level_subtree_evaluations += res.evaluations();
   }
 
-  /// Sends `job` to the live worker holding most of its samples (ties: smallest id), any live
-  /// worker when none of its holders is left.
+  /// Takes `job`'s samples off its worker's outstanding subtree load (done or handed on).
+  void ReleaseLoad(const SubtreeJob& job) {
+    const auto it = subtree_load.find(job.worker);
+    if (it == subtree_load.end()) return;
+    uint64_t n = 0;
+    for (uint64_t c : job.parts) n += c;
+    it->second -= std::min(it->second, n);
+  }
+
+  /// Sends `job` to a live worker: the one with the least subtree work of this level
+  /// outstanding (samples of its unfinished tasks) less the samples of `job` it holds (its frames
+  /// need no rendering); ties: most samples held, then an assigned worker, then the smallest id.
+  /// A worker trains its tasks before it answers the level's histogram request, so balancing
+  /// the samples handed to each keeps one worker from holding up the level (which worker trains
+  /// a subtree never changes it).
   Status SendTask(SubtreeJob& job) {
     const WorkerInfo* best = nullptr;
+    int64_t best_score = 0;
     uint64_t best_n = 0;
     for (const auto& [id, w] : workers) {
       if (!w.alive) continue;
       const auto it = job.holders.find(id);
       const uint64_t n = it == job.holders.end() ? 0 : it->second;
-      if (!best || n > best_n || (n == best_n && w.assigned && !best->assigned)) best = &w, best_n = n;
+      const auto load = subtree_load.find(id);
+      const int64_t score = int64_t(load == subtree_load.end() ? 0 : load->second) - int64_t(n);
+      if (!best || score < best_score || (score == best_score && n > best_n) ||
+          (score == best_score && n == best_n && w.assigned && !best->assigned))
+        best = &w, best_score = score, best_n = n;
     }
     if (!best) {
       POSEFOREST_RETURN_IF_ERROR(WaitForWorkers(1));
@@ -600,6 +623,9 @@ struct DistCoordinator::Impl {
     job.worker = best->id;
     job.epoch = t->epoch();
     job.sent = NowSeconds();
+    subtree_load[job.worker] += total;
+    level_handed[job.worker] += total;
+    level_largest_task = std::max(level_largest_task, total);
     return Send(Topic::kControl, env);
   }
 
@@ -619,6 +645,7 @@ struct DistCoordinator::Impl {
         if (it == workers.end() || !it->second.alive) {
           Log("subtree at position " + std::to_string(pos) + ": " + job.worker + " is gone, handing it on");
           ++level_retries;
+          ReleaseLoad(job);
           POSEFOREST_RETURN_IF_ERROR(SendTask(job));
         }
       }
@@ -662,6 +689,7 @@ struct DistCoordinator::Impl {
     split_of.clear();
     delegated.clear();
     tasks.clear();
+    subtree_load.clear();
     for (const v1::LoggedLevel& lv : ckpt.current().levels())
       for (const v1::LoggedDecision& d : lv.decisions())
         if (d.split())
@@ -728,6 +756,8 @@ struct DistCoordinator::Impl {
       // hold their samples, send the tasks, and let them train while the histogram rounds of
       // the other nodes run. Never the root: one worker would train the whole tree.
       size_t handed_off = 0;
+      level_handed.clear();
+      level_largest_task = 0;
       if (params.subtree_max_samples > 0 && level > 0) {
         std::vector<size_t> keep, hand;
         for (size_t i : to_split)
@@ -743,6 +773,7 @@ struct DistCoordinator::Impl {
           auto rf = Round(v1::PHASE_FRAMES, ids, specs, level);
           if (!rf.ok()) return rf.status();
           tasks.clear();
+          subtree_load.clear();
           for (size_t q = 0; q < hand.size(); ++q) {
             const FrontierNode& f = frontier[hand[q]];
             SubtreeJob job;
@@ -790,9 +821,19 @@ struct DistCoordinator::Impl {
                                         nr->pixel_deltas().begin() + at + int(count));
               }
             }
-            SubtreeJob& stored = tasks[f.position] = std::move(job);
-            POSEFOREST_RETURN_IF_ERROR(SendTask(stored));
+            tasks[f.position] = std::move(job);
           }
+          // Largest first, each to the least loaded worker (SendTask): the level's subtree work
+          // splits evenly however unequal the nodes are.
+          std::vector<SubtreeJob*> order;
+          for (auto& [pos, job] : tasks) order.push_back(&job);
+          std::stable_sort(order.begin(), order.end(), [](const SubtreeJob* a, const SubtreeJob* b) {
+            uint64_t na = 0, nb = 0;
+            for (uint64_t c : a->parts) na += c;
+            for (uint64_t c : b->parts) nb += c;
+            return na > nb;
+          });
+          for (SubtreeJob* job : order) POSEFOREST_RETURN_IF_ERROR(SendTask(*job));
           handed_off = hand.size();
           to_split.swap(keep);
         }
@@ -969,6 +1010,7 @@ struct DistCoordinator::Impl {
         for (auto& [pos, job] : tasks)
           for (coordinator::SubtreeNode& n : job.nodes) delegated[n.position] = std::move(n);
         tasks.clear();
+        subtree_load.clear();
         evaluations += level_subtree_evaluations;
         if (opt.observer) opt.observer->OnNodesDecided(frontier.size(), frontier.size());
       }
@@ -1076,6 +1118,9 @@ struct DistCoordinator::Impl {
       st.retries = level_retries;
       st.subtree_tasks = handed_off;
       st.subtree_nodes = from_subtrees;
+      for (const auto& [id, n] : level_handed)
+        st.subtree_samples += n, st.subtree_samples_busiest = std::max(st.subtree_samples_busiest, n);
+      st.subtree_largest_task = level_largest_task;
       st.mean_entropy = level_samples > 0 ? entropy_sum / double(level_samples) : 0;
       st.mean_gain = num_split > 0 ? gain_sum / double(num_split) : 0;
       if (opt.progress) opt.progress(st);

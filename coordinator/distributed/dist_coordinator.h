@@ -47,6 +47,9 @@ struct DistLevelStats {
   int retries = 0;              ///< rounds asked again after a worker loss (or subtree tasks handed on)
   size_t subtree_tasks = 0;     ///< nodes of this level handed to one worker whole (SubtreeTask)
   size_t subtree_nodes = 0;     ///< nodes of this level decided by SubtreeResults (tasks' roots included)
+  uint64_t subtree_samples = 0;          ///< samples of this level's SubtreeTasks (each time sent)
+  uint64_t subtree_samples_busiest = 0;  ///< of which sent to the worker that got the most
+  uint64_t subtree_largest_task = 0;     ///< samples of the largest SubtreeTask of this level
   double mean_entropy = 0;      ///< bits: part entropy of the frontier nodes, weighted by samples
   double mean_gain = 0;         ///< bits: mean information gain of the splits chosen (0: none)
 };

@@ -3,6 +3,7 @@
 // worker holding a task dies, when a worker answers with a hostile result, and across a
 // coordinator restart. Workers on threads, real DDS participants over shared memory.
 
+#include <array>
 #include <catch2/catch.hpp>
 #include <cstring>
 #include <filesystem>
@@ -29,11 +30,14 @@ CoordinatorOptions Options(uint32_t domain, int min_workers) {
 struct HandOff {
   size_t tasks = 0, nodes = 0, histogram_levels = 0;
   int retries = 0;
+  /// Per level with hand-offs: samples handed, to the busiest worker, the largest task.
+  std::vector<std::array<uint64_t, 3>> handed;
   void Add(const DistLevelStats& s) {
     tasks += s.subtree_tasks;
     nodes += s.subtree_nodes;
     histogram_levels += s.subtree_nodes < s.frontier_nodes;
     retries += s.retries;
+    if (s.subtree_samples > 0) handed.push_back({s.subtree_samples, s.subtree_samples_busiest, s.subtree_largest_task});
   }
 };
 
@@ -75,6 +79,14 @@ TEST_CASE("with subtree hand-off the forest is byte-identical to LocalTrainer wi
       CHECK(h.tasks >= 2);             // deep nodes were handed off ...
       CHECK(h.nodes > h.tasks);        // ... and their subtrees came back whole
       CHECK(h.histogram_levels >= 2);  // the shallow levels still ran histogram rounds
+      // Every level's subtree work is spread over the workers: largest task first to the least
+      // loaded, so the busiest worker gets at most an even share plus one task (list
+      // scheduling's bound), however the samples sit in the workers' shards.
+      for (const auto& [total, busiest, largest] : h.handed) {
+        INFO(total << " samples handed, " << busiest << " to the busiest worker, largest task " << largest);
+        CHECK(busiest <= (total + uint64_t(n) - 1) / uint64_t(n) + largest);
+        if (n > 1 && total > 2 * largest) CHECK(busiest < total);
+      }
       CHECK(coordinator.workers_lost() == 0);
       CHECK(coordinator.rejected_messages() == 0);
     }
