@@ -410,6 +410,8 @@ int main(int argc, char** argv) {
     co.job_id = job_id;
     co.min_workers = n;
     co.subtree_sample_lists = sample_lists;
+    // As `coordinator --local-workers n`: the coordinator merges on the cores the workers leave.
+    co.merge_threads = std::max(1, int(std::thread::hardware_concurrency()) - n);
     co.log = [](const std::string&) {};
     std::map<int, RunFigures> trees;
     if (verbose)

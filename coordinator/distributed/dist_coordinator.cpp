@@ -718,7 +718,9 @@ struct DistCoordinator::Impl {
     }
     const int k = params.candidate_features;
     const int t_count = params.thresholds_per_feature;
-    const int merge_threads = params.threads > 0 ? params.threads : omp_get_max_threads();
+    const int merge_threads = opt.merge_threads > 0 ? opt.merge_threads
+                              : params.threads > 0  ? params.threads
+                                                    : omp_get_max_threads();
     const int cut_stride = worker::CutStride(t_count);
     const dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
     for (int level = first_level; !frontier.empty(); ++level) {

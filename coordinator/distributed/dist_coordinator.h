@@ -100,6 +100,10 @@ struct CoordinatorOptions {
   /// SubtreeTasks list the node's samples (from the FRAMES round) so that the worker takes them
   /// without routing its frames along the path; false (tests): the worker routes. Same forest.
   bool subtree_sample_lists = true;
+  /// OpenMP threads for merging histograms and choosing splits; 0: the job's `threads` (0 there:
+  /// every core). `--local-workers N` sets the cores the workers leave free (at least 1), so the
+  /// coordinator's threads neither take the workers' cores nor spin-wait on them.
+  int merge_threads = 0;
   std::string checkpoint_dir;  ///< empty: no checkpoints
   bool resume = false;         ///< continue from checkpoint_dir/checkpoint.pb if present
   /// Tests: before tree t (< size), wait until this many workers are alive (late joiners).
