@@ -1,6 +1,7 @@
 #include "coordinator/distributed/coordinator_monitoring.h"
 
 #include <chrono>
+#include <cstdio>
 #include <thread>
 
 #include "coordinator/distributed/dashboard.h"
@@ -8,7 +9,7 @@
 namespace poseforest::dist {
 
 core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Start(
-    const JobInfo& job, const std::string& http, const std::string& event_log) {
+    const JobInfo& job, const std::string& http, const std::string& event_log, const std::string& http_token) {
   std::unique_ptr<CoordinatorMonitoring> m(new CoordinatorMonitoring());
   m->model_ = std::make_unique<StatusModel>(job);
   std::vector<CoordinatorObserver*> targets = {m->model_.get()};
@@ -22,6 +23,19 @@ core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Star
   if (http != "off") {
     HttpServerOptions opt;
     POSEFOREST_RETURN_IF_ERROR(ParseHttpAddress(http, &opt));
+    opt.bearer_token = http_token;
+    opt.log = [](const std::string& line) {
+      std::fprintf(stderr, "coordinator: %s\n", line.c_str());
+      std::fflush(stderr);
+    };
+    if (http_token.empty() && !IsLoopbackAddress(opt.address)) {
+      std::fprintf(stderr,
+                   "coordinator: warning: --http %s serves the job's status, metrics and dashboard to anyone "
+                   "who can reach this address, without authentication; give --http-token-file FILE "
+                   "(docs/distributed/monitoring.md#access-control)\n",
+                   http.c_str());
+      std::fflush(stderr);
+    }
     auto server = HttpServer::Start(opt, StatusHandler(m->model_.get()));
     if (!server.ok()) return server.status();
     m->http_ = std::move(*server);

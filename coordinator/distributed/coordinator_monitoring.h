@@ -17,11 +17,15 @@ inline constexpr const char* kDefaultHttp = "127.0.0.1:0";
 
 class CoordinatorMonitoring {
  public:
-  /// `http`: "off" or HOST:PORT; `event_log`: a file to append to, or empty. Errors: a bad
-  /// address, a port in use, an event log that cannot be opened.
+  /// `http`: "off" or HOST:PORT; `event_log`: a file to append to, or empty; `http_token`: the
+  /// bearer token every HTTP request must carry (empty: none; ReadHttpTokenFile). Refused
+  /// requests are logged to stderr ("coordinator: http: 401 ... from IP:PORT", rate-limited); a
+  /// non-loopback address without a token prints a warning. Errors: a bad address, a port in
+  /// use, an event log that cannot be opened.
   static core::Result<std::unique_ptr<CoordinatorMonitoring>> Start(const JobInfo& job,
                                                                     const std::string& http,
-                                                                    const std::string& event_log);
+                                                                    const std::string& event_log,
+                                                                    const std::string& http_token = "");
 
   /// For CoordinatorOptions::observer.
   CoordinatorObserver* observer() { return &fanout_; }

@@ -172,10 +172,20 @@ function render(s) {
   chart(s.levels);
   document.title = "poseforest " + s.job_id + " \u2013 " + s.state + " " + pct + " %";
 }
+// With --http-token-file the page is opened as /?token=TOKEN: its fetches send the token as
+// "Authorization: Bearer TOKEN" (never stored by the browser: no cookie, no local storage).
+const token = (() => {
+  const m = /(?:^|[?&])token=([^&]*)/.exec(location.search);
+  try { return m ? decodeURIComponent(m[1]) : ""; } catch (e) { return ""; }
+})();
 let timer = null;
 async function poll() {
   try {
-    const r = await fetch("status.json", {cache: "no-store"});
+    const r = await fetch("status.json", {cache: "no-store", headers: token ? {"Authorization": "Bearer " + token} : {}});
+    if (r.status === 401) {
+      set("error", "(HTTP 401: the coordinator needs its token: open this page as /?token=TOKEN)");
+      return;  // polling again would not help
+    }
     if (!r.ok) throw new Error("HTTP " + r.status);
     const s = await r.json();
     render(s);
@@ -197,12 +207,29 @@ const std::string& DashboardHtml() {
   return html;
 }
 
+std::string HttpServerMetrics(const HttpServer& server) {
+  std::string out =
+      "# HELP poseforest_http_requests_total Requests and connections of the status server, by outcome "
+      "(ok: answered; bad_request: 400/405/408/431; unauthorized: 401, no or a wrong token; "
+      "rejected_connection: 503, over the connection limits).\n"
+      "# TYPE poseforest_http_requests_total counter\n";
+  const std::pair<const char*, uint64_t> rows[] = {{"ok", server.requests()},
+                                                   {"bad_request", server.bad_requests()},
+                                                   {"unauthorized", server.unauthorized()},
+                                                   {"rejected_connection", server.dropped()}};
+  for (const auto& [outcome, n] : rows)
+    out += std::string("poseforest_http_requests_total{outcome=\"") + outcome + "\"} " + std::to_string(n) + "\n";
+  return out;
+}
+
 HttpServer::Handler StatusHandler(const StatusModel* model) {
   return [model](const HttpRequest& req) -> HttpResponse {
     if (req.path == "/" || req.path == "/index.html")
       return {200, "text/html; charset=utf-8", DashboardHtml()};
     if (req.path == "/status.json") return {200, "application/json", model->Json()};
-    if (req.path == "/metrics") return {200, "text/plain; version=0.0.4; charset=utf-8", model->Prometheus()};
+    if (req.path == "/metrics")
+      return {200, "text/plain; version=0.0.4; charset=utf-8",
+              model->Prometheus() + (req.server ? HttpServerMetrics(*req.server) : "")};
     if (req.path == "/healthz") return {200, "text/plain; charset=utf-8", "ok\n"};
     return {404, "text/plain; charset=utf-8",
             "404 Not Found: " + req.path + " (try /, /status.json, /metrics)\n"};

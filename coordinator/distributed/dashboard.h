@@ -13,6 +13,10 @@ namespace poseforest::dist {
 /// The dashboard page (no external resources).
 const std::string& DashboardHtml();
 
+/// The status server's own counters in Prometheus text (poseforest_http_requests_total by outcome:
+/// ok, bad_request, unauthorized, rejected_connection); /metrics ends with them.
+std::string HttpServerMetrics(const HttpServer& server);
+
 /// Routes requests to `model` (not owned; must outlive the server).
 HttpServer::Handler StatusHandler(const StatusModel* model);
 

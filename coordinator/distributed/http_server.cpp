@@ -6,10 +6,16 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
+#include <fstream>
+#include <map>
+#include <sstream>
 #include <vector>
 
 namespace poseforest::dist {
@@ -27,6 +33,8 @@ const char* Reason(int status) {
       return "OK";
     case 400:
       return "Bad Request";
+    case 401:
+      return "Unauthorized";
     case 404:
       return "Not Found";
     case 405:
@@ -48,7 +56,9 @@ std::string Serialize(const HttpResponse& r, bool head_only, const std::string& 
   std::string out = "HTTP/1.1 " + std::to_string(r.status) + " " + Reason(r.status) + "\r\n";
   out += "Content-Type: " + r.content_type + "\r\n";
   out += "Content-Length: " + std::to_string(r.body.size()) + "\r\n";
-  out += "Cache-Control: no-store\r\nConnection: close\r\n" + extra_headers + "\r\n";
+  out += "Cache-Control: no-store\r\nConnection: close\r\nX-Content-Type-Options: nosniff\r\n"
+         "Referrer-Policy: no-referrer\r\n" +
+         extra_headers + "\r\n";
   if (!head_only) out += r.body;
   return out;
 }
@@ -69,6 +79,8 @@ bool IsTokenChar(char c) {
 
 struct Conn {
   int fd = -1;
+  uint32_t peer_ip = 0;  ///< network order
+  std::string peer;      ///< "IP:PORT"
   std::string in, out;
   size_t sent = 0;
   bool responding = false;
@@ -119,7 +131,162 @@ bool ParseHead(const std::string& head, HttpRequest* req, HttpResponse* error) {
   req->query = q == std::string::npos ? "" : target.substr(q + 1);
   return true;
 }
+
+char Lower(char c) { return c >= 'A' && c <= 'Z' ? char(c - 'A' + 'a') : c; }
+
+bool EqualsNoCase(const std::string& a, const std::string& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (Lower(a[i]) != Lower(b[i])) return false;
+  return true;
+}
+
+std::string Trim(const std::string& s) {
+  size_t a = 0, b = s.size();
+  while (a < b && (s[a] == ' ' || s[a] == '\t')) ++a;
+  while (b > a && (s[b - 1] == ' ' || s[b - 1] == '\t' || s[b - 1] == '\r')) --b;
+  return s.substr(a, b - a);
+}
+
+/// The values of every header `name` (case-insensitive) in a request head.
+std::vector<std::string> HeaderValues(const std::string& head, const std::string& name) {
+  std::vector<std::string> out;
+  size_t pos = head.find('\n');
+  while (pos != std::string::npos && pos + 1 < head.size()) {
+    const size_t start = pos + 1;
+    const size_t end = head.find('\n', start);
+    const std::string line = head.substr(start, end == std::string::npos ? std::string::npos : end - start);
+    const size_t colon = line.find(':');
+    if (colon != std::string::npos && EqualsNoCase(line.substr(0, colon), name))
+      out.push_back(Trim(line.substr(colon + 1)));
+    pos = end;
+  }
+  return out;
+}
+
+/// Percent-decoding ('+' stays '+': tokens are compared as the dashboard's script sends them).
+std::string PercentDecode(const std::string& s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '%' && i + 2 < s.size() && std::isxdigit(static_cast<unsigned char>(s[i + 1])) &&
+        std::isxdigit(static_cast<unsigned char>(s[i + 2]))) {
+      out += char(std::stoi(s.substr(i + 1, 2), nullptr, 16));
+      i += 2;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+/// The credentials a request presents: the bearer token of its Authorization header, or for the
+/// dashboard page its `token` query parameter. `present` says whether it tried at all.
+std::string PresentedToken(const std::string& head, const HttpRequest& req, bool* present, bool* ambiguous) {
+  *present = false;
+  *ambiguous = false;
+  const auto auth = HeaderValues(head, "authorization");
+  if (auth.size() > 1) {
+    *present = true;
+    *ambiguous = true;
+    return "";
+  }
+  if (auth.size() == 1) {
+    *present = true;
+    const std::string& v = auth[0];
+    const size_t sp = v.find_first_of(" \t");
+    if (sp == std::string::npos || !EqualsNoCase(v.substr(0, sp), "bearer")) return "";
+    return Trim(v.substr(sp + 1));
+  }
+  if (req.path == "/" || req.path == "/index.html") {
+    std::istringstream q(req.query);
+    for (std::string kv; std::getline(q, kv, '&');)
+      if (kv.rfind("token=", 0) == 0) {
+        *present = true;
+        return PercentDecode(kv.substr(6));
+      }
+  }
+  return "";
+}
 }  // namespace
+
+bool ConstantTimeEquals(const std::string& given, const std::string& expected) {
+  // Every byte of `given` is compared (against `expected` repeated), whatever the lengths; the
+  // time depends on given.size() only.
+  if (expected.empty()) return given.empty();
+  volatile unsigned char diff = given.size() == expected.size() ? 0 : 1;
+  for (size_t i = 0; i < given.size(); ++i)
+    diff = diff | static_cast<unsigned char>(given[i] ^ expected[i % expected.size()]);
+  return diff == 0 && given.size() == expected.size();
+}
+
+bool IsLoopbackAddress(const std::string& ipv4) {
+  in_addr a{};
+  return ::inet_pton(AF_INET, ipv4.c_str(), &a) == 1 && (ntohl(a.s_addr) >> 24) == 127;
+}
+
+Result<std::string> ReadHttpTokenFile(const std::string& path) {
+  const std::string what = "--http-token-file " + path;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0)
+    return Status(ErrorCode::kInvalidArgument, what + ": " + std::strerror(errno));
+  if (!S_ISREG(st.st_mode)) return Status(ErrorCode::kInvalidArgument, what + ": not a regular file");
+  char mode[8];
+  std::snprintf(mode, sizeof mode, "%04o", unsigned(st.st_mode & 07777));
+  const bool root_owned = st.st_uid == 0;
+  if ((st.st_mode & 007) != 0 || (st.st_mode & 020) != 0 || (!root_owned && (st.st_mode & 070) != 0))
+    return Status(ErrorCode::kInvalidArgument,
+                  what + ": permissions " + mode + " are too open (a secret: readable by " +
+                      ((st.st_mode & 007) != 0 ? "others" : "its group") + "); chmod 600 " + path +
+                      " (or 0440 owned by root, as a Kubernetes Secret with fsGroup)");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status(ErrorCode::kInvalidArgument, what + ": cannot read it: " + std::strerror(errno));
+  std::string token((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (token.size() > 4098) return Status(ErrorCode::kInvalidArgument, what + ": over 4096 bytes (a token, not a file)");
+  if (!token.empty() && token.back() == '\n') token.pop_back();
+  if (!token.empty() && token.back() == '\r') token.pop_back();
+  if (token.empty())
+    return Status(ErrorCode::kInvalidArgument,
+                  what + ": empty (put a random token in it, e.g. `openssl rand -hex 32 > " + path + "`)");
+  for (size_t i = 0; i < token.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(token[i]);
+    if (c <= 0x20 || c >= 0x7f)
+      return Status(ErrorCode::kInvalidArgument,
+                    what + ": byte " + std::to_string(i) +
+                        " is a space, control or non-ASCII character (one line of visible ASCII, e.g. "
+                        "`openssl rand -hex 32`)");
+  }
+  if (token.size() > 4096) return Status(ErrorCode::kInvalidArgument, what + ": token over 4096 bytes");
+  return token;
+}
+
+void HttpServer::Log(const std::string& line) {
+  if (!opt_.log) return;
+  const auto now = Clock::now();
+  if (log_refill_ == Clock::time_point{}) {
+    log_credit_ = std::max(1, opt_.log_burst);
+    log_refill_ = now;
+  }
+  // One more line allowed per interval, up to the burst.
+  if (opt_.log_interval.count() > 0) {
+    const auto gained = (now - log_refill_) / opt_.log_interval;
+    if (gained > 0) {
+      log_credit_ = int(std::min<int64_t>(std::max(1, opt_.log_burst), log_credit_ + int64_t(gained)));
+      log_refill_ += opt_.log_interval * gained;
+    }
+  }
+  if (log_credit_ <= 0) {
+    ++log_suppressed_;
+    return;
+  }
+  --log_credit_;
+  std::string l = line;
+  if (log_suppressed_ > 0) l += " (" + std::to_string(log_suppressed_) + " more refused requests not logged)";
+  log_suppressed_ = 0;
+  try {
+    opt_.log(l);
+  } catch (...) {
+  }
+}
 
 Status ParseHttpAddress(const std::string& text, HttpServerOptions* opt) {
   const size_t colon = text.rfind(':');
@@ -245,14 +412,37 @@ void HttpServer::Loop() {
               ++bad_;
               respond(err, false);
             } else {
-              HttpResponse r;
-              try {
-                r = handler_(req);
-              } catch (...) {
-                r = Error(500, "handler failed");
+              req.peer = c.peer;
+              req.server = this;
+              bool present = false, ambiguous = false;
+              const bool authorized =
+                  opt_.bearer_token.empty() ||
+                  (ConstantTimeEquals(PresentedToken(c.in.substr(0, end), req, &present, &ambiguous),
+                                      opt_.bearer_token) &&
+                   !ambiguous);
+              if (!authorized) {
+                // Nothing about the server or the path: the status, the scheme, one line.
+                ++unauthorized_;
+                Log("http: 401 for " + req.method + " " + req.path.substr(0, 100) + " from " + c.peer + ": " +
+                    (ambiguous ? "several Authorization headers" : present ? "wrong token" : "no token"));
+                c.out = Serialize({401, "text/plain; charset=utf-8", "401 Unauthorized: a bearer token is required\n"},
+                                  req.method == "HEAD",
+                                  std::string("WWW-Authenticate: Bearer realm=\"poseforest\"") +
+                                      (present ? ", error=\"invalid_token\"" : "") + "\r\n");
+                c.sent = 0;
+                c.responding = true;
+                c.in.clear();
+                c.in.shrink_to_fit();
+              } else {
+                HttpResponse r;
+                try {
+                  r = handler_(req);
+                } catch (...) {
+                  r = Error(500, "handler failed");
+                }
+                ++requests_;
+                respond(r, req.method == "HEAD");
               }
-              ++requests_;
-              respond(r, req.method == "HEAD");
             }
           }
         }
@@ -282,10 +472,23 @@ void HttpServer::Loop() {
     conns.swap(keep);
     if (fds[1].revents & POLLIN) {
       for (;;) {
-        const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        sockaddr_in peer{};
+        socklen_t peer_len = sizeof peer;
+        const int fd =
+            ::accept4(listen_fd_, reinterpret_cast<sockaddr*>(&peer), &peer_len, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0) break;
-        if (int(conns.size()) >= opt_.max_connections) {
+        char ip[INET_ADDRSTRLEN] = "?";
+        ::inet_ntop(AF_INET, &peer.sin_addr, ip, sizeof ip);
+        const std::string peer_text = std::string(ip) + ":" + std::to_string(ntohs(peer.sin_port));
+        int from_peer = 0;
+        for (const Conn& o : conns) from_peer += o.peer_ip == peer.sin_addr.s_addr;
+        const bool over_total = int(conns.size()) >= opt_.max_connections;
+        const bool over_peer = from_peer >= opt_.max_connections_per_peer;
+        if (over_total || over_peer) {
           ++dropped_;
+          if (over_peer)
+            Log("http: 503 for a connection from " + peer_text + ": " + std::to_string(from_peer) +
+                " already open from that address");
           const std::string r = Serialize(Error(503, "too many connections"), false);
           (void)::send(fd, r.data(), r.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
           // Read what already arrived so that close() sends FIN, not RST (which would discard
@@ -299,6 +502,8 @@ void HttpServer::Loop() {
         }
         Conn c;
         c.fd = fd;
+        c.peer_ip = peer.sin_addr.s_addr;
+        c.peer = peer_text;
         c.deadline = Clock::now() + opt_.timeout;
         conns.push_back(std::move(c));
       }
@@ -307,7 +512,8 @@ void HttpServer::Loop() {
   for (Conn& c : conns) ::close(c.fd);
 }
 
-Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout) {
+Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout,
+                            const std::string& bearer_token) {
   const std::string prefix = "http://";
   if (url.rfind(prefix, 0) != 0) return Status(ErrorCode::kInvalidArgument, url + ": only http:// URLs");
   const std::string rest = url.substr(prefix.size());
@@ -341,7 +547,9 @@ Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds ti
     ::getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len);
     if (err != 0) return Status(ErrorCode::kIo, url + ": " + std::strerror(err));
   }
-  const std::string req = "GET " + path + " HTTP/1.1\r\nHost: " + hostport + "\r\nConnection: close\r\n\r\n";
+  const std::string req = "GET " + path + " HTTP/1.1\r\nHost: " + hostport + "\r\n" +
+                          (bearer_token.empty() ? "" : "Authorization: Bearer " + bearer_token + "\r\n") +
+                          "Connection: close\r\n\r\n";
   size_t sent = 0;
   while (sent < req.size()) {
     pollfd p{fd, POLLOUT, 0};
@@ -370,6 +578,11 @@ Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds ti
     return Status(ErrorCode::kDataLoss, url + ": not an HTTP reply");
   const int code = std::atoi(resp.substr(9, 3).c_str());
   std::string body = resp.substr(head_end + 4);
+  if (code == 401)
+    return Status(ErrorCode::kInvalidArgument,
+                  url + ": HTTP 401: " + body.substr(0, body.find('\n')) +
+                      (bearer_token.empty() ? " (the coordinator has --http-token-file: pass the same token file)"
+                                            : " (the token sent is not the coordinator's)"));
   if (code != 200)
     return Status(code == 404 ? ErrorCode::kNotFound : ErrorCode::kIo,
                   url + ": HTTP " + std::to_string(code) + ": " + body.substr(0, body.find('\n')));

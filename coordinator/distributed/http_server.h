@@ -4,7 +4,10 @@
 // `poseforest monitor`. One background thread polls every socket without blocking, so a slow or
 // hostile client cannot hold up the others or the training thread: request heads are bounded
 // (431), malformed request lines get 400, other methods 405, a request not complete within the
-// timeout 408, and connections beyond the limit are closed at once. docs/distributed/monitoring.md.
+// timeout 408, and connections beyond the limit (in all, or from one peer address) are closed at
+// once with 503. With a bearer token (`--http-token-file`) every request must carry it
+// ("Authorization: Bearer TOKEN", or `?token=TOKEN` for the dashboard page itself); others get
+// 401, are counted and logged (rate-limited) with the peer address. docs/distributed/monitoring.md.
 
 #include <atomic>
 #include <chrono>
@@ -18,10 +21,14 @@
 
 namespace poseforest::dist {
 
+class HttpServer;
+
 struct HttpRequest {
   std::string method;  ///< GET or HEAD
   std::string path;    ///< without the query, e.g. "/status.json"
   std::string query;   ///< after '?', may be empty
+  std::string peer;    ///< the client's "IP:PORT"
+  const HttpServer* server = nullptr;  ///< the server answering (its counters for /metrics)
 };
 
 struct HttpResponse {
@@ -36,7 +43,30 @@ struct HttpServerOptions {
   size_t max_head_bytes = 16 * 1024;        ///< request line + headers; larger: 431
   int max_connections = 64;                 ///< more at once are closed right away
   std::chrono::milliseconds timeout{5000};  ///< to receive the request head and send the reply
+  int max_connections_per_peer = 16;        ///< more at once from one IP address are closed right away
+  /// Non-empty: every request needs "Authorization: Bearer <token>" (or, for "/" and
+  /// "/index.html" only, the query parameter token=<token>); others get 401. Compared in constant
+  /// time. See ReadHttpTokenFile.
+  std::string bearer_token;
+  /// Receives a line per refused request (401, per-peer 503), at most `log_burst` lines at once
+  /// and then one per `log_interval`, each saying how many were not logged. Null: no log.
+  std::function<void(const std::string&)> log;
+  int log_burst = 5;
+  std::chrono::milliseconds log_interval{10000};
 };
+
+/// The bearer token in `path` (`--http-token-file`), checked like ssh checks a private key: the file
+/// must exist, be a regular file, not be readable or writable by others, nor by its group unless
+/// root owns it (a Kubernetes Secret mounted with fsGroup: root:GROUP 0440); one trailing newline
+/// ("\n" or "\r\n") is dropped; the token must be 1..4096 visible ASCII characters. Errors name
+/// the file and say what to do.
+core::Result<std::string> ReadHttpTokenFile(const std::string& path);
+
+/// True for 127.0.0.0/8 (an IPv4 literal as in HttpServerOptions::address).
+bool IsLoopbackAddress(const std::string& ipv4);
+
+/// Equal strings, in time that depends only on the length of `given` (never on where they differ).
+bool ConstantTimeEquals(const std::string& given, const std::string& expected);
 
 /// "HOST:PORT" (HOST an IPv4 literal or "localhost", PORT 0..65535) into `opt`.
 core::Status ParseHttpAddress(const std::string& text, HttpServerOptions* opt);
@@ -55,7 +85,8 @@ class HttpServer {
 
   uint64_t requests() const { return requests_; }  ///< answered with the handler
   uint64_t bad_requests() const { return bad_; }   ///< answered 400/405/408/431
-  uint64_t dropped() const { return dropped_; }    ///< closed over the connection limit
+  uint64_t dropped() const { return dropped_; }    ///< closed over the connection limits
+  uint64_t unauthorized() const { return unauthorized_; }  ///< answered 401 (no or a wrong token)
 
  private:
   HttpServer() = default;
@@ -66,12 +97,19 @@ class HttpServer {
   int listen_fd_ = -1, wake_[2] = {-1, -1};
   uint16_t port_ = 0;
   std::atomic<bool> stop_{false};
-  std::atomic<uint64_t> requests_{0}, bad_{0}, dropped_{0};
+  std::atomic<uint64_t> requests_{0}, bad_{0}, dropped_{0}, unauthorized_{0};
+  // Rate limit of opt_.log (serving thread only).
+  int log_credit_ = 0;
+  std::chrono::steady_clock::time_point log_refill_{};
+  uint64_t log_suppressed_ = 0;
+  void Log(const std::string& line);
   std::thread thread_;
 };
 
-/// The body of GET http://HOST:PORT/path ("http://" URLs only, IPv4 or localhost). Errors: the
-/// URL, connection, timeout, a non-200 status (its code and first line of the body).
-core::Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout);
+/// The body of GET http://HOST:PORT/path ("http://" URLs only, IPv4 or localhost), with
+/// "Authorization: Bearer <bearer_token>" when one is given. Errors: the URL, connection, timeout,
+/// a non-200 status (its code and first line of the body; for 401 also whether a token was sent).
+core::Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout,
+                                  const std::string& bearer_token = "");
 
 }  // namespace poseforest::dist

@@ -347,7 +347,7 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
 }  // namespace
 
 int MonitorMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"url", "interval-ms", "timeout-s", "domain", "job"};
+  std::set<std::string> value_options = {"url", "http-token-file", "interval-ms", "timeout-s", "domain", "job"};
   for (const char* o : dist::kDdsValueOptions) value_options.insert(o);  // the DDS transport flags
   Args args(value_options, {"once", "help"});
   if (Status st = args.Parse(argc, argv);
@@ -355,12 +355,16 @@ int MonitorMain(int argc, char** argv) {
     if (!st.ok()) std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
     std::fprintf(
         stderr,
-        "usage: poseforest monitor --url http://HOST:PORT [--once] [--interval-ms 1000] [--timeout-s 10]\n"
+        "usage: poseforest monitor --url http://HOST:PORT [--http-token-file FILE] [--once] [--interval-ms 1000]\n"
+        "                          [--timeout-s 10]\n"
         "       poseforest monitor --domain D [--job ID] [DDS transport flags] [--once] ...\n"
         "  Shows a training job's live status from its coordinator (the URL the coordinator prints,\n"
         "  `--http` there): tree, level, nodes done/total, samples/s, evaluations/s, ETA, workers.\n"
         "  Refreshes every second and exits when the job is done (0) or failed (1); --once prints one\n"
         "  snapshot. Exits 1 when the coordinator cannot be reached for --timeout-s seconds.\n"
+        "  --http-token-file: the coordinator's token file (its --http-token-file), sent as\n"
+        "  \"Authorization: Bearer TOKEN\"; the same checks (mode 600, one line). A wrong or missing token\n"
+        "  (HTTP 401) exits 1 at once.\n"
         "  --domain: reads the job announcement and the coordinator's status events from DDS instead\n"
         "  (the same figures and worker table, no URL needed); --job picks one job of the domain.\n"
         "  DDS transport flags, as for the job's coordinator and workers (`poseforest coordinator --help`):\n"
@@ -376,6 +380,10 @@ int MonitorMain(int argc, char** argv) {
                  (!interval.ok() ? interval.status() : timeout.status()).message().c_str());
     return 2;
   }
+  if (args.Has("http-token-file") && args.Has("domain")) {
+    std::fprintf(stderr, "monitor: --http-token-file is for --url (the coordinator's HTTP status)\n");
+    return 2;
+  }
   if (args.Has("domain")) {
     auto domain = args.GetInt("domain", 0, 0, 232);
     auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
@@ -387,6 +395,15 @@ int MonitorMain(int argc, char** argv) {
     return MonitorDds(uint32_t(*domain), *dds_flags, args.GetOr("job", ""), args.Has("once"), *interval,
                       *timeout);
   }
+  std::string token;
+  if (args.Has("http-token-file")) {
+    auto t = dist::ReadHttpTokenFile(*args.Get("http-token-file"));
+    if (!t.ok()) {
+      std::fprintf(stderr, "monitor: %s\n", t.status().message().c_str());
+      return 2;
+    }
+    token = *t;
+  }
   std::string url = *args.Get("url");
   while (!url.empty() && url.back() == '/') url.pop_back();
   const bool once = args.Has("once");
@@ -394,7 +411,7 @@ int MonitorMain(int argc, char** argv) {
   auto last_ok = std::chrono::steady_clock::now();
   std::string last_state;
   for (;;) {
-    auto body = dist::HttpGet(url + "/status.json", std::chrono::milliseconds(5000));
+    auto body = dist::HttpGet(url + "/status.json", std::chrono::milliseconds(5000), token);
     pb::Struct status;
     Status st = body.ok() ? Status::Ok() : body.status();
     if (st.ok()) {
@@ -404,7 +421,7 @@ int MonitorMain(int argc, char** argv) {
         st = Status(core::ErrorCode::kDataLoss, url + "/status.json: not a JSON object");
     }
     if (!st.ok()) {
-      if (once) {
+      if (once || st.message().find(": HTTP 401: ") != std::string::npos) {  // retrying will not help
         std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
         return 1;
       }
