@@ -126,7 +126,7 @@ struct LocalWorkers {
 int CoordinatorMain(int argc, char** argv) {
   Args args(WithDdsOptions({"out", "local-workers", "domain", "checkpoint", "status-file", "min-workers",
                              "min-workers-per-tree", "pause-file", "job-id", "worker-threads", "worker-wait-s",
-                             "http", "event-log", "http-linger-s", "worker-security"}),
+                             "http", "http-token-file", "event-log", "http-linger-s", "worker-security"}),
             {"resume", "check-config", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || args.positional().size() != 1 || !args.Has("out")) {
@@ -139,6 +139,8 @@ int CoordinatorMain(int argc, char** argv) {
         "         [--http HOST:PORT|off] [--event-log F.jsonl] [--http-linger-s S]   (status, metrics and\n"
         "          dashboard over HTTP, default 127.0.0.1:0 = a free loopback port, printed; the final\n"
         "          state stays up S s (default 2) if anyone read it; JSON-lines event log)\n"
+        "         [--http-token-file FILE]   (every HTTP request needs \"Authorization: Bearer TOKEN\";\n"
+        "          the dashboard: open /?token=TOKEN; FILE: one line, mode 600 (or root-owned 440))\n"
         "         [--worker-security DIR]   (--local-workers with --security: the workers' credentials)\n"
         "         [--check-config]   (parse the flags, load the job, the XML profile and the security\n"
         "          files, print what would run and exit 0, without joining DDS; 2 on a bad setting)\n"
@@ -259,6 +261,12 @@ int CoordinatorMain(int argc, char** argv) {
         return 2;
       }
     }
+    if (args.Has("http-token-file")) {
+      if (auto token = dist::ReadHttpTokenFile(*args.Get("http-token-file")); !token.ok()) {
+        std::fprintf(stderr, "coordinator: %s\n", token.status().message().c_str());
+        return 2;
+      }
+    }
     if (args.Has("event-log")) {
       const auto log_dir = std::filesystem::absolute(*args.Get("event-log")).parent_path();
       if (std::error_code ec; !std::filesystem::is_directory(log_dir, ec)) {
@@ -310,19 +318,39 @@ int CoordinatorMain(int argc, char** argv) {
     std::fprintf(stderr, "coordinator: %s\n", linger.status().message().c_str());
     return 2;
   }
+  std::string http_token;
+  if (args.Has("http-token-file")) {
+    if (args.GetOr("http", dist::kDefaultHttp) == "off") {
+      std::fprintf(stderr, "coordinator: --http-token-file is for the HTTP status server, not --http off\n");
+      return 2;
+    }
+    auto token = dist::ReadHttpTokenFile(*args.Get("http-token-file"));
+    if (!token.ok()) {
+      std::fprintf(stderr, "coordinator: %s\n", token.status().message().c_str());
+      return 2;
+    }
+    http_token = *token;
+  }
   auto monitoring = dist::CoordinatorMonitoring::Start(
       {opt.job_id, opt.domain, dds_flags->Label(), params->num_trees, params->max_depth,
        params->images_per_tree, params->pixels_per_image, params->candidate_features,
        params->thresholds_per_feature, *args.Get("out")},
-      args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""));
+      args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""), http_token);
   if (!monitoring.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", monitoring.status().ToString().c_str());
     return monitoring.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;  // 1: port in use
   }
   opt.observer = (*monitoring)->observer();
   if (const std::string url = (*monitoring)->url(); !url.empty()) {
-    std::printf("status: %s/ (dashboard), %s/status.json, %s/metrics; poseforest monitor --url %s\n", url.c_str(),
-                url.c_str(), url.c_str(), url.c_str());
+    if (http_token.empty())
+      std::printf("status: %s/ (dashboard), %s/status.json, %s/metrics; poseforest monitor --url %s\n", url.c_str(),
+                  url.c_str(), url.c_str(), url.c_str());
+    else  // the token itself is never printed
+      std::printf("status: %s/ (dashboard), %s/status.json, %s/metrics; each needs the token of --http-token-file "
+                  "%s (\"Authorization: Bearer TOKEN\"; the dashboard: %s/?token=TOKEN); poseforest monitor --url "
+                  "%s --http-token-file %s\n",
+                  url.c_str(), url.c_str(), url.c_str(), args.Get("http-token-file")->c_str(), url.c_str(),
+                  url.c_str(), args.Get("http-token-file")->c_str());
     std::fflush(stdout);
   }
   LocalWorkers workers;
