@@ -1,8 +1,10 @@
 #include "proto/dds/dds_node.h"
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <condition_variable>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
@@ -227,6 +229,89 @@ struct DdsNode::Impl : public fdds::DomainParticipantListener {
   void Destroy();
 };
 
+core::Result<std::vector<DiscoveryServerAddress>> ParseDiscoveryServers(const std::string& list) {
+  auto bad = [&](const std::string& item, const std::string& why) {
+    return Status(ErrorCode::kInvalidArgument, "'" + item + "' " + why);
+  };
+  auto number = [](const std::string& t, unsigned long max, unsigned long* v) {
+    if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos) return false;
+    *v = std::stoul(t);
+    return *v <= max;
+  };
+  std::vector<DiscoveryServerAddress> out;
+  std::vector<std::string> items;
+  for (size_t start = 0; start <= list.size();) {
+    const size_t comma = std::min(list.find(',', start), list.size());
+    std::string item = list.substr(start, comma - start);
+    start = comma + 1;
+    if (item.empty()) continue;
+    DiscoveryServerAddress a;
+    std::string rest = item;
+    if (const size_t at = item.find('@'); at != std::string::npos) {
+      unsigned long id = 0;
+      if (!number(item.substr(0, at), 255, &id))
+        return bad(item, "has server id '" + item.substr(0, at) +
+                             "': expected 0..255 (the -i of fast-discovery-server) before the @");
+      a.id = int(id);
+      a.id_given = true;
+      rest = item.substr(at + 1);
+    }
+    const size_t colon = rest.find(':');
+    a.host = rest.substr(0, colon);
+    int octets = 0;
+    bool ok = true;
+    for (size_t p = 0; ok && p <= a.host.size(); ++octets) {
+      const size_t dot = std::min(a.host.find('.', p), a.host.size());
+      unsigned long v = 0;
+      ok = dot - p <= 3 && number(a.host.substr(p, dot - p), 255, &v);
+      p = dot + 1;
+    }
+    if (!ok || octets != 4) return bad(item, "is not an IPv4 address ([ID@]a.b.c.d[:port])");
+    if (colon != std::string::npos) {
+      unsigned long port = 0;
+      if (!number(rest.substr(colon + 1), 65535, &port) || port == 0)
+        return bad(item, "has port '" + rest.substr(colon + 1) + "': expected 1..65535");
+      a.port = uint32_t(port);
+    }
+    for (size_t i = 0; i < out.size(); ++i) {
+      if (out[i].id == a.id)
+        return bad(item, "repeats server id " + std::to_string(a.id) + " of '" + items[i] +
+                             "' (each fast-discovery-server has its own -i; the id selects its GUID prefix)");
+      if (out[i].host == a.host && out[i].port == a.port)
+        return bad(item,
+                   "repeats the address " + a.host + ":" + std::to_string(a.port) + " of '" + items[i] + "'");
+    }
+    out.push_back(a);
+    items.push_back(item);
+  }
+  if (out.empty()) return Status(ErrorCode::kInvalidArgument, "no server given ([ID@]a.b.c.d[:port],...)");
+  return out;
+}
+
+std::string FormatDiscoveryServers(const std::vector<DiscoveryServerAddress>& servers) {
+  std::string s;
+  for (const DiscoveryServerAddress& a : servers) {
+    if (!s.empty()) s += ',';
+    if (a.id != 0) s += std::to_string(a.id) + "@";
+    s += a.host + ":" + std::to_string(a.port);
+  }
+  return s;
+}
+
+std::string DiscoveryServerGuidPrefix(int id) {
+  if (id < 0 || id > 255) return "";
+  frtps::GuidPrefix_t prefix;
+  if (!eprosima::fastdds::rtps::get_server_client_default_guidPrefix(id, prefix)) return "";
+  std::string s;
+  char byte[4];
+  for (size_t i = 0; i < frtps::GuidPrefix_t::size; ++i) {
+    std::snprintf(byte, sizeof byte, "%02x", unsigned(prefix.value[i]));
+    if (i) s += '.';
+    s += byte;
+  }
+  return s;
+}
+
 Status DdsNode::Impl::BuildParticipantQos(fdds::DomainParticipantQos& qos) {
   auto* factory = fdds::DomainParticipantFactory::get_instance();
   qos = fdds::PARTICIPANT_QOS_DEFAULT;
@@ -299,19 +384,25 @@ Status DdsNode::Impl::BuildParticipantQos(fdds::DomainParticipantQos& qos) {
     case TransportKind::kDiscoveryClient: {
       qos.transport().use_builtin_transports = false;
       qos.transport().user_transports.push_back(udp());
-      auto hp = ParseHostPort(config.discovery_server);
-      if (!hp.ok()) return Status(ErrorCode::kInvalidArgument, "discovery server: " + hp.status().message());
-      eprosima::fastdds::rtps::RemoteServerAttributes server;
-      if (!server.ReadguidPrefix(config.discovery_server_prefix.c_str()))
-        return Status(ErrorCode::kInvalidArgument, "bad discovery server GUID prefix '" +
-                                                       config.discovery_server_prefix + "'");
-      frtps::Locator_t loc;
-      loc.kind = LOCATOR_KIND_UDPv4;
-      frtps::IPLocator::setIPv4(loc, hp->first);
-      loc.port = hp->second ? hp->second : 11811;
-      server.metatrafficUnicastLocatorList.push_back(loc);
+      auto servers = ParseDiscoveryServers(config.discovery_server);
+      if (!servers.ok())
+        return Status(ErrorCode::kInvalidArgument, "discovery server: " + servers.status().message());
       builtin.discovery_config.discoveryProtocol = frtps::DiscoveryProtocol_t::CLIENT;
-      builtin.discovery_config.m_DiscoveryServers.push_back(server);
+      for (const DiscoveryServerAddress& a : *servers) {
+        // A client of every listed server: each one is known by its GUID prefix (the -i of
+        // fast-discovery-server) and reached at its locator; a wrong prefix never matches.
+        eprosima::fastdds::rtps::RemoteServerAttributes server;
+        const std::string prefix =
+            a.id_given ? DiscoveryServerGuidPrefix(a.id) : config.discovery_server_prefix;
+        if (!server.ReadguidPrefix(prefix.c_str()))
+          return Status(ErrorCode::kInvalidArgument, "bad discovery server GUID prefix '" + prefix + "'");
+        frtps::Locator_t loc;
+        loc.kind = LOCATOR_KIND_UDPv4;
+        frtps::IPLocator::setIPv4(loc, a.host);
+        loc.port = a.port;
+        server.metatrafficUnicastLocatorList.push_back(loc);
+        builtin.discovery_config.m_DiscoveryServers.push_back(server);
+      }
       break;
     }
     case TransportKind::kXmlProfile: break;

@@ -63,8 +63,10 @@ struct NodeConfig {
   /// up per process and host, so a peer list without ports only reaches ids 0..3: pin the id
   /// when several participants run in one process or host and peers are given without ports.
   int participant_id = -1;
-  /// kDiscoveryClient: "a.b.c.d:port" of the server and its GUID prefix (fast-discovery-server -i 0
-  /// uses 44.53.00.5f.45.50.52.4f.53.49.4d.41; id N replaces the third byte by N).
+  /// kDiscoveryClient: the servers, "[ID@]a.b.c.d[:port],..." (ParseDiscoveryServers); the
+  /// participant is a client of every one. An entry with ID@ is `fast-discovery-server -i ID`
+  /// (GUID prefix DiscoveryServerGuidPrefix(ID)); one without uses discovery_server_prefix
+  /// (fast-discovery-server -i 0: 44.53.00.5f.45.50.52.4f.53.49.4d.41).
   std::string discovery_server = "127.0.0.1:11811";
   std::string discovery_server_prefix = "44.53.00.5f.45.50.52.4f.53.49.4d.41";
   /// kXmlProfile: file and participant profile name.
@@ -166,6 +168,28 @@ class DdsNode {
   explicit DdsNode(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
+
+/// One discovery server as `fast-discovery-server -i id -l host -p port` runs it.
+struct DiscoveryServerAddress {
+  int id = 0;             ///< the server's -i, 0..255 (selects its GUID prefix)
+  bool id_given = false;  ///< written as ID@...; otherwise id is 0
+  std::string host;       ///< IPv4 a.b.c.d
+  uint32_t port = 11811;  ///< UDP port, 1..65535 (11811 when not written)
+};
+
+/// Parses a comma-separated list of discovery servers, each "[ID@]a.b.c.d[:PORT]" (ID 0..255,
+/// default 0; PORT 1..65535, default 11811); empty entries are skipped. InvalidArgument naming
+/// the offending entry: a bad id, address or port, two entries with the same id or the same
+/// address and port, or no entry at all.
+core::Result<std::vector<DiscoveryServerAddress>> ParseDiscoveryServers(const std::string& list);
+
+/// The canonical text of `servers`: "a.b.c.d:PORT" for id 0, "ID@a.b.c.d:PORT" otherwise,
+/// comma-separated (ParseDiscoveryServers reads it back; one id-0 server is "a.b.c.d:PORT").
+std::string FormatDiscoveryServers(const std::vector<DiscoveryServerAddress>& servers);
+
+/// The GUID prefix of `fast-discovery-server -i id` ("44.53.<id hex>.5f.45.50.52.4f.53.49.4d.41",
+/// from Fast DDS's get_server_client_default_guidPrefix); empty when id is not 0..255.
+std::string DiscoveryServerGuidPrefix(int id);
 
 /// Reads the Fast DDS verbosity from the environment (POSEFOREST_DDS_LOG=error|warning|info)
 /// and applies it; defaults to error. Called by DdsNode::Create.

@@ -3,7 +3,8 @@
 //  - the shipped Fast DDS XML profile (deploy/fastdds/profiles.xml, poseforest_shm) by flags and
 //    by the POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE environment: `poseforest train`'s forest;
 //  - discovery through a real fast-discovery-server process (--discovery-server), and nothing
-//    without the server;
+//    without the server; through two servers (ids 0 and 1, a client of both, workers of either
+//    one); a server id that is not the server's -i finds nothing;
 //  - DDS-Security (--security, credentials from deploy/security/make-test-ca.sh): the job trains,
 //    while a worker without credentials and participants that hello/heartbeat on the presence
 //    topic without credentials or with another CA's certificate are never matched, never get
@@ -134,6 +135,75 @@ TEST_CASE("deploy: --discovery-server through a real fast-discovery-server; noth
   CHECK_FALSE(fs::exists(dir.path / "none.pff"));
 }
 
+TEST_CASE("deploy: --discovery-server with redundant servers (ids 0 and 1); the id must be the server's -i",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-ds2");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const int p0 = 20000 + int((::getpid() * 7 + 3) % 20000), p1 = 20000 + int((::getpid() * 7 + 5) % 20000);
+  const std::string s0 = "0@127.0.0.1:" + std::to_string(p0), s1 = "1@127.0.0.1:" + std::to_string(p1);
+  Child server0, server1;
+  std::string error;
+  REQUIRE(server0.Start({"fast-discovery-server", "-i", "0", "-l", "127.0.0.1", "-p", std::to_string(p0)},
+                        &error));
+  REQUIRE(server1.Start({"fast-discovery-server", "-i", "1", "-l", "127.0.0.1", "-p", std::to_string(p1)},
+                        &error));
+  REQUIRE(server0.WaitForLine("Server is running", 10s).has_value());
+  REQUIRE(server1.WaitForLine("Server is running", 10s).has_value());
+  {  // The coordinator and one worker are clients of both servers; the two other workers each of
+     // one only, so the coordinator finds one through server 0 and one through server 1 alone.
+    const std::string domain = std::to_string(Domain(44));
+    const std::string job_id = "deploy-ds2-" + std::to_string(::getpid());
+    Child w_both, w_0, w_1, coord;
+    auto worker = [&](Child* c, const std::string& id, const std::string& servers) {
+      REQUIRE(c->Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", id,
+                        "--discovery-server", servers},
+                       &error));
+    };
+    worker(&w_both, "dw-both", s1 + "," + s0);
+    worker(&w_0, "dw-0", s0);
+    worker(&w_1, "dw-1", s1);
+    REQUIRE(coord.Start(
+        {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+         (dir.path / "forest.pff").string(), "--domain", domain, "--job-id", job_id, "--min-workers", "3",
+         "--worker-wait-s", "40", "--http", "off", "--discovery-server", s0 + "," + s1},
+        &error));
+    auto rc = coord.Wait(90s);
+    INFO(coord.output());
+    REQUIRE(rc.has_value());
+    REQUIRE(*rc == 0);
+    CHECK(coord.output().find("3 workers alive") != std::string::npos);
+    CHECK(ReadAll(dir.path / "forest.pff") == reference);
+    for (Child* w : {&w_both, &w_0, &w_1}) {
+      CHECK(w->Wait(10s).has_value());  // they exit on JOB_DONE
+      INFO(w->output());
+      CHECK(w->output().find("joined job " + job_id) != std::string::npos);
+    }
+  }
+  server0.Kill(SIGTERM);
+  CHECK(server0.Wait(10s).has_value());
+
+  // Only the id-1 server runs: its id reaches it (--local-workers hands the list on)...
+  auto [rc, out] = Run({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                        (dir.path / "forest1.pff").string(), "--local-workers", "1", "--domain",
+                        std::to_string(Domain(46)), "--http", "off", "--discovery-server", s1},
+                       90s);
+  INFO(out);
+  REQUIRE(rc == 0);
+  CHECK(ReadAll(dir.path / "forest1.pff") == reference);
+  // ...another id at the same address does not: the client expects another GUID prefix there.
+  auto [rc2, out2] = Run(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "none.pff").string(), "--local-workers", "1", "--domain", std::to_string(Domain(48)),
+       "--http", "off", "--worker-wait-s", "3", "--discovery-server", "2@127.0.0.1:" + std::to_string(p1)},
+      60s);
+  INFO(out2);
+  CHECK(rc2 == 1);
+  CHECK(out2.find("0 of 1 workers") != std::string::npos);
+  CHECK_FALSE(fs::exists(dir.path / "none.pff"));
+  server1.Kill(SIGTERM);
+  CHECK(server1.Wait(10s).has_value());
+}
+
 TEST_CASE("deploy: --security trains; participants without credentials or from another CA get nothing in",
           "[deploy][integration]") {
   TempDir dir("pf-deploy-sec");
@@ -258,6 +328,16 @@ TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or
       {{"--discovery-server", "127.0.0.1", "--peers", "10.0.0.1"},
        "--peers cannot be combined with --discovery-server"},
       {{"--discovery-server", "server.local"}, "'server.local' is not an IPv4 address"},
+      {{"--discovery-server", "256@127.0.0.1"}, "'256@127.0.0.1' has server id '256': expected 0..255"},
+      {{"--discovery-server", "0@127.0.0.1,x@127.0.0.2"}, "'x@127.0.0.2' has server id 'x': expected 0..255"},
+      {{"--discovery-server", "1@127.0.0.1:0"}, "'1@127.0.0.1:0' has port '0': expected 1..65535"},
+      {{"--discovery-server", "127.0.0.1:70000"}, "'127.0.0.1:70000' has port '70000': expected 1..65535"},
+      {{"--discovery-server", "1@10.0.0"}, "'1@10.0.0' is not an IPv4 address ([ID@]a.b.c.d[:port])"},
+      {{"--discovery-server", "1@10.0.0.1,1@10.0.0.2"}, "'1@10.0.0.2' repeats server id 1 of '1@10.0.0.1'"},
+      {{"--discovery-server", "10.0.0.1,0@10.0.0.2"}, "'0@10.0.0.2' repeats server id 0 of '10.0.0.1'"},
+      {{"--discovery-server", "0@10.0.0.1:7000,1@10.0.0.1:7000"},
+       "'1@10.0.0.1:7000' repeats the address 10.0.0.1:7000 of '0@10.0.0.1:7000'"},
+      {{"--discovery-server", ","}, "--discovery-server ,: no server given"},
       {{"--interfaces", "127.0.0.1"}, "--interfaces needs --profile udp or --discovery-server"},
       {{"--security", (dir.path / "nothing").string()}, "not a directory"},
       {{"--security", (dir.path / "incomplete").string()},
@@ -285,6 +365,22 @@ TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or
     INFO(text2);
     CHECK(rc2 == 0);
     CHECK(text2.find("UDP, initial peers 127.0.0.1") != std::string::npos);
+  }
+  {  // --check-config shows each discovery server with the id and GUID prefix the client expects
+     // (Fast DDS: 44.53.<id>.5f.45.50.52.4f.53.49.4d.41); the single-server form is unchanged.
+    auto [rc, text] = worker({"--discovery-server", "0@127.0.0.1:7400,255@10.0.0.2"});
+    INFO(text);
+    CHECK(rc == 0);
+    CHECK(
+        text.find(
+            "UDP, discovery servers 127.0.0.1:7400 (id 0, GUID prefix 44.53.00.5f.45.50.52.4f.53.49.4d.41), "
+            "255@10.0.0.2:11811 (id 255, GUID prefix 44.53.ff.5f.45.50.52.4f.53.49.4d.41)") !=
+        std::string::npos);
+    auto [rc2, text2] = worker({"--discovery-server", "127.0.0.1"});
+    INFO(text2);
+    CHECK(rc2 == 0);
+    CHECK(text2.find("UDP, discovery server 127.0.0.1:11811 (id 0, GUID prefix 44.53.00.5f") !=
+          std::string::npos);
   }
   {  // make-test-ca.sh's layout, also written with a trailing slash: the CA files come from the parent
     auto [rc, text] = worker({"--security", (ca / "worker-1").string() + "/"});

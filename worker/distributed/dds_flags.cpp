@@ -78,9 +78,21 @@ std::string DdsFlags::Describe() const {
       s += list;
       break;
     }
-    case dds::TransportKind::kDiscoveryClient:
-      s = "UDP, discovery server " + extras.discovery_server;
+    case dds::TransportKind::kDiscoveryClient: {
+      // Each server with the id and GUID prefix the client expects of it (--check-config).
+      auto servers = dds::ParseDiscoveryServers(extras.discovery_server);
+      if (!servers.ok()) {
+        s = "UDP, discovery server " + extras.discovery_server;
+        break;
+      }
+      s = servers->size() == 1 ? "UDP, discovery server " : "UDP, discovery servers ";
+      for (size_t i = 0; i < servers->size(); ++i) {
+        const dds::DiscoveryServerAddress& a = (*servers)[i];
+        s += (i ? ", " : "") + dds::FormatDiscoveryServers({a}) + " (id " + std::to_string(a.id) +
+             ", GUID prefix " + dds::DiscoveryServerGuidPrefix(a.id) + ")";
+      }
       break;
+    }
     case dds::TransportKind::kXmlProfile:
       s = "Fast DDS XML profile " + extras.xml_profile + " of " + extras.xml_file;
       break;
@@ -208,13 +220,10 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
                      " contradicts it (leave --profile out)");
     if (peers)
       return invalid("--peers cannot be combined with --discovery-server (the server introduces the peers)");
-    auto list = ParseAddressList(*server, "discovery-server", true);
-    if (!list.ok()) return list.status();
-    if (list->size() != 1)
-      return invalid("--discovery-server " + *server + ": give one server a.b.c.d[:port]");
+    auto list = dds::ParseDiscoveryServers(*server);
+    if (!list.ok()) return invalid("--discovery-server " + *server + ": " + list.status().message());
     f.transport = dds::TransportKind::kDiscoveryClient;
-    f.extras.discovery_server =
-        (*list)[0].find(':') == std::string::npos ? (*list)[0] + ":11811" : (*list)[0];
+    f.extras.discovery_server = dds::FormatDiscoveryServers(*list);
   } else {
     auto kind = ParseProfile(profile.value_or("shm"));
     if (!kind.ok()) return kind.status();

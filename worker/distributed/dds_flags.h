@@ -9,7 +9,8 @@
 //   --dds-xml FILE --dds-profile NAME   a Fast DDS XML participant profile (deploy/fastdds/profiles.xml);
 //                               env POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE when no transport flag is
 //                               given
-//   --discovery-server IP[:PORT]  discovery through fast-discovery-server -i 0 (UDP, no multicast)
+//   --discovery-server [ID@]IP[:PORT],...  discovery through fast-discovery-server -i ID (default 0,
+//                               port 11811): a client of every listed server (UDP, no multicast)
 //   --security DIR              DDS-Security with the six files of DIR (deploy/security/make-test-ca.sh)
 
 #include <array>
@@ -27,7 +28,9 @@ namespace poseforest::dist {
 struct TransportExtras {
   std::string xml_file;          ///< kXmlProfile: absolute path of the Fast DDS XML file
   std::string xml_profile;       ///< kXmlProfile: participant profile name in it
-  std::string discovery_server;  ///< kDiscoveryClient: "a.b.c.d:port" of fast-discovery-server -i 0
+  /// kDiscoveryClient: the servers, canonical "a.b.c.d:port" (id 0) or "ID@a.b.c.d:port", comma-
+  /// separated (dds::FormatDiscoveryServers); one id-0 server is "a.b.c.d:port" as before.
+  std::string discovery_server;
   dds::SecurityFiles security;   ///< DDS-Security on any transport when enabled() (absolute paths)
 };
 
