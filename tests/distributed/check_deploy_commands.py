@@ -14,7 +14,8 @@ XML profile and the security files, exits 0 without joining DDS) inside a fake f
 absolute paths in arguments and environment values are moved under a temporary folder that holds
 what the container would see: files the Dockerfile COPYs from the repository, its VOLUMEs,
 ConfigMap data at their mountPaths, emptyDirs, Secrets filled with test DDS credentials from
-deploy/security/make-test-ca.sh, and for an image run without Kubernetes, the ConfigMap's job at
+deploy/security/make-test-ca.sh (a Secret volume with `items`: a test value in each item's path,
+with the item's mode or the volume's defaultMode), and for an image run without Kubernetes, the ConfigMap's job at
 /etc/poseforest/job.textproto (the documented mount). A command of another program (the
 discovery server) is checked to exist on PATH and listed.
 
@@ -269,6 +270,16 @@ def main():
                         for key, text in data.items():
                             with open(os.path.join(mount, key), "w") as f:
                                 f.write(text)
+                    elif "secret" in v and "items" in v["secret"]:
+                        # A Secret of named keys (the coordinator's HTTP token): each item's path
+                        # with a test value and the mode Kubernetes gives it (item mode, else
+                        # defaultMode, else 0644), so that a mode the program refuses fails here.
+                        for item in v["secret"]["items"]:
+                            f = os.path.join(mount, item["path"])
+                            os.makedirs(os.path.dirname(f), exist_ok=True)
+                            with open(f, "w") as out:
+                                out.write("test-token-for-" + item["key"] + "\n")
+                            os.chmod(f, item.get("mode", v["secret"].get("defaultMode", 0o644)))
                     elif "secret" in v:
                         make_credentials(mount, a.source, tmp)
                 env = dict(img.env) if img else {}
