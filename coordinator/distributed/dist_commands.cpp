@@ -434,15 +434,7 @@ int WorkerMain(int argc, char** argv) {
   opt.udp_interfaces = dds_flags->interfaces;
   opt.transport_extras = dds_flags->extras;
   opt.worker_id = args.GetOr("id", "");
-  if (opt.worker_id.empty()) {
-    // Host and pid alone collide between containers on the host network (each worker is pid 1
-    // on the same hostname): the coordinator would take two workers for one. A random suffix.
-    char host[256] = {};
-    ::gethostname(host, sizeof host - 1);
-    char suffix[16];
-    std::snprintf(suffix, sizeof suffix, "%06x", unsigned(std::random_device{}() & 0xFFFFFF));
-    opt.worker_id = "worker-" + std::string(host) + "-" + std::to_string(::getpid()) + "-" + suffix;
-  }
+  if (opt.worker_id.empty()) opt.worker_id = dist::DefaultWorkerId();  // worker-HOST-PID-RANDOM
   opt.domain = uint32_t(*domain);
   opt.transport = dds_flags->transport;
   opt.threads = int(*threads);

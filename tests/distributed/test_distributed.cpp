@@ -297,3 +297,48 @@ TEST_CASE("EncodeWireRuns gives the runs of EncodeHistogramRuns(ToWireCounts(...
             std::vector<uint64_t>(reference.begin(), reference.end()));
   }
 }
+
+TEST_CASE("DistWorker without an id gets worker-HOST-PID-RANDOM, a different one each time",
+          "[distributed][unit]") {
+  WorkerOptions none;
+  none.log = [](const std::string&) {};
+  DistWorker a(none), b(none);
+  const std::string pid = "-" + std::to_string(::getpid()) + "-";
+  for (const std::string& id : {a.id(), b.id()}) {
+    INFO(id);
+    CHECK(id.rfind("worker-", 0) == 0);
+    const size_t at = id.rfind(pid);
+    REQUIRE(at != std::string::npos);
+    const std::string suffix = id.substr(at + pid.size());
+    CHECK(suffix.size() == 6);
+    CHECK(suffix.find_first_not_of("0123456789abcdef") == std::string::npos);
+  }
+  CHECK(a.id() != b.id());  // two workers of one process are two workers to the coordinator
+  CHECK(DefaultWorkerId() != DefaultWorkerId());
+  WorkerOptions named;
+  named.worker_id = "w-7";
+  CHECK(DistWorker(named).id() == "w-7");
+}
+
+TEST_CASE("discovery server lists: [ID@]IP[:PORT], GUID prefixes of fast-discovery-server -i ID",
+          "[distributed][unit]") {
+  CHECK(dds::DiscoveryServerGuidPrefix(0) == "44.53.00.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(dds::DiscoveryServerGuidPrefix(1) == "44.53.01.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(dds::DiscoveryServerGuidPrefix(200) == "44.53.c8.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(dds::DiscoveryServerGuidPrefix(256).empty());
+  auto list = dds::ParseDiscoveryServers("10.0.0.1,3@10.0.0.2:7000,0@10.0.0.3:11811x");
+  REQUIRE_FALSE(list.ok());
+  CHECK(list.status().message().find("'0@10.0.0.3:11811x' has port '11811x'") != std::string::npos);
+  list = dds::ParseDiscoveryServers("10.0.0.1,3@10.0.0.2:7000,,");
+  REQUIRE(list.ok());
+  REQUIRE(list->size() == 2);
+  CHECK((*list)[0].id == 0);
+  CHECK_FALSE((*list)[0].id_given);
+  CHECK((*list)[0].port == 11811);
+  CHECK((*list)[1].id == 3);
+  CHECK((*list)[1].id_given);
+  CHECK((*list)[1].host == "10.0.0.2");
+  CHECK((*list)[1].port == 7000);
+  CHECK(dds::FormatDiscoveryServers(*list) == "10.0.0.1:11811,3@10.0.0.2:7000");
+  CHECK(dds::FormatDiscoveryServers(*dds::ParseDiscoveryServers("0@10.0.0.1")) == "10.0.0.1:11811");
+}

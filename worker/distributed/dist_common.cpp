@@ -1,8 +1,13 @@
 #include "worker/distributed/dist_common.h"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <random>
 
 namespace poseforest::dist {
 
@@ -205,6 +210,16 @@ Status GetFeatureSplit(const v1::FeatureSplit& s, core::FeatureOffsets* f, int32
 
 double NowSeconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string DefaultWorkerId() {
+  static const uint32_t base = uint32_t(std::random_device{}());
+  static std::atomic<uint32_t> count{0};
+  char host[256] = {};
+  ::gethostname(host, sizeof host - 1);
+  char suffix[16];
+  std::snprintf(suffix, sizeof suffix, "%06x", unsigned((base + count++) & 0xFFFFFF));
+  return "worker-" + std::string(host) + "-" + std::to_string(::getpid()) + "-" + suffix;
 }
 
 }  // namespace poseforest::dist

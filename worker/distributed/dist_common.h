@@ -69,4 +69,11 @@ core::Status GetFeatureSplit(const v1::FeatureSplit& s, core::FeatureOffsets* f,
 /// Seconds on a monotonic clock.
 double NowSeconds();
 
+/// A worker id for a worker given none: "worker-HOST-PID-XXXXXX". Host and pid alone collide
+/// between containers on the host network (each worker is pid 1 on the same hostname) and
+/// between workers of one process: the coordinator would take two workers for one. XXXXXX (24
+/// bits, hex) is a random number drawn once per process plus a per-process counter, so two ids
+/// of one process always differ and those of different processes differ but by chance (2^-24).
+std::string DefaultWorkerId();
+
 }  // namespace poseforest::dist

@@ -1053,11 +1053,7 @@ Status SelectListedSamples(std::span<const worker::PixelSample> picked, int widt
 }
 
 DistWorker::DistWorker(WorkerOptions options) : options_(std::move(options)) {
-  if (options_.worker_id.empty()) {
-    char host[256] = {};
-    ::gethostname(host, sizeof host - 1);
-    options_.worker_id = "worker-" + std::string(host) + "-" + std::to_string(::getpid());
-  }
+  if (options_.worker_id.empty()) options_.worker_id = DefaultWorkerId();
   if (!options_.log) {
     const std::string id = options_.worker_id;
     options_.log = [id](const std::string& m) { std::fprintf(stderr, "[%s] %s\n", id.c_str(), m.c_str()); };

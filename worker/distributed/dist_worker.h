@@ -26,7 +26,7 @@
 namespace poseforest::dist {
 
 struct WorkerOptions {
-  std::string worker_id;  ///< unique sender id ("worker-<host>-<pid>" when empty)
+  std::string worker_id;  ///< unique sender id (DefaultWorkerId() when empty)
   uint32_t domain = 0;
   dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
   int threads = 1;             ///< OpenMP threads for frames and histograms
