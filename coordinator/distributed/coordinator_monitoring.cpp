@@ -9,7 +9,8 @@
 namespace poseforest::dist {
 
 core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Start(
-    const JobInfo& job, const std::string& http, const std::string& event_log, const std::string& http_token) {
+    const JobInfo& job, const std::string& http, const std::string& event_log,
+    const std::string& http_token) {
   std::unique_ptr<CoordinatorMonitoring> m(new CoordinatorMonitoring());
   m->model_ = std::make_unique<StatusModel>(job);
   std::vector<CoordinatorObserver*> targets = {m->model_.get()};

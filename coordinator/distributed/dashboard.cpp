@@ -218,7 +218,8 @@ std::string HttpServerMetrics(const HttpServer& server) {
                                                    {"unauthorized", server.unauthorized()},
                                                    {"rejected_connection", server.dropped()}};
   for (const auto& [outcome, n] : rows)
-    out += std::string("poseforest_http_requests_total{outcome=\"") + outcome + "\"} " + std::to_string(n) + "\n";
+    out += std::string("poseforest_http_requests_total{outcome=\"") + outcome + "\"} " + std::to_string(n) +
+           "\n";
   return out;
 }
 

@@ -13,7 +13,6 @@
 #include <cctype>
 #include <cerrno>
 #include <cstring>
-#include <fstream>
 #include <map>
 #include <sstream>
 #include <vector>
@@ -56,9 +55,10 @@ std::string Serialize(const HttpResponse& r, bool head_only, const std::string& 
   std::string out = "HTTP/1.1 " + std::to_string(r.status) + " " + Reason(r.status) + "\r\n";
   out += "Content-Type: " + r.content_type + "\r\n";
   out += "Content-Length: " + std::to_string(r.body.size()) + "\r\n";
-  out += "Cache-Control: no-store\r\nConnection: close\r\nX-Content-Type-Options: nosniff\r\n"
-         "Referrer-Policy: no-referrer\r\n" +
-         extra_headers + "\r\n";
+  out +=
+      "Cache-Control: no-store\r\nConnection: close\r\nX-Content-Type-Options: nosniff\r\n"
+      "Referrer-Policy: no-referrer\r\n" +
+      extra_headers + "\r\n";
   if (!head_only) out += r.body;
   return out;
 }
@@ -226,27 +226,47 @@ bool IsLoopbackAddress(const std::string& ipv4) {
 
 Result<std::string> ReadHttpTokenFile(const std::string& path) {
   const std::string what = "--http-token-file " + path;
+  // Checked on the open file (no race between the check and the read); symlinks are followed
+  // (a Kubernetes Secret's files are symlinks).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) return Status(ErrorCode::kInvalidArgument, what + ": " + std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0)
-    return Status(ErrorCode::kInvalidArgument, what + ": " + std::strerror(errno));
+  if (::fstat(fd, &st) != 0) return Status(ErrorCode::kInvalidArgument, what + ": " + std::strerror(errno));
   if (!S_ISREG(st.st_mode)) return Status(ErrorCode::kInvalidArgument, what + ": not a regular file");
   char mode[8];
   std::snprintf(mode, sizeof mode, "%04o", unsigned(st.st_mode & 07777));
   const bool root_owned = st.st_uid == 0;
-  if ((st.st_mode & 007) != 0 || (st.st_mode & 020) != 0 || (!root_owned && (st.st_mode & 070) != 0))
+  const char* open_to = (st.st_mode & 007) != 0                    ? "open to others"
+                        : (st.st_mode & 020) != 0                  ? "writable by its group"
+                        : (!root_owned && (st.st_mode & 070) != 0) ? "readable by its group"
+                                                                   : nullptr;
+  if (open_to)
     return Status(ErrorCode::kInvalidArgument,
-                  what + ": permissions " + mode + " are too open (a secret: readable by " +
-                      ((st.st_mode & 007) != 0 ? "others" : "its group") + "); chmod 600 " + path +
-                      " (or 0440 owned by root, as a Kubernetes Secret with fsGroup)");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status(ErrorCode::kInvalidArgument, what + ": cannot read it: " + std::strerror(errno));
-  std::string token((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (token.size() > 4098) return Status(ErrorCode::kInvalidArgument, what + ": over 4096 bytes (a token, not a file)");
+                  what + ": permissions " + mode + " are too open (a secret " + open_to + "); chmod 600 " +
+                      path + " (or 0440 owned by root, as a Kubernetes Secret with fsGroup)");
+  if (st.st_size > 4098)
+    return Status(ErrorCode::kInvalidArgument, what + ": over 4096 bytes (a token, not a file)");
+  std::string token;
+  char buf[4100];
+  for (;;) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return Status(ErrorCode::kInvalidArgument, what + ": cannot read it: " + std::strerror(errno));
+    if (n == 0) break;
+    token.append(buf, size_t(n));
+    if (token.size() > 4098)
+      return Status(ErrorCode::kInvalidArgument, what + ": over 4096 bytes (a token, not a file)");
+  }
   if (!token.empty() && token.back() == '\n') token.pop_back();
   if (!token.empty() && token.back() == '\r') token.pop_back();
   if (token.empty())
-    return Status(ErrorCode::kInvalidArgument,
-                  what + ": empty (put a random token in it, e.g. `openssl rand -hex 32 > " + path + "`)");
+    return Status(
+        ErrorCode::kInvalidArgument,
+        what + ": empty (put a random token in it: `(umask 077; openssl rand -hex 32 > " + path + ")`)");
   for (size_t i = 0; i < token.size(); ++i) {
     const unsigned char c = static_cast<unsigned char>(token[i]);
     if (c <= 0x20 || c >= 0x7f)
@@ -424,11 +444,14 @@ void HttpServer::Loop() {
                 // Nothing about the server or the path: the status, the scheme, one line.
                 ++unauthorized_;
                 Log("http: 401 for " + req.method + " " + req.path.substr(0, 100) + " from " + c.peer + ": " +
-                    (ambiguous ? "several Authorization headers" : present ? "wrong token" : "no token"));
-                c.out = Serialize({401, "text/plain; charset=utf-8", "401 Unauthorized: a bearer token is required\n"},
-                                  req.method == "HEAD",
-                                  std::string("WWW-Authenticate: Bearer realm=\"poseforest\"") +
-                                      (present ? ", error=\"invalid_token\"" : "") + "\r\n");
+                    (ambiguous ? "several Authorization headers"
+                     : present ? "wrong token"
+                               : "no token"));
+                c.out = Serialize(
+                    {401, "text/plain; charset=utf-8", "401 Unauthorized: a bearer token is required\n"},
+                    req.method == "HEAD",
+                    std::string("WWW-Authenticate: Bearer realm=\"poseforest\"") +
+                        (present ? ", error=\"invalid_token\"" : "") + "\r\n");
                 c.sent = 0;
                 c.responding = true;
                 c.in.clear();
@@ -474,8 +497,8 @@ void HttpServer::Loop() {
       for (;;) {
         sockaddr_in peer{};
         socklen_t peer_len = sizeof peer;
-        const int fd =
-            ::accept4(listen_fd_, reinterpret_cast<sockaddr*>(&peer), &peer_len, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        const int fd = ::accept4(listen_fd_, reinterpret_cast<sockaddr*>(&peer), &peer_len,
+                                 SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0) break;
         char ip[INET_ADDRSTRLEN] = "?";
         ::inet_ntop(AF_INET, &peer.sin_addr, ip, sizeof ip);
@@ -579,10 +602,11 @@ Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds ti
   const int code = std::atoi(resp.substr(9, 3).c_str());
   std::string body = resp.substr(head_end + 4);
   if (code == 401)
-    return Status(ErrorCode::kInvalidArgument,
-                  url + ": HTTP 401: " + body.substr(0, body.find('\n')) +
-                      (bearer_token.empty() ? " (the coordinator has --http-token-file: pass the same token file)"
-                                            : " (the token sent is not the coordinator's)"));
+    return Status(
+        ErrorCode::kInvalidArgument,
+        url + ": HTTP 401: " + body.substr(0, body.find('\n')) +
+            (bearer_token.empty() ? " (the coordinator has --http-token-file: pass the same token file)"
+                                  : " (the token sent is not the coordinator's)"));
   if (code != 200)
     return Status(code == 404 ? ErrorCode::kNotFound : ErrorCode::kIo,
                   url + ": HTTP " + std::to_string(code) + ": " + body.substr(0, body.find('\n')));

@@ -24,10 +24,10 @@ namespace poseforest::dist {
 class HttpServer;
 
 struct HttpRequest {
-  std::string method;  ///< GET or HEAD
-  std::string path;    ///< without the query, e.g. "/status.json"
-  std::string query;   ///< after '?', may be empty
-  std::string peer;    ///< the client's "IP:PORT"
+  std::string method;                  ///< GET or HEAD
+  std::string path;                    ///< without the query, e.g. "/status.json"
+  std::string query;                   ///< after '?', may be empty
+  std::string peer;                    ///< the client's "IP:PORT"
   const HttpServer* server = nullptr;  ///< the server answering (its counters for /metrics)
 };
 
@@ -83,9 +83,9 @@ class HttpServer {
   /// "http://ADDRESS:PORT" (0.0.0.0 shown as 127.0.0.1).
   std::string url() const;
 
-  uint64_t requests() const { return requests_; }  ///< answered with the handler
-  uint64_t bad_requests() const { return bad_; }   ///< answered 400/405/408/431
-  uint64_t dropped() const { return dropped_; }    ///< closed over the connection limits
+  uint64_t requests() const { return requests_; }          ///< answered with the handler
+  uint64_t bad_requests() const { return bad_; }           ///< answered 400/405/408/431
+  uint64_t dropped() const { return dropped_; }            ///< closed over the connection limits
   uint64_t unauthorized() const { return unauthorized_; }  ///< answered 401 (no or a wrong token)
 
  private:

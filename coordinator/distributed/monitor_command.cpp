@@ -347,7 +347,8 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
 }  // namespace
 
 int MonitorMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"url", "http-token-file", "interval-ms", "timeout-s", "domain", "job"};
+  std::set<std::string> value_options = {"url",       "http-token-file", "interval-ms",
+                                         "timeout-s", "domain",          "job"};
   for (const char* o : dist::kDdsValueOptions) value_options.insert(o);  // the DDS transport flags
   Args args(value_options, {"once", "help"});
   if (Status st = args.Parse(argc, argv);
@@ -355,7 +356,8 @@ int MonitorMain(int argc, char** argv) {
     if (!st.ok()) std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
     std::fprintf(
         stderr,
-        "usage: poseforest monitor --url http://HOST:PORT [--http-token-file FILE] [--once] [--interval-ms 1000]\n"
+        "usage: poseforest monitor --url http://HOST:PORT [--http-token-file FILE] [--once] [--interval-ms "
+        "1000]\n"
         "                          [--timeout-s 10]\n"
         "       poseforest monitor --domain D [--job ID] [DDS transport flags] [--once] ...\n"
         "  Shows a training job's live status from its coordinator (the URL the coordinator prints,\n"

@@ -173,18 +173,18 @@ TEST_CASE("HTTP bearer token: every endpoint refuses without it, the right one g
     CHECK(r.find("auth-job") == std::string::npos);
     ++refused;
   };
-  const std::vector<std::string> endpoints = {"/", "/index.html", "/status.json", "/metrics", "/healthz",
-                                              "/nothing"};
+  const std::vector<std::string> endpoints = {"/",        "/index.html", "/status.json",
+                                              "/metrics", "/healthz",    "/nothing"};
   for (const std::string& e : endpoints) {
-    refuse(Get(e), false);                                                       // no token
+    refuse(Get(e), false);                                                                     // no token
     refuse(Get(e, "Authorization: Bearer " + std::string(token.size(), 'x') + "\r\n"), true);  // same length
     refuse(Get(e, "Authorization: Bearer " + token.substr(0, token.size() - 1) + "\r\n"), true);  // prefix
-    refuse(Get(e, "Authorization: Bearer " + token + "x\r\n"), true);            // longer
-    refuse(Get(e, "Authorization: Bearer \r\n"), true);                          // empty
-    refuse(Get(e, "Authorization: Basic " + token + "\r\n"), true);              // another scheme
-    refuse(Get(e, "Authorization: " + token + "\r\n"), true);                    // no scheme
-    refuse(Get(e, bearer + "Authorization: Bearer wrong\r\n"), true);            // two headers
-    refuse(Get(e, "X-Authorization: Bearer " + token + "\r\n"), false);          // not the header
+    refuse(Get(e, "Authorization: Bearer " + token + "x\r\n"), true);                             // longer
+    refuse(Get(e, "Authorization: Bearer \r\n"), true);                                           // empty
+    refuse(Get(e, "Authorization: Basic " + token + "\r\n"), true);      // another scheme
+    refuse(Get(e, "Authorization: " + token + "\r\n"), true);            // no scheme
+    refuse(Get(e, bearer + "Authorization: Bearer wrong\r\n"), true);    // two headers
+    refuse(Get(e, "X-Authorization: Bearer " + token + "\r\n"), false);  // not the header
   }
   refuse("HEAD /metrics HTTP/1.1\r\n\r\n", false);
   // ?token= is for the dashboard page only; never for the data.
@@ -194,8 +194,8 @@ TEST_CASE("HTTP bearer token: every endpoint refuses without it, the right one g
   refuse(Get("/?tok=" + token), false);
 
   // The right token: 200 everywhere, the same bytes as the server without a token.
-  for (const std::string& e : {std::string("/"), std::string("/index.html"), std::string("/status.json"),
-                               std::string("/healthz")}) {
+  for (const std::string& e :
+       {std::string("/"), std::string("/index.html"), std::string("/status.json"), std::string("/healthz")}) {
     INFO(e);
     const std::string with = Exchange(port, Get(e, bearer));
     const std::string without = Exchange((*open)->port(), Get(e));
@@ -318,8 +318,12 @@ TEST_CASE("HTTP token file: missing, empty, too open, bad content are refused na
   const std::string open_msg = error(WriteFile(dir.path / "world", "secret\n", 0644));
   CHECK(open_msg.find("permissions 0644 are too open") != std::string::npos);
   CHECK(open_msg.find("chmod 600 " + (dir.path / "world").string()) != std::string::npos);
-  error(WriteFile(dir.path / "others-only", "secret\n", 0604));
-  error(WriteFile(dir.path / "group-write", "secret\n", 0620));
+  CHECK(error(WriteFile(dir.path / "others-only", "secret\n", 0604)).find("open to others") !=
+        std::string::npos);
+  CHECK(error(WriteFile(dir.path / "others-x", "secret\n", 0601)).find("open to others") !=
+        std::string::npos);
+  CHECK(error(WriteFile(dir.path / "group-write", "secret\n", 0620)).find("writable by its group") !=
+        std::string::npos);
   // Group-readable: only when root owns it (a Kubernetes Secret with fsGroup: root:GROUP 0440).
   const fs::path group = WriteFile(dir.path / "group", "secret\n", 0640);
   if (::geteuid() == 0) {
@@ -379,10 +383,14 @@ TEST_CASE("HTTP per-peer connection cap: one address cannot take every slot",
   CHECK(Code(Exchange(port, Get("/healthz"), "127.0.0.1")) == 200);
   std::lock_guard<std::mutex> lock(mu);
   REQUIRE(log.size() == 1);
-  CHECK(std::regex_match(log[0], std::regex(R"(http: 503 for a connection from 127\.0\.0\.1:[0-9]+: 3 already open from that address)")));
+  CHECK(std::regex_match(
+      log[0],
+      std::regex(
+          R"(http: 503 for a connection from 127\.0\.0\.1:[0-9]+: 3 already open from that address)")));
 }
 
-TEST_CASE("coordinator and monitor with --http-token-file: real processes", "[distributed][monitoring][http][integration]") {
+TEST_CASE("coordinator and monitor with --http-token-file: real processes",
+          "[distributed][monitoring][http][integration]") {
   TempDir dir("pf-http-auth-run");
   std::ofstream(dir.path / "job.textproto") << TinyJobText(1, 4);
   const std::string job = (dir.path / "job.textproto").string();
@@ -427,17 +435,18 @@ TEST_CASE("coordinator and monitor with --http-token-file: real processes", "[di
   // no warning; every endpoint wants the token; monitor with the file works, without it fails.
   Child coord;
   std::string error;
-  REQUIRE(coord.Start({Program(), "coordinator", job, "--out", out, "--domain", std::to_string(Domain(61)),
-                       "--min-workers", "1", "--worker-wait-s", "120", "--http", "0.0.0.0:0", "--http-token-file",
-                       token_file.string()},
-                      &error));
+  REQUIRE(coord.Start(
+      {Program(), "coordinator", job, "--out", out, "--domain", std::to_string(Domain(61)), "--min-workers",
+       "1", "--worker-wait-s", "120", "--http", "0.0.0.0:0", "--http-token-file", token_file.string()},
+      &error));
   auto line = coord.WaitForLine("status: http://", 60s);
   INFO(coord.output());
   REQUIRE(line.has_value());
   CHECK(line->find("--http-token-file " + token_file.string()) != std::string::npos);
   CHECK(coord.output().find(kToken) == std::string::npos);  // never printed
   CHECK(coord.output().find("warning") == std::string::npos);
-  const std::string url = line->substr(line->find("http://"), line->find("/ (dashboard)") - line->find("http://"));
+  const std::string url =
+      line->substr(line->find("http://"), line->find("/ (dashboard)") - line->find("http://"));
   const uint16_t port = uint16_t(std::stoi(url.substr(url.rfind(':') + 1)));
   for (const char* e : {"/", "/status.json", "/metrics", "/healthz"}) {
     INFO(e);
@@ -474,7 +483,8 @@ TEST_CASE("coordinator and monitor with --http-token-file: real processes", "[di
                       "--min-workers", "1", "--http", "0.0.0.0:0"},
                      &error));
   REQUIRE(open.WaitForLine("status: http://", 60s).has_value());
-  CHECK(open.output().find("coordinator: warning: --http 0.0.0.0:0 serves the job's status") != std::string::npos);
+  CHECK(open.output().find("coordinator: warning: --http 0.0.0.0:0 serves the job's status") !=
+        std::string::npos);
   CHECK(open.output().find("--http-token-file FILE") != std::string::npos);
   open.Kill(SIGKILL);
   Child local;
