@@ -7,12 +7,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <charconv>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <set>
@@ -56,6 +59,67 @@ std::string Human(double bytes) {
 /// The DDS flags (dds_flags.h) of a command line, checked.
 core::Result<dist::DdsFlags> ParseDdsFlags(const Args& args) {
   return dist::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
+}
+
+/// DDS flag values from a job's `dds` section (job.proto DdsSpec) for the flags the command line
+/// leaves out: the domain on its own; the transport settings only when the command line gives no
+/// transport flag at all (a command line never mixes with the job's transport). A relative
+/// dds_xml is relative to the job file. Errors name the job file and the field.
+struct JobDds {
+  std::map<std::string, std::string> values;  ///< DDS flag name -> value
+  std::string job_path;
+  bool transport = false;  ///< the transport settings come from the job
+  /// The flag's value: the command line's, else the job's.
+  std::optional<std::string> Get(const Args& args, const std::string& name) const {
+    if (auto v = args.Get(name)) return v;
+    if (const auto it = values.find(name); it != values.end()) return it->second;
+    return std::nullopt;
+  }
+  /// `st` with a note when the failing setting may come from the job.
+  Status Explain(const Status& st) const {
+    if (st.ok() || !transport) return st;
+    return Status(st.code(), st.message() + " (transport settings from the dds section of " + job_path + ")");
+  }
+};
+
+core::Result<JobDds> JobDdsDefaults(const v1::TrainerConfig& config, const std::string& job_path, const Args& args) {
+  JobDds out;
+  out.job_path = job_path;
+  if (!config.has_dds()) return out;
+  const v1::DdsSpec& d = config.dds();
+  auto bad = [&](const std::string& m) { return Status(core::ErrorCode::kInvalidArgument, job_path + ": dds." + m); };
+  if (d.has_domain()) {
+    if (d.domain() > 232) return bad("domain " + std::to_string(d.domain()) + " is not a DDS domain id (0..232)");
+    if (!args.Has("domain")) out.values["domain"] = std::to_string(d.domain());
+  }
+  for (const char* name : {"profile", "peers", "interfaces", "dds-xml", "dds-profile", "discovery-server"})
+    if (args.Has(name)) return out;  // the command line's transport, whole
+  auto join = [](const auto& items) {
+    std::string j;
+    for (const std::string& i : items) j += (j.empty() ? "" : ",") + i;
+    return j;
+  };
+  if (d.has_profile()) {
+    if (d.profile() != "shm" && d.profile() != "udp" && d.profile() != "default")
+      return bad("profile \"" + d.profile() + "\" is not shm, udp or default");
+    out.values["profile"] = d.profile();
+  }
+  for (const std::string& p : d.peers())
+    if (p.empty() || p.find(',') != std::string::npos) return bad("peers: \"" + p + "\" is not one IP[:PORT]");
+  for (const std::string& i : d.interfaces())
+    if (i.empty() || i.find(',') != std::string::npos) return bad("interfaces: \"" + i + "\" is not one address");
+  if (d.peers_size() > 0) out.values["peers"] = join(d.peers());
+  if (d.interfaces_size() > 0) out.values["interfaces"] = join(d.interfaces());
+  if (d.has_discovery_server()) out.values["discovery-server"] = d.discovery_server();
+  if (d.has_dds_xml()) {
+    std::filesystem::path xml = d.dds_xml();
+    if (xml.empty()) return bad("dds_xml is empty");
+    if (xml.is_relative()) xml = (std::filesystem::path(job_path).parent_path() / xml).lexically_normal();
+    out.values["dds-xml"] = xml.string();
+  }
+  if (d.has_dds_profile()) out.values["dds-profile"] = d.dds_profile();
+  out.transport = out.values.size() > out.values.count("domain");
+  return out;
 }
 
 /// `names` plus the DDS value options, for Args.
@@ -173,19 +237,25 @@ int CoordinatorMain(int argc, char** argv) {
     std::fprintf(stderr, "coordinator: %s\n", params.status().ToString().c_str());
     return 2;
   }
+  auto job_dds = JobDdsDefaults(*config, job_path, args);
+  if (!job_dds.ok()) {
+    std::fprintf(stderr, "coordinator: %s\n", job_dds.status().message().c_str());
+    return 2;
+  }
   auto local = args.GetInt("local-workers", 0, 0, 256);
-  auto domain = args.GetInt("domain", 0, 0, 232);
+  auto domain = args.GetInt("domain", job_dds->values.count("domain") ? std::stol(job_dds->values["domain"]) : 0, 0, 232);
   auto min_workers = args.GetInt("min-workers", -1, 1, 4096);
   auto worker_threads = args.GetInt("worker-threads", 1, 1, 1024);
   auto wait_s = args.GetInt("worker-wait-s", 60, 1, 86400);
-  auto dds_flags = ParseDdsFlags(args);
+  auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return job_dds->Get(args, name); });
   if (!local.ok() || !domain.ok() || !min_workers.ok() || !worker_threads.ok() || !wait_s.ok() ||
       !dds_flags.ok()) {
     for (const Status& st :
          {local.ok() ? Status::Ok() : local.status(), domain.ok() ? Status::Ok() : domain.status(),
           min_workers.ok() ? Status::Ok() : min_workers.status(),
           worker_threads.ok() ? Status::Ok() : worker_threads.status(),
-          wait_s.ok() ? Status::Ok() : wait_s.status(), dds_flags.ok() ? Status::Ok() : dds_flags.status()})
+          wait_s.ok() ? Status::Ok() : wait_s.status(),
+          dds_flags.ok() ? Status::Ok() : job_dds->Explain(dds_flags.status())})
       if (!st.ok()) std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
     return 2;
   }
@@ -357,6 +427,9 @@ int CoordinatorMain(int argc, char** argv) {
   }
   LocalWorkers workers;
   if (*local > 0) {
+    // The workers' cores are theirs: merge on what is left (at least 1 thread).
+    const int64_t cores = std::max<int64_t>(1, int64_t(std::thread::hardware_concurrency()));
+    opt.merge_threads = int(std::max<int64_t>(1, cores - *local * *worker_threads));
     std::vector<std::string> wargs = {"--domain", std::to_string(*domain), "--job", opt.job_id, "--threads",
                                       std::to_string(*worker_threads)};
     for (const std::string& a : dds_flags->TransportArgs()) wargs.push_back(a);
@@ -393,12 +466,15 @@ int CoordinatorMain(int argc, char** argv) {
 }
 
 int WorkerMain(int argc, char** argv) {
-  Args args(WithDdsOptions({"domain", "threads", "job", "id", "task-cache-mb"}),
+  Args args(WithDdsOptions({"domain", "threads", "job", "job-file", "id", "task-cache-mb"}),
             {"stay", "exit-with-parent", "check-config", "help"});
   if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
     if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
     std::fprintf(stderr,
                  "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--id NAME] [DDS transport flags]\n"
+                 "         [--job-file JOB.textproto]   (the job's id (unless --job) and its dds section: domain\n"
+                 "          and transport, used where the command line gives none; the coordinator's job file,\n"
+                 "          at the same path when the job names relative files)\n"
                  "         (--id: the sender id, unique per job; default worker-HOST-PID-RANDOM)\n"
                  "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n"
                  "         [--task-cache-mb M]   (frames of other shards kept between subtree tasks of a\n"
@@ -409,23 +485,49 @@ int WorkerMain(int argc, char** argv) {
                  kDdsUsage);
     return args.Has("help") ? 0 : 2;
   }
-  auto domain = args.GetInt("domain", 0, 0, 232);
+  // --job-file: the job id and the job's DDS settings (its dds section) from the coordinator's job.
+  JobDds job_dds;
+  std::string job_id = args.GetOr("job", "");
+  if (args.Has("job-file")) {
+    const std::string job_path = *args.Get("job-file");
+    std::ifstream in(job_path);
+    if (!in) {
+      std::fprintf(stderr, "worker: --job-file: cannot read %s\n", job_path.c_str());
+      return 2;
+    }
+    std::stringstream text;
+    text << in.rdbuf();
+    auto config = worker::ParseJobText(text.str(), job_path);
+    if (!config.ok()) {
+      std::fprintf(stderr, "worker: --job-file: %s\n", config.status().ToString().c_str());
+      return 2;
+    }
+    worker::ResolveJobPaths(job_path, &*config);  // as the coordinator does: the same job id
+    auto defaults = JobDdsDefaults(*config, job_path, args);
+    if (!defaults.ok()) {
+      std::fprintf(stderr, "worker: %s\n", defaults.status().message().c_str());
+      return 2;
+    }
+    job_dds = std::move(*defaults);
+    if (job_id.empty()) job_id = dist::DefaultJobId(*config);
+  }
+  auto domain = args.GetInt("domain", job_dds.values.count("domain") ? std::stol(job_dds.values["domain"]) : 0, 0, 232);
   auto threads = args.GetInt("threads", 1, 1, 1024);
   auto task_cache_mb = args.GetInt("task-cache-mb", 256, 0, 1 << 20);
-  auto dds_flags = ParseDdsFlags(args);
+  auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return job_dds.Get(args, name); });
   if (!domain.ok() || !threads.ok() || !task_cache_mb.ok() || !dds_flags.ok()) {
     std::fprintf(stderr, "worker: %s\n",
                  (!domain.ok()           ? domain.status()
                   : !threads.ok()        ? threads.status()
                   : !task_cache_mb.ok()  ? task_cache_mb.status()
-                                         : dds_flags.status())
+                                         : job_dds.Explain(dds_flags.status()))
                      .message()
                      .c_str());
     return 2;
   }
   if (args.Has("check-config")) {
     std::printf("worker config ok: id %s, job %s, %ld threads; DDS domain %ld, %s\n",
-                args.GetOr("id", "(worker-HOST-PID-RANDOM)").c_str(), args.GetOr("job", "(any)").c_str(), *threads,
+                args.GetOr("id", "(worker-HOST-PID-RANDOM)").c_str(), job_id.empty() ? "(any)" : job_id.c_str(), *threads,
                 *domain, dds_flags->Describe().c_str());
     return 0;
   }
@@ -439,7 +541,7 @@ int WorkerMain(int argc, char** argv) {
   opt.transport = dds_flags->transport;
   opt.threads = int(*threads);
   opt.task_cache_bytes = uint64_t(*task_cache_mb) << 20;
-  opt.job_id = args.GetOr("job", "");
+  opt.job_id = job_id;
   opt.exit_when_done = !args.Has("stay");
   dist::DistWorker worker(opt);
   g_worker = &worker;

@@ -4,6 +4,7 @@
 // A worker SIGKILLed while a round waits for its reply: the round is asked again.
 // Five worker processes (uneven shards, subtree hand-off) give `poseforest train`'s forest.
 // Bad --peers / --interfaces values are refused with an error naming the flag and the value.
+// A job's dds section gives the coordinator and `worker --job-file` their domain and transport.
 
 #include <catch2/catch.hpp>
 #include <filesystem>
@@ -93,6 +94,70 @@ TEST_CASE("5 worker processes: the forest of `poseforest train`, byte for byte",
     CHECK(w[i].Wait(10s).has_value());  // it exits on JOB_DONE
     INFO("worker " << i << ": " << w[i].output());
     CHECK(w[i].output().find("shard of ") != std::string::npos);  // and it held frames
+  }
+}
+
+TEST_CASE("the job's dds section: coordinator and `worker --job-file` meet on its domain and transport",
+          "[distributed][integration][slow]") {
+  TempDir dir("pf-dist-jobdds");
+  const uint32_t domain = Domain(33);
+  const std::string text = TinyJobText(1, 5, 300) + "dds { domain: " + std::to_string(domain) +
+                           " profile: \"udp\" peers: \"127.0.0.1\" }\n";
+  const std::string job = (dir.path / "job.textproto").string();
+  std::ofstream(job) << text;
+  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
+  auto run = [](const std::string& args) { return poseforest::testing::RunCommand(Program() + " " + args); };
+  // What each would use: the job's settings; the command line's where it gives them (the
+  // transport whole: --profile shm drops the job's peers too).
+  auto coord_cfg = run("coordinator " + job + " --out " + (dir.path / "f.pff").string() + " --check-config");
+  INFO(coord_cfg.output);
+  REQUIRE(coord_cfg.exit_code == 0);
+  CHECK(coord_cfg.output.find("DDS domain " + std::to_string(domain) + ", UDP, initial peers 127.0.0.1") !=
+        std::string::npos);
+  const auto at = coord_cfg.output.find("job job-");
+  REQUIRE(at != std::string::npos);
+  const std::string job_id = coord_cfg.output.substr(at + 4, coord_cfg.output.find(' ', at + 4) - at - 4);
+  auto worker_cfg = run("worker --job-file " + job + " --check-config");
+  INFO(worker_cfg.output);
+  REQUIRE(worker_cfg.exit_code == 0);
+  CHECK(worker_cfg.output.find("job " + job_id + ",") != std::string::npos);  // the coordinator's job id
+  CHECK(worker_cfg.output.find("DDS domain " + std::to_string(domain) + ", UDP, initial peers 127.0.0.1") !=
+        std::string::npos);
+  auto flags_win = run("worker --job-file " + job + " --check-config --domain 7 --profile shm --job other");
+  INFO(flags_win.output);
+  REQUIRE(flags_win.exit_code == 0);
+  CHECK(flags_win.output.find("job other,") != std::string::npos);
+  CHECK(flags_win.output.find("DDS domain 7, shared memory") != std::string::npos);
+  // The job, for real: no --domain, --job, --profile or --peers anywhere.
+  Child w[2];
+  std::string error;
+  for (int i = 0; i < 2; ++i)
+    REQUIRE(w[i].Start({Program(), "worker", "--job-file", job, "--id", "jw-" + std::to_string(i)}, &error));
+  Child coord;
+  REQUIRE(coord.Start({Program(), "coordinator", job, "--out", (dir.path / "forest.pff").string(), "--min-workers",
+                       "2", "--http", "off"},
+                      &error));
+  auto rc = coord.Wait(120s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(coord.output().find("2 workers alive") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  for (Child& c : w) CHECK(c.Wait(10s).has_value());  // they left on JOB_DONE
+  // Bad settings in the job: errors name the job file and the field.
+  for (const auto& [dds, message] : std::vector<std::pair<std::string, std::string>>{
+           {"dds { domain: 300 }", "dds.domain 300 is not a DDS domain id"},
+           {"dds { profile: \"tcp\" }", "dds.profile \"tcp\" is not shm, udp or default"},
+           {"dds { profile: \"udp\" peers: \"10.0.0\" }", "(transport settings from the dds section of " + job},
+           {"dds { dds_xml: \"missing.xml\" dds_profile: \"p\" }", "missing.xml"}}) {
+    std::ofstream(job) << TinyJobText(1, 5, 300) << dds << "\n";
+    for (const std::string cmd : {"coordinator " + job + " --out " + (dir.path / "g.pff").string(),
+                                  "worker --job-file " + job}) {
+      auto bad = run(cmd + " --check-config");
+      INFO(cmd << " with " << dds << ": " << bad.output);
+      CHECK(bad.exit_code == 2);
+      CHECK(bad.output.find(message) != std::string::npos);
+    }
   }
 }
 
