@@ -225,6 +225,7 @@ Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& c, const std::stri
     p.histogram_memory_bytes = c.histogram_memory_mb() << 20;
   }
   if (c.has_subtree_max_samples()) p.subtree_max_samples = c.subtree_max_samples();
+  if (c.has_subtree_max_frames()) p.subtree_max_frames = c.subtree_max_frames();
   if (!c.has_source())
     return Bad(source, "source", "",
                "is required: set one of rendered { }, dataset { folder: ... } or procedural { }");

@@ -63,6 +63,9 @@ struct TrainParams {
   /// Distributed service: nodes of at most this many samples (all shards) are trained whole by
   /// one worker (SubtreeTask); 0 = never. The forest does not depend on it.
   uint64_t subtree_max_samples = 4096;
+  /// ... and nodes whose samples lie in at most this many frames, up to 16 x subtree_max_samples
+  /// samples and 1/(4 x workers) of the tree's (job.proto); 0 = only the sample rule.
+  uint32_t subtree_max_frames = 256;
   core::FeatureConstants constants;
   SourceSpec source;
   bool has_test_set = false;

@@ -756,28 +756,36 @@ struct DistCoordinator::Impl {
       std::vector<core::FeatureOffsets> chosen(frontier.size());
       // Small nodes go to one worker each, whole (SubtreeTask): ask the workers which frames
       // hold their samples, send the tasks, and let them train while the histogram rounds of
-      // the other nodes run. Never the root: one worker would train the whole tree.
+      // the other nodes run. Never the root: one worker would train the whole tree. Small: at
+      // most subtree_max_samples samples, or (the frame rule) samples in at most
+      // subtree_max_frames frames, up to 16 x subtree_max_samples samples and a quarter of the
+      // tree's samples per live worker (a level of few large tasks would leave workers idle).
       size_t handed_off = 0;
       level_handed.clear();
       level_largest_task = 0;
       if (params.subtree_max_samples > 0 && level > 0) {
-        std::vector<size_t> keep, hand;
+        const uint64_t by_samples = params.subtree_max_samples;
+        const uint64_t by_frames =
+            params.subtree_max_frames > 0
+                ? std::min(16 * by_samples, level_samples / (4 * uint64_t(std::max(1, AliveCount()))))
+                : 0;
+        std::vector<size_t> keep, ask, hand;
         for (size_t i : to_split)
-          (frontier[i].total() <= params.subtree_max_samples ? hand : keep).push_back(i);
-        if (!hand.empty()) {
+          (frontier[i].total() <= std::max(by_samples, by_frames) ? ask : keep).push_back(i);
+        if (!ask.empty()) {
           std::vector<uint32_t> ids;
-          std::vector<v1::NodeSpec> specs(hand.size());
-          for (size_t q = 0; q < hand.size(); ++q) {
-            ids.push_back(frontier[hand[q]].node);
-            specs[q].set_num_samples(frontier[hand[q]].total());
-            specs[q].set_position(frontier[hand[q]].position);
+          std::vector<v1::NodeSpec> specs(ask.size());
+          for (size_t q = 0; q < ask.size(); ++q) {
+            ids.push_back(frontier[ask[q]].node);
+            specs[q].set_num_samples(frontier[ask[q]].total());
+            specs[q].set_position(frontier[ask[q]].position);
           }
           auto rf = Round(v1::PHASE_FRAMES, ids, specs, level);
           if (!rf.ok()) return rf.status();
           tasks.clear();
           subtree_load.clear();
-          for (size_t q = 0; q < hand.size(); ++q) {
-            const FrontierNode& f = frontier[hand[q]];
+          for (size_t q = 0; q < ask.size(); ++q) {
+            const FrontierNode& f = frontier[ask[q]];
             SubtreeJob job;
             job.node = f.node;
             job.position = f.position;
@@ -813,6 +821,11 @@ struct DistCoordinator::Impl {
                                                       std::to_string(f.total()));
             std::sort(job.frames.begin(), job.frames.end());
             job.frames.erase(std::unique(job.frames.begin(), job.frames.end()), job.frames.end());
+            if (f.total() > by_samples && job.frames.size() > params.subtree_max_frames) {
+              keep.push_back(ask[q]);  // too many frames to hand over: histogram rounds
+              continue;
+            }
+            hand.push_back(ask[q]);
             std::sort(listed.begin(), listed.end(),
                       [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
             if (all_listed && listed.size() == job.frames.size()) {  // no frame listed twice
@@ -837,6 +850,7 @@ struct DistCoordinator::Impl {
           });
           for (SubtreeJob* job : order) POSEFOREST_RETURN_IF_ERROR(SendTask(*job));
           handed_off = hand.size();
+          std::sort(keep.begin(), keep.end());  // frontier order, as before
           to_split.swap(keep);
         }
       }

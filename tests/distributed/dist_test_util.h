@@ -45,13 +45,16 @@ inline std::string ReadText(const std::filesystem::path& p) {
 
 /// A job small enough for a loaded 2-core machine (procedural frames, small images).
 /// `subtree_max_samples`: nodes of at most this many samples go to one worker whole
-/// (SubtreeTask); 0 (the default here) keeps every level on histogram rounds.
-inline std::string TinyJobText(int trees = 2, int depth = 6, uint64_t subtree_max_samples = 0) {
+/// (SubtreeTask); 0 (the default here) keeps every level on histogram rounds. `subtree_max_frames`
+/// (the frame rule, job.proto) is 0 here unless given: 12 frames per tree would hand off every
+/// node of level >= 1.
+inline std::string TinyJobText(int trees = 2, int depth = 6, uint64_t subtree_max_samples = 0,
+                               uint32_t subtree_max_frames = 0) {
   return "seed: 5\nnum_trees: " + std::to_string(trees) + "\nmax_depth: " + std::to_string(depth) +
          "\nimages_per_tree: 12\npixels_per_image: 150\ncandidate_features: 40\nthresholds_per_feature: 12\n"
          "max_probe_offset_pixel_m: 60\nthreshold_reference_pixels: 200\n"
          "subtree_max_samples: " +
-         std::to_string(subtree_max_samples) +
+         std::to_string(subtree_max_samples) + "\nsubtree_max_frames: " + std::to_string(subtree_max_frames) +
          "\n"
          "source { procedural { seed: 9 width: 96 height: 72 } }\n";
 }

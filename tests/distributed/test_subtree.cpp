@@ -93,6 +93,49 @@ TEST_CASE("with subtree hand-off the forest is byte-identical to LocalTrainer wi
   }
 }
 
+TEST_CASE("the frame rule hands off larger nodes whose samples lie in few frames; same forest",
+          "[distributed][integration]") {
+  // 12 frames per tree: every node's samples lie in at most 12 frames, so with
+  // subtree_max_frames 16 nodes of up to min(16 x 100, a quarter of the tree's samples per
+  // worker) samples go whole from level 1 on; with 0 only nodes of at most 100 samples do.
+  constexpr uint64_t kSmall = 100;
+  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(TinyJobText(1, 6, kSmall, 16)));
+  CHECK(ReferenceBytes(ParseJob(TinyJobText(1, 6, kSmall, 0))) == reference);
+  for (uint32_t frames : {0u, 16u, 11u}) {
+    DYNAMIC_SECTION("subtree_max_frames " << frames) {
+      const Job job = ParseJob(TinyJobText(1, 6, kSmall, frames));
+      const uint32_t domain = Domain(60 + frames);
+      const std::string job_id = "t-subtree-frames-" + std::to_string(frames);
+      ThreadWorkers workers(2, domain, job_id);
+      CoordinatorOptions o = Options(domain, 2);
+      o.job_id = job_id;
+      HandOff h;
+      uint64_t largest = 0;
+      int first_level = -1;
+      o.progress = [&](const DistLevelStats& s) {
+        h.Add(s);
+        largest = std::max(largest, s.subtree_largest_task);
+        if (s.subtree_tasks > 0 && first_level < 0) first_level = s.level;
+      };
+      DistCoordinator coordinator(job.config, job.params, o);
+      auto forest = coordinator.Train();
+      INFO(forest.status().ToString());
+      REQUIRE(forest.ok());
+      CHECK(core::SerializeForest(*forest) == reference);
+      CHECK(h.tasks >= 2);
+      if (frames == 0 || frames == 11) {
+        // The sample rule alone (11 < the frames a node of level 1-2 spans: those stay on rounds).
+        CHECK(largest <= kSmall);
+      } else {
+        CHECK(largest > kSmall);  // handed off by the frame rule
+        CHECK(largest <= 16 * kSmall);
+        CHECK(first_level <= 2);
+      }
+      CHECK(coordinator.rejected_messages() == 0);
+    }
+  }
+}
+
 TEST_CASE("a worker lost while it holds a subtree task: the task goes to another, same forest",
           "[distributed][integration]") {
   const Job job = ParseJob(TinyJobText(1, 6, kSubtreeMax));
