@@ -14,7 +14,10 @@
 // Each worker count runs twice: without subtree hand-off (subtree_max_samples 0: every level
 // by histogram rounds) and with it (nodes of at most S samples trained whole by one worker; S
 // defaults to the job's subtree_max_samples, 4096 unless set; 0 skips the second run). The
-// per-level table then also shows the nodes handed off and the nodes decided by results.
+// per-level table then also shows the nodes handed off and the nodes decided by results. The
+// job's frame rule (subtree_max_frames, default 256; job.proto) applies too: this job's 100
+// frames per tree let nodes of up to 16 x S samples go whole once they hold at most a quarter
+// of the level's samples per worker.
 // The last line is `distributed/engine per core: <ratio> ratio`: 2 workers (with hand-off as
 // configured) against the engine on as many cores (LocalTrainer with 2 OpenMP threads), in
 // evaluations per CPU-second; the median over --repeat pairs. The engine also runs with 1 thread,
