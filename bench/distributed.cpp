@@ -30,6 +30,11 @@
 // --csv writes the per-level rows of the runs without hand-off (input of
 // scripts/traffic_model.py, which models histogram traffic).
 //
+// The engine also runs as N concurrent 1-thread processes (this program with --engine-process,
+// each training the whole job; N = the headline's workers), once and in every --repeat pair:
+// the same multi-process load on the machine without the service, printed as "engine, N
+// processes" and as the ratio "vs the engine as N concurrent 1-thread processes" above the last
+// line (what the service costs beyond running N processes at once on these cores).
 // Every run also prints where its CPU went: the coordinator, and the workers by phase (each
 // worker process writes its dist::WorkerCpu to a --stats file when it exits), and a "why the
 // ratio" line splits the headline run's CPU into the training work the engine also does and
@@ -242,8 +247,27 @@ struct Row {
 
 }  // namespace
 
+/// An engine process: this program with --engine-process JOB.textproto: LocalTrainer with 1
+/// thread on the job, nothing else (the two-process comparison, see main).
+int EngineProcess(const char* job_path) {
+  ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+  std::ifstream in(job_path);
+  std::stringstream text;
+  text << in.rdbuf();
+  auto config = worker::ParseJobText(text.str(), job_path);
+  if (!config.ok()) return std::fprintf(stderr, "%s\n", config.status().ToString().c_str()), 1;
+  auto params = worker::ParamsFromConfig(*config, job_path);
+  if (!params.ok()) return std::fprintf(stderr, "%s\n", params.status().ToString().c_str()), 1;
+  params->threads = 1;
+  coordinator::LocalTrainer local(*params, {});
+  auto forest = local.Train();
+  if (!forest.ok()) return std::fprintf(stderr, "%s\n", forest.status().ToString().c_str()), 1;
+  return 0;
+}
+
 int main(int argc, char** argv) {
   if (argc > 1 && !std::strcmp(argv[1], "--worker-process")) return WorkerProcess(argc, argv);
+  if (argc > 2 && !std::strcmp(argv[1], "--engine-process")) return EngineProcess(argv[2]);
   // libgomp reads its wait policy when it is loaded: set it and start again.
   if (!std::getenv("OMP_WAIT_POLICY")) {
     ::setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
@@ -356,6 +380,37 @@ int main(int argc, char** argv) {
     self = std::filesystem::read_symlink("/proc/self/exe", ec).string();
     if (ec) return std::fprintf(stderr, "distributed: cannot find /proc/self/exe\n"), 1;
   }
+  // The engine as n concurrent 1-thread processes, each training the whole job: the same
+  // two-process load on the machine as n workers, without the service. CPU: the reaped children's.
+  const std::string job_file = (std::filesystem::temp_directory_path() /
+                                ("bench-" + std::to_string(::getpid()) + "-job.textproto"))
+                                   .string();
+  std::ofstream(job_file) << text;
+  auto run_engine_procs = [&](int n, RunFigures& f) -> int {
+    const double kids0 = CpuSeconds(RUSAGE_CHILDREN), t0 = dist::NowSeconds();
+    std::vector<pid_t> pids;
+    for (int i = 0; i < n; ++i) {
+      std::vector<std::string> a = {self, "--engine-process", job_file};
+      std::vector<char*> c;
+      for (auto& x : a) c.push_back(x.data());
+      c.push_back(nullptr);
+      pid_t pid = -1;
+      if (::posix_spawn(&pid, c[0], nullptr, nullptr, c.data(), environ) != 0)
+        return std::fprintf(stderr, "distributed: cannot start an engine process\n"), 1;
+      pids.push_back(pid);
+    }
+    bool ok = true;
+    for (pid_t p : pids) {
+      int status = 0;
+      ::waitpid(p, &status, 0);
+      ok = ok && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    }
+    f.wall = dist::NowSeconds() - t0;
+    f.cpu = CpuSeconds(RUSAGE_CHILDREN) - kids0;
+    f.evaluations = uint64_t(n) * engine.evaluations;
+    if (!ok) return std::fprintf(stderr, "distributed: an engine process failed\n"), 1;
+    return 0;
+  };
   std::vector<Row> rows;
   std::map<std::pair<int, uint64_t>, RunFigures> runs;  // (workers, subtree_max_samples)
   std::vector<std::pair<int, uint64_t>> plan;
@@ -530,7 +585,20 @@ int main(int argc, char** argv) {
                 f.wall, f.cpu, double(engine.evaluations) / f.wall, double(engine.evaluations) / f.cpu,
                 double(engine.evaluations) / f.cpu / engine_per_cpu, engines[n].cpu / f.cpu);
   }
-  std::printf("(\"vs same cores\": against the engine with as many OpenMP threads as the run has workers)\n");
+  // The same engine as concurrent processes (one per worker of the headline run).
+  const int procs_n = std::count(worker_counts.begin(), worker_counts.end(), 2)
+                          ? 2
+                          : *std::max_element(worker_counts.begin(), worker_counts.end());
+  RunFigures procs;
+  if (procs_n > 1) {
+    if (int rc = run_engine_procs(procs_n, procs); rc != 0) return rc;
+    std::printf("%-26s %10.2f %10.2f %14.3g %16.3g %12.2f %14s\n",
+                ("engine, " + std::to_string(procs_n) + " processes").c_str(), procs.wall, procs.cpu,
+                double(procs.evaluations) / procs.wall, double(procs.evaluations) / procs.cpu,
+                double(procs.evaluations) / procs.cpu / engine_per_cpu, "-");
+  }
+  std::printf("(\"vs same cores\": against the engine with as many OpenMP threads as the run has workers; "
+              "\"engine, N processes\": N concurrent 1-thread engine processes, each training the whole job)\n");
   // The headline: 2 workers (else the largest count run), with hand-off as configured.
   const int head_n = std::count(worker_counts.begin(), worker_counts.end(), 2)
                          ? 2
@@ -551,6 +619,9 @@ int main(int argc, char** argv) {
   // loaded machine's CPU seconds vary from run to run by more than the overhead measured).
   std::vector<double> ratios = {engines[head_n].cpu / two.cpu};
   std::vector<double> ratios_1t = {engine.cpu / two.cpu};
+  // Service vs the engine as head_n concurrent processes, per CPU-second.
+  std::vector<double> ratios_procs;
+  if (head_n > 1 && procs_n == head_n) ratios_procs.push_back(procs.cpu / double(head_n) / two.cpu);
   for (int r = 1; r < repeat; ++r) {
     RunFigures e, e1, f;
     if (int rc = run_engine(e, head_n, false); rc != 0) return rc;
@@ -559,13 +630,23 @@ int main(int argc, char** argv) {
     else if (int rc = run_engine(e1, 1, false); rc != 0)
       return rc;
     if (int rc = run_service(head_n, subtree_max > 0 ? uint64_t(subtree_max) : 0, f, false); rc != 0) return rc;
+    RunFigures ep;
+    if (head_n > 1)
+      if (int rc = run_engine_procs(head_n, ep); rc != 0) return rc;
     ok = ok && e.identical && e1.identical && f.identical && f.evaluations == e.evaluations;
     ratios.push_back(e.cpu / f.cpu);
     ratios_1t.push_back(e1.cpu / f.cpu);
+    if (head_n > 1) ratios_procs.push_back(ep.cpu / double(head_n) / f.cpu);
     std::printf("repeat %d: engine %d thread(s) %.2f CPU s, 1 thread %.2f CPU s, service %.2f CPU s (coordinator "
-                "%.2f, workers %.2f), ratio %.3f (vs 1 thread %.3f), load average %.1f\n",
+                "%.2f, workers %.2f), ratio %.3f (vs 1 thread %.3f%s), load average %.1f\n",
                 r + 1, head_n, e.cpu, e1.cpu, f.cpu, f.coordinator_cpu, f.workers_cpu, ratios.back(),
-                ratios_1t.back(), LoadAverage());
+                ratios_1t.back(),
+                head_n > 1 ? (", vs " + std::to_string(head_n) + " engine processes " +
+                              std::to_string(ratios_procs.back()).substr(0, 5) + " (" +
+                              std::to_string(ep.cpu).substr(0, 5) + " CPU s for " + std::to_string(head_n) + " jobs)")
+                                 .c_str()
+                           : "",
+                LoadAverage());
     std::fflush(stdout);
   }
   const auto median_of = [](std::vector<double> v) {
@@ -579,6 +660,13 @@ int main(int argc, char** argv) {
   std::printf("%d worker(s) vs the engine with 1 thread, per CPU-second: %.3f (median); vs the engine on %d "
               "core(s): %.3f\n",
               head_n, median_1t, head_n, median);
+  if (!ratios_procs.empty())
+    std::printf("%d worker(s) vs the engine as %d concurrent 1-thread processes (the same multi-process load on the "
+                "machine, without the service), per CPU-second: %.3f (median of %zu, min %.3f, max %.3f)\n",
+                head_n, head_n, median_of(ratios_procs), ratios_procs.size(),
+                *std::min_element(ratios_procs.begin(), ratios_procs.end()),
+                *std::max_element(ratios_procs.begin(), ratios_procs.end()));
+  std::filesystem::remove(job_file);
   if (!ok) std::printf("WARNING: a service run differs from the engine (forest bytes or evaluation count)\n");
   // Same evaluations in both (checked): the ratio of evaluations per CPU-second is engine CPU /
   // service CPU.
