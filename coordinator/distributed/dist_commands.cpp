@@ -61,6 +61,20 @@ core::Result<dist::DdsFlags> ParseDdsFlags(const Args& args) {
   return dist::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
 }
 
+/// The job file's TrainerConfig with its relative paths (pose library, MakeHuman kit, dataset
+/// folders) resolved against the file's folder, as `poseforest train` does: kIo when the file
+/// cannot be read, the parser's error (naming the file) when it does not parse.
+core::Result<v1::TrainerConfig> ReadJobConfig(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Status(core::ErrorCode::kIo, "cannot read " + path);
+  std::stringstream text;
+  text << in.rdbuf();
+  auto config = worker::ParseJobText(text.str(), path);
+  if (!config.ok()) return config.status();
+  worker::ResolveJobPaths(path, &*config);
+  return config;
+}
+
 /// DDS flag values from a job's `dds` section (job.proto DdsSpec) for the flags the command line
 /// leaves out: the domain on its own; the transport settings only when the command line gives no
 /// transport flag at all (a command line never mixes with the job's transport). A relative
@@ -217,21 +231,14 @@ int CoordinatorMain(int argc, char** argv) {
     return args.Has("help") ? 0 : 2;
   }
   const std::string job_path = args.positional()[0];
-  std::ifstream in(job_path);
-  if (!in) {
-    std::fprintf(stderr, "coordinator: cannot read %s\n", job_path.c_str());
-    return 1;
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  auto config = worker::ParseJobText(ss.str(), job_path);
+  // Workers receive the config with its paths resolved here.
+  auto config = ReadJobConfig(job_path);
   if (!config.ok()) {
-    std::fprintf(stderr, "coordinator: %s\n", config.status().ToString().c_str());
-    return 2;
+    const bool unreadable = config.status().code() == core::ErrorCode::kIo;
+    std::fprintf(stderr, "coordinator: %s\n",
+                 (unreadable ? config.status().message() : config.status().ToString()).c_str());
+    return unreadable ? 1 : 2;
   }
-  // Relative paths in the job (pose library, MakeHuman kit, dataset folders) are relative to the
-  // job file, as for `poseforest train`; workers receive the resolved config.
-  worker::ResolveJobPaths(job_path, &*config);
   auto params = worker::ParamsFromConfig(*config, job_path);
   if (!params.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", params.status().ToString().c_str());
@@ -490,19 +497,14 @@ int WorkerMain(int argc, char** argv) {
   std::string job_id = args.GetOr("job", "");
   if (args.Has("job-file")) {
     const std::string job_path = *args.Get("job-file");
-    std::ifstream in(job_path);
-    if (!in) {
-      std::fprintf(stderr, "worker: --job-file: cannot read %s\n", job_path.c_str());
-      return 2;
-    }
-    std::stringstream text;
-    text << in.rdbuf();
-    auto config = worker::ParseJobText(text.str(), job_path);
+    auto config = ReadJobConfig(job_path);  // resolved as the coordinator does: the same job id
     if (!config.ok()) {
-      std::fprintf(stderr, "worker: --job-file: %s\n", config.status().ToString().c_str());
+      std::fprintf(stderr, "worker: --job-file: %s\n",
+                   (config.status().code() == core::ErrorCode::kIo ? config.status().message()
+                                                                   : config.status().ToString())
+                       .c_str());
       return 2;
     }
-    worker::ResolveJobPaths(job_path, &*config);  // as the coordinator does: the same job id
     auto defaults = JobDdsDefaults(*config, job_path, args);
     if (!defaults.ok()) {
       std::fprintf(stderr, "worker: %s\n", defaults.status().message().c_str());

@@ -26,6 +26,7 @@
 #include "coordinator/distributed/http_server.h"
 #include "coordinator/distributed/status_model.h"
 #include "tests/dds/dds_test_util.h"
+#include "tests/distributed/dashboard_dom.h"
 #include "tests/distributed/dist_test_util.h"
 #include "tests/support/process.h"
 
@@ -101,29 +102,6 @@ fs::path WriteFile(const fs::path& p, const std::string& text, mode_t mode) {
   return p;
 }
 
-/// The dashboard's DOM after its script has run, from headless Chromium (Debian `chromium`); the
-/// same command line as test_monitoring's.
-std::string DumpDom(const std::string& url) {
-  REQUIRE(fs::exists("/usr/bin/chromium"));  // scripts/setup.sh installs it
-  TempDir profile("pf-chromium-auth");
-  const std::string cmd =
-      "timeout 90 /usr/bin/chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
-      "--disable-background-networking --disable-component-update --disable-sync --disable-dev-shm-usage "
-      "--user-data-dir=" +
-      profile.path.string() + " --virtual-time-budget=4000 --dump-dom '" + url + "' 2>/dev/null";
-  auto r = poseforest::testing::RunCommand(cmd);
-  INFO(r.output.substr(0, 3000));
-  REQUIRE(r.exit_code == 0);
-  return r.output;
-}
-
-std::string ElementText(const std::string& dom, const std::string& id) {
-  const size_t at = dom.find("id=\"" + id + "\"");
-  if (at == std::string::npos) return "";
-  const size_t open = dom.find('>', at);
-  const size_t close = dom.find('<', open);
-  return dom.substr(open + 1, close - open - 1);
-}
 
 /// `text` without its "now_unix" field (the one figure of a finished job's JSON that moves).
 std::string WithoutNow(const std::string& text) {

@@ -30,6 +30,7 @@
 #include "coordinator/distributed/http_server.h"
 #include "coordinator/distributed/status_model.h"
 #include "tests/dds/dds_test_util.h"
+#include "tests/distributed/dashboard_dom.h"
 #include "tests/distributed/dist_test_util.h"
 #include "tests/support/process.h"
 
@@ -187,29 +188,6 @@ double SiValue(const std::string& text) {
   return v;
 }
 
-/// The dashboard's DOM after its script has run, from headless Chromium (Debian `chromium`).
-std::string DumpDom(const std::string& url) {
-  REQUIRE(fs::exists("/usr/bin/chromium"));  // scripts/setup.sh installs it
-  TempDir profile("pf-chromium-profile");
-  const std::string cmd =
-      "timeout 90 /usr/bin/chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
-      "--disable-background-networking --disable-component-update --disable-sync --disable-dev-shm-usage "
-      "--user-data-dir=" +
-      profile.path.string() + " --virtual-time-budget=4000 --dump-dom " + url + "/ 2>/dev/null";
-  auto r = poseforest::testing::RunCommand(cmd);
-  INFO(r.output.substr(0, 3000));
-  REQUIRE(r.exit_code == 0);
-  return r.output;
-}
-
-/// Text content of the element with `id` in a dumped DOM (flat elements only).
-std::string ElementText(const std::string& dom, const std::string& id) {
-  const size_t at = dom.find("id=\"" + id + "\"");
-  if (at == std::string::npos) return "";
-  const size_t open = dom.find('>', at);
-  const size_t close = dom.find('<', open);
-  return dom.substr(open + 1, close - open - 1);
-}
 }  // namespace
 
 TEST_CASE(
@@ -346,7 +324,7 @@ TEST_CASE(
   CHECK(StatusCode(RawExchange(PortOf(url), "BREW /pot HTCPCP/1.0\r\n\r\n")) == 400);
   CHECK(StatusCode(RawExchange(PortOf(url), "GET / HTTP/1.1\r\nX: " + std::string(100000, 'a'))) == 431);
   // The dashboard in headless Chromium: its script fetched /status.json and filled the page.
-  const std::string dom = DumpDom(url);
+  const std::string dom = DumpDom(url + "/");
   INFO(dom.substr(0, 4000));
   CHECK(ElementText(dom, "job") == job_id);
   CHECK(std::regex_match(ElementText(dom, "tree"), std::regex(R"([12] / 2)")));
