@@ -26,8 +26,8 @@
 #include "coordinator/distributed/http_server.h"
 #include "coordinator/distributed/status_model.h"
 #include "tests/dds/dds_test_util.h"
-#include "tests/distributed/dashboard_dom.h"
 #include "tests/distributed/dist_test_util.h"
+#include "tests/distributed/http_test_util.h"
 #include "tests/support/process.h"
 
 using namespace poseforest;
@@ -41,50 +41,6 @@ namespace fs = std::filesystem;
 namespace {
 std::string Program() { return (HelperDir() / "poseforest").string(); }
 
-/// Sends `bytes` on a fresh connection to 127.0.0.1:`port` (from `source`, a loopback address)
-/// and returns what comes back until the server closes (or `timeout`).
-std::string Exchange(uint16_t port, const std::string& bytes, const char* source = nullptr,
-                     std::chrono::milliseconds timeout = 5s) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  REQUIRE(fd >= 0);
-  if (source) {
-    sockaddr_in s{};
-    s.sin_family = AF_INET;
-    REQUIRE(::inet_pton(AF_INET, source, &s.sin_addr) == 1);
-    REQUIRE(::bind(fd, reinterpret_cast<sockaddr*>(&s), sizeof s) == 0);
-  }
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_port = htons(port);
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
-  size_t sent = 0;
-  while (sent < bytes.size()) {
-    const ssize_t n = ::send(fd, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
-    if (n <= 0) break;
-    sent += size_t(n);
-  }
-  std::string out;
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  for (;;) {
-    const auto left =
-        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) break;
-    pollfd p{fd, POLLIN, 0};
-    if (::poll(&p, 1, int(left.count())) <= 0) break;
-    char buf[4096];
-    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-    if (n <= 0) break;
-    out.append(buf, size_t(n));
-  }
-  ::close(fd);
-  return out;
-}
-
-int Code(const std::string& reply) {
-  if (reply.rfind("HTTP/1.1 ", 0) != 0 || reply.size() < 12) return -1;
-  return std::atoi(reply.substr(9, 3).c_str());
-}
 std::string Head(const std::string& reply) { return reply.substr(0, reply.find("\r\n\r\n") + 2); }
 std::string Body(const std::string& reply) {
   const size_t p = reply.find("\r\n\r\n");
@@ -101,7 +57,6 @@ fs::path WriteFile(const fs::path& p, const std::string& text, mode_t mode) {
   REQUIRE(::chmod(p.c_str(), mode) == 0);
   return p;
 }
-
 
 /// `text` without its "now_unix" field (the one figure of a finished job's JSON that moves).
 std::string WithoutNow(const std::string& text) {
@@ -139,8 +94,8 @@ TEST_CASE("HTTP bearer token: every endpoint refuses without it, the right one g
   int refused = 0;
   auto refuse = [&](const std::string& request, bool invalid_token) {
     INFO(request);
-    const std::string r = Exchange(port, request);
-    CHECK(Code(r) == 401);
+    const std::string r = RawExchange(port, request);
+    CHECK(StatusCode(r) == 401);
     CHECK(Head(r).find("\r\nWWW-Authenticate: Bearer realm=\"poseforest\"" +
                        std::string(invalid_token ? ", error=\"invalid_token\"" : "") + "\r\n") !=
           std::string::npos);
@@ -175,24 +130,25 @@ TEST_CASE("HTTP bearer token: every endpoint refuses without it, the right one g
   for (const std::string& e :
        {std::string("/"), std::string("/index.html"), std::string("/status.json"), std::string("/healthz")}) {
     INFO(e);
-    const std::string with = Exchange(port, Get(e, bearer));
-    const std::string without = Exchange((*open)->port(), Get(e));
-    CHECK(Code(with) == 200);
-    CHECK(Code(without) == 200);
+    const std::string with = RawExchange(port, Get(e, bearer));
+    const std::string without = RawExchange((*open)->port(), Get(e));
+    CHECK(StatusCode(with) == 200);
+    CHECK(StatusCode(without) == 200);
     CHECK((e == "/status.json" ? WithoutNow(Body(with)) : Body(with)) ==
           (e == "/status.json" ? WithoutNow(Body(without)) : Body(without)));
     CHECK(Head(with).find("WWW-Authenticate") == std::string::npos);
   }
-  CHECK(Code(Exchange(port, Get("/nothing", bearer))) == 404);
-  CHECK(Code(Exchange(port, Get("/status.json", "authorization:   bearer   " + token + "  \r\n"))) == 200);
-  CHECK(Code(Exchange(port, Get("/?token=" + token))) == 200);
+  CHECK(StatusCode(RawExchange(port, Get("/nothing", bearer))) == 404);
+  CHECK(StatusCode(RawExchange(port, Get("/status.json", "authorization:   bearer   " + token + "  \r\n"))) ==
+        200);
+  CHECK(StatusCode(RawExchange(port, Get("/?token=" + token))) == 200);
   std::string encoded;  // the same token percent-encoded, as a browser may send it
   for (char c : token) {
     char buf[4];
     std::snprintf(buf, sizeof buf, "%%%02X", unsigned(static_cast<unsigned char>(c)));
     encoded += buf;
   }
-  CHECK(Code(Exchange(port, Get("/index.html?x=1&token=" + encoded))) == 200);
+  CHECK(StatusCode(RawExchange(port, Get("/index.html?x=1&token=" + encoded))) == 200);
   auto json = HttpGet((*secured)->url() + "/status.json", 2s, token);
   REQUIRE(json.ok());
   auto plain = HttpGet((*open)->url() + "/status.json", 2s);
@@ -248,9 +204,9 @@ TEST_CASE("HTTP refusal log: a burst, then one line per interval saying how many
   };
   auto server = HttpServer::Start(opt, StatusHandler(&model));
   REQUIRE(server.ok());
-  for (int i = 0; i < 6; ++i) CHECK(Code(Exchange((*server)->port(), Get("/metrics"))) == 401);
+  for (int i = 0; i < 6; ++i) CHECK(StatusCode(RawExchange((*server)->port(), Get("/metrics"))) == 401);
   std::this_thread::sleep_for(600ms);
-  CHECK(Code(Exchange((*server)->port(), Get("/healthz"))) == 401);
+  CHECK(StatusCode(RawExchange((*server)->port(), Get("/healthz"))) == 401);
   std::this_thread::sleep_for(100ms);
   std::lock_guard<std::mutex> lock(mu);
   REQUIRE(log.size() == 2);
@@ -353,12 +309,14 @@ TEST_CASE("HTTP per-peer connection cap: one address cannot take every slot",
     idle.push_back(fd);
   }
   std::this_thread::sleep_for(200ms);
-  CHECK(Code(Exchange(port, Get("/healthz"), "127.0.0.1")) == 503);  // a fourth from the same address
-  CHECK(Code(Exchange(port, Get("/healthz"), "127.0.0.2")) == 200);  // another address still gets in
+  CHECK(StatusCode(RawExchange(port, Get("/healthz"), 5s, "127.0.0.1")) ==
+        503);  // a fourth from the same address
+  CHECK(StatusCode(RawExchange(port, Get("/healthz"), 5s, "127.0.0.2")) ==
+        200);  // another address still gets in
   CHECK((*server)->dropped() == 1);
   for (int fd : idle) ::close(fd);
   std::this_thread::sleep_for(300ms);
-  CHECK(Code(Exchange(port, Get("/healthz"), "127.0.0.1")) == 200);
+  CHECK(StatusCode(RawExchange(port, Get("/healthz"), 5s, "127.0.0.1")) == 200);
   std::lock_guard<std::mutex> lock(mu);
   REQUIRE(log.size() == 1);
   CHECK(std::regex_match(
@@ -428,9 +386,10 @@ TEST_CASE("coordinator and monitor with --http-token-file: real processes",
   const uint16_t port = uint16_t(std::stoi(url.substr(url.rfind(':') + 1)));
   for (const char* e : {"/", "/status.json", "/metrics", "/healthz"}) {
     INFO(e);
-    CHECK(Code(Exchange(port, Get(e))) == 401);
-    CHECK(Code(Exchange(port, Get(e, "Authorization: Bearer not-the-token\r\n"))) == 401);
-    CHECK(Code(Exchange(port, Get(e, "Authorization: Bearer " + std::string(kToken) + "\r\n"))) == 200);
+    CHECK(StatusCode(RawExchange(port, Get(e))) == 401);
+    CHECK(StatusCode(RawExchange(port, Get(e, "Authorization: Bearer not-the-token\r\n"))) == 401);
+    CHECK(StatusCode(RawExchange(port, Get(e, "Authorization: Bearer " + std::string(kToken) + "\r\n"))) ==
+          200);
   }
   auto status = HttpGet(url + "/status.json", 5s, kToken);
   REQUIRE(status.ok());

@@ -30,8 +30,8 @@
 #include "coordinator/distributed/http_server.h"
 #include "coordinator/distributed/status_model.h"
 #include "tests/dds/dds_test_util.h"
-#include "tests/distributed/dashboard_dom.h"
 #include "tests/distributed/dist_test_util.h"
+#include "tests/distributed/http_test_util.h"
 #include "tests/support/process.h"
 
 using namespace poseforest;
@@ -91,44 +91,6 @@ std::string WaitForUrl(Child& c) {
   const size_t b = line->find("/ (dashboard)");
   REQUIRE(b != std::string::npos);
   return line->substr(a, b - a);
-}
-
-/// Sends `bytes` on a fresh connection to 127.0.0.1:`port` and returns what comes back until the
-/// server closes (or `timeout`).
-std::string RawExchange(uint16_t port, const std::string& bytes, std::chrono::milliseconds timeout = 5s) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  REQUIRE(fd >= 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_port = htons(port);
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
-  size_t sent = 0;
-  while (sent < bytes.size()) {
-    const ssize_t n = ::send(fd, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
-    if (n <= 0) break;  // the server may close early (431): fine
-    sent += size_t(n);
-  }
-  std::string out;
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  for (;;) {
-    const auto left =
-        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
-    if (left.count() <= 0) break;
-    pollfd p{fd, POLLIN, 0};
-    if (::poll(&p, 1, int(left.count())) <= 0) break;
-    char buf[4096];
-    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-    if (n <= 0) break;
-    out.append(buf, size_t(n));
-  }
-  ::close(fd);
-  return out;
-}
-
-int StatusCode(const std::string& reply) {
-  if (reply.rfind("HTTP/1.1 ", 0) != 0 || reply.size() < 12) return -1;
-  return std::atoi(reply.substr(9, 3).c_str());
 }
 
 uint16_t PortOf(const std::string& url) { return uint16_t(std::stoi(url.substr(url.rfind(':') + 1))); }
@@ -199,13 +161,28 @@ TEST_CASE(
   const std::string job_id = "mon-" + std::to_string(::getpid());
   Child coord;
   std::string error;
-  REQUIRE(coord.Start(
-      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
-       (dir.path / "forest.pff").string(), "--local-workers", "2", "--domain", std::to_string(Domain(41)),
-       "--job-id", job_id, "--http", "127.0.0.1:0", "--event-log", (dir.path / "events.jsonl").string(),
-       "--checkpoint", (dir.path / "ckpt").string(), "--http-linger-s", "10", "--pause-file",
-       (dir.path / "pause").string()},
-      &error));
+  REQUIRE(coord.Start({Program(),
+                       "coordinator",
+                       (dir.path / "job.textproto").string(),
+                       "--out",
+                       (dir.path / "forest.pff").string(),
+                       "--local-workers",
+                       "2",
+                       "--domain",
+                       std::to_string(Domain(41)),
+                       "--job-id",
+                       job_id,
+                       "--http",
+                       "127.0.0.1:0",
+                       "--event-log",
+                       (dir.path / "events.jsonl").string(),
+                       "--checkpoint",
+                       (dir.path / "ckpt").string(),
+                       "--http-linger-s",
+                       "10",
+                       "--pause-file",
+                       (dir.path / "pause").string()},
+                      &error));
   const std::string url = WaitForUrl(coord);
   {
     auto line = coord.WaitForLine("tree 0 level 3:", 120s);
@@ -227,14 +204,16 @@ TEST_CASE(
     // with counted work (a fast machine reaches level 3 within a second); while the job is held
     // the coordinator publishes PROGRESS every 2 s with the heartbeats' figures, so ask again,
     // for a few seconds, until the worker rows carry work (the checks below then hold or fail).
-    static const std::regex busy_row(R"(  local-worker-\S+ +training +30 +[0-9]+ +[1-9][0-9.]*(?: [kMG])? +[1-9])");
+    static const std::regex busy_row(
+        R"(  local-worker-\S+ +training +30 +[0-9]+ +[1-9][0-9.]*(?: [kMG])? +[1-9])");
     poseforest::testing::CommandResult mon_dds;
     for (int attempt = 0; attempt < 8; ++attempt) {
       if (attempt > 0) std::this_thread::sleep_for(1s);
-      mon_dds = poseforest::testing::RunPoseforest(
-          "monitor --once --domain " + std::to_string(Domain(41)) + " --job " + job_id + " --timeout-s 30");
+      mon_dds = poseforest::testing::RunPoseforest("monitor --once --domain " + std::to_string(Domain(41)) +
+                                                   " --job " + job_id + " --timeout-s 30");
       const std::string& o = mon_dds.output;
-      const auto rows_busy = std::distance(std::sregex_iterator(o.begin(), o.end(), busy_row), std::sregex_iterator());
+      const auto rows_busy =
+          std::distance(std::sregex_iterator(o.begin(), o.end(), busy_row), std::sregex_iterator());
       if (rows_busy >= 2) break;
     }
     INFO(mon_dds.output);
