@@ -84,9 +84,14 @@ void SampleSet::Reserve(size_t frames, size_t pixels, size_t samples) {
   part_.reserve(part_.size() + samples);
 }
 
-void SampleSet::AddFrame(uint64_t frame_index, const core::DepthImage& depth, std::span<const PixelSample> pixels,
-                         const core::FeatureConstants& c) {
+void SampleSet::AddFrame(uint64_t frame_index, const core::DepthImage& depth,
+                         std::span<const PixelSample> pixels, const core::FeatureConstants& c) {
   POSEFOREST_CHECK(frames_.empty() || frame_index > frames_.back().index);
+  AddSamples(AddFrameOnly(frame_index, depth, c), depth, pixels, c);
+}
+
+uint32_t SampleSet::AddFrameOnly(uint64_t frame_index, const core::DepthImage& depth,
+                                 const core::FeatureConstants& c) {
   POSEFOREST_CHECK(frames_.empty() || background_mm_ == c.background_mm);
   POSEFOREST_CHECK(depth.width <= 32767 && depth.height <= 32767 &&
                    size_t(depth.width) * size_t(depth.height) < (size_t(1) << 24));
@@ -96,17 +101,6 @@ void SampleSet::AddFrame(uint64_t frame_index, const core::DepthImage& depth, st
   POSEFOREST_CHECK_MSG(offset + depth.pixels.size() < (size_t(1) << 31),
                        "shard too large: split the frames over more shards");
   background_mm_ = c.background_mm;
-  const auto local = uint32_t(frames_.size());
-  for (const PixelSample& p : pixels) {
-    const uint16_t d = depth.at(p.x, p.y);
-    POSEFOREST_CHECK(d != 0);
-    frame_.push_back(local);
-    base_.push_back(uint32_t(offset));
-    x_.push_back(int16_t(p.x));
-    y_.push_back(int16_t(p.y));
-    scale_.push_back(core::PixelScale(d, c.offset_unit));
-    part_.push_back(p.part);
-  }
   if (!frames_.empty() && (frames_[0].width != depth.width || frames_[0].height != depth.height))
     uniform_size_ = false;
   frames_.push_back({frame_index, uint32_t(offset), depth.width, depth.height});
@@ -115,6 +109,33 @@ void SampleSet::AddFrame(uint64_t frame_index, const core::DepthImage& depth, st
     const uint16_t d = depth.pixels[i];
     probe_[offset + i] = d != 0 ? d : c.background_mm;
   }
+  return uint32_t(frames_.size() - 1);
+}
+
+void SampleSet::AddSamples(uint32_t local, const core::DepthImage& depth, std::span<const PixelSample> pixels,
+                           const core::FeatureConstants& c) {
+  POSEFOREST_CHECK(local < frames_.size() && frames_[local].width == depth.width &&
+                   frames_[local].height == depth.height);
+  const uint32_t offset = frames_[local].offset;
+  for (const PixelSample& p : pixels) {
+    const uint16_t d = depth.at(p.x, p.y);
+    POSEFOREST_CHECK(d != 0);
+    frame_.push_back(local);
+    base_.push_back(offset);
+    x_.push_back(int16_t(p.x));
+    y_.push_back(int16_t(p.y));
+    scale_.push_back(core::PixelScale(d, c.offset_unit));
+    part_.push_back(p.part);
+  }
+}
+
+void SampleSet::ClearSamples() {
+  for (auto* v : {&frame_, &base_}) v->clear();
+  x_.clear();
+  y_.clear();
+  scale_.clear();
+  part_.clear();
+  ranges_.clear();
 }
 
 void SampleSet::StartTree(uint32_t root) {

@@ -42,6 +42,16 @@ class SampleSet {
   /// (the index in the tree's frame sequence, which identifies samples globally).
   void AddFrame(uint64_t frame_index, const core::DepthImage& depth, std::span<const PixelSample> pixels,
                 const core::FeatureConstants& c);
+  /// Adds a frame without samples, in any order (a worker's set of task frames kept across
+  /// batches); returns its local id for AddSamples.
+  uint32_t AddFrameOnly(uint64_t frame_index, const core::DepthImage& depth, const core::FeatureConstants& c);
+  /// Adds samples of the frame with local id `local` (`depth`: that frame, as given to it).
+  void AddSamples(uint32_t local, const core::DepthImage& depth, std::span<const PixelSample> pixels,
+                  const core::FeatureConstants& c);
+  /// Drops every sample and node range; the frames stay (AddSamples, then StartTree, again).
+  void ClearSamples();
+  /// Pixels of all frames held (each frame's copy in probe()).
+  size_t probe_pixels() const { return probe_.size(); }
   /// Room for `frames` more frames of `pixels` pixels in all and `samples` more samples (saves
   /// the regrowth of a set built many times, as a distributed worker's subtree tasks do).
   void Reserve(size_t frames, size_t pixels, size_t samples);

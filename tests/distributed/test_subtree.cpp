@@ -37,7 +37,8 @@ struct HandOff {
     nodes += s.subtree_nodes;
     histogram_levels += s.subtree_nodes < s.frontier_nodes;
     retries += s.retries;
-    if (s.subtree_samples > 0) handed.push_back({s.subtree_samples, s.subtree_samples_busiest, s.subtree_largest_task});
+    if (s.subtree_samples > 0)
+      handed.push_back({s.subtree_samples, s.subtree_samples_busiest, s.subtree_largest_task});
   }
 };
 
@@ -292,8 +293,8 @@ TEST_CASE("subtree tasks: listed samples or routing, a task-frame cache that evi
         CHECK(c.run_total > 0);
         CHECK(c.Phases() <= c.run_total + 0.05);  // the main thread's phases are part of the process
       }
-      CHECK(sum.subtree_tasks == h.tasks);  // every task counted once (no retries here)
-      CHECK(sum.task_frames >= 2);          // frames of the other shard were rendered ...
+      CHECK(sum.subtree_tasks == h.tasks);   // every task counted once (no retries here)
+      CHECK(sum.task_frames >= 2);           // frames of the other shard were rendered ...
       CHECK(sum.task_cache_evictions >= 1);  // ... and the cap pushed some out
     }
   }
@@ -304,7 +305,9 @@ TEST_CASE("a SubtreeTask's listed samples are checked against the frame's sample
   // Sampled pixels (ascending) of a 10-pixel-wide frame: indices 1, 5 and 12.
   const std::vector<worker::PixelSample> picked = {{1, 0, 3}, {5, 0, 4}, {2, 1, 5}};
   std::vector<worker::PixelSample> out;
-  auto select = [&](std::vector<uint32_t> deltas) { return SelectListedSamples(picked, 10, 7, deltas, &out); };
+  auto select = [&](std::vector<uint32_t> deltas) {
+    return SelectListedSamples(picked, 10, 7, deltas, &out);
+  };
   REQUIRE(select({1, 4, 7}).ok());
   REQUIRE(out.size() == 3);
   CHECK(out[2].x == 2);
@@ -386,4 +389,57 @@ TEST_CASE("TrainSubtrees: several roots in one sample set give each root's Train
     CHECK(one->evaluations == together->evaluations);
   }
   CHECK(b3.evaluations() == b1.evaluations() + b2.evaluations());
+}
+
+TEST_CASE("a worker's task set: frames added once in any order, samples per batch, same subtrees",
+          "[distributed][unit]") {
+  // What a worker does with batches of SubtreeTasks: its frames are copied into one set once
+  // (here in reverse order, as tasks ask for them), then each batch adds its samples, trains,
+  // and clears them. Every subtree equals the one trained on a fresh set built with AddFrame.
+  const Job job = ParseJob(TinyJobText(1, 8, 0));
+  const worker::TrainParams& p = job.params;
+  auto source = worker::MakeImageSource(p.source);
+  REQUIRE(source.ok());
+  std::vector<core::DepthImage> depth;
+  std::vector<std::vector<worker::PixelSample>> picked;
+  for (uint64_t i = 0; i < 12; ++i) {
+    auto frame = (*source)->Frame(i);
+    REQUIRE(frame.ok());
+    depth.push_back(frame->depth);
+    picked.push_back(worker::SamplePixels(*frame, p.pixels_per_image, p.part_balance,
+                                          core::CounterRng(p.seed, 0, i, worker::kSamplingStream)));
+  }
+  worker::SampleSet kept;
+  std::vector<uint32_t> local(12);
+  for (uint64_t i = 12; i-- > 0;) local[i] = kept.AddFrameOnly(i, depth[i], p.constants);
+  CHECK(kept.num_frames() == 12);
+  CHECK(kept.num_samples() == 0);
+  // Batch 1: the even frames; batch 2: frames 3..10. Each against a fresh set.
+  for (const auto& frames :
+       {std::vector<uint64_t>{0, 2, 4, 6, 8, 10}, std::vector<uint64_t>{3, 4, 5, 6, 7, 8, 9, 10}}) {
+    worker::SampleSet fresh;
+    std::vector<uint64_t> parts(size_t(core::kNumParts), 0);
+    kept.ClearSamples();
+    for (uint64_t i : frames) {
+      if (picked[i].empty()) continue;
+      fresh.AddFrame(i, depth[i], picked[i], p.constants);
+      kept.AddSamples(local[i], depth[i], picked[i], p.constants);
+      for (const worker::PixelSample& s : picked[i]) ++parts[s.part];
+    }
+    REQUIRE(kept.num_samples() == fresh.num_samples());
+    fresh.StartTree(0);
+    kept.StartTree(0);
+    worker::HistogramBuilder b1(p.constants, 1), b2(p.constants, 1);
+    auto a = coordinator::TrainSubtree(fresh, 0, p, 0, 4, parts, b1);
+    auto b = coordinator::TrainSubtree(kept, 0, p, 0, 4, parts, b2);
+    REQUIRE(a.ok());
+    REQUIRE(b.ok());
+    CHECK(a->nodes.size() > 3);
+    REQUIRE(a->tree.nodes.size() == b->tree.nodes.size());
+    CHECK(std::memcmp(a->tree.nodes.data(), b->tree.nodes.data(),
+                      a->tree.nodes.size() * sizeof(core::Node)) == 0);
+    CHECK(a->tree.leaves == b->tree.leaves);
+    CHECK(a->evaluations == b->evaluations);
+  }
+  CHECK(kept.num_frames() == 12);  // no frame copied twice
 }

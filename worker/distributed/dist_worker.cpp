@@ -152,6 +152,12 @@ struct DistWorker::Impl {
   // Frames of other shards rendered for SubtreeTasks, kept for the tree's later tasks within
   // WorkerOptions::task_cache_bytes.
   TaskFrameCache task_cache;
+  /// The frames batches of SubtreeTasks of tree `task_set_tree` trained on, each copied into
+  /// the set's probe buffer once (not once per batch); its samples are a batch's. Dropped and
+  /// started again when the tree changes or its frames would pass task_cache_bytes.
+  worker::SampleSet task_set;
+  int task_set_tree = -1;
+  std::map<uint64_t, uint32_t> task_set_frames;  ///< frame -> local id in task_set
   // Renders the few frames a SubtreeTask lacks on the receiving thread (Run's), created once
   // per job: creating a source (renderer context, pose library, bodies) costs seconds.
   std::unique_ptr<worker::ImageSource> task_source;
@@ -253,6 +259,9 @@ struct DistWorker::Impl {
     cache.clear();
     task_cache.Clear(-1);
     task_cache.cap_bytes = opt.task_cache_bytes;
+    task_set = worker::SampleSet{};
+    task_set_tree = -1;
+    task_set_frames.clear();
     task_source.reset();
     corrupt_left = opt.corrupt_subtree_results;
     samples = worker::SampleSet{};
@@ -497,8 +506,9 @@ struct DistWorker::Impl {
         uint32_t prev_pixel = 0;
         for (uint64_t j = r.begin; j < r.end; ++j) {
           const uint64_t f = samples.frame_index(j);
-          const uint32_t pixel = uint32_t(samples.y()[j]) * uint32_t(samples.frames()[samples.frame()[j]].width) +
-                                 uint32_t(samples.x()[j]);
+          const uint32_t pixel =
+              uint32_t(samples.y()[j]) * uint32_t(samples.frames()[samples.frame()[j]].width) +
+              uint32_t(samples.x()[j]);
           if (rr->frames_size() == 0 || rr->frames(rr->frames_size() - 1) != uint32_t(f)) {
             rr->add_frames(uint32_t(f));
             rr->add_frame_samples(0);
@@ -620,8 +630,8 @@ struct DistWorker::Impl {
       for (uint32_t c : task.sample_counts()) total += c;
       if (total != uint64_t(task.sample_pixel_deltas_size()) || total != task.expected_samples())
         return Status(ErrorCode::kInvalidArgument,
-                      "the task lists " + std::to_string(task.sample_pixel_deltas_size()) + " sample pixels, " +
-                          std::to_string(total) + " by its counts, expects " +
+                      "the task lists " + std::to_string(task.sample_pixel_deltas_size()) +
+                          " sample pixels, " + std::to_string(total) + " by its counts, expects " +
                           std::to_string(task.expected_samples()));
       wanted.clear();
       for (int e = 0; e < task.sample_frames_size(); ++e) {
@@ -794,13 +804,14 @@ struct DistWorker::Impl {
     if (subtree_done == 1)
       Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(task.position()) + " (" +
           std::to_string(num_samples) + " samples from " + std::to_string(num_frames) + " frames, " +
-          std::to_string(rendered) + " rendered) -> " +
-          std::to_string(out->nodes.size()) + " nodes in " + std::to_string(NowSeconds() - t0) + " s");
+          std::to_string(rendered) + " rendered) -> " + std::to_string(out->nodes.size()) + " nodes in " +
+          std::to_string(NowSeconds() - t0) + " s");
     else if (subtree_done % 100 == 0)
       Log("tree " + std::to_string(t) + ": " + std::to_string(subtree_done) + " subtrees trained so far (" +
-          std::to_string(subtree_nodes_done) + " nodes, " + std::to_string(subtree_s) + " s; task frame cache " +
-          std::to_string(task_cache.bytes >> 20) + " of " + std::to_string(task_cache.cap_bytes >> 20) +
-          " MiB, " + std::to_string(task_cache.evictions) + " evicted)");
+          std::to_string(subtree_nodes_done) + " nodes, " + std::to_string(subtree_s) +
+          " s; task frame cache " + std::to_string(task_cache.bytes >> 20) + " of " +
+          std::to_string(task_cache.cap_bytes >> 20) + " MiB, " + std::to_string(task_cache.evictions) +
+          " evicted)");
     encode_timer.reset();
     (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
     return Publish(Topic::kReplies, env);
@@ -862,13 +873,31 @@ struct DistWorker::Impl {
       for (size_t e = 0, at = 0; e < delta_at[k].size(); at += tasks[k]->sample_counts(int(e)), ++e)
         delta_at[k][e] = at;
     }
-    worker::SampleSet set;
+    // The batch's samples go into task_set, whose frames are copied once per tree (frames it
+    // lacks are added here); same samples in the same order as a fresh set, so same subtrees.
+    size_t new_pixels = 0;
+    for (size_t w = 0; w < wanted.size(); ++w)
+      if (!task_set_frames.count(wanted[w])) new_pixels += src[w]->depth.pixels.size();
+    if (task_set_tree != t ||
+        (task_set.probe_pixels() + new_pixels) * sizeof(uint16_t) >
+            std::max<uint64_t>(task_cache.cap_bytes, 1) ||
+        task_set.probe_pixels() + new_pixels >= (size_t(1) << 30)) {
+      task_set = worker::SampleSet{};
+      task_set_frames.clear();
+      task_set_tree = t;
+      new_pixels = 0;
+      for (const FrameData* f : src) new_pixels += f->depth.pixels.size();
+    }
+    task_set.ClearSamples();
+    worker::SampleSet& set = task_set;
     std::vector<uint32_t> node_of_sample;
     {
-      size_t pixels = 0, samples_total = 0;
-      for (const FrameData* f : src) pixels += f->depth.pixels.size();
+      size_t samples_total = 0;
       for (const v1::SubtreeTask* task : tasks) samples_total += size_t(task->expected_samples());
-      set.Reserve(wanted.size(), pixels, samples_total);
+      set.Reserve(wanted.size(), new_pixels, samples_total);
+      for (size_t w = 0; w < wanted.size(); ++w)
+        if (!task_set_frames.count(wanted[w]))
+          task_set_frames[wanted[w]] = set.AddFrameOnly(wanted[w], src[w]->depth, params.constants);
       node_of_sample.reserve(samples_total);
       std::vector<worker::PixelSample> chosen, merged;
       std::vector<std::pair<uint64_t, uint32_t>> order;  // (pixel index, task) of `merged`
@@ -880,7 +909,8 @@ struct DistWorker::Impl {
           const uint32_t count = tasks[k]->sample_counts(int(e));
           const Status st = SelectListedSamples(
               f->picked, f->depth.width, wanted[w],
-              std::span<const uint32_t>(tasks[k]->sample_pixel_deltas().data() + delta_at[k][e], count), &chosen);
+              std::span<const uint32_t>(tasks[k]->sample_pixel_deltas().data() + delta_at[k][e], count),
+              &chosen);
           if (!st.ok()) {
             route_timer.reset();
             src.clear();
@@ -899,7 +929,8 @@ struct DistWorker::Impl {
         std::vector<worker::PixelSample> sorted;
         sorted.reserve(merged.size());
         for (size_t j : idx) sorted.push_back(merged[j]), node_of_sample.push_back(order[j].second);
-        if (!sorted.empty()) set.AddFrame(wanted[w], f->depth, sorted, params.constants);
+        if (!sorted.empty())
+          set.AddSamples(task_set_frames.at(wanted[w]), f->depth, sorted, params.constants);
       }
     }
     src.clear();
@@ -941,7 +972,7 @@ struct DistWorker::Impl {
 
   /// Messages taken off DDS while collecting a batch of SubtreeTasks, handled next (in order).
   struct Pending {
-    bool checked = false;       ///< passed the gate: env/sender; else a raw sample for OnSample
+    bool checked = false;  ///< passed the gate: env/sender; else a raw sample for OnSample
     dds::ReceivedSample raw;
     v1::Envelope env;
     std::string sender;
@@ -1028,7 +1059,8 @@ struct DistWorker::Impl {
         break;
     }
     if (!st.ok())
-      Log(std::string("dropped ") + dds::BodyName(env.body_case()) + " from " + sender + ": " + st.ToString());
+      Log(std::string("dropped ") + dds::BodyName(env.body_case()) + " from " + sender + ": " +
+          st.ToString());
   }
 };
 
@@ -1046,7 +1078,8 @@ Status SelectListedSamples(std::span<const worker::PixelSample> picked, int widt
     while (k < picked.size() && index(k) < pixel) ++k;
     if (k == picked.size() || index(k) != pixel)
       return Status(ErrorCode::kInvalidArgument, "frame " + std::to_string(frame) + ": pixel " +
-                                                     std::to_string(pixel) + " is not one of its sampled pixels");
+                                                     std::to_string(pixel) +
+                                                     " is not one of its sampled pixels");
     out->push_back(picked[k]);
   }
   return Status::Ok();
@@ -1068,10 +1101,9 @@ Status DistWorker::Run() {
   Impl impl(options_, stop_);
   impl.cpu.process_at_start = process0;
   std::optional<CpuTimer> participant_timer(&impl.cpu.participant);
-  auto node =
-      dds::DdsNode::Create(MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id,
-                                          options_.lease, options_.udp_peers, options_.udp_interfaces,
-                                          options_.transport_extras));
+  auto node = dds::DdsNode::Create(MakeNodeConfig(options_.domain, options_.transport, false,
+                                                  options_.worker_id, options_.lease, options_.udp_peers,
+                                                  options_.udp_interfaces, options_.transport_extras));
   if (!node.ok()) return node.status();
   impl.node = std::move(*node);
   participant_timer.reset();
