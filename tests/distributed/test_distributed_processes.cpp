@@ -188,7 +188,10 @@ TEST_CASE("SIGKILL of one of 3 worker processes mid-job: same forest", "[distrib
       INFO(coord.output());
       REQUIRE(rc.has_value());
       REQUIRE(*rc == 0);
-      CHECK(coord.output().find("1 workers lost") != std::string::npos);
+      // The killed worker was noticed. (On a loaded CI machine a live worker's heartbeats can
+      // also run late and it is counted lost and joins again - "2 workers lost" - with the
+      // same forest; seen once in a fresh-clone CI.)
+      CHECK(coord.output().find("worker pw-1 lost") != std::string::npos);
       CHECK(ReadAll(dir.path / "forest.pff") == reference);
       for (int i : {0, 2}) CHECK(w[i].Wait(10s).has_value());  // they exit on JOB_DONE
     }
@@ -304,8 +307,7 @@ TEST_CASE("SIGKILL of a worker while a level's round waits for it: noticed, aske
   INFO(coord.output());
   REQUIRE(rc.has_value());
   REQUIRE(*rc == 0);
-  CHECK(coord.output().find("worker mw-1 lost") != std::string::npos);
-  CHECK(coord.output().find("1 workers lost") != std::string::npos);
+  CHECK(coord.output().find("worker mw-1 lost") != std::string::npos);  // (see the 3-worker case)
   CHECK(ReadAll(dir.path / "forest.pff") == reference);
   CHECK(w[0].Wait(10s).has_value());
 }
