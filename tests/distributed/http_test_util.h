@@ -21,11 +21,8 @@
 
 namespace poseforest::dist::testing {
 
-/// Sends `bytes` on a fresh connection to 127.0.0.1:`port` (from `source`, a loopback address,
-/// when given) and returns what comes back until the server closes (or `timeout`).
-inline std::string RawExchange(uint16_t port, const std::string& bytes,
-                               std::chrono::milliseconds timeout = std::chrono::seconds(5),
-                               const char* source = nullptr) {
+/// A connected socket to 127.0.0.1:`port` (from `source`, a loopback address, when given).
+inline int ConnectLoopback(uint16_t port, const char* source = nullptr) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   REQUIRE(fd >= 0);
   if (source) {
@@ -39,6 +36,15 @@ inline std::string RawExchange(uint16_t port, const std::string& bytes,
   a.sin_port = htons(port);
   a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
   REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  return fd;
+}
+
+/// Sends `bytes` on a fresh connection to 127.0.0.1:`port` (from `source`, a loopback address,
+/// when given) and returns what comes back until the server closes (or `timeout`).
+inline std::string RawExchange(uint16_t port, const std::string& bytes,
+                               std::chrono::milliseconds timeout = std::chrono::seconds(5),
+                               const char* source = nullptr) {
+  const int fd = ConnectLoopback(port, source);
   size_t sent = 0;
   while (sent < bytes.size()) {
     const ssize_t n = ::send(fd, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);

@@ -300,12 +300,7 @@ TEST_CASE("HTTP per-peer connection cap: one address cannot take every slot",
   // Three idle connections from 127.0.0.1 (connected, nothing sent).
   std::vector<int> idle;
   for (int i = 0; i < 3; ++i) {
-    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_port = htons(port);
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+    const int fd = ConnectLoopback(port);
     idle.push_back(fd);
   }
   std::this_thread::sleep_for(200ms);

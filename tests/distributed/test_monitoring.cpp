@@ -592,12 +592,7 @@ TEST_CASE("HTTP server: bad requests, huge heads, slow clients and floods do not
   // A flood beyond max_connections: the extra ones are refused with 503, then all is well again.
   std::vector<int> fds;
   for (int i = 0; i < 8; ++i) {
-    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_port = htons(port);
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+    const int fd = ConnectLoopback(port);
     fds.push_back(fd);
   }
   std::this_thread::sleep_for(200ms);
