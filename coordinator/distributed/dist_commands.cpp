@@ -146,15 +146,17 @@ std::set<std::string> WithDdsOptions(std::set<std::string> names) {
 constexpr const char* kDdsUsage =
     "  DDS transport (docs/distributed/README.md; the same on every participant of a job):\n"
     "    --profile shm|udp|default     built-in transports: shared memory (default), UDP only, both\n"
-    "    --peers IP[:PORT],...         --profile udp: initial peers (hosts without multicast)\n"
-    "    --interfaces IP,...           --profile udp or --discovery-server: local addresses to use\n"
+    "    --peers HOST[:PORT],...       --profile udp: initial peers (hosts without multicast)\n"
+    "    --interfaces IP,...           --profile udp or --discovery-server: local IPv4 addresses\n"
     "    --dds-xml FILE --dds-profile NAME   a Fast DDS XML participant profile instead\n"
     "                                  (deploy/fastdds/profiles.xml); env POSEFOREST_DDS_XML and\n"
     "                                  POSEFOREST_DDS_PROFILE stand in for them unless a transport\n"
     "                                  flag is given\n"
-    "    --discovery-server [ID@]IP[:PORT],...  discovery through `fast-discovery-server -i ID`\n"
+    "    --discovery-server [ID@]HOST[:PORT],...  discovery through `fast-discovery-server -i ID`\n"
     "                                  (UDP; ID 0..255, default 0; port 11811): a client of every\n"
     "                                  server listed (redundant servers: 0@IP0,1@IP1)\n"
+    "    HOST: an IPv4 address or a host name, resolved (IPv4) once at start-up and shown; a name\n"
+    "    that does not resolve exits 2. IPv6 is not supported.\n"
     "    --security DIR                DDS-Security (authentication, access control, encryption):\n"
     "                                  DIR/cert.pem, key.pem, permissions.p7s and identity_ca.pem,\n"
     "                                  permissions_ca.pem, governance.p7s in DIR or DIR/..\n"
@@ -363,6 +365,8 @@ int CoordinatorMain(int argc, char** argv) {
                 opt.checkpoint_dir.c_str());
     return 0;
   }
+  if (!dds_flags->resolved.empty())  // resolved once: a name that moves later is not followed
+    std::printf("DDS host names resolved at start-up: %s\n", dds_flags->ResolvedText().c_str());
   const std::string status_file = args.GetOr("status-file", "");
   opt.progress = [&](const dist::DistLevelStats& s) {
     char line[512];
@@ -533,6 +537,8 @@ int WorkerMain(int argc, char** argv) {
                 *domain, dds_flags->Describe().c_str());
     return 0;
   }
+  if (!dds_flags->resolved.empty())  // resolved once: a name that moves later is not followed
+    std::fprintf(stderr, "DDS host names resolved at start-up: %s\n", dds_flags->ResolvedText().c_str());
   dist::WorkerOptions opt;
   opt.udp_peers = dds_flags->peers;
   opt.udp_interfaces = dds_flags->interfaces;

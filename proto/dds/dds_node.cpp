@@ -229,6 +229,49 @@ struct DdsNode::Impl : public fdds::DomainParticipantListener {
   void Destroy();
 };
 
+bool IsIPv4Address(const std::string& host) {
+  int octets = 0;
+  for (size_t p = 0; p <= host.size(); ++octets) {
+    const size_t dot = std::min(host.find('.', p), host.size());
+    const std::string t = host.substr(p, dot - p);
+    if (t.empty() || t.size() > 3 || t.find_first_not_of("0123456789") != std::string::npos || std::stoi(t) > 255)
+      return false;
+    p = dot + 1;
+  }
+  return octets == 4;
+}
+
+Status CheckHost(const std::string& host, bool allow_names) {
+  auto bad = [](const std::string& why) { return Status(ErrorCode::kInvalidArgument, why); };
+  if (host.find(':') != std::string::npos || host.find('[') != std::string::npos)
+    return bad("is an IPv6 address, not supported: the transports are UDPv4");
+  if (IsIPv4Address(host)) return Status::Ok();
+  if (host.empty()) return bad("is empty");
+  if (!allow_names) return bad("is not an IPv4 address");
+  // A name whose last label is all digits ("10.0.0", "10.0.0.256") is a mistyped address:
+  // getaddrinfo would read "10.0.0" as 10.0.0.0 (inet_aton) instead of failing.
+  std::string name = host;
+  if (name.back() == '.') name.pop_back();
+  const size_t last_dot = name.rfind('.');
+  const std::string last = name.substr(last_dot == std::string::npos ? 0 : last_dot + 1);
+  if (!last.empty() && last.find_first_not_of("0123456789") == std::string::npos)
+    return bad("is not an IPv4 address");
+  if (name.empty() || name.size() > 253) return bad("is not a host name: longer than 253 characters");
+  for (size_t p = 0; p <= name.size();) {
+    const size_t dot = std::min(name.find('.', p), name.size());
+    const std::string label = name.substr(p, dot - p);
+    if (label.empty() || label.size() > 63)
+      return bad("is not a host name: a label of " + std::to_string(label.size()) + " characters (1..63)");
+    if (label.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-") !=
+        std::string::npos)
+      return bad("is not a host name: '" + label + "' has characters other than letters, digits and '-'");
+    if (label.front() == '-' || label.back() == '-')
+      return bad("is not a host name: '" + label + "' starts or ends with '-'");
+    p = dot + 1;
+  }
+  return Status::Ok();
+}
+
 core::Result<std::vector<DiscoveryServerAddress>> ParseDiscoveryServers(const std::string& list) {
   auto bad = [&](const std::string& item, const std::string& why) {
     return Status(ErrorCode::kInvalidArgument, "'" + item + "' " + why);
@@ -256,17 +299,12 @@ core::Result<std::vector<DiscoveryServerAddress>> ParseDiscoveryServers(const st
       a.id_given = true;
       rest = item.substr(at + 1);
     }
-    const size_t colon = rest.find(':');
+    // More than one ':' (or a '['): an IPv6 address, refused by CheckHost with its reason.
+    const bool v6 = rest.find('[') != std::string::npos || rest.find(':') != rest.rfind(':');
+    const size_t colon = v6 ? std::string::npos : rest.find(':');
     a.host = rest.substr(0, colon);
-    int octets = 0;
-    bool ok = true;
-    for (size_t p = 0; ok && p <= a.host.size(); ++octets) {
-      const size_t dot = std::min(a.host.find('.', p), a.host.size());
-      unsigned long v = 0;
-      ok = dot - p <= 3 && number(a.host.substr(p, dot - p), 255, &v);
-      p = dot + 1;
-    }
-    if (!ok || octets != 4) return bad(item, "is not an IPv4 address ([ID@]a.b.c.d[:port])");
+    if (Status host = CheckHost(a.host, true); !host.ok())
+      return bad(item, host.message() + " (expected [ID@]a.b.c.d[:port] or [ID@]HOST-NAME[:port])");
     if (colon != std::string::npos) {
       unsigned long port = 0;
       if (!number(rest.substr(colon + 1), 65535, &port) || port == 0)
@@ -284,7 +322,7 @@ core::Result<std::vector<DiscoveryServerAddress>> ParseDiscoveryServers(const st
     out.push_back(a);
     items.push_back(item);
   }
-  if (out.empty()) return Status(ErrorCode::kInvalidArgument, "no server given ([ID@]a.b.c.d[:port],...)");
+  if (out.empty()) return Status(ErrorCode::kInvalidArgument, "no server given ([ID@]HOST[:port],...)");
   return out;
 }
 
@@ -396,6 +434,9 @@ Status DdsNode::Impl::BuildParticipantQos(fdds::DomainParticipantQos& qos) {
             a.id_given ? DiscoveryServerGuidPrefix(a.id) : config.discovery_server_prefix;
         if (!server.ReadguidPrefix(prefix.c_str()))
           return Status(ErrorCode::kInvalidArgument, "bad discovery server GUID prefix '" + prefix + "'");
+        if (!IsIPv4Address(a.host))  // names are resolved once, by the DDS flags (dds_flags.h)
+          return Status(ErrorCode::kInvalidArgument, "discovery server '" + a.host +
+                                                         "': a host name; the participant needs its IPv4 address");
         frtps::Locator_t loc;
         loc.kind = LOCATOR_KIND_UDPv4;
         frtps::IPLocator::setIPv4(loc, a.host);

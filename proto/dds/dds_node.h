@@ -63,9 +63,9 @@ struct NodeConfig {
   /// up per process and host, so a peer list without ports only reaches ids 0..3: pin the id
   /// when several participants run in one process or host and peers are given without ports.
   int participant_id = -1;
-  /// kDiscoveryClient: the servers, "[ID@]a.b.c.d[:port],..." (ParseDiscoveryServers); the
-  /// participant is a client of every one. An entry with ID@ is `fast-discovery-server -i ID`
-  /// (GUID prefix DiscoveryServerGuidPrefix(ID)); one without uses discovery_server_prefix
+  /// kDiscoveryClient: the servers, "[ID@]a.b.c.d[:port],..." (ParseDiscoveryServers; addresses,
+  /// not host names: Create refuses a name); the participant is a client of every one. An entry
+  /// with ID@ is `fast-discovery-server -i ID` (GUID prefix DiscoveryServerGuidPrefix(ID)); one without uses discovery_server_prefix
   /// (fast-discovery-server -i 0: 44.53.00.5f.45.50.52.4f.53.49.4d.41).
   std::string discovery_server = "127.0.0.1:11811";
   std::string discovery_server_prefix = "44.53.00.5f.45.50.52.4f.53.49.4d.41";
@@ -173,14 +173,26 @@ class DdsNode {
 struct DiscoveryServerAddress {
   int id = 0;             ///< the server's -i, 0..255 (selects its GUID prefix)
   bool id_given = false;  ///< written as ID@...; otherwise id is 0
-  std::string host;       ///< IPv4 a.b.c.d
+  /// IPv4 a.b.c.d, or a host name as written (ParseDiscoveryServers accepts names; a
+  /// NodeConfig needs addresses: dist::ParseDdsFlags resolves names at start-up).
+  std::string host;
   uint32_t port = 11811;  ///< UDP port, 1..65535 (11811 when not written)
 };
 
-/// Parses a comma-separated list of discovery servers, each "[ID@]a.b.c.d[:PORT]" (ID 0..255,
-/// default 0; PORT 1..65535, default 11811); empty entries are skipped. InvalidArgument naming
-/// the offending entry: a bad id, address or port, two entries with the same id or the same
-/// address and port, or no entry at all.
+/// Checks that `host` is an IPv4 address a.b.c.d or, with `allow_names`, a DNS host name (RFC 1123:
+/// dot-separated labels of 1..63 letters, digits and hyphens, not starting or ending with a
+/// hyphen, at most 253 characters, one trailing dot allowed; a name whose last label is all digits
+/// is taken for a mistyped address). IPv6 addresses are refused by name (the transports are UDPv4).
+/// InvalidArgument with a message that follows the host ("is not an IPv4 address"): callers put
+/// the flag and the entry before it and the form they expect after it.
+core::Status CheckHost(const std::string& host, bool allow_names);
+/// True for a dotted-quad IPv4 address a.b.c.d (each 0..255).
+bool IsIPv4Address(const std::string& host);
+
+/// Parses a comma-separated list of discovery servers, each "[ID@]HOST[:PORT]" (ID 0..255,
+/// default 0; HOST an IPv4 address or a host name, CheckHost; PORT 1..65535, default 11811);
+/// empty entries are skipped. InvalidArgument naming the offending entry: a bad id, host or
+/// port, two entries with the same id or the same host and port, or no entry at all.
 core::Result<std::vector<DiscoveryServerAddress>> ParseDiscoveryServers(const std::string& list);
 
 /// The canonical text of `servers`: "a.b.c.d:PORT" for id 0, "ID@a.b.c.d:PORT" otherwise,

@@ -18,6 +18,10 @@ deploy/security/make-test-ca.sh (a Secret volume with `items`: a test value in e
 with the item's mode or the volume's defaultMode), and for an image run without Kubernetes, the ConfigMap's job at
 /etc/poseforest/job.textproto (the documented mount). A command of another program (the
 discovery server) is checked to exist on PATH and listed.
+A Kubernetes command runs in a mount and network namespace of its own (`unshare`) whose
+/etc/hosts maps the manifests' Service names (NAME, NAME.NS, NAME.NS.svc,
+NAME.NS.svc.cluster.local) to test addresses, as the cluster's DNS would: a host name in a flag
+or an XML profile must name a Service of the manifests, and no lookup leaves the machine.
 
 Exit 0 when every command passes; 1 naming each file, container and the parser's message.
 Needs python3-yaml (Debian).
@@ -138,8 +142,27 @@ def place_image_files(image, root, source):
         os.makedirs(root + v, exist_ok=True)
 
 
-def run_check(binary, argv, env, root, label, source):
-    """argv: the container's command line (argv[0] a program name). Returns an error or None."""
+def cluster_hosts(docs):
+    """/etc/hosts text mapping every Service of the manifests to an address (its clusterIP when
+    the manifest fixes one, else a test address in 10.96.255.0/24), under the names a pod of the
+    same namespace resolves it by."""
+    lines = ["127.0.0.1 localhost"]
+    n = 0
+    for _, d in docs:
+        if d.get("kind") != "Service":
+            continue
+        name, ns = d["metadata"]["name"], d["metadata"].get("namespace", "default")
+        ip = d.get("spec", {}).get("clusterIP")
+        if not ip or ip == "None":
+            n += 1
+            ip = f"10.96.255.{n}"
+        lines.append(f"{ip} {name} {name}.{ns} {name}.{ns}.svc {name}.{ns}.svc.cluster.local")
+    return "\n".join(lines) + "\n"
+
+
+def run_check(binary, argv, env, root, label, source, hosts_file=None):
+    """argv: the container's command line (argv[0] a program name). Returns an error or None.
+    hosts_file: run in namespaces of its own (unshare) with this file as /etc/hosts."""
     if not argv:
         return f"{label}: no command (no command/args and no image ENTRYPOINT)"
     prog = os.path.basename(argv[0])
@@ -154,8 +177,11 @@ def run_check(binary, argv, env, root, label, source):
     for k in ("POSEFOREST_DATA_DIR", "HOME"):
         if k in os.environ:
             full_env.setdefault(k, os.environ[k])
-    r = subprocess.run([binary] + args + ["--check-config"], env=full_env, cwd=root, capture_output=True, text=True,
-                       timeout=60)
+    command = [binary] + args + ["--check-config"]
+    if hosts_file:  # -r: a user namespace too when not root (mounting needs it)
+        command = ["unshare"] + (["-r"] if os.geteuid() != 0 else []) + \
+            ["-m", "-n", "sh", "-c", 'mount --bind "$0" /etc/hosts && exec "$@"', hosts_file] + command
+    r = subprocess.run(command, env=full_env, cwd=root, capture_output=True, text=True, timeout=60)
     text = (r.stdout + r.stderr).strip().replace(root, "")
     shown = " ".join(argv)
     if r.returncode != 0:
@@ -230,7 +256,10 @@ def main():
             if e:
                 errors.append(e)
 
-        # Kubernetes workloads.
+        # Kubernetes workloads, with the cluster's Service names.
+        hosts_file = os.path.join(tmp, "hosts")
+        with open(hosts_file, "w") as f:
+            f.write(cluster_hosts(docs))
         for path, d in docs:
             if d.get("kind") not in WORKLOAD_KINDS:
                 continue
@@ -299,7 +328,7 @@ def main():
                     argv = [expand(x) for x in c["command"]] + [expand(x) for x in c.get("args", [])]
                 else:
                     argv = list(img.entrypoint) + ([expand(x) for x in c["args"]] if "args" in c else list(img.cmd))
-                err = run_check(binary, argv, env, root, label, a.source)
+                err = run_check(binary, argv, env, root, label, a.source, hosts_file)
                 checked += 1
                 if err:
                     errors.append(err)

@@ -9,10 +9,15 @@
 //    while a worker without credentials and participants that hello/heartbeat on the presence
 //    topic without credentials or with another CA's certificate are never matched, never get
 //    work and are never counted; same forest; `monitor --domain` sees the job only with credentials;
+//  - host names in --discovery-server / --peers: `localhost` resolved once at start-up and shown,
+//    a coordinator and a worker meet through a discovery server named `localhost`; a name that
+//    does not resolve (checked in a network namespace of its own: no DNS query leaves) is refused
+//    naming the flag and the name, also from the job's dds section;
 //  - flag errors name the file, the profile, the missing credential or the contradiction;
 //  - every command line of deploy/k8s/*.yaml and deploy/docker/Dockerfile.* passes the real
 //    argument parser (`--check-config`), and a manifest with a wrong flag fails the check.
 
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <filesystem>
 #include <fstream>
@@ -21,6 +26,7 @@
 
 #include "tests/dds/dds_test_util.h"
 #include "tests/distributed/dist_test_util.h"
+#include "worker/distributed/dds_flags.h"
 
 using namespace poseforest;
 using namespace poseforest::dist::testing;
@@ -134,6 +140,129 @@ TEST_CASE("deploy: --discovery-server through a real fast-discovery-server; noth
   CHECK(rc2 == 1);
   CHECK(out2.find("0 of 1 workers") != std::string::npos);
   CHECK_FALSE(fs::exists(dir.path / "none.pff"));
+}
+
+TEST_CASE(
+    "deploy: host names in --discovery-server and --peers, resolved once at start-up; unknown names refused",
+    "[deploy][integration]") {
+  // `localhost` comes from /etc/hosts (no DNS query); the IPv4 address, not ::1.
+  auto local = dist::ResolveIPv4("localhost");
+  REQUIRE(local.ok());
+  CHECK(std::find(local->begin(), local->end(), "127.0.0.1") != local->end());
+  for (const std::string& a : *local) CHECK(dds::IsIPv4Address(a));
+  CHECK(*dist::ResolveIPv4("10.1.2.3") == std::vector<std::string>{"10.1.2.3"});
+  for (const char* ok : {"localhost", "coordinator-0.poseforest",
+                         "dds-discovery.poseforest.svc.cluster.local.", "10.0.0.1", "a1"})
+    CHECK(dds::CheckHost(ok, true).ok());
+  for (const char* bad :
+       {"10.0.0", "10.0.0.256", "-x.local", "x-.local", "a..b", "a_b", "::1", "fe80::1", "", "host.123"})
+    CHECK_FALSE(dds::CheckHost(bad, true).ok());
+  CHECK_FALSE(dds::CheckHost("localhost", false).ok());
+
+  TempDir dir("pf-deploy-names");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const std::string job = (dir.path / "job.textproto").string();
+  {  // --check-config shows what each name became; a local worker gets the addresses
+    auto [rc, text] =
+        Run({Program(), "worker", "--check-config", "--discovery-server", "0@localhost:7000,1@10.0.0.2"});
+    INFO(text);
+    CHECK(rc == 0);
+    CHECK(text.find("discovery servers 127.0.0.1:7000 (id 0, GUID prefix 44.53.00.5f") != std::string::npos);
+    CHECK(text.find("host names resolved once, at start-up: --discovery-server localhost -> 127.0.0.1") !=
+          std::string::npos);
+    auto [rc2, text2] = Run({Program(), "coordinator", job, "--out", (dir.path / "x.pff").string(),
+                             "--check-config", "--profile", "udp", "--peers", "localhost:7410,10.0.0.9"});
+    INFO(text2);
+    CHECK(rc2 == 0);
+    CHECK(text2.find("UDP, initial peers 127.0.0.1:7410,10.0.0.9") != std::string::npos);
+    CHECK(text2.find("--peers localhost -> 127.0.0.1") != std::string::npos);
+  }
+  {  // A name that does not resolve: exit 2 naming the flag and the name, at --check-config and at
+     // start, from the command line and from the job's dds section. Run in a network namespace of
+     // its own (no routes), so that the lookup never leaves this host: glibc would ask the DNS
+     // server of /etc/resolv.conf about `.invalid` names too.
+    const std::vector<std::string> netns = {"unshare", "-r", "-n"};
+    auto isolated = [&](std::vector<std::string> argv) {
+      argv.insert(argv.begin(), netns.begin(), netns.end());
+      return Run(argv);
+    };
+    const std::string ds_error =
+        "--discovery-server 0@no-such-host.invalid:7000: host name 'no-such-host.invalid' does not resolve "
+        "to an "
+        "IPv4 address";
+    const std::string peers_error =
+        "--peers 10.0.0.1,no-such-host.invalid: host name 'no-such-host.invalid' does not resolve to an IPv4 "
+        "address";
+    struct Case {
+      std::vector<std::string> argv;
+      std::string expect;
+    };
+    std::ofstream(dir.path / "job-names.textproto")
+        << TinyJobText(1, 6) << "dds { discovery_server: \"no-such-host.invalid\" }\n";
+    const std::vector<Case> cases = {
+        {{Program(), "worker", "--check-config", "--discovery-server", "0@no-such-host.invalid:7000"},
+         ds_error},
+        {{Program(), "worker", "--job", "x", "--discovery-server", "0@no-such-host.invalid:7000"}, ds_error},
+        {{Program(), "coordinator", job, "--out", (dir.path / "x.pff").string(), "--discovery-server",
+          "0@no-such-host.invalid:7000"},
+         ds_error},
+        {{Program(), "worker", "--check-config", "--profile", "udp", "--peers",
+          "10.0.0.1,no-such-host.invalid"},
+         peers_error},
+        {{Program(), "monitor", "--domain", "3", "--profile", "udp", "--peers",
+          "10.0.0.1,no-such-host.invalid"},
+         peers_error},
+        {{Program(), "coordinator", (dir.path / "job-names.textproto").string(), "--out",
+          (dir.path / "x.pff").string(), "--check-config"},
+         "host name 'no-such-host.invalid' does not resolve to an IPv4 address"},
+        {{Program(), "worker", "--job-file", (dir.path / "job-names.textproto").string(), "--check-config"},
+         "(transport settings from the dds section of " + (dir.path / "job-names.textproto").string() + ")"},
+        // localhost still resolves there: /etc/hosts
+        {{Program(), "worker", "--check-config", "--discovery-server", "localhost"},
+         "localhost -> 127.0.0.1"},
+    };
+    for (const Case& c : cases) {
+      auto [rc, text] = isolated(c.argv);
+      INFO(c.argv[1] << " " << c.argv.back() << ": " << text);
+      CHECK(rc == (c.expect.find("->") != std::string::npos ? 0 : 2));
+      CHECK(text.find(c.expect) != std::string::npos);
+    }
+    CHECK_FALSE(fs::exists(dir.path / "x.pff"));
+  }
+  // The real thing: a coordinator and a worker process meet through a fast-discovery-server they
+  // both name `localhost` (the worker with the server's id): `poseforest train`'s forest.
+  const int port = 20000 + int((::getpid() * 7 + 9) % 20000);
+  Child server, worker, coord;
+  std::string error;
+  REQUIRE(server.Start({"fast-discovery-server", "-i", "0", "-l", "127.0.0.1", "-p", std::to_string(port)},
+                       &error));
+  REQUIRE(server.WaitForLine("Server is running", 10s).has_value());
+  const std::string domain = std::to_string(Domain(50));
+  const std::string job_id = "deploy-names-" + std::to_string(::getpid());
+  REQUIRE(worker.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "nw-0",
+                        "--discovery-server", "0@localhost:" + std::to_string(port)},
+                       &error));
+  REQUIRE(coord.Start({Program(), "coordinator", job, "--out", (dir.path / "forest.pff").string(), "--domain",
+                       domain, "--job-id", job_id, "--min-workers", "1", "--worker-wait-s", "40", "--http",
+                       "off", "--discovery-server", "localhost:" + std::to_string(port)},
+                      &error));
+  auto rc = coord.Wait(90s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(
+      coord.output().find("DDS host names resolved at start-up: --discovery-server localhost -> 127.0.0.1") !=
+      std::string::npos);
+  CHECK(coord.output().find("1 workers alive") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  CHECK(worker.Wait(10s).has_value());  // it exits on JOB_DONE
+  INFO(worker.output());
+  CHECK(worker.output().find(
+            "DDS host names resolved at start-up: --discovery-server localhost -> 127.0.0.1") !=
+        std::string::npos);
+  CHECK(worker.output().find("joined job " + job_id) != std::string::npos);
+  server.Kill(SIGTERM);
+  CHECK(server.Wait(10s).has_value());
 }
 
 TEST_CASE("deploy: --discovery-server with redundant servers (ids 0 and 1); the id must be the server's -i",
@@ -334,12 +463,22 @@ TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or
       {{"--discovery-server", "127.0.0.1:11811", "--profile", "shm"}, "--profile shm contradicts it"},
       {{"--discovery-server", "127.0.0.1", "--peers", "10.0.0.1"},
        "--peers cannot be combined with --discovery-server"},
-      {{"--discovery-server", "server.local"}, "'server.local' is not an IPv4 address"},
+      {{"--discovery-server", "server_1.local"},
+       "'server_1.local' is not a host name: 'server_1' has characters other than letters, digits and '-'"},
+      {{"--discovery-server", "1@::1"},
+       "'1@::1' is an IPv6 address, not supported: the transports are UDPv4"},
+      {{"--discovery-server", "localhost,1@127.0.0.1"},
+       "1@127.0.0.1:11811 and localhost:11811 are the same address 127.0.0.1:11811"},
+      {{"--profile", "udp", "--peers", "10.0.0"}, "--peers 10.0.0: '10.0.0' is not an IPv4 address"},
+      {{"--profile", "udp", "--peers", "[::1]:7400"}, "'[::1]:7400' is an IPv6 address, not supported"},
+      {{"--profile", "udp", "--interfaces", "localhost"},
+       "--interfaces localhost: 'localhost' is not an IPv4 address (expected a.b.c.d)"},
       {{"--discovery-server", "256@127.0.0.1"}, "'256@127.0.0.1' has server id '256': expected 0..255"},
       {{"--discovery-server", "0@127.0.0.1,x@127.0.0.2"}, "'x@127.0.0.2' has server id 'x': expected 0..255"},
       {{"--discovery-server", "1@127.0.0.1:0"}, "'1@127.0.0.1:0' has port '0': expected 1..65535"},
       {{"--discovery-server", "127.0.0.1:70000"}, "'127.0.0.1:70000' has port '70000': expected 1..65535"},
-      {{"--discovery-server", "1@10.0.0"}, "'1@10.0.0' is not an IPv4 address ([ID@]a.b.c.d[:port])"},
+      {{"--discovery-server", "1@10.0.0"},
+       "'1@10.0.0' is not an IPv4 address (expected [ID@]a.b.c.d[:port] or [ID@]HOST-NAME[:port])"},
       {{"--discovery-server", "1@10.0.0.1,1@10.0.0.2"}, "'1@10.0.0.2' repeats server id 1 of '1@10.0.0.1'"},
       {{"--discovery-server", "10.0.0.1,0@10.0.0.2"}, "'0@10.0.0.2' repeats server id 0 of '10.0.0.1'"},
       {{"--discovery-server", "0@10.0.0.1:7000,1@10.0.0.1:7000"},
@@ -457,6 +596,7 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
   // A manifest or image with a wrong flag, profile or value fails the check, naming it.
   struct Mutation {
     std::string file, from, to, expect;
+    std::string fails = "";  ///< the file whose command fails, when not `file`
   };
   const std::vector<Mutation> mutations = {
       {"k8s/coordinator.yaml", "\"--checkpoint\", \"/var/lib/poseforest/checkpoint\"",
@@ -470,6 +610,11 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
        "expected shm, udp or default"},
       {"docker/Dockerfile.coordinator", "POSEFOREST_DDS_PROFILE=poseforest_discovery_client",
        "POSEFOREST_DDS_PROFILE=poseforest_discovery", "no participant profile 'poseforest_discovery'"},
+      // Host names must name a Service of the manifests (the checker's stand-in for cluster DNS).
+      {"k8s/configmap.yaml", "<address>dds-discovery</address>", "<address>dds-discovry</address>",
+       "Fast DDS cannot parse the XML profiles", "k8s/workers.yaml"},
+      {"k8s/workers.yaml", "\"--stay\"]", "\"--stay\", \"--discovery-server\", \"dds-discovry:11811\"]",
+       "--discovery-server dds-discovry:11811: host name 'dds-discovry' does not resolve"},
   };
   for (const Mutation& m : mutations) {
     TempDir dir("pf-deploy-mutant");
@@ -478,7 +623,21 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
     auto [mrc, mout] = CheckDeployCommands(dir.path / "deploy");
     INFO(m.file << ": " << m.to << "\n" << mout);
     CHECK(mrc == 1);
-    CHECK(mout.find("FAIL deploy/" + m.file) != std::string::npos);
+    CHECK(mout.find("FAIL deploy/" + (m.fails.empty() ? m.file : m.fails)) != std::string::npos);
     CHECK(mout.find(m.expect) != std::string::npos);
+  }
+  {  // ...and the Service's name, short or in full, resolves as in the cluster
+    TempDir dir("pf-deploy-names");
+    fs::copy(Source() / "deploy", dir.path / "deploy", fs::copy_options::recursive);
+    Replace(dir.path / "deploy/k8s/workers.yaml", "\"--stay\"]",
+            "\"--stay\", \"--discovery-server\", \"dds-discovery.poseforest.svc.cluster.local\"]");
+    Replace(dir.path / "deploy/k8s/coordinator.yaml", "\"--resume\",",
+            "\"--resume\", \"--discovery-server\", \"dds-discovery\",");
+    auto [mrc, mout] = CheckDeployCommands(dir.path / "deploy");
+    INFO(mout);
+    CHECK(mrc == 0);
+    CHECK(mout.find("--discovery-server dds-discovery.poseforest.svc.cluster.local -> 10.96.255.") !=
+          std::string::npos);
+    CHECK(mout.find("--discovery-server dds-discovery -> 10.96.255.") != std::string::npos);
   }
 }

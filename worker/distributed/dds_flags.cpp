@@ -1,7 +1,14 @@
 #include "worker/distributed/dds_flags.h"
 
+#include <arpa/inet.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 
 #include "proto/dds/xml_profile_check.h"
@@ -37,6 +44,38 @@ std::optional<std::string> Env(const char* name) {
   return std::string(v);
 }
 }  // namespace
+
+Result<std::vector<std::string>> ResolveIPv4(const std::string& name) {
+  if (dds::IsIPv4Address(name)) return std::vector<std::string>{name};
+  addrinfo hints{};
+  hints.ai_family = AF_INET;
+  hints.ai_socktype = SOCK_DGRAM;
+  addrinfo* list = nullptr;
+  const int rc = ::getaddrinfo(name.c_str(), nullptr, &hints, &list);
+  if (rc != 0)
+    return Status(ErrorCode::kNotFound, "host name '" + name + "' does not resolve to an IPv4 address (" +
+                                            (rc == EAI_SYSTEM ? std::strerror(errno) : ::gai_strerror(rc)) +
+                                            ")");
+  std::vector<std::string> out;
+  for (const addrinfo* a = list; a; a = a->ai_next) {
+    if (a->ai_family != AF_INET) continue;
+    char text[INET_ADDRSTRLEN] = {};
+    ::inet_ntop(AF_INET, &reinterpret_cast<const sockaddr_in*>(a->ai_addr)->sin_addr, text, sizeof text);
+    if (std::find(out.begin(), out.end(), text) == out.end()) out.push_back(text);
+  }
+  ::freeaddrinfo(list);
+  if (out.empty()) return Status(ErrorCode::kNotFound, "host name '" + name + "' has no IPv4 address");
+  return out;
+}
+
+std::string DdsFlags::ResolvedText() const {
+  std::string s;
+  for (const ResolvedHost& r : resolved) {
+    s += (s.empty() ? "" : "; ") + r.flag + " " + r.name + " -> ";
+    for (size_t i = 0; i < r.addresses.size(); ++i) s += (i ? "," : "") + r.addresses[i];
+  }
+  return s;
+}
 
 std::string DdsFlags::Label() const {
   std::string s;
@@ -103,6 +142,7 @@ std::string DdsFlags::Describe() const {
     s += ", interfaces " + list;
   }
   if (extras.security.enabled()) s += "; DDS-Security with " + extras.security.identity_certificate;
+  if (!resolved.empty()) s += "; host names resolved once, at start-up: " + ResolvedText();
   return s;
 }
 
@@ -222,6 +262,24 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
       return invalid("--peers cannot be combined with --discovery-server (the server introduces the peers)");
     auto list = dds::ParseDiscoveryServers(*server);
     if (!list.ok()) return invalid("--discovery-server " + *server + ": " + list.status().message());
+    // Names -> their first address (one server is one locator); then no two entries may meet at
+    // one address and port, which ParseDiscoveryServers could only check for what was written.
+    std::vector<std::string> written;
+    for (dds::DiscoveryServerAddress& a : *list) {
+      written.push_back(dds::FormatDiscoveryServers({a}));
+      if (dds::IsIPv4Address(a.host)) continue;
+      auto addresses = ResolveIPv4(a.host);
+      if (!addresses.ok())
+        return Status(addresses.status().code(),
+                      "--discovery-server " + *server + ": " + addresses.status().message());
+      f.resolved.push_back({"--discovery-server", a.host, *addresses});
+      a.host = addresses->front();
+    }
+    for (size_t i = 0; i < list->size(); ++i)
+      for (size_t j = 0; j < i; ++j)
+        if ((*list)[i].host == (*list)[j].host && (*list)[i].port == (*list)[j].port)
+          return invalid("--discovery-server " + *server + ": " + written[i] + " and " + written[j] +
+                         " are the same address " + (*list)[i].host + ":" + std::to_string((*list)[i].port));
     f.transport = dds::TransportKind::kDiscoveryClient;
     f.extras.discovery_server = dds::FormatDiscoveryServers(*list);
   } else {
@@ -230,9 +288,28 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
     f.transport = *kind;
     if (peers && f.transport != dds::TransportKind::kUdpOnly) return invalid("--peers needs --profile udp");
     if (peers) {
-      auto list = ParseAddressList(*peers, "peers", true);
+      auto list = ParseAddressList(*peers, "peers", true, true);
       if (!list.ok()) return list.status();
-      f.peers = std::move(*list);
+      // A name stands for all its addresses (a headless Kubernetes Service: every pod), each
+      // with the entry's port.
+      for (const std::string& item : *list) {
+        const size_t colon = item.find(':');
+        const std::string host = item.substr(0, colon),
+                          port = colon == std::string::npos ? "" : item.substr(colon);
+        std::vector<std::string> addresses = {host};
+        if (!dds::IsIPv4Address(host)) {
+          auto resolved = ResolveIPv4(host);
+          if (!resolved.ok())
+            return Status(resolved.status().code(), "--peers " + *peers + ": " + resolved.status().message());
+          if (std::none_of(f.resolved.begin(), f.resolved.end(),
+                           [&](const ResolvedHost& r) { return r.name == host; }))
+            f.resolved.push_back({"--peers", host, *resolved});
+          addresses = std::move(*resolved);
+        }
+        for (const std::string& a : addresses)
+          if (std::find(f.peers.begin(), f.peers.end(), a + port) == f.peers.end())
+            f.peers.push_back(a + port);
+      }
     }
   }
   if (interfaces) {

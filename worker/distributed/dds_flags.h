@@ -4,13 +4,17 @@
 // which credentials. docs/distributed/README.md ("Transports and deployment profiles").
 //
 //   --profile shm|udp|default   built-in transports (default shm)
-//   --peers IP[:PORT],...       --profile udp: initial peers
+//   --peers HOST[:PORT],...     --profile udp: initial peers (IPv4 addresses or host names)
 //   --interfaces IP,...         --profile udp or --discovery-server: local addresses to use
 //   --dds-xml FILE --dds-profile NAME   a Fast DDS XML participant profile (deploy/fastdds/profiles.xml);
 //                               env POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE when no transport flag is
 //                               given
-//   --discovery-server [ID@]IP[:PORT],...  discovery through fast-discovery-server -i ID (default 0,
-//                               port 11811): a client of every listed server (UDP, no multicast)
+//   --discovery-server [ID@]HOST[:PORT],...  discovery through fast-discovery-server -i ID (default
+//                               0, port 11811): a client of every listed server (UDP, no multicast)
+//
+// Host names (--peers, --discovery-server) are resolved to IPv4 addresses once, by ParseDdsFlags
+// at start-up (getaddrinfo, AF_INET), never again: Fast DDS 2.9 fixes a participant's initial
+// peers and server locators when it is created. IPv6 addresses are refused (UDPv4 transports).
 //   --security DIR              DDS-Security with the six files of DIR (deploy/security/make-test-ca.sh)
 
 #include <array>
@@ -26,12 +30,12 @@ namespace poseforest::dist {
 
 /// Transport settings beyond the profile, peers and interfaces; empty fields are unused.
 struct TransportExtras {
-  std::string xml_file;          ///< kXmlProfile: absolute path of the Fast DDS XML file
-  std::string xml_profile;       ///< kXmlProfile: participant profile name in it
+  std::string xml_file;     ///< kXmlProfile: absolute path of the Fast DDS XML file
+  std::string xml_profile;  ///< kXmlProfile: participant profile name in it
   /// kDiscoveryClient: the servers, canonical "a.b.c.d:port" (id 0) or "ID@a.b.c.d:port", comma-
   /// separated (dds::FormatDiscoveryServers); one id-0 server is "a.b.c.d:port" as before.
   std::string discovery_server;
-  dds::SecurityFiles security;   ///< DDS-Security on any transport when enabled() (absolute paths)
+  dds::SecurityFiles security;  ///< DDS-Security on any transport when enabled() (absolute paths)
 };
 
 /// The value options ParseDdsFlags reads (to register with a command's argument parser).
@@ -42,20 +46,41 @@ inline constexpr std::array<const char*, 7> kDdsValueOptions = {
 inline constexpr const char* kEnvDdsXml = "POSEFOREST_DDS_XML";
 inline constexpr const char* kEnvDdsProfile = "POSEFOREST_DDS_PROFILE";
 
+/// A host name of --peers or --discovery-server and what it resolved to.
+struct ResolvedHost {
+  std::string flag;                    ///< "--peers" or "--discovery-server"
+  std::string name;                    ///< as written
+  std::vector<std::string> addresses;  ///< its IPv4 addresses, getaddrinfo's order, no repeats
+};
+
+/// The IPv4 addresses of host name `name` (getaddrinfo with AF_INET: /etc/hosts, DNS, search
+/// domains as the system resolves them), in getaddrinfo's order without repeats; an IPv4
+/// address is returned as itself without a lookup. NotFound with getaddrinfo's reason otherwise.
+core::Result<std::vector<std::string>> ResolveIPv4(const std::string& name);
+
 /// Checked DDS settings of one command line.
 struct DdsFlags {
   dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
   /// kUdpOnly: initial peers (empty: 127.0.0.1); kUdpOnly / kDiscoveryClient: local interfaces.
+  /// IPv4 addresses ("a.b.c.d[:port]"): host names of --peers are replaced by all their addresses.
   std::vector<std::string> peers, interfaces;
+  /// extras.discovery_server holds addresses too: a server given by name gets its first address.
   TransportExtras extras;
+  /// The names resolved at start-up (shown by Describe and ResolvedText).
+  std::vector<ResolvedHost> resolved;
   std::string security_dir;  ///< absolute --security DIR, empty without
   /// Short name for status pages: "shm", "udp", "default", "xml:NAME", "discovery-server", with
   /// "+security" appended under DDS-Security.
   std::string Label() const;
-  /// One line for logs: the transport, the XML file or server, the credentials' folder.
+  /// One line for logs: the transport, the XML file or server, the credentials' folder, and
+  /// the host names resolved.
   std::string Describe() const;
+  /// "--discovery-server NAME -> a.b.c.d; --peers NAME -> a.b.c.d,e.f.g.h" for the names
+  /// resolved; empty without names.
+  std::string ResolvedText() const;
   /// Flags that give another process (a local worker) the same transport and domain-wide
-  /// settings; never the credentials (each participant has its own: --worker-security).
+  /// settings, with the addresses resolved here (not the names); never the credentials (each
+  /// participant has its own: --worker-security).
   std::vector<std::string> TransportArgs() const;
 };
 
@@ -64,6 +89,7 @@ struct DdsFlags {
 /// unless --profile, --peers, --interfaces or --discovery-server is given (flags win; the
 /// environment of a container image never contradicts an explicit command line).
 /// Checks everything that can be checked without joining DDS: contradictory flags, addresses,
+/// host names (resolved here, once: an unknown name is an error naming the flag and the name),
 /// that the XML file loads in Fast DDS and has the participant profile (the error lists the
 /// profiles it has), that every security file is readable (the error names the missing one).
 /// Errors: kInvalidArgument / kNotFound / kIo with a message naming the flag or variable.

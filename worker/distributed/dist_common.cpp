@@ -48,36 +48,34 @@ dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bo
 }
 
 Result<std::vector<std::string>> ParseAddressList(const std::string& value, const std::string& flag,
-                                                  bool allow_port) {
+                                                  bool allow_port, bool allow_names) {
   std::vector<std::string> out;
+  const std::string form = std::string(allow_names ? "a.b.c.d or a host name" : "a.b.c.d") +
+                           (allow_port ? ", with an optional :port" : "");
+  auto bad = [&](const std::string& item, const std::string& why) {
+    return Status(ErrorCode::kInvalidArgument, "--" + flag + " " + value + ": '" + item + "' " + why);
+  };
   size_t start = 0;
   while (start <= value.size()) {
     const size_t comma = std::min(value.find(',', start), value.size());
     const std::string item = value.substr(start, comma - start);
     start = comma + 1;
     if (item.empty()) continue;
-    const size_t colon = item.find(':');
-    const std::string ip = item.substr(0, colon);
-    bool ok = true;
-    int parts = 0;
-    for (size_t p = 0; ok && p <= ip.size(); ++parts) {
-      const size_t dot = std::min(ip.find('.', p), ip.size());
-      const std::string octet = ip.substr(p, dot - p);
-      ok = !octet.empty() && octet.size() <= 3 &&
-           octet.find_first_not_of("0123456789") == std::string::npos && std::stoi(octet) <= 255;
-      p = dot + 1;
-    }
-    ok = ok && parts == 4;
-    if (ok && colon != std::string::npos) {
+    // More than one ':' (or a '['): an IPv6 address, which CheckHost refuses with its reason.
+    const bool v6 = item.find('[') != std::string::npos || item.find(':') != item.rfind(':');
+    const size_t colon = v6 ? std::string::npos : item.find(':');
+    if (Status host = dds::CheckHost(item.substr(0, colon), allow_names); !host.ok())
+      return bad(item, host.message() + " (expected " + form + ")");
+    if (colon != std::string::npos) {
       const std::string port = item.substr(colon + 1);
-      ok = allow_port && !port.empty() && port.size() <= 5 &&
-           port.find_first_not_of("0123456789") == std::string::npos && std::stoi(port) > 0 &&
-           std::stoi(port) < 65536;
+      const bool ok = allow_port && !port.empty() && port.size() <= 5 &&
+                      port.find_first_not_of("0123456789") == std::string::npos && std::stoi(port) > 0 &&
+                      std::stoi(port) < 65536;
+      if (!ok)
+        return bad(item, allow_port
+                             ? "has port '" + port + "': expected 1..65535"
+                             : "has a port; --" + flag + " takes addresses only (expected " + form + ")");
     }
-    if (!ok)
-      return Status(ErrorCode::kInvalidArgument,
-                    "--" + flag + " " + value + ": '" + item + "' is not an IPv4 address" +
-                        (allow_port ? " (a.b.c.d or a.b.c.d:port)" : " (a.b.c.d)"));
     out.push_back(item);
   }
   if (out.empty()) return Status(ErrorCode::kInvalidArgument, "--" + flag + ": no address given");

@@ -34,10 +34,12 @@ dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bo
                                const std::vector<std::string>& interfaces = {},
                                const TransportExtras& extras = {});
 
-/// Splits a comma-separated --peers / --interfaces value; InvalidArgument naming `flag` for an
-/// entry that is not an IPv4 address (with an optional :port for peers).
+/// Splits a comma-separated --peers / --interfaces value; InvalidArgument naming `flag` and the
+/// entry for one that is not an IPv4 address, or with `allow_names` a host name (dds::CheckHost;
+/// the names are kept as written: ParseDdsFlags resolves them), with an optional :port when
+/// `allow_port`. IPv6 addresses are refused by name.
 core::Result<std::vector<std::string>> ParseAddressList(const std::string& value, const std::string& flag,
-                                                        bool allow_port);
+                                                        bool allow_port, bool allow_names = false);
 
 /// Dense wire tensor (num_candidates x num_bins x num_parts) of a node histogram built with
 /// `plan` (either form); slot -> part through plan.part_slot.
