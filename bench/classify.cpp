@@ -28,6 +28,7 @@
 #include "runtime/core/feature.h"
 #include "runtime/core/forest.h"
 #include "tests/support/synthetic.h"
+#include "runtime/core/malloc_tuning.h"
 
 namespace {
 
@@ -133,6 +134,7 @@ size_t ForestBytes(const core::Forest& f) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
   // OpenMP threads that wait by spinning (libgomp's default) burn the time slices the other
   // thread needs when the cores are shared with other jobs, and measured 3x slower than one
   // thread on this machine under load. Unless the caller chose a policy, re-run with passive

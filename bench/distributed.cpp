@@ -74,6 +74,7 @@
 #include "worker/distributed/dist_common.h"
 #include "worker/distributed/dist_worker.h"
 #include "worker/job_spec.h"
+#include "runtime/core/malloc_tuning.h"
 
 extern char** environ;
 
@@ -266,6 +267,7 @@ int EngineProcess(const char* job_path) {
 }
 
 int main(int argc, char** argv) {
+  poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
   if (argc > 1 && !std::strcmp(argv[1], "--worker-process")) return WorkerProcess(argc, argv);
   if (argc > 2 && !std::strcmp(argv[1], "--engine-process")) return EngineProcess(argv[2]);
   // libgomp reads its wait policy when it is loaded: set it and start again.

@@ -28,6 +28,7 @@
 #include "runtime/core/forest_format.h"
 #include "runtime/joint_metrics.h"
 #include "runtime/joint_proposals.h"
+#include "runtime/core/malloc_tuning.h"
 
 using namespace poseforest;
 using Clock = std::chrono::steady_clock;
@@ -68,6 +69,7 @@ double Median(std::vector<double> v) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
   // Idle OpenMP threads sleep instead of spinning: on a shared machine a spinning thread
   // steals the core its partner needs (as bench/classify).
   if (std::getenv("OMP_WAIT_POLICY") == nullptr) {

@@ -32,6 +32,7 @@
 #include "worker/histogram_builder.h"
 #include "worker/image_source.h"
 #include "worker/sample_set.h"
+#include "runtime/core/malloc_tuning.h"
 
 using namespace poseforest;
 
@@ -233,6 +234,7 @@ void SideBySide(const worker::SampleSet& set, const worker::TrainParams& p, int 
 }  // namespace
 
 int main(int argc, char** argv) {
+  poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
   // Defaults: the paper's per-node search (2000 features x 50 thresholds, 2000 pixels/frame).
   int images = 20, pixels = 2000, candidates = 2000, thresholds = 50, depth = 10, threads = 1;
   bool rendered = false;

@@ -4,6 +4,7 @@
 #include <string_view>
 
 #include "runtime/cli/commands.h"
+#include "runtime/core/malloc_tuning.h"
 
 namespace {
 
@@ -48,6 +49,7 @@ void Usage(FILE* out) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
   if (argc < 2) {
     Usage(stderr);
     return 2;
