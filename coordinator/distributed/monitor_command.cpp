@@ -79,8 +79,34 @@ std::string Duration(double s) {
   return buf;
 }
 
-/// The text of one snapshot.
-std::string Render(const pb::Struct& s) {
+/// The per-level table (`--levels`): the columns of the dashboard's "Levels" table, oldest level
+/// first. `note`: said under the heading (where the rows come from), may be empty.
+std::string LevelTable(const pb::ListValue* levels, const std::string& note) {
+  std::string out = "levels (mean entropy and gain in bits)" + (note.empty() ? "" : "; " + note) + ":\n";
+  char line[512];
+  std::snprintf(line, sizeof line, "  %4s %5s %9s %9s %12s %12s %10s %14s %9s %7s\n", "tree", "level",
+                "nodes", "split", "samples", "mean entropy", "mean gain", "evaluations/s", "seconds",
+                "workers");
+  out += line;
+  int rows = 0;
+  if (levels)
+    for (const auto& l : levels->values()) {
+      if (!l.has_struct_value()) continue;
+      const pb::Struct& ls = l.struct_value();
+      std::snprintf(line, sizeof line, "  %4.0f %5.0f %9.0f %9.0f %12.0f %12.3f %10.3f %14.0f %9.3f %7.0f\n",
+                    Num(ls, "tree", 0), Num(ls, "level", 0), Num(ls, "nodes", 0), Num(ls, "split", 0),
+                    Num(ls, "samples", 0), Num(ls, "entropy", 0), Num(ls, "gain", 0),
+                    Num(ls, "evaluations_per_s", 0), Num(ls, "seconds", 0), Num(ls, "workers", 0));
+      out += line;
+      ++rows;
+    }
+  if (rows == 0) out += "  (no level finished yet)\n";
+  return out;
+}
+
+/// The text of one snapshot; with `levels_table` the per-level table after it (`levels_note`
+/// under its heading).
+std::string Render(const pb::Struct& s, bool levels_table = false, const std::string& levels_note = "") {
   std::string out;
   char line[512];
   const pb::Struct* cfg = Obj(s, "config");
@@ -148,6 +174,7 @@ std::string Render(const pb::Struct& s) {
       out += line;
     }
   }
+  if (levels_table) out += LevelTable(List(s, "levels"), levels_note);
   if (const pb::ListValue* events = List(s, "events"); events && events->values_size() > 0) {
     const auto& e = events->values(events->values_size() - 1);
     if (e.has_struct_value()) {
@@ -235,15 +262,37 @@ pb::Struct StatusAsJson(const v1::StatusEvent& e, const std::string& job_id, int
   }
   workers.mutable_list_value();  // an empty list, not null
   f["workers"] = workers;
+  pb::Value levels;  // the newest levels, as /status.json's "levels" entries
+  for (const v1::LevelStatus& l : e.levels()) {
+    pb::Value lv;
+    auto& ls = *lv.mutable_struct_value()->mutable_fields();
+    ls["tree"] = num(l.tree());
+    ls["level"] = num(l.level());
+    ls["nodes"] = num(double(l.nodes()));
+    ls["split"] = num(double(l.split()));
+    ls["samples"] = num(double(l.samples()));
+    ls["entropy"] = num(l.entropy());
+    ls["gain"] = num(l.gain());
+    ls["evaluations"] = num(double(l.evaluations()));
+    ls["evaluations_per_s"] = num(l.evaluations_per_s());
+    ls["seconds"] = num(l.seconds());
+    ls["workers"] = num(l.workers());
+    *levels.mutable_list_value()->add_values() = lv;
+  }
+  levels.mutable_list_value();
+  f["levels"] = levels;
   return s;
 }
 
 /// `monitor --domain D [--job ID]`: the job announcement and the status events from DDS (the
 /// status topic keeps its last 64 events for late readers; the coordinator sends one at least
-/// every 2 s). Every event carries the figures of the coordinator's /status.json, so the view is
-/// the one of --url, less the per-level table; the last events are listed below it.
+/// every 2 s). Every event carries the figures of the coordinator's /status.json and its newest
+/// 64 levels, so the view is the one of --url (`levels`: the per-level table of those); the last
+/// events are listed below it.
 int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job_id, bool once,
-               long interval_ms, long timeout_s) {
+               long interval_ms, long timeout_s, bool levels) {
+  if (!dds_flags.resolved.empty())  // once: a name that moves later is not followed
+    std::fprintf(stderr, "DDS host names resolved at start-up: %s\n", dds_flags.ResolvedText().c_str());
   dds::NodeConfig cfg;
   cfg.domain_id = domain;
   cfg.participant_name = "monitor-" + std::to_string(::getpid());
@@ -278,7 +327,11 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
           "job " + (job_id.empty() ? std::string("-") : job_id) + "  state waiting (no status event yet)\n";
     } else {
       const double age = std::clamp(dist::UnixSeconds() - t_last, 0.0, 5.0);
-      out += Render(StatusAsJson(last, job_id, trees, depth, age));
+      const int rows = last.levels_size();
+      out += Render(StatusAsJson(last, job_id, trees, depth, age), levels,
+                    rows >= dist::StatusModel::kMaxStatusLevels
+                        ? "the newest " + std::to_string(rows) + " (all of them: --url)"
+                        : "");
     }
     out += "last events:\n";
     for (const std::string& e : events) out += "  " + e + "\n";
@@ -350,7 +403,7 @@ int MonitorMain(int argc, char** argv) {
   std::set<std::string> value_options = {"url",       "http-token-file", "interval-ms",
                                          "timeout-s", "domain",          "job"};
   for (const char* o : dist::kDdsValueOptions) value_options.insert(o);  // the DDS transport flags
-  Args args(value_options, {"once", "help"});
+  Args args(value_options, {"once", "levels", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || !args.positional().empty() || args.Has("url") == args.Has("domain")) {
     if (!st.ok()) std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
@@ -358,12 +411,15 @@ int MonitorMain(int argc, char** argv) {
         stderr,
         "usage: poseforest monitor --url http://HOST:PORT [--http-token-file FILE] [--once] [--interval-ms "
         "1000]\n"
-        "                          [--timeout-s 10]\n"
-        "       poseforest monitor --domain D [--job ID] [DDS transport flags] [--once] ...\n"
+        "                          [--timeout-s 10] [--levels]\n"
+        "       poseforest monitor --domain D [--job ID] [DDS transport flags] [--once] [--levels] ...\n"
         "  Shows a training job's live status from its coordinator (the URL the coordinator prints,\n"
         "  `--http` there): tree, level, nodes done/total, samples/s, evaluations/s, ETA, workers.\n"
         "  Refreshes every second and exits when the job is done (0) or failed (1); --once prints one\n"
         "  snapshot. Exits 1 when the coordinator cannot be reached for --timeout-s seconds.\n"
+        "  --levels: add the per-level table (tree, level, nodes, split, samples, mean entropy and gain\n"
+        "  in bits, evaluations/s, seconds, workers: the dashboard's Levels table), oldest first; over\n"
+        "  --domain the newest 64 levels (the status event carries no more).\n"
         "  --http-token-file: the coordinator's token file (its --http-token-file), sent as\n"
         "  \"Authorization: Bearer TOKEN\"; the same checks (mode 600, one line). A wrong or missing token\n"
         "  (HTTP 401) exits 1 at once.\n"
@@ -371,8 +427,8 @@ int MonitorMain(int argc, char** argv) {
         "  (the same figures and worker table, no URL needed); --job picks one job of the domain.\n"
         "  DDS transport flags, as for the job's coordinator and workers (`poseforest coordinator --help`):\n"
         "  --profile shm|udp|default, --peers, --interfaces, --dds-xml FILE --dds-profile NAME,\n"
-        "  --discovery-server IP[:PORT], --security DIR (a worker's credentials: a worker grant reads\n"
-        "  the job and status topics).\n");
+        "  --discovery-server [ID@]HOST[:PORT], --security DIR (a worker's credentials: a worker grant\n"
+        "  reads the job and status topics).\n");
     return args.Has("help") ? 0 : 2;
   }
   auto interval = args.GetInt("interval-ms", 1000, 50, 3600000);
@@ -395,7 +451,7 @@ int MonitorMain(int argc, char** argv) {
       return 2;
     }
     return MonitorDds(uint32_t(*domain), *dds_flags, args.GetOr("job", ""), args.Has("once"), *interval,
-                      *timeout);
+                      *timeout, args.Has("levels"));
   }
   std::string token;
   if (args.Has("http-token-file")) {
@@ -435,7 +491,7 @@ int MonitorMain(int argc, char** argv) {
     } else {
       last_ok = std::chrono::steady_clock::now();
       last_state = Str(status, "state");
-      const std::string text = Render(status);
+      const std::string text = Render(status, args.Has("levels"));
       if (tty) std::fputs("\033[H\033[2J", stdout);
       std::fputs(text.c_str(), stdout);
       if (!tty && !once) std::fputs("\n", stdout);

@@ -279,6 +279,23 @@ void StatusModel::FillStatus(v1::StatusEvent* e) {
   e->set_evaluations(total_evaluations_);
   e->set_bytes_received(total_bytes_received_);
   e->set_retries(total_retries_);
+  e->clear_levels();
+  for (size_t i = levels_.size() > size_t(kMaxStatusLevels) ? levels_.size() - kMaxStatusLevels : 0;
+       i < levels_.size(); ++i) {
+    const DistLevelStats& s = levels_[i];
+    v1::LevelStatus* l = e->add_levels();
+    l->set_tree(uint32_t(std::max(0, s.tree)));
+    l->set_level(uint32_t(std::clamp(s.level, 0, 64)));
+    l->set_nodes(s.frontier_nodes);
+    l->set_split(std::min(s.split_nodes, s.frontier_nodes));
+    l->set_samples(s.samples);
+    l->set_entropy(bounded(s.mean_entropy, 64));
+    l->set_gain(bounded(s.mean_gain, 64));
+    l->set_evaluations(s.evaluations);
+    l->set_evaluations_per_s(bounded(s.evaluations_per_s, kMaxRate));
+    l->set_seconds(bounded(s.level_seconds, kMaxSeconds));
+    l->set_workers(uint32_t(std::max(0, s.workers_alive)));
+  }
   e->clear_workers();
   for (const auto& [id, w] : workers_) {
     if (e->workers_size() >= kMaxStatusWorkers) break;

@@ -43,8 +43,9 @@ class StatusModel : public CoordinatorObserver {
   void OnWorkerAssigned(const std::string& id, int tree, uint64_t frames) override;
   void OnWorkerReply(const std::string& id, uint64_t bytes, const v1::HistogramReply& reply) override;
   void OnWorkerHeartbeat(const std::string& id, const v1::Heartbeat& hb) override;
-  /// The figures of Json() in a StatusEvent (monitor --domain); a PROGRESS event also gets the
-  /// tree and level in training and the progress. Clamped to what the message gate accepts.
+  /// The figures of Json() in a StatusEvent (monitor --domain), with the newest
+  /// kMaxStatusLevels rows of "levels"; a PROGRESS event also gets the tree and level in
+  /// training and the progress. Clamped to what the message gate accepts.
   void FillStatus(v1::StatusEvent* e) override;
 
   /// The run ended: state "done" (ok) or "failed", with `message` (the error or what was written).
@@ -62,6 +63,9 @@ class StatusModel : public CoordinatorObserver {
   static constexpr size_t kMaxLevels = 2000;
   /// Most workers listed in a StatusEvent (the gate allows 4096).
   static constexpr int kMaxStatusWorkers = 1024;
+  /// Most levels (the newest) in a StatusEvent (the gate allows 256): a 3-tree depth-20 job
+  /// whole, ~3.5 KiB per event.
+  static constexpr int kMaxStatusLevels = 64;
 
  private:
   struct Worker {

@@ -117,6 +117,8 @@ constexpr double kMaxSeconds = 1e9;  // ~32 years
 constexpr uint64_t kMaxCount = uint64_t(1) << 62;
 constexpr int kMaxStatusWorkers = 4096;
 constexpr size_t kMaxWorkerId = 256;
+constexpr int kMaxStatusLevels = 256;  // StatusEvent.levels (the coordinator sends at most 64)
+constexpr double kMaxBits = 64;        // entropy and gain of a level row
 
 Status ValidateFigure(const char* name, double v, double max) {
   if (!std::isfinite(v) || v < 0 || v > max) {
@@ -231,6 +233,17 @@ Status ValidateStatus(const v1::StatusEvent& m) {
     if (c > kMaxCount) return Bad("count " + S(c) + " above 2^62");
   if (m.workers_size() > kMaxStatusWorkers)
     return Bad(S(uint64_t(m.workers_size())) + " workers above 4096");
+  if (m.levels_size() > kMaxStatusLevels) return Bad(S(uint64_t(m.levels_size())) + " levels above 256");
+  for (const v1::LevelStatus& l : m.levels()) {
+    const std::string at = "level row tree " + S(l.tree()) + " level " + S(l.level()) + ": ";
+    if (l.level() > kMaxDepth) return Bad(at + "too deep");
+    if (l.split() > l.nodes() || l.nodes() > kMaxCount || l.samples() > kMaxCount || l.evaluations() > kMaxCount)
+      return Bad(at + "counts above 2^62 or more split than frontier nodes");
+    if (!(l.entropy() >= 0.0 && l.entropy() <= kMaxBits) || !(l.gain() >= 0.0 && l.gain() <= kMaxBits))
+      return Bad(at + "entropy or gain outside 0..64 bits");
+    POSEFOREST_RETURN_IF_ERROR(ValidateFigure("level evaluations_per_s", l.evaluations_per_s(), kMaxRate));
+    POSEFOREST_RETURN_IF_ERROR(ValidateFigure("level seconds", l.seconds(), kMaxSeconds));
+  }
   for (const v1::WorkerStatus& w : m.workers()) {
     if (w.id().empty() || w.id().size() > kMaxWorkerId)
       return Bad("worker id of " + S(w.id().size()) + " bytes");

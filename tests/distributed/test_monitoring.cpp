@@ -141,6 +141,48 @@ int CountLines(const std::string& text, const std::string& needle) {
   return n;
 }
 
+/// The rows of `monitor --levels`' table: tree, level, nodes, split, samples, mean entropy, mean
+/// gain, evaluations/s, seconds, workers. Empty without the table.
+std::vector<std::vector<double>> LevelTableRows(const std::string& output) {
+  std::vector<std::vector<double>> rows;
+  std::istringstream in(output);
+  std::string line;
+  bool in_table = false;
+  while (std::getline(in, line)) {
+    if (line.rfind("levels (mean entropy and gain in bits)", 0) == 0) {
+      in_table = true;
+      std::getline(in, line);  // the column names
+      continue;
+    }
+    if (!in_table) continue;
+    std::istringstream cells(line);
+    std::vector<double> row;
+    for (double v; cells >> v;) row.push_back(v);
+    if (row.size() != 10) break;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+/// `rows` (LevelTableRows) against /status.json's "levels", each figure to the digits shown.
+void CheckLevelRows(const std::vector<std::vector<double>>& rows, const pb::ListValue& levels) {
+  REQUIRE(rows.size() == size_t(levels.values_size()));
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const pb::Struct& l = levels.values(int(i)).struct_value();
+    INFO("row " << i);
+    CHECK(rows[i][0] == Num(l, "tree"));
+    CHECK(rows[i][1] == Num(l, "level"));
+    CHECK(rows[i][2] == Num(l, "nodes"));
+    CHECK(rows[i][3] == Num(l, "split"));
+    CHECK(rows[i][4] == Num(l, "samples"));
+    CHECK(std::abs(rows[i][5] - Num(l, "entropy")) <= 0.0005 + 1e-12);
+    CHECK(std::abs(rows[i][6] - Num(l, "gain")) <= 0.0005 + 1e-12);
+    CHECK(std::abs(rows[i][7] - Num(l, "evaluations_per_s")) <= 0.5 + 1e-9);
+    CHECK(std::abs(rows[i][8] - Num(l, "seconds")) <= 0.0005 + 1e-12);
+    CHECK(rows[i][9] == Num(l, "workers"));
+  }
+}
+
 /// A figure as `monitor` prints it ("127.31 M", "290.1 k", "12").
 double SiValue(const std::string& text) {
   double v = std::stod(text);
@@ -251,6 +293,32 @@ TEST_CASE(
       ++rows;
     }
     CHECK(rows == 2);
+    CHECK(LevelTableRows(mon_dds.output).empty());  // the table only with --levels
+  }
+  // `monitor --once --levels`, over HTTP and over DDS, while the job is held (no level finishes
+  // meanwhile): the per-level table, row for row the coordinator's /status.json "levels".
+  {
+    const pb::Struct held = GetStatus(url);
+    const auto& held_levels = List(held, "levels");
+    REQUIRE(held_levels.values_size() >= 4);  // tree 0, levels 0..3 at least
+    auto by_url = poseforest::testing::RunPoseforest("monitor --once --levels --url " + url);
+    INFO(by_url.output);
+    CHECK(by_url.exit_code == 0);
+    CheckLevelRows(LevelTableRows(by_url.output), held_levels);
+    // Over DDS the newest event is what the table shows; while held the coordinator publishes
+    // PROGRESS every 2 s with its levels, so a reader that got an older event asks again.
+    poseforest::testing::CommandResult by_dds;
+    for (int attempt = 0; attempt < 5; ++attempt) {
+      if (attempt > 0) std::this_thread::sleep_for(1s);
+      by_dds = poseforest::testing::RunPoseforest("monitor --once --levels --domain " +
+                                                  std::to_string(Domain(41)) + " --job " + job_id +
+                                                  " --timeout-s 30");
+      if (LevelTableRows(by_dds.output).size() == size_t(held_levels.values_size())) break;
+    }
+    INFO(by_dds.output);
+    CHECK(by_dds.exit_code == 0);
+    CheckLevelRows(LevelTableRows(by_dds.output), held_levels);
+    CHECK(List(GetStatus(url), "levels").values_size() == held_levels.values_size());  // still held
   }
   // During the run.
   const pb::Struct s = GetStatus(url);
@@ -719,6 +787,18 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
   w->set_state(v1::WORKER_STATE_TRAINING);
   w->set_evaluations_per_s(4e7);
   w->set_last_seen_s(0.2);
+  auto* lv = ok.add_levels();
+  lv->set_tree(1);
+  lv->set_level(20);
+  lv->set_nodes(900);
+  lv->set_split(400);
+  lv->set_samples(123456);
+  lv->set_entropy(2.5);
+  lv->set_gain(0.3);
+  lv->set_evaluations(1000000);
+  lv->set_evaluations_per_s(5e7);
+  lv->set_seconds(0.02);
+  lv->set_workers(2);
   CHECK(poseforest::dds::ValidateStatus(ok).ok());
   std::vector<std::pair<std::string, std::function<void(v1::StatusEvent&)>>> hostile = {
       {"NaN samples/s", [&](v1::StatusEvent& e) { e.set_samples_per_s(nan); }},
@@ -739,6 +819,19 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
       {"5000 workers",
        [&](v1::StatusEvent& e) {
          for (int i = 0; i < 5000; ++i) *e.add_workers() = e.workers(0);
+       }},
+      {"level entropy NaN", [&](v1::StatusEvent& e) { e.mutable_levels(0)->set_entropy(nan); }},
+      {"level gain negative", [&](v1::StatusEvent& e) { e.mutable_levels(0)->set_gain(-0.5); }},
+      {"level gain of 100 bits", [&](v1::StatusEvent& e) { e.mutable_levels(0)->set_gain(100); }},
+      {"level rate infinite", [&](v1::StatusEvent& e) { e.mutable_levels(0)->set_evaluations_per_s(inf); }},
+      {"level seconds negative", [&](v1::StatusEvent& e) { e.mutable_levels(0)->set_seconds(-1); }},
+      {"level 65", [&](v1::StatusEvent& e) { e.mutable_levels(0)->set_level(65); }},
+      {"more split than nodes", [&](v1::StatusEvent& e) { e.mutable_levels(0)->set_split(901); }},
+      {"level samples 2^63",
+       [&](v1::StatusEvent& e) { e.mutable_levels(0)->set_samples(uint64_t(1) << 63); }},
+      {"300 levels",
+       [&](v1::StatusEvent& e) {
+         for (int i = 0; i < 300; ++i) *e.add_levels() = e.levels(0);
        }},
   };
   for (auto& [name, spoil] : hostile) {
@@ -796,6 +889,40 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
   CHECK(filled.workers(0).evaluations() == 777);
   CHECK(filled.workers(0).evaluations_per_s() == 3e6);
   CHECK(filled.workers(0).frames() == 5);
+  // The levels, as in the JSON; a level of no measurable time has rate 0, not infinity.
+  REQUIRE(filled.levels_size() == 2);
+  CHECK(filled.levels(0).level() == 0);
+  CHECK(filled.levels(0).seconds() == 0);
+  CHECK(filled.levels(1).level() == 1);
+  CHECK(filled.levels(1).samples() == 1000);
+  CHECK(filled.levels(1).seconds() == 0.5);
+  // At most the newest 64 levels; absurd figures clamped to what the gate accepts.
+  {
+    StatusModel many({"job-2", 0, "shm", 4, 20, 10, 100, 20, 8, ""});
+    DistLevelStats l;
+    l.frontier_nodes = 4;
+    l.split_nodes = 2;
+    l.mean_entropy = 3;
+    l.mean_gain = 0.5;
+    for (int i = 0; i < 84; ++i) {
+      l.tree = i / 21;
+      l.level = i % 21;
+      if (i == 83) l.mean_gain = std::numeric_limits<double>::infinity(), l.evaluations_per_s = -4;
+      many.OnLevelDone(l);
+    }
+    v1::StatusEvent e;
+    e.set_kind(v1::STATUS_KIND_PROGRESS);
+    many.FillStatus(&e);
+    CHECK(poseforest::dds::ValidateStatus(e).ok());
+    REQUIRE(e.levels_size() == StatusModel::kMaxStatusLevels);
+    CHECK(e.levels(0).tree() == 0);  // level 20 of tree 0 = the 21st of 84: 84 - 64 = 20 left out
+    CHECK(e.levels(0).level() == 20);
+    CHECK(e.levels(63).tree() == 3);
+    CHECK(e.levels(63).level() == 20);
+    CHECK(e.levels(63).gain() == 0);
+    CHECK(e.levels(63).evaluations_per_s() == 0);
+    CHECK(e.levels(62).gain() == 0.5);
+  }
   // The job done: workers "done", no rate, ETA 0.
   v1::StatusEvent done;
   done.set_kind(v1::STATUS_KIND_JOB_DONE);
