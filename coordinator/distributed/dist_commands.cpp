@@ -365,8 +365,10 @@ int CoordinatorMain(int argc, char** argv) {
                 opt.checkpoint_dir.c_str());
     return 0;
   }
-  if (!dds_flags->resolved.empty())  // resolved once: a name that moves later is not followed
+  if (!dds_flags->resolved.empty()) {  // resolved once: a name that moves later is not followed
     std::printf("DDS host names resolved at start-up: %s\n", dds_flags->ResolvedText().c_str());
+    std::fflush(stdout);
+  }
   const std::string status_file = args.GetOr("status-file", "");
   opt.progress = [&](const dist::DistLevelStats& s) {
     char line[512];
