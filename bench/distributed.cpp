@@ -44,6 +44,9 @@
 //   --engine-only   the engine alone (e.g. under a profiler)
 //   --no-sample-lists  subtree tasks without their sample lists (workers route every sample of
 //                   the tasks' frames, one task at a time): the service before that change
+//   --neighbour-test R  instead of the service runs: the 1-thread engine alone, next to a busy
+//                   loop and next to random reads over 16 MiB, R rounds; shows what a second
+//                   busy process costs through the shared L3 (docs/distributed/service.md)
 // POSEFOREST_BENCH_WORKER_WRAP="CMD ARGS": worker processes run under CMD (a profiler).
 
 #include <signal.h>
@@ -266,8 +269,29 @@ int EngineProcess(const char* job_path) {
   return 0;
 }
 
+/// A neighbour process for --neighbour-test: this program with --neighbour spin (a busy loop:
+/// takes a core, touches almost no memory) or --neighbour reads MB (random 8-byte reads over MB
+/// MiB: takes a core and keeps evicting the shared L3). Runs until killed.
+int NeighbourProcess(int argc, char** argv) {
+  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+  const bool reads = argc > 3 && !std::strcmp(argv[2], "reads");
+  uint64_t x = 88172645463325252ull;
+  if (!reads)
+    for (;;) {
+      x ^= x << 13, x ^= x >> 7, x ^= x << 17;
+      asm volatile("" : : "r"(x));  // the loop has an effect
+    }
+  const size_t n = size_t(std::max(1, std::atoi(argv[3]))) << 17;  // 8-byte words in MB MiB
+  std::vector<uint64_t> mem(n, 1);
+  for (uint64_t acc = 0;;) {
+    for (int i = 0; i < 4096; ++i) x ^= x << 13, x ^= x >> 7, x ^= x << 17, acc += mem[x % n];
+    asm volatile("" : : "r"(acc));
+  }
+}
+
 int main(int argc, char** argv) {
   poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
+  if (argc > 2 && !std::strcmp(argv[1], "--neighbour")) return NeighbourProcess(argc, argv);
   if (argc > 1 && !std::strcmp(argv[1], "--worker-process")) return WorkerProcess(argc, argv);
   if (argc > 2 && !std::strcmp(argv[1], "--engine-process")) return EngineProcess(argv[2]);
   // libgomp reads its wait policy when it is loaded: set it and start again.
@@ -284,6 +308,7 @@ int main(int argc, char** argv) {
   bool skip_off = false;
   int repeat = 1;
   bool engine_only = false, sample_lists = true;
+  int neighbour_test = 0;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--workers") && i + 1 < argc) {
       worker_counts.clear();
@@ -298,6 +323,10 @@ int main(int argc, char** argv) {
       skip_off = true;
     } else if (!std::strcmp(argv[i], "--engine-only")) {
       engine_only = true;
+    } else if (!std::strcmp(argv[i], "--neighbour-test") && i + 1 < argc) {
+      neighbour_test = std::atoi(argv[++i]);
+      if (neighbour_test < 1 || neighbour_test > 50)
+        return std::fprintf(stderr, "distributed: --neighbour-test wants 1..50\n"), 2;
     } else if (!std::strcmp(argv[i], "--no-sample-lists")) {
       sample_lists = false;
     } else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) {
@@ -312,7 +341,8 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--help") || argv[i][0] == '-') {
       std::fprintf(stderr,
                    "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] "
-                   "[--workers N,N] [--skip-off] [--repeat R] [--engine-only] [--no-sample-lists]\n");
+                   "[--workers N,N] [--skip-off] [--repeat R] [--engine-only] [--no-sample-lists] "
+                   "[--neighbour-test R]\n");
       return std::strcmp(argv[i], "--help") ? 2 : 0;
     } else {
       std::ifstream in(argv[i]);
@@ -388,6 +418,56 @@ int main(int argc, char** argv) {
                                 ("bench-" + std::to_string(::getpid()) + "-job.textproto"))
                                    .string();
   std::ofstream(job_file) << text;
+  // --neighbour-test R: what another busy process on the other core costs the 1-thread engine:
+  // R rounds of (alone, next to a busy loop, next to random reads over 16 MiB, next to another
+  // 1-thread engine process on the same job), CPU seconds, medians. A busy loop shares nothing
+  // but the machine; the reader also shares the L3; the engine process is what a second worker is.
+  if (neighbour_test > 0) {
+    std::string l3 = "unknown";
+    std::getline(std::ifstream("/sys/devices/system/cpu/cpu0/cache/index3/size"), l3);
+    std::printf("\nneighbour test: the 1-thread engine alone, next to a busy loop, next to random reads over "
+                "16 MiB (this core's L3: %s) and next to another 1-thread engine process; %d rounds\n",
+                l3.c_str(), neighbour_test);
+    const char* kinds[4] = {"alone", "a busy loop", "a 16 MiB reader", "an engine process"};
+    std::vector<double> cpu[4];
+    for (int r = 0; r < neighbour_test; ++r) {
+      for (int k = 0; k < 4; ++k) {
+        pid_t pid = -1;
+        if (k > 0) {
+          std::vector<std::string> a = {self, "--neighbour", k == 1 ? "spin" : "reads", "16"};
+          if (k == 3) a = {self, "--engine-process", job_file};  // starts with ours, runs as long
+          std::vector<char*> c;
+          for (auto& x : a) c.push_back(x.data());
+          c.push_back(nullptr);
+          if (::posix_spawn(&pid, c[0], nullptr, nullptr, c.data(), environ) != 0)
+            return std::fprintf(stderr, "distributed: cannot start a neighbour process\n"), 1;
+          if (k < 3) std::this_thread::sleep_for(std::chrono::milliseconds(300));  // its memory is touched
+        }
+        RunFigures f;
+        const int rc = run_engine(f, 1, false);
+        if (pid > 0) {
+          if (k < 3) ::kill(pid, SIGKILL);
+          ::waitpid(pid, nullptr, 0);
+        }
+        if (rc != 0) return rc;
+        cpu[k].push_back(f.cpu);
+      }
+      std::printf("round %d: engine CPU s alone %.3f, next to a busy loop %.3f, to a 16 MiB reader %.3f, to an engine "
+                  "process %.3f\n",
+                  r + 1, cpu[0].back(), cpu[1].back(), cpu[2].back(), cpu[3].back());
+      std::fflush(stdout);
+    }
+    auto median = [](std::vector<double> v) {
+      std::sort(v.begin(), v.end());
+      return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+    };
+    const double alone = median(cpu[0]);
+    for (int k = 1; k < 4; ++k)
+      std::printf("engine CPU next to %s / alone: %.3f (median %.3f vs %.3f CPU s)\n", kinds[k],
+                  median(cpu[k]) / alone, median(cpu[k]), alone);
+    std::printf("distributed/engine CPU next to an engine process vs alone: %.3f ratio\n", median(cpu[3]) / alone);
+    return 0;
+  }
   auto run_engine_procs = [&](int n, RunFigures& f) -> int {
     const double kids0 = CpuSeconds(RUSAGE_CHILDREN), t0 = dist::NowSeconds();
     std::vector<pid_t> pids;
