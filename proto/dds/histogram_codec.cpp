@@ -36,14 +36,18 @@ void EncodeHistogramRuns(std::span<const uint32_t> dense, google::protobuf::Repe
   }
 }
 
-core::Result<std::vector<uint32_t>> DecodeHistogramRuns(const google::protobuf::RepeatedField<uint64_t>& runs,
-                                                        const HistogramDims& dims) {
+namespace {
+
+/// Walks `runs` over a tensor of dims.cells() counts, calling literal(position, value) for each
+/// literal (zero runs are skipped), with every check of DecodeHistogramRuns.
+template <class Literal>
+Status WalkHistogramRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const HistogramDims& dims,
+                         Literal&& literal) {
   const uint64_t cells = dims.cells();
   if (cells == 0 || cells > kMaxHistogramCells)
     return Status(ErrorCode::kDataLoss, "histogram dimensions " + std::to_string(dims.num_candidates) + "x" +
                                             std::to_string(dims.num_bins) + "x" + std::to_string(dims.num_parts) +
                                             " out of range");
-  std::vector<uint32_t> dense(cells, 0);
   uint64_t pos = 0;
   int k = 0;
   const int size = runs.size();
@@ -60,23 +64,35 @@ core::Result<std::vector<uint32_t>> DecodeHistogramRuns(const google::protobuf::
       const uint64_t v = runs.Get(k++);
       if (v > std::numeric_limits<uint32_t>::max())
         return Status(ErrorCode::kDataLoss, "histogram count " + std::to_string(v) + " exceeds 32 bits");
-      dense[pos++] = static_cast<uint32_t>(v);
+      literal(pos++, static_cast<uint32_t>(v));
     }
   }
+  return Status::Ok();
+}
+
+}  // namespace
+
+core::Result<std::vector<uint32_t>> DecodeHistogramRuns(const google::protobuf::RepeatedField<uint64_t>& runs,
+                                                        const HistogramDims& dims) {
+  std::vector<uint32_t> dense;
+  if (const uint64_t cells = dims.cells(); cells != 0 && cells <= kMaxHistogramCells) dense.assign(cells, 0);
+  POSEFOREST_RETURN_IF_ERROR(WalkHistogramRuns(runs, dims, [&](uint64_t pos, uint32_t v) { dense[pos] = v; }));
   return dense;
 }
 
 Status ValidateNodeHistogram(const poseforest::v1::NodeHistogram& node, const HistogramDims& dims) {
-  auto dense = DecodeHistogramRuns(node.runs(), dims);
-  if (!dense.ok())
-    return Status(dense.status().code(), "node " + std::to_string(node.node_id()) + ": " + dense.status().message());
+  // Per-candidate sums straight from the runs: no dense tensor (a node's is often over 1 MB and
+  // the coordinator checks every node of every reply).
   const uint64_t per_candidate = uint64_t(dims.num_bins) * dims.num_parts;
+  std::vector<uint64_t> sums;
+  if (dims.cells() != 0 && dims.cells() <= kMaxHistogramCells) sums.assign(dims.num_candidates, 0);
+  if (Status st = WalkHistogramRuns(node.runs(), dims, [&](uint64_t pos, uint32_t v) { sums[pos / per_candidate] += v; });
+      !st.ok())
+    return Status(st.code(), "node " + std::to_string(node.node_id()) + ": " + st.message());
   for (uint32_t c = 0; c < dims.num_candidates; ++c) {
-    uint64_t sum = 0;
-    for (uint64_t j = 0; j < per_candidate; ++j) sum += (*dense)[c * per_candidate + j];
-    if (sum != node.samples())
+    if (sums[c] != node.samples())
       return Status(ErrorCode::kDataLoss, "node " + std::to_string(node.node_id()) + " candidate " +
-                                              std::to_string(c) + " counts " + std::to_string(sum) +
+                                              std::to_string(c) + " counts " + std::to_string(sums[c]) +
                                               " samples, node has " + std::to_string(node.samples()));
   }
   if (static_cast<uint32_t>(node.part_counts_size()) != dims.num_parts)

@@ -110,6 +110,84 @@ TEST_CASE("histogram runs round-trip and are compact", "[dds][unit]") {
   CHECK(*back == zeros);
 }
 
+TEST_CASE("ValidateNodeHistogram checks each candidate's sum and the part counts from the runs", "[dds][unit]") {
+  const pd::HistogramDims d{20, 8, 31};
+  const uint64_t samples = 150;
+  auto dense = SparseHistogram(d, samples, 5, 3);
+  v1::NodeHistogram n;
+  n.set_node_id(7);
+  n.set_samples(samples);
+  pd::EncodeHistogramRuns(dense, n.mutable_runs());
+  for (int p = 0; p < 31; ++p) n.add_part_counts(p == 0 ? samples : 0);
+  CHECK(pd::ValidateNodeHistogram(n, d).ok());
+  // The reference: decode to a dense tensor and sum, as the gate did before it summed the runs.
+  auto reference = [&](const v1::NodeHistogram& h) -> std::string {
+    auto back = pd::DecodeHistogramRuns(h.runs(), d);
+    if (!back.ok()) return "node " + std::to_string(h.node_id()) + ": " + back.status().message();
+    for (uint32_t c = 0; c < d.num_candidates; ++c) {
+      uint64_t sum = 0;
+      for (uint64_t j = 0; j < uint64_t(d.num_bins) * d.num_parts; ++j) sum += (*back)[c * d.num_bins * d.num_parts + j];
+      if (sum != h.samples())
+        return "node " + std::to_string(h.node_id()) + " candidate " + std::to_string(c) + " counts " +
+               std::to_string(sum) + " samples, node has " + std::to_string(h.samples());
+    }
+    return "";
+  };
+  auto message = [&](const v1::NodeHistogram& h) {
+    const auto st = pd::ValidateNodeHistogram(h, d);
+    return st.ok() ? std::string() : st.message();
+  };
+  // One count off in candidate 13 (the last cell of its block), and in the last candidate.
+  for (uint32_t c : {13u, 19u}) {
+    auto bad = dense;
+    ++bad[(uint64_t(c) + 1) * d.num_bins * d.num_parts - 1];
+    v1::NodeHistogram h = n;
+    pd::EncodeHistogramRuns(bad, h.mutable_runs());
+    CHECK(message(h) == "node 7 candidate " + std::to_string(c) + " counts 151 samples, node has 150");
+    CHECK(message(h) == reference(h));
+  }
+  // Candidate 0 empty (all its counts moved to candidate 1): both sums are wrong, 0 is named.
+  {
+    auto bad = dense;
+    const uint64_t block = uint64_t(d.num_bins) * d.num_parts;
+    for (uint64_t j = 0; j < block; ++j) bad[block + j] += bad[j], bad[j] = 0;
+    v1::NodeHistogram h = n;
+    pd::EncodeHistogramRuns(bad, h.mutable_runs());
+    CHECK(message(h) == "node 7 candidate 0 counts 0 samples, node has 150");
+  }
+  // Nothing sent for a node that claims samples: every candidate sums to 0.
+  {
+    v1::NodeHistogram h = n;
+    h.clear_runs();
+    CHECK(message(h) == "node 7 candidate 0 counts 0 samples, node has 150");
+  }
+  // Malformed runs are named with the node, before any sum.
+  {
+    v1::NodeHistogram h = n;
+    h.add_runs(1);
+    CHECK(message(h).rfind("node 7: histogram runs", 0) == 0);
+    CHECK(message(h) == reference(h));
+  }
+  // Part counts: wrong number, wrong sum.
+  {
+    v1::NodeHistogram h = n;
+    h.add_part_counts(0);
+    CHECK(message(h) == "node 7 has 32 part counts, expected 31");
+    h = n;
+    h.set_part_counts(3, 1);
+    CHECK(message(h) == "node 7 part counts sum to 151, samples 150");
+  }
+  // Random damage: the streamed check agrees with the dense reference.
+  std::mt19937_64 rng(3);
+  for (int i = 0; i < 300; ++i) {
+    v1::NodeHistogram h = n;
+    auto* runs = h.mutable_runs();
+    const int k = int(rng() % uint64_t(runs->size()));
+    runs->Set(k, rng() % 4 == 0 ? rng() % 400 : runs->Get(k) + (rng() % 3) - 1);
+    CHECK(message(h) == reference(h));
+  }
+}
+
 TEST_CASE("histogram run decoder refuses malformed runs", "[dds][unit]") {
   const pd::HistogramDims d{2, 3, 4};  // 24 cells
   auto decode = [&](std::vector<uint64_t> v) {
