@@ -65,8 +65,9 @@ struct NodeConfig {
   int participant_id = -1;
   /// kDiscoveryClient: the servers, "[ID@]a.b.c.d[:port],..." (ParseDiscoveryServers; addresses,
   /// not host names: Create refuses a name); the participant is a client of every one. An entry
-  /// with ID@ is `fast-discovery-server -i ID` (GUID prefix DiscoveryServerGuidPrefix(ID)); one without uses discovery_server_prefix
-  /// (fast-discovery-server -i 0: 44.53.00.5f.45.50.52.4f.53.49.4d.41).
+  /// with ID@ is `fast-discovery-server -i ID` (GUID prefix DiscoveryServerGuidPrefix(ID)); one
+  /// without uses discovery_server_prefix (fast-discovery-server -i 0:
+  /// 44.53.00.5f.45.50.52.4f.53.49.4d.41).
   std::string discovery_server = "127.0.0.1:11811";
   std::string discovery_server_prefix = "44.53.00.5f.45.50.52.4f.53.49.4d.41";
   /// kXmlProfile: file and participant profile name.
