@@ -12,6 +12,7 @@ training_pkgs=(
   libassimp-dev assimp-testmodels           # rigged meshes (+ CMU BVH test clips)
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri  # headless EGL/GLES (Mesa llvmpipe on CPU)
   python3 iproute2 bzip2 openssl            # test helpers, network namespaces, PCL trees, DDS-Security certs
+  libssl-dev curl                           # HTTPS of the coordinator's status server; test_https's second client
   python3-yaml                              # test_deploy: reads deploy/k8s manifests
   chromium                                  # the coordinator dashboard's headless-browser test
   python3-sklearn python3-matplotlib        # bench/train's side-by-side learner, docs plots (/usr/bin/python3)

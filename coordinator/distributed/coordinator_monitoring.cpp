@@ -9,8 +9,8 @@
 namespace poseforest::dist {
 
 core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Start(
-    const JobInfo& job, const std::string& http, const std::string& event_log,
-    const std::string& http_token) {
+    const JobInfo& job, const std::string& http, const std::string& event_log, const std::string& http_token,
+    const std::string& tls_cert, const std::string& tls_key) {
   std::unique_ptr<CoordinatorMonitoring> m(new CoordinatorMonitoring());
   m->model_ = std::make_unique<StatusModel>(job);
   std::vector<CoordinatorObserver*> targets = {m->model_.get()};
@@ -25,6 +25,8 @@ core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Star
     HttpServerOptions opt;
     POSEFOREST_RETURN_IF_ERROR(ParseHttpAddress(http, &opt));
     opt.bearer_token = http_token;
+    opt.tls_cert_file = tls_cert;
+    opt.tls_key_file = tls_key;
     opt.log = [](const std::string& line) {
       std::fprintf(stderr, "coordinator: %s\n", line.c_str());
       std::fflush(stderr);
@@ -35,6 +37,16 @@ core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Star
                    "who can reach this address, without authentication; give --http-token-file FILE "
                    "(docs/distributed/monitoring.md#access-control)\n",
                    http.c_str());
+      std::fflush(stderr);
+    }
+    if (!http_token.empty() && tls_cert.empty() && !IsLoopbackAddress(opt.address)) {
+      std::fprintf(
+          stderr,
+          "coordinator: warning: --http %s with --http-token-file but without "
+          "--http-tls-cert/--http-tls-key: "
+          "the token and the job's status cross the network in clear text; give a certificate and key "
+          "(docs/distributed/monitoring.md#https)\n",
+          http.c_str());
       std::fflush(stderr);
     }
     auto server = HttpServer::Start(opt, StatusHandler(m->model_.get()));

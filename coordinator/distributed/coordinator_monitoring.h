@@ -18,19 +18,20 @@ inline constexpr const char* kDefaultHttp = "127.0.0.1:0";
 class CoordinatorMonitoring {
  public:
   /// `http`: "off" or HOST:PORT; `event_log`: a file to append to, or empty; `http_token`: the
-  /// bearer token every HTTP request must carry (empty: none; ReadHttpTokenFile). Refused
-  /// requests are logged to stderr ("coordinator: http: 401 ... from IP:PORT", rate-limited); a
-  /// non-loopback address without a token prints a warning. Errors: a bad address, a port in
-  /// use, an event log that cannot be opened.
-  static core::Result<std::unique_ptr<CoordinatorMonitoring>> Start(const JobInfo& job,
-                                                                    const std::string& http,
-                                                                    const std::string& event_log,
-                                                                    const std::string& http_token = "");
+  /// bearer token every HTTP request but /healthz must carry (empty: none; ReadHttpTokenFile);
+  /// `tls_cert`/`tls_key`: PEM files for HTTPS (both or neither). Refused requests and failed TLS
+  /// handshakes are logged to stderr ("coordinator: http: 401 ... from IP:PORT", rate-limited); a
+  /// non-loopback address without a token, or with a token but without TLS, prints a warning.
+  /// Errors: a bad address, certificate or key (InvalidArgument), a port in use, an event log
+  /// that cannot be opened.
+  static core::Result<std::unique_ptr<CoordinatorMonitoring>> Start(
+      const JobInfo& job, const std::string& http, const std::string& event_log,
+      const std::string& http_token = "", const std::string& tls_cert = "", const std::string& tls_key = "");
 
   /// For CoordinatorOptions::observer.
   CoordinatorObserver* observer() { return &fanout_; }
   StatusModel& model() { return *model_; }
-  /// "http://HOST:PORT" or empty when --http off.
+  /// "http://HOST:PORT" ("https://" with TLS) or empty when --http off.
   std::string url() const { return http_ ? http_->url() : ""; }
 
   /// The run ended: final state in the model and the event log (FOREST_WRITTEN or JOB_FAILED).

@@ -211,12 +211,14 @@ std::string HttpServerMetrics(const HttpServer& server) {
   std::string out =
       "# HELP poseforest_http_requests_total Requests and connections of the status server, by outcome "
       "(ok: answered; bad_request: 400/405/408/431; unauthorized: 401, no or a wrong token; "
-      "rejected_connection: 503, over the connection limits).\n"
+      "rejected_connection: 503, over the connection limits; tls_handshake_failed: HTTPS only, a failed TLS "
+      "handshake, plain HTTP to the port included).\n"
       "# TYPE poseforest_http_requests_total counter\n";
   const std::pair<const char*, uint64_t> rows[] = {{"ok", server.requests()},
                                                    {"bad_request", server.bad_requests()},
                                                    {"unauthorized", server.unauthorized()},
-                                                   {"rejected_connection", server.dropped()}};
+                                                   {"rejected_connection", server.dropped()},
+                                                   {"tls_handshake_failed", server.tls_handshake_failures()}};
   for (const auto& [outcome, n] : rows)
     out += std::string("poseforest_http_requests_total{outcome=\"") + outcome + "\"} " + std::to_string(n) +
            "\n";

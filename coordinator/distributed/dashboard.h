@@ -14,7 +14,7 @@ namespace poseforest::dist {
 const std::string& DashboardHtml();
 
 /// The status server's own counters in Prometheus text (poseforest_http_requests_total by outcome:
-/// ok, bad_request, unauthorized, rejected_connection); /metrics ends with them.
+/// ok, bad_request, unauthorized, rejected_connection, tls_handshake_failed); /metrics ends with them.
 std::string HttpServerMetrics(const HttpServer& server);
 
 /// Routes requests to `model` (not owned; must outlive the server).

@@ -208,7 +208,8 @@ struct LocalWorkers {
 int CoordinatorMain(int argc, char** argv) {
   Args args(WithDdsOptions({"out", "local-workers", "domain", "checkpoint", "status-file", "min-workers",
                              "min-workers-per-tree", "pause-file", "job-id", "worker-threads", "worker-wait-s",
-                             "http", "http-token-file", "event-log", "http-linger-s", "worker-security"}),
+                             "http", "http-token-file", "http-tls-cert", "http-tls-key", "event-log",
+                             "http-linger-s", "worker-security"}),
             {"resume", "check-config", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || args.positional().size() != 1 || !args.Has("out")) {
@@ -222,7 +223,10 @@ int CoordinatorMain(int argc, char** argv) {
         "          dashboard over HTTP, default 127.0.0.1:0 = a free loopback port, printed; the final\n"
         "          state stays up S s (default 2) if anyone read it; JSON-lines event log)\n"
         "         [--http-token-file FILE]   (every HTTP request needs \"Authorization: Bearer TOKEN\";\n"
-        "          the dashboard: open /?token=TOKEN; FILE: one line, mode 600 (or root-owned 440))\n"
+        "          the dashboard: open /?token=TOKEN; FILE: one line, mode 600 (or root-owned 440);\n"
+        "          /healthz stays open, for probes)\n"
+        "         [--http-tls-cert CERT.pem --http-tls-key KEY.pem]   (HTTPS only, TLS 1.2+: the\n"
+        "          certificate chain and its unencrypted key, mode 600 (or root-owned 440); both or neither)\n"
         "         [--worker-security DIR]   (--local-workers with --security: the workers' credentials)\n"
         "         [--check-config]   (parse the flags, load the job, the XML profile and the security\n"
         "          files, print what would run and exit 0, without joining DDS; 2 on a bad setting)\n"
@@ -348,6 +352,14 @@ int CoordinatorMain(int argc, char** argv) {
         return 2;
       }
     }
+    if (args.Has("http-tls-cert") || args.Has("http-tls-key")) {
+      if (Status st =
+              dist::CheckHttpTlsFiles(args.GetOr("http-tls-cert", ""), args.GetOr("http-tls-key", ""));
+          !st.ok()) {
+        std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
+        return 2;
+      }
+    }
     if (args.Has("event-log")) {
       const auto log_dir = std::filesystem::absolute(*args.Get("event-log")).parent_path();
       if (std::error_code ec; !std::filesystem::is_directory(log_dir, ec)) {
@@ -416,11 +428,19 @@ int CoordinatorMain(int argc, char** argv) {
     }
     http_token = *token;
   }
+  const std::string tls_cert = args.GetOr("http-tls-cert", ""), tls_key = args.GetOr("http-tls-key", "");
+  if (!tls_cert.empty() || !tls_key.empty()) {
+    if (args.GetOr("http", dist::kDefaultHttp) == "off") {
+      std::fprintf(stderr,
+                   "coordinator: --http-tls-cert/--http-tls-key are for the HTTP status server, not --http off\n");
+      return 2;
+    }
+  }
   auto monitoring = dist::CoordinatorMonitoring::Start(
       {opt.job_id, opt.domain, dds_flags->Label(), params->num_trees, params->max_depth,
        params->images_per_tree, params->pixels_per_image, params->candidate_features,
        params->thresholds_per_feature, *args.Get("out")},
-      args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""), http_token);
+      args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""), http_token, tls_cert, tls_key);
   if (!monitoring.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", monitoring.status().ToString().c_str());
     return monitoring.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;  // 1: port in use
@@ -436,6 +456,10 @@ int CoordinatorMain(int argc, char** argv) {
                   "%s --http-token-file %s\n",
                   url.c_str(), url.c_str(), url.c_str(), args.Get("http-token-file")->c_str(), url.c_str(),
                   url.c_str(), args.Get("http-token-file")->c_str());
+    if (!tls_cert.empty())
+      std::printf("status: HTTPS only (certificate %s); a certificate from a private CA: monitor --http-ca-file "
+                  "CA.pem; use a host name the certificate names\n",
+                  tls_cert.c_str());
     std::fflush(stdout);
   }
   LocalWorkers workers;

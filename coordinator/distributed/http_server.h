@@ -1,13 +1,16 @@
 #pragma once
-// A small dependency-free HTTP/1.1 server for the coordinator's status (GET/HEAD only, one
-// response per connection, "Connection: close"), and the matching client used by
-// `poseforest monitor`. One background thread polls every socket without blocking, so a slow or
-// hostile client cannot hold up the others or the training thread: request heads are bounded
-// (431), malformed request lines get 400, other methods 405, a request not complete within the
-// timeout 408, and connections beyond the limit (in all, or from one peer address) are closed at
-// once with 503. With a bearer token (`--http-token-file`) every request must carry it
-// ("Authorization: Bearer TOKEN", or `?token=TOKEN` for the dashboard page itself); others get
-// 401, are counted and logged (rate-limited) with the peer address. docs/distributed/monitoring.md.
+// A small HTTP/1.1 server for the coordinator's status (GET/HEAD only, one response per
+// connection, "Connection: close"), and the matching client used by `poseforest monitor`. One
+// background thread polls every socket without blocking, so a slow or hostile client cannot hold
+// up the others or the training thread: request heads are bounded (431), malformed request lines
+// get 400, other methods 405, a request not complete within the timeout 408, and connections
+// beyond the limit (in all, or from one peer address) are closed at once with 503. With a bearer
+// token (`--http-token-file`) every request but /healthz must carry it ("Authorization: Bearer
+// TOKEN", or `?token=TOKEN` for the dashboard page itself); others get 401, are counted and logged
+// (rate-limited) with the peer address. With a certificate and key (`--http-tls-cert`,
+// `--http-tls-key`; OpenSSL) it speaks HTTPS only (TLS 1.2+), the handshake driven by the same
+// poll loop (non-blocking, under the same timeout and connection caps); a failed handshake (plain
+// HTTP to the port included) is counted and closed. docs/distributed/monitoring.md.
 
 #include <atomic>
 #include <chrono>
@@ -46,14 +49,29 @@ struct HttpServerOptions {
   int max_connections_per_peer = 16;        ///< more at once from one IP address are closed right away
   /// Non-empty: every request needs "Authorization: Bearer <token>" (or, for "/" and
   /// "/index.html" only, the query parameter token=<token>); others get 401. Compared in constant
-  /// time. See ReadHttpTokenFile.
+  /// time. See ReadHttpTokenFile. "/healthz" is answered without it (liveness and readiness probes;
+  /// the handler's "ok" reveals nothing).
   std::string bearer_token;
   /// Receives a line per refused request (401, per-peer 503), at most `log_burst` lines at once
   /// and then one per `log_interval`, each saying how many were not logged. Null: no log.
   std::function<void(const std::string&)> log;
   int log_burst = 5;
   std::chrono::milliseconds log_interval{10000};
+  /// Both non-empty: HTTPS only (TLS 1.2 or later) with this PEM certificate (chain: the server's
+  /// certificate first) and PEM private key (unencrypted; checked like the token file: no access for
+  /// others, nor for its group unless root owns it). Start() refuses a missing, unreadable or
+  /// malformed file, or a key that does not match the certificate, naming the file.
+  std::string tls_cert_file;
+  std::string tls_key_file;
 };
+
+/// Loads `cert_file` and `key_file` as HttpServerOptions::tls_cert_file/tls_key_file would be
+/// (for `--check-config`): InvalidArgument naming the flag and file on any problem.
+core::Status CheckHttpTlsFiles(const std::string& cert_file, const std::string& key_file);
+
+/// Checks that `ca_file` (`monitor --http-ca-file`) holds at least one PEM certificate:
+/// InvalidArgument naming the file otherwise.
+core::Status CheckHttpCaFile(const std::string& ca_file);
 
 /// The bearer token in `path` (`--http-token-file`), checked like ssh checks a private key: the file
 /// must exist, be a regular file, not be readable or writable by others, nor by its group unless
@@ -80,13 +98,17 @@ class HttpServer {
   ~HttpServer();  ///< stops the thread and closes every socket
 
   uint16_t port() const { return port_; }
-  /// "http://ADDRESS:PORT" (0.0.0.0 shown as 127.0.0.1).
+  /// "http://ADDRESS:PORT" or "https://ADDRESS:PORT" with TLS (0.0.0.0 shown as 127.0.0.1).
   std::string url() const;
+  bool tls() const { return tls_ != nullptr; }
 
   uint64_t requests() const { return requests_; }          ///< answered with the handler
   uint64_t bad_requests() const { return bad_; }           ///< answered 400/405/408/431
   uint64_t dropped() const { return dropped_; }            ///< closed over the connection limits
   uint64_t unauthorized() const { return unauthorized_; }  ///< answered 401 (no or a wrong token)
+  /// TLS connections whose handshake failed (plain HTTP to the port, no common version or cipher,
+  /// garbage); a connection closed before sending a byte is not counted.
+  uint64_t tls_handshake_failures() const { return tls_failed_; }
 
  private:
   HttpServer() = default;
@@ -97,7 +119,9 @@ class HttpServer {
   int listen_fd_ = -1, wake_[2] = {-1, -1};
   uint16_t port_ = 0;
   std::atomic<bool> stop_{false};
-  std::atomic<uint64_t> requests_{0}, bad_{0}, dropped_{0}, unauthorized_{0};
+  std::atomic<uint64_t> requests_{0}, bad_{0}, dropped_{0}, unauthorized_{0}, tls_failed_{0};
+  struct Tls;  // OpenSSL's server context (http_server.cpp)
+  std::shared_ptr<Tls> tls_;
   // Rate limit of opt_.log (serving thread only).
   int log_credit_ = 0;
   std::chrono::steady_clock::time_point log_refill_{};
@@ -106,10 +130,14 @@ class HttpServer {
   std::thread thread_;
 };
 
-/// The body of GET http://HOST:PORT/path ("http://" URLs only, IPv4 or localhost), with
-/// "Authorization: Bearer <bearer_token>" when one is given. Errors: the URL, connection, timeout,
-/// a non-200 status (its code and first line of the body; for 401 also whether a token was sent).
+/// The body of GET http[s]://HOST[:PORT]/path (HOST an IPv4 address or a name resolved to one;
+/// PORT default 80 / 443), with "Authorization: Bearer <bearer_token>" when one is given. For
+/// https:// the server's certificate must chain to `ca_file` (PEM; empty: the system's trust store)
+/// and name HOST (DNS name or IP address), over TLS 1.2 or later. Errors: the URL, connection,
+/// timeout, TLS (an untrusted certificate or one for another host, saying what to do), a truncated
+/// reply, a non-200 status (its code and first line of the body; for 401 also whether a token was
+/// sent). InvalidArgument: retrying will not help (bad URL, 401, TLS refused).
 core::Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout,
-                                  const std::string& bearer_token = "");
+                                  const std::string& bearer_token = "", const std::string& ca_file = "");
 
 }  // namespace poseforest::dist

@@ -400,7 +400,7 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
 }  // namespace
 
 int MonitorMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"url",       "http-token-file", "interval-ms",
+  std::set<std::string> value_options = {"url",       "http-token-file", "http-ca-file", "interval-ms",
                                          "timeout-s", "domain",          "job"};
   for (const char* o : dist::kDdsValueOptions) value_options.insert(o);  // the DDS transport flags
   Args args(value_options, {"once", "levels", "help"});
@@ -409,8 +409,9 @@ int MonitorMain(int argc, char** argv) {
     if (!st.ok()) std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
     std::fprintf(
         stderr,
-        "usage: poseforest monitor --url http://HOST:PORT [--http-token-file FILE] [--once] [--interval-ms "
-        "1000]\n"
+        "usage: poseforest monitor --url http[s]://HOST:PORT [--http-token-file FILE] [--http-ca-file "
+        "CA.pem]\n"
+        "                          [--once] [--interval-ms 1000]\n"
         "                          [--timeout-s 10] [--levels]\n"
         "       poseforest monitor --domain D [--job ID] [DDS transport flags] [--once] [--levels] ...\n"
         "  Shows a training job's live status from its coordinator (the URL the coordinator prints,\n"
@@ -423,6 +424,9 @@ int MonitorMain(int argc, char** argv) {
         "  --http-token-file: the coordinator's token file (its --http-token-file), sent as\n"
         "  \"Authorization: Bearer TOKEN\"; the same checks (mode 600, one line). A wrong or missing token\n"
         "  (HTTP 401) exits 1 at once.\n"
+        "  https:// (a coordinator with --http-tls-cert): the certificate must name HOST and chain to\n"
+        "  --http-ca-file CA.pem (PEM; default: the system's trust store); TLS 1.2+. An untrusted\n"
+        "  certificate exits 1 at once, saying why.\n"
         "  --domain: reads the job announcement and the coordinator's status events from DDS instead\n"
         "  (the same figures and worker table, no URL needed); --job picks one job of the domain.\n"
         "  DDS transport flags, as for the job's coordinator and workers (`poseforest coordinator --help`):\n"
@@ -438,8 +442,10 @@ int MonitorMain(int argc, char** argv) {
                  (!interval.ok() ? interval.status() : timeout.status()).message().c_str());
     return 2;
   }
-  if (args.Has("http-token-file") && args.Has("domain")) {
-    std::fprintf(stderr, "monitor: --http-token-file is for --url (the coordinator's HTTP status)\n");
+  if ((args.Has("http-token-file") || args.Has("http-ca-file")) && args.Has("domain")) {
+    std::fprintf(
+        stderr,
+        "monitor: --http-token-file and --http-ca-file are for --url (the coordinator's HTTP status)\n");
     return 2;
   }
   if (args.Has("domain")) {
@@ -464,12 +470,23 @@ int MonitorMain(int argc, char** argv) {
   }
   std::string url = *args.Get("url");
   while (!url.empty() && url.back() == '/') url.pop_back();
+  const std::string ca_file = args.GetOr("http-ca-file", "");
+  if (!ca_file.empty()) {
+    if (url.rfind("https://", 0) != 0) {
+      std::fprintf(stderr, "monitor: --http-ca-file is for https:// URLs (%s)\n", url.c_str());
+      return 2;
+    }
+    if (Status ca = dist::CheckHttpCaFile(ca_file); !ca.ok()) {
+      std::fprintf(stderr, "monitor: %s\n", ca.message().c_str());
+      return 2;
+    }
+  }
   const bool once = args.Has("once");
   const bool tty = ::isatty(1) && !once;
   auto last_ok = std::chrono::steady_clock::now();
   std::string last_state;
   for (;;) {
-    auto body = dist::HttpGet(url + "/status.json", std::chrono::milliseconds(5000), token);
+    auto body = dist::HttpGet(url + "/status.json", std::chrono::milliseconds(5000), token, ca_file);
     pb::Struct status;
     Status st = body.ok() ? Status::Ok() : body.status();
     if (st.ok()) {
@@ -479,7 +496,8 @@ int MonitorMain(int argc, char** argv) {
         st = Status(core::ErrorCode::kDataLoss, url + "/status.json: not a JSON object");
     }
     if (!st.ok()) {
-      if (once || st.message().find(": HTTP 401: ") != std::string::npos) {  // retrying will not help
+      // InvalidArgument: a bad URL, HTTP 401, a certificate not trusted: retrying will not help.
+      if (once || st.code() == core::ErrorCode::kInvalidArgument) {
         std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
         return 1;
       }

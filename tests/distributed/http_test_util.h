@@ -74,15 +74,18 @@ inline int StatusCode(const std::string& reply) {
   return std::atoi(reply.substr(9, 3).c_str());
 }
 
-/// The DOM of `url` (quoted for the shell) after its script has run for 4 s of virtual time.
-inline std::string DumpDom(const std::string& url) {
+/// The DOM of `url` (quoted for the shell) after its script has run for 4 s of virtual time;
+/// `flags`: more Chromium flags (e.g. --ignore-certificate-errors-spki-list=HASH for an HTTPS test
+/// server).
+inline std::string DumpDom(const std::string& url, const std::string& flags = "") {
   REQUIRE(std::filesystem::exists("/usr/bin/chromium"));  // scripts/setup.sh installs it
   TempDir profile("pf-chromium-profile");
   const std::string cmd =
       "timeout 90 /usr/bin/chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
       "--disable-background-networking --disable-component-update --disable-sync --disable-dev-shm-usage "
       "--user-data-dir=" +
-      profile.path.string() + " --virtual-time-budget=4000 --dump-dom '" + url + "' 2>/dev/null";
+      profile.path.string() + " " + flags + " --virtual-time-budget=4000 --dump-dom '" + url +
+      "' 2>/dev/null";
   auto r = poseforest::testing::RunCommand(cmd);
   INFO(r.output.substr(0, 3000));
   REQUIRE(r.exit_code == 0);
