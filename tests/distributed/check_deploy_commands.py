@@ -191,6 +191,17 @@ def run_check(binary, argv, env, root, label, source, hosts_file=None):
     return None
 
 
+def tls_test_pair(tmp):
+    """A self-signed test certificate and key (PEM texts) for a kubernetes.io/tls Secret's tls.crt/tls.key."""
+    d = os.path.join(tmp, "http-tls")
+    if not os.path.isdir(d):
+        os.makedirs(d)
+        subprocess.run(["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:P-256", "-nodes",
+                        "-days", "2", "-keyout", os.path.join(d, "tls.key"), "-out", os.path.join(d, "tls.crt"),
+                        "-subj", "/CN=localhost"], check=True, capture_output=True)
+    return {k: open(os.path.join(d, k)).read() for k in ("tls.crt", "tls.key")}
+
+
 def make_credentials(dest, source, tmp):
     """A test CA's credentials for one participant, all six files flat in dest (a Secret mount)."""
     ca = os.path.join(tmp, "ca")
@@ -300,14 +311,18 @@ def main():
                             with open(os.path.join(mount, key), "w") as f:
                                 f.write(text)
                     elif "secret" in v and "items" in v["secret"]:
-                        # A Secret of named keys (the coordinator's HTTP token): each item's path
+                        # A Secret of named keys (the coordinator's HTTP token; tls.crt/tls.key of a
+                        # kubernetes.io/tls Secret: a test certificate and key): each item's path
                         # with a test value and the mode Kubernetes gives it (item mode, else
                         # defaultMode, else 0644), so that a mode the program refuses fails here.
                         for item in v["secret"]["items"]:
                             f = os.path.join(mount, item["path"])
                             os.makedirs(os.path.dirname(f), exist_ok=True)
                             with open(f, "w") as out:
-                                out.write("test-token-for-" + item["key"] + "\n")
+                                if item["key"] in ("tls.crt", "tls.key"):
+                                    out.write(tls_test_pair(tmp)[item["key"]])
+                                else:
+                                    out.write("test-token-for-" + item["key"] + "\n")
                             os.chmod(f, item.get("mode", v["secret"].get("defaultMode", 0o644)))
                     elif "secret" in v:
                         make_credentials(mount, a.source, tmp)

@@ -606,6 +606,8 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
       {"k8s/workers.yaml", "\"--threads\", \"4\"", "\"--threads\", \"four\"", "--threads"},
       {"k8s/coordinator.yaml", "/etc/poseforest/job.textproto", "/etc/poseforest/jobs.textproto",
        "jobs.textproto"},
+      {"k8s/coordinator.yaml", "\"--http-tls-key\", \"/etc/poseforest-http-tls/tls.key\"",
+       "\"--http-tls-key\", \"/etc/poseforest-http-tls/tls.crt\"", "no PEM private key in it"},
       {"docker/Dockerfile.worker", "CMD [\"--stay\"]", "CMD [\"--stay\", \"--profile\", \"tcp\"]",
        "expected shm, udp or default"},
       {"docker/Dockerfile.coordinator", "POSEFOREST_DDS_PROFILE=poseforest_discovery_client",
