@@ -56,11 +56,6 @@ std::string Human(double bytes) {
   return buf;
 }
 
-/// The DDS flags (dds_flags.h) of a command line, checked.
-core::Result<dist::DdsFlags> ParseDdsFlags(const Args& args) {
-  return dist::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
-}
-
 /// The job file's TrainerConfig with its relative paths (pose library, MakeHuman kit, dataset
 /// folders) resolved against the file's folder, as `poseforest train` does: kIo when the file
 /// cannot be read, the parser's error (naming the file) when it does not parse.
