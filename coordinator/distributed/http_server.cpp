@@ -721,7 +721,7 @@ void HttpServer::Loop() {
             " failed: " + (plain_http ? std::string("plain HTTP sent to the HTTPS port") : why));
         if (plain_http) {
           const std::string r =
-              Serialize(Error(400, "this port speaks HTTPS only: use " + url() + "/"), false);
+              Serialize(Error(400, "this port speaks HTTPS only: use https:// instead of http://"), false);
           (void)::send(c.fd, r.data(), r.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
           char sink[4096];
           while (::recv(c.fd, sink, sizeof sink, MSG_DONTWAIT) > 0) {
