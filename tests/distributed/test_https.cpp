@@ -675,3 +675,45 @@ TEST_CASE("the dashboard over HTTPS in headless Chromium: loads its data with th
   }
   CHECK(WaitUntil([&] { return (*server)->tls_handshake_failures() > failures; }));
 }
+
+TEST_CASE("HTTPS: clients that go away in the middle of a large reply do not kill the process (SIGPIPE)",
+          "[distributed][monitoring][http][https][integration]") {
+  TempDir dir("pf-https-sigpipe");
+  const Pki pki = MakePki(dir.path);
+  // A 16 MiB reply: many TLS records, many write()s, the later ones after the client has gone.
+  const std::string big(16u << 20, 'x');
+  auto server = HttpServer::Start(TlsOptions(pki), [&](const HttpRequest& req) -> HttpResponse {
+    if (req.path == "/big") {
+      std::this_thread::sleep_for(300ms);  // long enough for the client to close first
+      return {200, "text/plain", big};
+    }
+    return {200, "text/plain", "ok\n"};
+  });
+  REQUIRE(server.ok());
+  const std::string port = std::to_string((*server)->port());
+  // A client (Python's ssl, TLS 1.2: no session tickets left unread after the handshake) sends the
+  // request and closes at once: the server then writes into a connection in CLOSE_WAIT, the
+  // client's kernel resets it, and the server's next write() fails with EPIPE.
+  const fs::path script = dir.path / "go-away.py";
+  std::ofstream(script)
+      << "import socket, ssl, sys\n"
+         "ctx = ssl.create_default_context(cafile=sys.argv[1])\n"
+         "ctx.maximum_version = ssl.TLSVersion.TLSv1_2\n"
+         "for i in range(3):\n"
+         "    s = ctx.wrap_socket(socket.create_connection(('127.0.0.1', int(sys.argv[2]))),\n"
+         "                        server_hostname='localhost')\n"
+         "    s.sendall(b'GET /big HTTP/1.1\\r\\nHost: x\\r\\n\\r\\n')\n"
+         "    s.close()\n"
+         "print('sent')\n";
+  auto go_away = RunCommand("python3 " + Quote(script) + " " + Quote(pki.ca()) + " " + port);
+  INFO(go_away.output);
+  REQUIRE(go_away.exit_code == 0);
+  std::this_thread::sleep_for(500ms);
+  // Still here (a SIGPIPE would have ended this test program), and serving.
+  auto r = HttpGet("https://localhost:" + port + "/small", 10s, "", pki.ca().string());
+  INFO((r.ok() ? "" : r.status().message()));
+  CHECK(r.ok());
+  auto whole = HttpGet("https://localhost:" + port + "/big", 30s, "", pki.ca().string());
+  REQUIRE(whole.ok());
+  CHECK(whole->size() == big.size());
+}
