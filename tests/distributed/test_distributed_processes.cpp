@@ -151,7 +151,7 @@ TEST_CASE("the job's dds section: coordinator and `worker --job-file` meet on it
            {"dds { profile: \"udp\" peers: \"10.0.0\" }", "(transport settings from the dds section of " + job},
            {"dds { dds_xml: \"missing.xml\" dds_profile: \"p\" }", "missing.xml"}}) {
     std::ofstream(job) << TinyJobText(1, 5, 300) << dds << "\n";
-    for (const std::string cmd : {"coordinator " + job + " --out " + (dir.path / "g.pff").string(),
+    for (const std::string& cmd : {"coordinator " + job + " --out " + (dir.path / "g.pff").string(),
                                   "worker --job-file " + job}) {
       auto bad = run(cmd + " --check-config");
       INFO(cmd << " with " << dds << ": " << bad.output);
