@@ -44,11 +44,17 @@
 //   --engine-only   the engine alone (e.g. under a profiler)
 //   --no-sample-lists  subtree tasks without their sample lists (workers route every sample of
 //                   the tasks' frames, one task at a time): the service before that change
+// After the --repeat pairs, R more pairs run the two commands as users do, each a fresh process:
+// `poseforest train JOB --threads N` and `poseforest train JOB --local-workers N` (the program
+// next to this bench, ../bin/poseforest, or --poseforest PATH); their median ratio is printed
+// above the last line. Unlike the in-process engine (warm: heap pages and libraries already
+// loaded from its earlier runs), both start cold, and the coordinator's own start-up counts.
 //   --neighbour-test R  instead of the service runs: the 1-thread engine alone, next to a busy
 //                   loop and next to random reads over 16 MiB, R rounds; shows what a second
 //                   busy process costs through the shared L3 (docs/distributed/service.md)
 // POSEFOREST_BENCH_WORKER_WRAP="CMD ARGS": worker processes run under CMD (a profiler).
 
+#include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/prctl.h>
@@ -69,6 +75,8 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include <google/protobuf/text_format.h>
 
 #include "coordinator/distributed/dist_coordinator.h"
 #include "coordinator/local_trainer.h"
@@ -309,6 +317,7 @@ int main(int argc, char** argv) {
   int repeat = 1;
   bool engine_only = false, sample_lists = true;
   int neighbour_test = 0;
+  std::string cli_path;  // the poseforest program (default: ../bin/poseforest next to this bench)
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--workers") && i + 1 < argc) {
       worker_counts.clear();
@@ -327,6 +336,8 @@ int main(int argc, char** argv) {
       neighbour_test = std::atoi(argv[++i]);
       if (neighbour_test < 1 || neighbour_test > 50)
         return std::fprintf(stderr, "distributed: --neighbour-test wants 1..50\n"), 2;
+    } else if (!std::strcmp(argv[i], "--poseforest") && i + 1 < argc) {
+      cli_path = argv[++i];
     } else if (!std::strcmp(argv[i], "--no-sample-lists")) {
       sample_lists = false;
     } else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) {
@@ -342,7 +353,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] "
                    "[--workers N,N] [--skip-off] [--repeat R] [--engine-only] [--no-sample-lists] "
-                   "[--neighbour-test R]\n");
+                   "[--neighbour-test R] [--poseforest PATH]\n");
       return std::strcmp(argv[i], "--help") ? 2 : 0;
     } else {
       std::ifstream in(argv[i]);
@@ -465,6 +476,7 @@ int main(int argc, char** argv) {
     for (int k = 1; k < 4; ++k)
       std::printf("engine CPU next to %s / alone: %.3f (median %.3f vs %.3f CPU s)\n", kinds[k],
                   median(cpu[k]) / alone, median(cpu[k]), alone);
+    std::filesystem::remove(job_file);
     std::printf("distributed/engine CPU next to an engine process vs alone: %.3f ratio\n", median(cpu[3]) / alone);
     return 0;
   }
@@ -731,6 +743,90 @@ int main(int argc, char** argv) {
                 LoadAverage());
     std::fflush(stdout);
   }
+  // As users run them: `poseforest train JOB --threads N` against `poseforest
+  // train JOB --local-workers N`, each a fresh process (the service: the coordinator and its N
+  // worker processes), CPU of the process and its reaped descendants, forests compared with the
+  // engine's. The in-process engine above runs warm: after its first run its heap pages are
+  // already faulted in (the process keeps freed memory, core::KeepFreedMemory) and its libraries
+  // and OpenMP pool are loaded, while the service's workers always start cold; a user's `train`
+  // starts cold too. Pairs alternate which command runs first.
+  const uint64_t head_sm = subtree_max > 0 ? uint64_t(subtree_max) : 0;
+  std::vector<double> ratios_cli;
+  {
+    if (cli_path.empty()) cli_path = (std::filesystem::path(self).parent_path() / ".." / "bin" / "poseforest").string();
+    if (::access(cli_path.c_str(), X_OK) != 0)
+      return std::fprintf(stderr,
+                          "distributed: the headline runs the poseforest program and %s is not executable "
+                          "(build the target poseforest, or give --poseforest PATH)\n",
+                          cli_path.c_str()),
+             1;
+    config->set_subtree_max_samples(head_sm);
+    std::string head_text;
+    google::protobuf::TextFormat::PrintToString(*config, &head_text);
+    const auto tmp = std::filesystem::temp_directory_path();
+    const std::string tag = "bench-" + std::to_string(::getpid()), head_job = (tmp / (tag + "-cli.textproto")).string(),
+                      out_e = (tmp / (tag + "-cli-engine.pff")).string(),
+                      out_s = (tmp / (tag + "-cli-service.pff")).string(), log = (tmp / (tag + "-cli.log")).string();
+    std::ofstream(head_job) << head_text;
+    const std::string n_str = std::to_string(head_n);
+    // One command, output to `log`; its CPU (and its reaped descendants'); false if it failed or
+    // its forest is not the engine's.
+    auto run_cli = [&](std::vector<std::string> a, const std::string& out, double* cpu) -> bool {
+      a.insert(a.begin(), cli_path);
+      std::vector<char*> c;
+      for (auto& x : a) c.push_back(x.data());
+      c.push_back(nullptr);
+      posix_spawn_file_actions_t fa;
+      ::posix_spawn_file_actions_init(&fa);
+      ::posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      ::posix_spawn_file_actions_adddup2(&fa, 1, 2);
+      std::filesystem::remove(out);
+      const double c0 = CpuSeconds(RUSAGE_CHILDREN);
+      pid_t pid = -1;
+      const int err = ::posix_spawn(&pid, c[0], &fa, nullptr, c.data(), environ);
+      ::posix_spawn_file_actions_destroy(&fa);
+      if (err != 0) return false;
+      int status = 0;
+      ::waitpid(pid, &status, 0);
+      *cpu = CpuSeconds(RUSAGE_CHILDREN) - c0;
+      if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return false;
+      std::ifstream in(out, std::ios::binary);
+      const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      return bytes == ref_bytes;
+    };
+    std::printf("\nas users run them, %d pairs: `%s train JOB --threads %d` against `... train JOB "
+                "--local-workers %d`, fresh processes, CPU of each command and its worker processes\n",
+                repeat, cli_path.c_str(), head_n, head_n);
+    for (int r = 0; r < repeat; ++r) {
+      double ce = 0, cs = 0;
+      const uint32_t dom = (domain + 101 + uint32_t(r)) % 233;
+      auto engine_cmd = [&] {
+        return run_cli({"train", head_job, "--threads", n_str, "--quiet", "--out", out_e}, out_e, &ce);
+      };
+      auto service_cmd = [&] {
+        return run_cli({"train", head_job, "--local-workers", n_str, "--domain", std::to_string(dom), "--http", "off",
+                        "--out", out_s},
+                       out_s, &cs);
+      };
+      const bool engine_first = r % 2 == 0;
+      const bool a = engine_first ? engine_cmd() : service_cmd();
+      const bool b = engine_first ? service_cmd() : engine_cmd();
+      if (!a || !b) {
+        std::printf("pair %d: a command failed or its forest differs from the engine's; its output: %s\n", r + 1,
+                    log.c_str());
+        ok = false;
+        break;
+      }
+      ratios_cli.push_back(ce / cs);
+      std::printf("pair %d (%s first): train --threads %d %.3f CPU s, train --local-workers %d %.3f CPU s, ratio "
+                  "%.3f, load average %.1f\n",
+                  r + 1, engine_first ? "engine" : "service", head_n, ce, head_n, cs, ratios_cli.back(),
+                  LoadAverage());
+      std::fflush(stdout);
+    }
+    for (const std::string& f : {head_job, out_e, out_s}) std::filesystem::remove(f);
+    if (ok) std::filesystem::remove(log);
+  }
   const auto median_of = [](std::vector<double> v) {
     std::sort(v.begin(), v.end());
     return v.size() % 2 ? v[v.size() / 2] : (v[v.size() / 2 - 1] + v[v.size() / 2]) / 2;
@@ -750,6 +846,12 @@ int main(int argc, char** argv) {
                 *std::max_element(ratios_procs.begin(), ratios_procs.end()));
   std::filesystem::remove(job_file);
   if (!ok) std::printf("WARNING: a service run differs from the engine (forest bytes or evaluation count)\n");
+  if (!ratios_cli.empty())
+    std::printf("as users run them: train --local-workers %d vs train --threads %d, fresh processes, per CPU-second: "
+                "median %.3f over %zu pairs (min %.3f, max %.3f)\n",
+                head_n, head_n, median_of(ratios_cli), ratios_cli.size(),
+                *std::min_element(ratios_cli.begin(), ratios_cli.end()),
+                *std::max_element(ratios_cli.begin(), ratios_cli.end()));
   // Same evaluations in both (checked): the ratio of evaluations per CPU-second is engine CPU /
   // service CPU.
   std::printf("distributed/engine per core: %.3f ratio\n", median);
