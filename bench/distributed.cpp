@@ -18,13 +18,20 @@
 // job's frame rule (subtree_max_frames, default 256; job.proto) applies too: this job's 100
 // frames per tree let nodes of up to 16 x S samples go whole once they hold at most a quarter
 // of the level's samples per worker.
-// The last line is `distributed/engine per core: <ratio> ratio`: 2 workers (with hand-off as
-// configured) against the engine on as many cores (LocalTrainer with 2 OpenMP threads), in
-// evaluations per CPU-second; the median over --repeat pairs. The engine also runs with 1 thread,
-// and the ratio against that is printed above the last line: two busy processes on this VM's two
-// cores cost 8-15 % more CPU for the same work than one (shared L3 and memory bandwidth; measured
-// with the engine alone, docs/distributed/service.md), and the same-cores comparison keeps that
-// hardware effect out of the service's overhead.
+// The last line is `distributed/engine per core: <ratio> ratio`: the two commands as users run
+// them, `poseforest train JOB --threads N` (the engine) and `poseforest train JOB --local-workers
+// N` (coordinator + N worker processes), N = 2 (else the largest count), each a fresh process,
+// CPU of each command and its reaped worker processes, forests checked against the engine's:
+// engine CPU / service CPU = evaluations per CPU-second of the service over the engine's; the
+// median over --repeat pairs (alternating which runs first). Until 21 Nov 2026 (fifth session)
+// the last line was the in-process comparison, still printed above it: 2 workers against the
+// engine run inside this process (LocalTrainer with 2 OpenMP threads). That one is lopsided: the
+// engine's CPU counts Train() alone, in a process whose heap, libraries and OpenMP pool are warm
+// from its earlier runs, while the workers count whole fresh processes (start-up, exit). Measured
+// over 25 quiet pairs: `train --threads 2` costs 0.128 CPU s more than the in-process engine,
+// `train --local-workers 2` 0.053 more than the in-process service (docs/distributed/service.md).
+// The engine also runs with 1 thread and as N concurrent 1-thread processes; those ratios are
+// printed above the last line too.
 // The bench re-executes itself with OMP_WAIT_POLICY=PASSIVE (unless set) so idle OpenMP threads
 // sleep instead of spinning: CPU seconds then count work, for the engine and the workers alike.
 // --csv writes the per-level rows of the runs without hand-off (input of
@@ -44,11 +51,8 @@
 //   --engine-only   the engine alone (e.g. under a profiler)
 //   --no-sample-lists  subtree tasks without their sample lists (workers route every sample of
 //                   the tasks' frames, one task at a time): the service before that change
-// After the --repeat pairs, R more pairs run the two commands as users do, each a fresh process:
-// `poseforest train JOB --threads N` and `poseforest train JOB --local-workers N` (the program
-// next to this bench, ../bin/poseforest, or --poseforest PATH); their median ratio is printed
-// above the last line. Unlike the in-process engine (warm: heap pages and libraries already
-// loaded from its earlier runs), both start cold, and the coordinator's own start-up counts.
+// The headline's commands run the poseforest program next to this bench (../bin/poseforest) or
+// --poseforest PATH; --repeat R gives R in-process pairs and R command pairs.
 //   --neighbour-test R  instead of the service runs: the 1-thread engine alone, next to a busy
 //                   loop and next to random reads over 16 MiB, R rounds; shows what a second
 //                   busy process costs through the shared L3 (docs/distributed/service.md)
@@ -846,14 +850,17 @@ int main(int argc, char** argv) {
                 *std::max_element(ratios_procs.begin(), ratios_procs.end()));
   std::filesystem::remove(job_file);
   if (!ok) std::printf("WARNING: a service run differs from the engine (forest bytes or evaluation count)\n");
-  if (!ratios_cli.empty())
-    std::printf("as users run them: train --local-workers %d vs train --threads %d, fresh processes, per CPU-second: "
-                "median %.3f over %zu pairs (min %.3f, max %.3f)\n",
-                head_n, head_n, median_of(ratios_cli), ratios_cli.size(),
-                *std::min_element(ratios_cli.begin(), ratios_cli.end()),
-                *std::max_element(ratios_cli.begin(), ratios_cli.end()));
-  // Same evaluations in both (checked): the ratio of evaluations per CPU-second is engine CPU /
-  // service CPU.
-  std::printf("distributed/engine per core: %.3f ratio\n", median);
+  if (ratios_cli.empty()) return 1;
+  std::printf("in-process (the engine warm inside this process; the last line until the fifth session): %d "
+              "worker(s) vs the engine on %d core(s), per CPU-second: %.3f (median of %zu)\n",
+              head_n, head_n, median, ratios.size());
+  const double median_cli = median_of(ratios_cli);
+  std::printf("as users run them: train --local-workers %d vs train --threads %d, fresh processes, per CPU-second: "
+              "median %.3f over %zu pairs (min %.3f, max %.3f)\n",
+              head_n, head_n, median_cli, ratios_cli.size(), *std::min_element(ratios_cli.begin(), ratios_cli.end()),
+              *std::max_element(ratios_cli.begin(), ratios_cli.end()));
+  // Same evaluations in both (the same job; forests checked byte for byte): the ratio of
+  // evaluations per CPU-second is engine CPU / service CPU.
+  std::printf("distributed/engine per core: %.3f ratio\n", median_cli);
   return ok ? 0 : 1;
 }
