@@ -14,12 +14,41 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
+#include <mutex>
 #include <string>
+#include <vector>
 
 #include "tests/distributed/dist_test_util.h"
 #include "tests/support/process.h"
 
 namespace poseforest::dist::testing {
+
+/// Collects the lines a server logs (HttpServerOptions::log; called on the serving thread).
+class LogLines {
+ public:
+  std::function<void(const std::string&)> Sink() {
+    return [this](const std::string& line) {
+      std::lock_guard<std::mutex> lock(mu_);
+      lines_.push_back(line);
+    };
+  }
+  /// A copy of the lines so far.
+  std::vector<std::string> Lines() const {
+    std::lock_guard<std::mutex> lock(mu_);
+    return lines_;
+  }
+  /// The lines so far, one per line (for INFO).
+  std::string Joined() const {
+    std::string all;
+    for (const auto& l : Lines()) all += l + "\n";
+    return all;
+  }
+
+ private:
+  mutable std::mutex mu_;
+  std::vector<std::string> lines_;
+};
 
 /// A connected socket to 127.0.0.1:`port` (from `source`, a loopback address, when given).
 inline int ConnectLoopback(uint16_t port, const char* source = nullptr) {

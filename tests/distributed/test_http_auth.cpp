@@ -74,16 +74,12 @@ TEST_CASE(
     "[distributed][monitoring][http][unit]") {
   StatusModel model({"auth-job", 3, "shm", 2, 6, 10, 100, 20, 8, "/tmp/x.pff"});
   model.Finish(true, "wrote /tmp/x.pff");  // a final state: its JSON no longer changes
-  std::mutex log_mu;
-  std::vector<std::string> log;
+  LogLines log_lines;
   HttpServerOptions opt;
   opt.bearer_token = kToken;
   opt.log_burst = 3;
   opt.log_interval = 3600s;  // no refill during the test
-  opt.log = [&](const std::string& l) {
-    std::lock_guard<std::mutex> lock(log_mu);
-    log.push_back(l);
-  };
+  opt.log = log_lines.Sink();
   auto secured = HttpServer::Start(opt, StatusHandler(&model));
   REQUIRE(secured.ok());
   auto open = HttpServer::Start(HttpServerOptions{}, StatusHandler(&model));  // no token: as before
@@ -190,12 +186,8 @@ TEST_CASE(
   CHECK(std::regex_search(*metrics, std::regex(R"(poseforest_http_requests_total\{outcome="ok"\} [1-9])")));
   CHECK(metrics->find("poseforest_http_requests_total{outcome=\"bad_request\"} 0\n") != std::string::npos);
   // Logged with the peer address, rate-limited (burst 3, no refill), never with a token.
-  std::lock_guard<std::mutex> lock(log_mu);
-  INFO([&] {
-    std::string all;
-    for (const auto& l : log) all += l + "\n";
-    return all;
-  }());
+  const std::vector<std::string> log = log_lines.Lines();
+  INFO(log_lines.Joined());
   REQUIRE(log.size() == 3);
   CHECK(std::regex_match(log[0], std::regex(R"(http: 401 for GET / from 127\.0\.0\.1:[0-9]+: no token)")));
   CHECK(std::regex_match(log[1], std::regex(R"(http: 401 for GET / from 127\.0\.0\.1:[0-9]+: wrong token)")));
@@ -205,23 +197,19 @@ TEST_CASE(
 TEST_CASE("HTTP refusal log: a burst, then one line per interval saying how many were left out",
           "[distributed][monitoring][http][unit]") {
   StatusModel model({"log-job", 3, "shm", 2, 6, 10, 100, 20, 8, ""});
-  std::mutex mu;
-  std::vector<std::string> log;
+  LogLines log_lines;
   HttpServerOptions opt;
   opt.bearer_token = "t0k3n-of-the-test";
   opt.log_burst = 1;
   opt.log_interval = 400ms;
-  opt.log = [&](const std::string& l) {
-    std::lock_guard<std::mutex> lock(mu);
-    log.push_back(l);
-  };
+  opt.log = log_lines.Sink();
   auto server = HttpServer::Start(opt, StatusHandler(&model));
   REQUIRE(server.ok());
   for (int i = 0; i < 6; ++i) CHECK(StatusCode(RawExchange((*server)->port(), Get("/metrics"))) == 401);
   std::this_thread::sleep_for(600ms);
   CHECK(StatusCode(RawExchange((*server)->port(), Get("/"))) == 401);
   std::this_thread::sleep_for(100ms);
-  std::lock_guard<std::mutex> lock(mu);
+  const std::vector<std::string> log = log_lines.Lines();
   REQUIRE(log.size() == 2);
   CHECK(log[0].find("401 for GET /metrics from 127.0.0.1:") == 0 + log[0].find("401"));
   CHECK(std::regex_search(log[1], std::regex("GET / from ")));
@@ -297,16 +285,12 @@ TEST_CASE("HTTP token file: missing, empty, too open, bad content are refused na
 TEST_CASE("HTTP per-peer connection cap: one address cannot take every slot",
           "[distributed][monitoring][http][unit]") {
   StatusModel model({"cap-job", 3, "shm", 2, 6, 10, 100, 20, 8, ""});
-  std::mutex mu;
-  std::vector<std::string> log;
+  LogLines log_lines;
   HttpServerOptions opt;
   opt.max_connections = 8;
   opt.max_connections_per_peer = 3;
   opt.timeout = 3s;
-  opt.log = [&](const std::string& l) {
-    std::lock_guard<std::mutex> lock(mu);
-    log.push_back(l);
-  };
+  opt.log = log_lines.Sink();
   auto server = HttpServer::Start(opt, StatusHandler(&model));
   REQUIRE(server.ok());
   const uint16_t port = (*server)->port();
@@ -325,7 +309,7 @@ TEST_CASE("HTTP per-peer connection cap: one address cannot take every slot",
   for (int fd : idle) ::close(fd);
   std::this_thread::sleep_for(300ms);
   CHECK(StatusCode(RawExchange(port, Get("/healthz"), 5s, "127.0.0.1")) == 200);
-  std::lock_guard<std::mutex> lock(mu);
+  const std::vector<std::string> log = log_lines.Lines();
   REQUIRE(log.size() == 1);
   CHECK(std::regex_match(
       log[0],

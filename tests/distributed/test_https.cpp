@@ -267,15 +267,11 @@ TEST_CASE(
   TempDir dir("pf-https-hostile");
   const Pki pki = MakePki(dir.path);
   StatusModel model({"hostile-tls-job", 3, "shm", 2, 6, 10, 100, 20, 8, ""});
-  std::mutex mu;
-  std::vector<std::string> log;
+  LogLines log_lines;
   HttpServerOptions opt = TlsOptions(pki);
   opt.timeout = 5s;
   opt.max_connections_per_peer = 4;
-  opt.log = [&](const std::string& l) {
-    std::lock_guard<std::mutex> lock(mu);
-    log.push_back(l);
-  };
+  opt.log = log_lines.Sink();
   auto server = HttpServer::Start(opt, StatusHandler(&model));
   REQUIRE(server.ok());
   const uint16_t port = (*server)->port();
@@ -348,9 +344,7 @@ TEST_CASE(
   CHECK((*server)->tls_handshake_failures() == 3);
   auto last = HttpGet(url + "/healthz", 5s, "", ca);
   CHECK(last.ok());
-  std::lock_guard<std::mutex> lock(mu);
-  std::string all;
-  for (const auto& l : log) all += l + "\n";
+  const std::string all = log_lines.Joined();
   INFO(all);
   CHECK(std::regex_search(
       all, std::regex(
