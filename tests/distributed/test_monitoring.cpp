@@ -454,6 +454,10 @@ TEST_CASE("a worker SIGKILLed mid-job: WORKER_LOST in the status and the event l
        "--min-workers", "3", "--event-log", (dir.path / "events.jsonl").string(), "--http-linger-s", "10"},
       &error));
   const std::string url = WaitForUrl(coord);
+  // One read while the job runs: the final state then stays up for --http-linger-s (the server
+  // lingers only if someone read it), so the read after "wrote" below does not race its exit
+  // (once, under CI load: "Connection reset by peer").
+  CHECK(Str(GetStatus(url), "job_id") == job_id);
   {
     auto line = coord.WaitForLine("tree 0 level 1:", 90s);
     INFO(coord.output());
