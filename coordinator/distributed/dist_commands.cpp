@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <optional>
 #include <random>
@@ -169,7 +170,11 @@ struct LocalWorkers {
     for (int i = 0; i < n; ++i) {
       std::vector<std::string> argv = {self, "worker"};
       argv.insert(argv.end(), args.begin(), args.end());
+      // The worker exits with this process; --parent-pid lets it tell "my parent is gone" from
+      // "my parent is pid 1" (the coordinator as a container's entrypoint).
       argv.push_back("--exit-with-parent");
+      argv.push_back("--parent-pid");
+      argv.push_back(std::to_string(::getpid()));
       argv.push_back("--id");
       argv.push_back("local-worker-" + std::to_string(::getpid()) + "-" + std::to_string(i));
       std::vector<char*> c;
@@ -498,7 +503,7 @@ int CoordinatorMain(int argc, char** argv) {
 }
 
 int WorkerMain(int argc, char** argv) {
-  Args args(WithDdsOptions({"domain", "threads", "job", "job-file", "id", "task-cache-mb"}),
+  Args args(WithDdsOptions({"domain", "threads", "job", "job-file", "id", "task-cache-mb", "parent-pid"}),
             {"stay", "exit-with-parent", "check-config", "help"});
   if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
     if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
@@ -508,7 +513,9 @@ int WorkerMain(int argc, char** argv) {
                  "          and transport, used where the command line gives none; the coordinator's job file,\n"
                  "          at the same path when the job names relative files)\n"
                  "         (--id: the sender id, unique per job; default worker-HOST-PID-RANDOM)\n"
-                 "         [--stay]   (keep serving jobs after one is done)  [--exit-with-parent]\n"
+                 "         [--stay]   (keep serving jobs after one is done)\n"
+                 "         [--exit-with-parent [--parent-pid PID]]   (exit when the process that started this\n"
+                 "          one exits; PID: that process, checked at start; `coordinator --local-workers` passes both)\n"
                  "         [--task-cache-mb M]   (frames of other shards kept between subtree tasks of a\n"
                  "          tree, least recently used dropped first; default 256)\n"
                  "         [--check-config]   (parse the flags, load the XML profile and the security files,\n"
@@ -581,7 +588,20 @@ int WorkerMain(int argc, char** argv) {
   // Started by `coordinator --local-workers`: go when the coordinator goes, even on SIGKILL.
   if (args.Has("exit-with-parent")) {
     ::prctl(PR_SET_PDEATHSIG, SIGTERM);
-    if (::getppid() == 1) return 0;
+    // The parent may have gone before prctl: then this process was re-parented. Without
+    // --parent-pid, pid 1 stands for "re-parented" (wrong when the parent is pid 1 itself, as a
+    // coordinator that is a container's entrypoint; it passes --parent-pid).
+    auto parent = args.GetInt("parent-pid", 0, 0, std::numeric_limits<int32_t>::max());
+    if (!parent.ok()) {
+      std::fprintf(stderr, "worker: %s\n", parent.status().message().c_str());
+      return 2;
+    }
+    const pid_t expected = *parent > 0 ? pid_t(*parent) : pid_t(0);
+    if (expected > 0 ? ::getppid() != expected : ::getppid() == 1) {
+      std::fprintf(stderr, "worker: the process that started it (%s) is gone; exiting\n",
+                   expected > 0 ? ("pid " + std::to_string(expected)).c_str() : "its parent");
+      return 0;
+    }
   }
   Status st = worker.Run();
   g_worker = nullptr;

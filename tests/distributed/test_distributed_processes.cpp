@@ -59,6 +59,31 @@ TEST_CASE("coordinator --local-workers 2 writes LocalTrainer's forest (shm and u
   }
 }
 
+TEST_CASE("train --local-workers as pid 1 (a container's entrypoint): its workers stay and train",
+          "[distributed][integration]") {
+  // `docker run IMAGE` without --init makes the coordinator pid 1. Its local workers used to take
+  // "parent is pid 1" for "parent gone" and exit at once (found by running the coordinator image):
+  // 0 of 2 workers. A PID namespace of its own puts the coordinator at pid 1 without Docker.
+  const std::string text = TinyJobText(1, 6);
+  const std::vector<uint8_t> reference = ReferenceBytes(ParseJob(text));
+  TempDir dir("pf-dist-pid1");
+  std::ofstream(dir.path / "job.textproto") << text;
+  Child coord;
+  std::string error;
+  REQUIRE(coord.Start({"unshare", "--pid", "--fork", "--mount-proc", Program(), "train",
+                       (dir.path / "job.textproto").string(), "--out", (dir.path / "forest.pff").string(),
+                       "--local-workers", "2", "--domain", std::to_string(Domain(77)), "--http", "off",
+                       "--worker-wait-s", "30"},
+                      &error));
+  auto rc = coord.Wait(120s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(coord.output().find("2 workers alive") != std::string::npos);
+  CHECK(coord.output().find("is gone; exiting") == std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+}
+
 TEST_CASE("5 worker processes: the forest of `poseforest train`, byte for byte",
           "[distributed][integration][slow]") {
   // 12 frames per tree over 5 workers: shards of 3, 3, 2, 2, 2 frames; nodes of <= 300 samples
