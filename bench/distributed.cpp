@@ -111,6 +111,19 @@ double CpuSeconds(int who) {
          1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
+/// Starts args[0] (looked up in PATH if `search_path`) with this process's environment; -1 if
+/// it cannot be started.
+pid_t Spawn(std::vector<std::string> args, const posix_spawn_file_actions_t* actions = nullptr,
+            bool search_path = false) {
+  std::vector<char*> c;
+  for (auto& a : args) c.push_back(a.data());
+  c.push_back(nullptr);
+  pid_t pid = -1;
+  const int err = search_path ? ::posix_spawnp(&pid, c[0], actions, nullptr, c.data(), environ)
+                              : ::posix_spawn(&pid, c[0], actions, nullptr, c.data(), environ);
+  return err == 0 ? pid : -1;
+}
+
 double LoadAverage() {
   double l[1] = {0};
   return ::getloadavg(l, 1) == 1 ? l[0] : -1;
@@ -451,11 +464,8 @@ int main(int argc, char** argv) {
         if (k > 0) {
           std::vector<std::string> a = {self, "--neighbour", k == 1 ? "spin" : "reads", "16"};
           if (k == 3) a = {self, "--engine-process", job_file};  // starts with ours, runs as long
-          std::vector<char*> c;
-          for (auto& x : a) c.push_back(x.data());
-          c.push_back(nullptr);
-          if (::posix_spawn(&pid, c[0], nullptr, nullptr, c.data(), environ) != 0)
-            return std::fprintf(stderr, "distributed: cannot start a neighbour process\n"), 1;
+          pid = Spawn(a);
+          if (pid < 0) return std::fprintf(stderr, "distributed: cannot start a neighbour process\n"), 1;
           if (k < 3) std::this_thread::sleep_for(std::chrono::milliseconds(300));  // its memory is touched
         }
         RunFigures f;
@@ -488,13 +498,8 @@ int main(int argc, char** argv) {
     const double kids0 = CpuSeconds(RUSAGE_CHILDREN), t0 = dist::NowSeconds();
     std::vector<pid_t> pids;
     for (int i = 0; i < n; ++i) {
-      std::vector<std::string> a = {self, "--engine-process", job_file};
-      std::vector<char*> c;
-      for (auto& x : a) c.push_back(x.data());
-      c.push_back(nullptr);
-      pid_t pid = -1;
-      if (::posix_spawn(&pid, c[0], nullptr, nullptr, c.data(), environ) != 0)
-        return std::fprintf(stderr, "distributed: cannot start an engine process\n"), 1;
+      const pid_t pid = Spawn({self, "--engine-process", job_file});
+      if (pid < 0) return std::fprintf(stderr, "distributed: cannot start an engine process\n"), 1;
       pids.push_back(pid);
     }
     bool ok = true;
@@ -553,12 +558,8 @@ int main(int argc, char** argv) {
           if (!word.empty()) wrap.push_back(word);
         }
       a.insert(a.begin(), wrap.begin(), wrap.end());
-      std::vector<char*> c;
-      for (auto& s : a) c.push_back(s.data());
-      c.push_back(nullptr);
-      pid_t pid = -1;
-      if (::posix_spawnp(&pid, c[0], nullptr, nullptr, c.data(), environ) != 0)
-        return std::fprintf(stderr, "distributed: cannot start a worker process\n"), 1;
+      const pid_t pid = Spawn(a, nullptr, /*search_path=*/true);
+      if (pid < 0) return std::fprintf(stderr, "distributed: cannot start a worker process\n"), 1;
       pids.push_back(pid);
     }
     dist::CoordinatorOptions co;
@@ -777,19 +778,15 @@ int main(int argc, char** argv) {
     // its forest is not the engine's.
     auto run_cli = [&](std::vector<std::string> a, const std::string& out, double* cpu) -> bool {
       a.insert(a.begin(), cli_path);
-      std::vector<char*> c;
-      for (auto& x : a) c.push_back(x.data());
-      c.push_back(nullptr);
       posix_spawn_file_actions_t fa;
       ::posix_spawn_file_actions_init(&fa);
       ::posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
       ::posix_spawn_file_actions_adddup2(&fa, 1, 2);
       std::filesystem::remove(out);
       const double c0 = CpuSeconds(RUSAGE_CHILDREN);
-      pid_t pid = -1;
-      const int err = ::posix_spawn(&pid, c[0], &fa, nullptr, c.data(), environ);
+      const pid_t pid = Spawn(a, &fa);
       ::posix_spawn_file_actions_destroy(&fa);
-      if (err != 0) return false;
+      if (pid < 0) return false;
       int status = 0;
       ::waitpid(pid, &status, 0);
       *cpu = CpuSeconds(RUSAGE_CHILDREN) - c0;
