@@ -142,6 +142,9 @@ struct DistCoordinator::Impl {
   std::map<std::string, uint64_t> subtree_load;
   std::map<std::string, uint64_t> level_handed;  ///< samples of SubtreeTasks sent this level, per worker
   uint64_t level_largest_task = 0;               ///< samples of the largest SubtreeTask of this level
+  /// SubtreeTasks chosen by SendTask, per worker, until FlushTasks sends them.
+  std::map<std::string, std::vector<v1::SubtreeTask>> task_outbox;
+  uint64_t level_task_messages = 0;  ///< SubtreeTasks messages sent this level
   std::set<std::string> banned;          ///< senders of hostile SubtreeResults: never rejoin
   uint64_t subtree_rejected = 0;
   uint64_t level_subtree_evaluations = 0;
@@ -578,9 +581,7 @@ struct DistCoordinator::Impl {
       POSEFOREST_RETURN_IF_ERROR(WaitForWorkers(1));
       return SendTask(job);
     }
-    v1::Envelope env;
-    env.set_recipient_id(best->id);
-    v1::SubtreeTask* t = env.mutable_subtree_task();
+    v1::SubtreeTask* t = &task_outbox[best->id].emplace_back();
     t->set_tree(uint32_t(tree));
     t->set_node_id(job.node);
     const int depth = worker::PositionDepth(job.position);
@@ -626,7 +627,32 @@ struct DistCoordinator::Impl {
     subtree_load[job.worker] += total;
     level_handed[job.worker] += total;
     level_largest_task = std::max(level_largest_task, total);
-    return Send(Topic::kControl, env);
+    return Status::Ok();
+  }
+
+  /// Sends the SubtreeTasks that SendTask queued: one SubtreeTasks message per worker, split
+  /// only to stay under kSubtreeTasksMaxBytes, so a level's hand-off costs a few samples per
+  /// worker however many nodes it hands off (issue 13).
+  Status FlushTasks() {
+    std::map<std::string, std::vector<v1::SubtreeTask>> out;
+    out.swap(task_outbox);
+    for (auto& [id, list] : out) {
+      for (size_t i = 0; i < list.size();) {
+        v1::Envelope env;
+        env.set_recipient_id(id);
+        v1::SubtreeTasks* batch = env.mutable_subtree_tasks();
+        size_t bytes = 0;
+        while (i < list.size() && batch->tasks_size() < dds::kMaxSubtreeTasks &&
+               (batch->tasks_size() == 0 || bytes + list[i].ByteSizeLong() <= dds::kSubtreeTasksMaxBytes)) {
+          bytes += list[i].ByteSizeLong();
+          *batch->add_tasks() = std::move(list[i]);
+          ++i;
+        }
+        ++level_task_messages;
+        POSEFOREST_RETURN_IF_ERROR(Send(Topic::kControl, env));
+      }
+    }
+    return Status::Ok();
   }
 
   /// Waits for every outstanding SubtreeTask's result, handing the task of a worker that is
@@ -647,6 +673,7 @@ struct DistCoordinator::Impl {
           ++level_retries;
           ReleaseLoad(job);
           POSEFOREST_RETURN_IF_ERROR(SendTask(job));
+          POSEFOREST_RETURN_IF_ERROR(FlushTasks());
         }
       }
       if (all) return Status::Ok();
@@ -763,6 +790,7 @@ struct DistCoordinator::Impl {
       size_t handed_off = 0;
       level_handed.clear();
       level_largest_task = 0;
+      level_task_messages = 0;
       if (params.subtree_max_samples > 0 && level > 0) {
         const uint64_t by_samples = params.subtree_max_samples;
         const uint64_t by_frames =
@@ -849,6 +877,7 @@ struct DistCoordinator::Impl {
             return na > nb;
           });
           for (SubtreeJob* job : order) POSEFOREST_RETURN_IF_ERROR(SendTask(*job));
+          POSEFOREST_RETURN_IF_ERROR(FlushTasks());
           handed_off = hand.size();
           std::sort(keep.begin(), keep.end());  // frontier order, as before
           to_split.swap(keep);
@@ -1137,6 +1166,7 @@ struct DistCoordinator::Impl {
       for (const auto& [id, n] : level_handed)
         st.subtree_samples += n, st.subtree_samples_busiest = std::max(st.subtree_samples_busiest, n);
       st.subtree_largest_task = level_largest_task;
+      st.subtree_task_messages = level_task_messages;
       st.mean_entropy = level_samples > 0 ? entropy_sum / double(level_samples) : 0;
       st.mean_gain = num_split > 0 ? gain_sum / double(num_split) : 0;
       if (opt.progress) opt.progress(st);
@@ -1210,8 +1240,10 @@ struct DistCoordinator::Impl {
           std::to_string(first_level));
     }
 
-    auto n = dds::DdsNode::Create(MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease,
-                                                 opt.udp_peers, opt.udp_interfaces, opt.transport_extras));
+    dds::NodeConfig node_config = MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease,
+                                                 opt.udp_peers, opt.udp_interfaces, opt.transport_extras);
+    node_config.log = opt.log;
+    auto n = dds::DdsNode::Create(node_config);
     if (!n.ok()) return n.status();
     node = std::move(*n);
     v1::Envelope job_env;

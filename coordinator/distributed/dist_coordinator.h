@@ -50,6 +50,7 @@ struct DistLevelStats {
   uint64_t subtree_samples = 0;          ///< samples of this level's SubtreeTasks (each time sent)
   uint64_t subtree_samples_busiest = 0;  ///< of which sent to the worker that got the most
   uint64_t subtree_largest_task = 0;     ///< samples of the largest SubtreeTask of this level
+  uint64_t subtree_task_messages = 0;    ///< SubtreeTasks messages that carried them (a few per worker)
   double mean_entropy = 0;      ///< bits: part entropy of the frontier nodes, weighted by samples
   double mean_gain = 0;         ///< bits: mean information gain of the splits chosen (0: none)
 };

@@ -138,8 +138,14 @@ struct DdsNode::Impl : public fdds::DomainParticipantListener {
   std::deque<DdsEvent> events;
   std::condition_variable event_cv;
   size_t next_topic = 0;  // round robin in Receive
-  std::mutex write_mu;    // serializes Publish (DataWriter::write is thread-safe; the sample isn't)
-  ProtoBytesSample write_sample;
+  // One lock and sample per topic: DataWriter::write is thread-safe, the sample isn't; a write
+  // waiting on a full control or replies history must not hold up the presence heartbeats.
+  std::array<std::mutex, kNumTopics> write_mu;
+  std::array<ProtoBytesSample, kNumTopics> write_sample;
+  std::atomic<uint64_t> slow_writes{0};
+  int KeepAllMax() const {
+    return config.keep_all_max_samples > 0 ? config.keep_all_max_samples : kKeepAllMaxSamples;
+  }
 
   // Per-endpoint listeners know their topic.
   struct WriterListener : public fdds::DataWriterListener {
@@ -507,10 +513,10 @@ Status DdsNode::Impl::CreateEndpoints() {
       q.durability().kind = IsTransientLocal(t) ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS : fdds::VOLATILE_DURABILITY_QOS;
       if (IsKeepAll(t)) {
         q.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
-        q.resource_limits().max_samples = kKeepAllMaxSamples;
+        q.resource_limits().max_samples = KeepAllMax();
         q.resource_limits().max_instances = 1;
-        q.resource_limits().max_samples_per_instance = kKeepAllMaxSamples;
-        q.resource_limits().allocated_samples = 16;
+        q.resource_limits().max_samples_per_instance = KeepAllMax();
+        q.resource_limits().allocated_samples = std::min(16, KeepAllMax());
       } else {
         q.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
         q.history().depth = KeepLastDepth(t);
@@ -523,7 +529,7 @@ Status DdsNode::Impl::CreateEndpoints() {
     if (w) {
       fdds::DataWriterQos q = fdds::DATAWRITER_QOS_DEFAULT;
       apply_common(q);
-      q.reliability().max_blocking_time = eprosima::fastrtps::Duration_t(10, 0);
+      q.reliability().max_blocking_time = ToDuration(std::max(config.write_block_slice, std::chrono::milliseconds(1)));
       q.liveliness().announcement_period = announce;
       // Recover lost fragments of large samples quickly (default heartbeat period is 3 s).
       q.reliable_writer_qos().times.heartbeatPeriod = eprosima::fastrtps::Duration_t(0, 100000000);
@@ -535,6 +541,16 @@ Status DdsNode::Impl::CreateEndpoints() {
     if (r) {
       fdds::DataReaderQos q = fdds::DATAREADER_QOS_DEFAULT;
       apply_common(q);
+      if (IsKeepAll(t)) {
+        // A reader history far larger than any writer's: it stores (and acknowledges) what
+        // arrives however long the application takes to read it. Fast DDS 2.9 never asks again
+        // for a sample its full keep-all reader history rejected, so a full reader history
+        // stalled the writer for good (tests/dds/test_dds_transport.cpp shows it); the writer's
+        // own history (KeepAllMax) is the flow control on the wire. Memory grows only with what
+        // is actually queued (PREALLOCATED_WITH_REALLOC).
+        q.resource_limits().max_samples = kKeepAllReaderMaxSamples;
+        q.resource_limits().max_samples_per_instance = kKeepAllReaderMaxSamples;
+      }
       reader_listeners[i].impl = this;
       reader_listeners[i].topic = t;
       readers[i] = subscriber->create_datareader(topics[i], q, &reader_listeners[i], fdds::StatusMask::all());
@@ -589,18 +605,65 @@ core::Result<std::unique_ptr<DdsNode>> DdsNode::Create(const NodeConfig& config)
 }
 
 Status DdsNode::Publish(Topic topic, const void* data, size_t size) {
-  auto* w = impl_->writers[static_cast<int>(topic)];
+  const int i = static_cast<int>(topic);
+  auto* w = impl_->writers[i];
   if (!w) return Status(ErrorCode::kInvalidArgument, std::string("this node does not write ") + TopicName(topic));
   if (size > ProtoBytesType::kMaxBytes)
     return Status(ErrorCode::kInvalidArgument, "sample of " + std::to_string(size) + " bytes exceeds the maximum");
-  std::lock_guard<std::mutex> lock(impl_->write_mu);
-  auto& bytes = impl_->write_sample.bytes;
+  std::lock_guard<std::mutex> lock(impl_->write_mu[i]);
+  auto& bytes = impl_->write_sample[i].bytes;
   bytes.assign(static_cast<const uint8_t*>(data), static_cast<const uint8_t*>(data) + size);
-  if (!w->write(&impl_->write_sample))
-    return Status(ErrorCode::kIo, std::string("DataWriter::write failed on ") + TopicName(topic) +
-                                      " (history full for 10 s, or the sample was refused)");
-  return Status::Ok();
+  // A full keep-all history makes write() wait up to one slice for the slowest matched reader to
+  // acknowledge. A reader that is still matched is alive as far as DDS knows (a dead peer is
+  // unmatched when its participant lease runs out, and its unacknowledged samples no longer hold
+  // the history), so it is waited for: a busy peer never fails the job (issue 13: a worker in a
+  // long subtree batch made the coordinator's write fail after 10 s).
+  const auto start = std::chrono::steady_clock::now();
+  bool waited = false;
+  int no_reader_tries = 0;
+  std::chrono::steady_clock::duration next_log{};
+  for (;;) {
+    if (w->write(&impl_->write_sample[i])) {
+      if (waited && impl_->config.log)
+        impl_->config.log(std::string("DDS write on ") + TopicName(topic) + " went through after " +
+                          std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                             std::chrono::steady_clock::now() - start)
+                                             .count()) +
+                          " ms");
+      return Status::Ok();
+    }
+    const auto waited_for = std::chrono::steady_clock::now() - start;
+    if (!IsKeepAll(topic))
+      return Status(ErrorCode::kIo, std::string("DataWriter::write failed on ") + TopicName(topic) +
+                                        " (the sample was refused)");
+    if (impl_->matched_readers[i] <= 0) {
+      // The reader it waited for has gone (unmatched while write() waited): nobody is left to
+      // acknowledge, so the next write goes through.
+      if (no_reader_tries++ > 0)
+        return Status(ErrorCode::kIo, std::string("DataWriter::write failed on ") + TopicName(topic) +
+                                          " with no reader matched");
+      continue;
+    }
+    if (impl_->config.write_give_up.count() > 0 && waited_for >= impl_->config.write_give_up)
+      return Status(ErrorCode::kIo,
+                    std::string("DataWriter::write failed on ") + TopicName(topic) + ": history full for " +
+                        std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(waited_for).count()) +
+                        " ms with " + std::to_string(impl_->matched_readers[i].load()) + " reader(s) matched");
+    if (!waited || waited_for >= next_log) {
+      if (!waited) ++impl_->slow_writes;
+      waited = true;
+      next_log = waited_for + std::chrono::seconds(30);  // then every 30 s while it waits
+      if (impl_->config.log)
+        impl_->config.log(std::string("DDS write on ") + TopicName(topic) + ": history full (" +
+                          std::to_string(impl_->KeepAllMax()) + " samples) for " +
+                          std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(waited_for).count()) +
+                          " ms; waiting for the slowest of " + std::to_string(impl_->matched_readers[i].load()) +
+                          " matched reader(s)");
+    }
+  }
 }
+
+uint64_t DdsNode::slow_writes() const { return impl_->slow_writes.load(); }
 
 std::optional<ReceivedSample> DdsNode::Receive(std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;

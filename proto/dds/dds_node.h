@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -89,6 +90,19 @@ struct NodeConfig {
   bool presence_manual_liveliness = true;
   /// Participant lease (discovery): a vanished participant is removed after this.
   std::chrono::milliseconds participant_lease{10000};
+  /// Keep-all topics (control, replies): samples a reader or writer history holds before the
+  /// writer waits for the slowest matched reader (flow control). 0: kKeepAllMaxSamples. Tests
+  /// lower it to reproduce a full history at CI size.
+  int keep_all_max_samples = 0;
+  /// How long one DataWriter::write waits on a full history before Publish looks again whether a
+  /// reader is still matched (and, if so, writes again): a slow but live reader is waited for,
+  /// a reader that is gone is unmatched by its participant lease and releases the history.
+  std::chrono::milliseconds write_block_slice{10000};
+  /// Publish gives up (kIo) when a full history has not moved for this long although a reader
+  /// stays matched (a peer that is alive but never reads). 0: never gives up.
+  std::chrono::milliseconds write_give_up{0};
+  /// Told once per write that had to wait a whole slice, and when it went through.
+  std::function<void(const std::string&)> log;
   /// Topics this node writes and reads.
   std::vector<Topic> write_topics;
   std::vector<Topic> read_topics;
@@ -135,7 +149,10 @@ class DdsNode {
   DdsNode(const DdsNode&) = delete;
   DdsNode& operator=(const DdsNode&) = delete;
 
-  /// Writes one sample. Blocks while a reliable keep-all history is full (up to ~10 s).
+  /// Writes one sample. Blocks while a reliable keep-all history is full: as long as a matched
+  /// reader remains (a busy peer is waited for; a dead one is unmatched when its participant lease
+  /// ends, which frees the history), or until write_give_up. Writers of different topics do not
+  /// wait for each other (a worker's heartbeats go out while its replies wait).
   core::Status Publish(Topic topic, const void* data, size_t size);
   core::Status Publish(Topic topic, std::string_view bytes) { return Publish(topic, bytes.data(), bytes.size()); }
 
@@ -158,6 +175,9 @@ class DdsNode {
   /// Asserts the liveliness of our writer on `topic` (needed with manual liveliness when there
   /// is nothing to publish within a lease).
   core::Status AssertLiveliness(Topic topic);
+
+  /// Writes that found a full history and waited at least one write_block_slice (thread-safe).
+  uint64_t slow_writes() const;
 
   /// Our participant's GUID prefix ("01.0f.....").
   std::string participant_guid() const;

@@ -64,7 +64,8 @@ bool BodyAllowedOnTopic(Body body, Topic topic) {
     case v1::Envelope::kShard:
     case v1::Envelope::kLevelRequest:
     case v1::Envelope::kDecisions:
-    case v1::Envelope::kSubtreeTask: return topic == Topic::kControl;
+    case v1::Envelope::kSubtreeTask:
+    case v1::Envelope::kSubtreeTasks: return topic == Topic::kControl;
     case v1::Envelope::kHistogram:
     case v1::Envelope::kSubtreeResult: return topic == Topic::kReplies;
     case v1::Envelope::kStatus: return topic == Topic::kStatus;
@@ -94,6 +95,7 @@ const char* BodyName(Body body) {
     case v1::Envelope::kHistogram: return "HistogramReply";
     case v1::Envelope::kDecisions: return "SplitDecisions";
     case v1::Envelope::kSubtreeTask: return "SubtreeTask";
+    case v1::Envelope::kSubtreeTasks: return "SubtreeTasks";
     case v1::Envelope::kSubtreeResult: return "SubtreeResult";
     case v1::Envelope::kStatus: return "StatusEvent";
     case v1::Envelope::BODY_NOT_SET: return "none";
@@ -203,6 +205,20 @@ Status ValidateSubtreeTask(const v1::SubtreeTask& m) {
     return Bad("path of " + S(m.path_size()) + " steps for depth " + S(m.depth()));
   for (const auto& step : m.path()) POSEFOREST_RETURN_IF_ERROR(ValidateSplit(step.split()));
   return ValidateRanges(m.ranges());
+}
+
+Status ValidateSubtreeTasks(const v1::SubtreeTasks& m) {
+  if (m.tasks_size() == 0) return Bad("no subtree tasks");
+  if (m.tasks_size() > kMaxSubtreeTasks)
+    return Bad(S(uint64_t(m.tasks_size())) + " subtree tasks above " + S(uint64_t(kMaxSubtreeTasks)));
+  for (int i = 0; i < m.tasks_size(); ++i) {
+    if (m.tasks(i).tree() != m.tasks(0).tree())
+      return Bad("task " + S(uint64_t(i)) + " of tree " + S(m.tasks(i).tree()) + ", the first of tree " +
+                 S(m.tasks(0).tree()));
+    if (Status st = ValidateSubtreeTask(m.tasks(i)); !st.ok())
+      return Status(st.code(), "task " + S(uint64_t(i)) + ": " + st.message());
+  }
+  return Status::Ok();
 }
 
 Status ValidateSubtreeResult(const v1::SubtreeResult& m) {
@@ -443,6 +459,7 @@ Status MessageGate::CheckBody(const v1::Envelope& env, Verdict* verdict) {
       if (env.decisions().epoch() < newest_epoch_) *verdict = Verdict::kStale;
       return Status::Ok();
     case v1::Envelope::kSubtreeTask: return ValidateSubtreeTask(env.subtree_task());
+    case v1::Envelope::kSubtreeTasks: return ValidateSubtreeTasks(env.subtree_tasks());
     case v1::Envelope::kSubtreeResult: {
       POSEFOREST_RETURN_IF_ERROR(ValidateSubtreeResult(env.subtree_result()));
       if (num_parts_ != 0 && env.subtree_result().num_parts() != num_parts_)

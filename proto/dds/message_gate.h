@@ -26,6 +26,13 @@ namespace poseforest::dds {
 /// Protocol version this build speaks (major).
 inline constexpr poseforest::v1::ProtocolVersion kProtocolVersion = poseforest::v1::PROTOCOL_VERSION_1;
 
+/// Most tasks in one SubtreeTasks message (the gate refuses more).
+inline constexpr int kMaxSubtreeTasks = 4096;
+/// The coordinator splits a worker's SubtreeTasks of a level into messages of about this many
+/// serialized bytes at most (well under the sample limit, so a batch never waits on fragments
+/// of one huge sample).
+inline constexpr size_t kSubtreeTasksMaxBytes = size_t(4) << 20;
+
 /// Fills the envelope header (job, sender, kind, version, per-topic sequence) and serializes.
 /// Not thread-safe: one per sending thread, or guard it.
 class EnvelopeStamper {

@@ -11,8 +11,9 @@
 //   presence   RELIABLE     VOLATILE          keep-last 8    MANUAL_BY_TOPIC, lease (worker presence;
 //                                                            AUTOMATIC selectable, see NodeConfig)
 //   status     RELIABLE     TRANSIENT_LOCAL   keep-last 64   AUTOMATIC, infinite
-// Keep-all histories are bounded by resource limits (kKeepAllMaxSamples): a full history blocks
-// the writer (flow control) instead of dropping a histogram.
+// Keep-all writer histories are bounded by resource limits (kKeepAllMaxSamples): a full history
+// makes the writer wait for the slowest live reader (flow control) instead of dropping a
+// histogram; readers hold up to kKeepAllReaderMaxSamples and so never reject a sample.
 
 #include <array>
 #include <cstdint>
@@ -29,8 +30,12 @@ inline constexpr std::array<Topic, kNumTopics> kAllTopics = {Topic::kJob, Topic:
 /// DDS type name registered for every topic.
 inline constexpr const char* kEnvelopeTypeName = "poseforest::v1::Envelope";
 
-/// Samples a keep-all reader or writer holds before the writer blocks.
+/// Samples a keep-all writer holds unacknowledged before it blocks (flow control).
 inline constexpr int kKeepAllMaxSamples = 256;
+/// Samples a keep-all reader holds before it rejects more: far above any writer's history, so a
+/// reader never rejects (Fast DDS 2.9 would not ask for a rejected sample again: the writer
+/// stalled for good). The intake threads read them out as they arrive.
+inline constexpr int kKeepAllReaderMaxSamples = 1 << 16;
 
 /// DDS topic name ("poseforest/control").
 inline constexpr const char* TopicName(Topic t) {

@@ -3,7 +3,10 @@
 // lost-liveliness event within the lease.
 #include <catch2/catch.hpp>
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
+#include <thread>
 
 #include "proto/dds/dds_node.h"
 #include "proto/dds/message_gate.h"
@@ -168,4 +171,72 @@ TEST_CASE("AUTOMATIC liveliness with other workers alive (Fast DDS 2.9 defect, i
   CHECK(alone.has_value());
   auto crowd = KillAndWatch(2, pd::testing::TestDomain(16), /*manual=*/false);
   if (crowd && *crowd <= kMaxDetectMs) WARN("AUTOMATIC liveliness works here: the Fast DDS defect is fixed");
+}
+
+// Issue 13: a full keep-all writer history waits for a reader that is alive but slow (here a
+// reader process stopped with SIGSTOP, which acknowledges nothing), instead of failing after one
+// write slice; and a writer is released when its reader's process dies (SIGKILL: its participant
+// lease ends, the reader is unmatched, nothing is left to wait for).
+TEST_CASE("a keep-all writer waits for a stopped reader process and goes on when it resumes or dies",
+          "[dds][integration]") {
+  for (const bool kill : {false, true}) {
+    DYNAMIC_SECTION((kill ? "reader killed" : "reader resumed")) {
+      const uint32_t domain = pd::testing::TestDomain(130 + uint32_t(kill));
+      pd::NodeConfig cfg;
+      cfg.domain_id = domain;
+      cfg.transport = pd::TransportKind::kSharedMemoryOnly;
+      cfg.participant_name = "worker-1";
+      cfg.write_topics = {pd::Topic::kReplies};
+      cfg.keep_all_max_samples = 2;
+      cfg.write_block_slice = 200ms;
+      cfg.write_give_up = 60s;  // a failure of this test, not a hang
+      auto node = pd::DdsNode::Create(cfg);
+      REQUIRE(node.ok());
+      pd::testing::Child reader;
+      std::string error;
+      REQUIRE(reader.Start({pd::testing::PeerBinary(), "--mode=monitor", "--domain=" + std::to_string(domain),
+                            "--transport=shm", "--job=job-SL", "--id=coordinator", "--lease-ms=2000",
+                            "--seconds=60"},
+                           &error));
+      REQUIRE(reader.WaitForLine("STARTED", 20s).has_value());
+      REQUIRE((*node)->WaitForMatch(pd::Topic::kReplies, 1, 20s));
+      ::kill(reader.pid(), SIGSTOP);
+      constexpr int kCount = 12;
+      std::atomic<int> written{0}, failed{0};
+      std::thread writer([&] {
+        pd::EnvelopeStamper stamper("job-SL", "worker-1", v1::SENDER_KIND_WORKER);
+        for (int i = 0; i < kCount; ++i) {
+          v1::Envelope env;
+          *env.mutable_subtree_result() = pd::testing::BigSubtree(1000, uint32_t(i));
+          if ((*node)->Publish(pd::Topic::kReplies, stamper.Seal(pd::Topic::kReplies, env)).ok())
+            ++written;
+          else
+            ++failed;
+        }
+      });
+      std::this_thread::sleep_for(1500ms);  // 7 write slices
+      CHECK(written < kCount);              // the writer is waiting for the stopped reader ...
+      CHECK(failed == 0);                   // ... without failing
+      const auto released = Clock::now();
+      if (kill) {
+        reader.Kill(SIGKILL);
+      } else {
+        ::kill(reader.pid(), SIGCONT);
+      }
+      writer.join();
+      INFO("reader output:\n" << reader.output());
+      CHECK(failed == 0);
+      CHECK(written == kCount);
+      CHECK((*node)->slow_writes() >= 1);
+      // Resumed: every sample arrives, in order. Killed: released once the participant lease
+      // (the default 10 s here) ends.
+      if (!kill) {
+        int samples = 0;
+        while (samples < kCount && reader.WaitForLine("SAMPLE replies", 20s)) ++samples;
+        CHECK(samples == kCount);
+      } else {
+        CHECK(Clock::now() - released < 30s);
+      }
+    }
+  }
 }

@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <filesystem>
+#include <mutex>
 #include <thread>
 
 #include "proto/dds/dds_node.h"
@@ -316,4 +317,44 @@ TEST_CASE("configuration errors are reported, not crashes", "[dds][unit]") {
   auto r = pd::DdsNode::Create(s);
   REQUIRE_FALSE(r.ok());
   CHECK(r.status().message().find("cannot read security file /nonexistent/ca.pem") != std::string::npos);
+}
+
+// Issue 13: a 6,000-image job failed with "DataWriter::write failed on poseforest/control
+// (history full for 10 s ...)": a worker busy in a long subtree batch read nothing, its keep-all
+// reader history (as small as the writer's) filled, and Fast DDS 2.9 never asks again for a
+// sample a full reader history rejected, so the writer stalled for good. Readers now hold far
+// more than a writer may leave unacknowledged: a reader that takes nothing for a while costs the
+// writer nothing.
+TEST_CASE("a reader that takes nothing for a while never stalls a keep-all writer", "[dds][integration]") {
+  const uint32_t domain = TestDomain(120);
+  auto cfg_w = Config(domain, pd::TransportKind::kSharedMemoryOnly, "w", {pd::Topic::kControl}, {});
+  cfg_w.keep_all_max_samples = 2;
+  cfg_w.write_block_slice = 200ms;
+  cfg_w.write_give_up = 15s;  // a failure of this test, not a hang
+  auto writer = MakeNode(cfg_w);
+  auto reader = MakeNode(Config(domain, pd::TransportKind::kSharedMemoryOnly, "r", {}, {pd::Topic::kControl}));
+  REQUIRE(writer->WaitForMatch(pd::Topic::kControl, 1, kMatchTimeout));
+  REQUIRE(reader->WaitForMatch(pd::Topic::kControl, 1, kMatchTimeout));
+  pd::EnvelopeStamper stamper("job-T", "coordinator", v1::SENDER_KIND_COORDINATOR);
+  constexpr int kSamples = 600;  // more than twice kKeepAllMaxSamples
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 1; i <= kSamples; ++i) {
+    v1::Envelope env = LevelRequestEnvelope(uint64_t(i));
+    const auto st = writer->Publish(pd::Topic::kControl, stamper.Seal(pd::Topic::kControl, env));
+    INFO("sample " << i << ": " << st.ToString());
+    REQUIRE(st.ok());
+  }
+  CHECK(std::chrono::steady_clock::now() - t0 < 10s);
+  std::this_thread::sleep_for(500ms);  // the reader still takes nothing
+  pd::GateConfig gc;
+  gc.self_id = "worker-1";
+  gc.job_id = "job-T";
+  pd::MessageGate gate(gc);
+  for (int i = 1; i <= kSamples; ++i) {  // all of them, in order
+    auto s = reader->Receive(10s);
+    REQUIRE(s.has_value());
+    auto out = gate.Check(s->topic, s->bytes, s->writer_guid);
+    REQUIRE(out.verdict == pd::MessageGate::Verdict::kAccepted);
+    CHECK(out.envelope.level_request().epoch() == uint64_t(i));
+  }
 }

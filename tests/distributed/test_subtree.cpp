@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 #include <cstring>
 #include <filesystem>
+#include <thread>
 
 #include "coordinator/subtree_trainer.h"
 #include "tests/distributed/dist_test_util.h"
@@ -167,6 +168,60 @@ TEST_CASE("a worker lost while it holds a subtree task: the task goes to another
   CHECK(coordinator.workers_lost() == 1);
   CHECK(h.retries >= 1);
   CHECK(h.tasks >= 2);
+  CHECK(core::SerializeForest(*forest) == reference);
+}
+
+// Issue 13: a 6,000-image job died with "DataWriter::write failed on poseforest/control (history
+// full for 10 s ...)": each small node went out as its own SubtreeTask sample, every worker's
+// reader gets every control sample, and a worker busy in a long batch read none of them, so
+// the keep-all history filled and the coordinator's write failed. At CI size: histories of 4
+// samples, 300 ms write slices, a worker that holds 2.5 s when its first tasks arrive, and a
+// level handing off far more than 4 nodes. Before the fix this failed at the first such level.
+TEST_CASE("a worker busy in a subtree batch never fails the job (small control history)",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(1, 8, 60));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(48);
+  const std::string job_id = "t-subtree-busy";
+  TransportExtras small;
+  small.keep_all_max_samples = 4;
+  small.write_block_slice = std::chrono::milliseconds(300);
+  ThreadWorkers workers(0, domain, job_id);
+  std::atomic<int> held{0};
+  for (int i = 0; i < 2; ++i) {
+    WorkerOptions w;
+    w.worker_id = "tw-" + std::to_string(::getpid()) + "-busy" + std::to_string(i);
+    w.domain = domain;
+    w.job_id = job_id;
+    w.transport_extras = small;
+    // The first worker to get subtree tasks trains nothing for 2.5 s (a long batch).
+    w.hold_on_subtree_task = [&held] {
+      if (held.fetch_add(1) == 0) std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+    };
+    workers.Add(std::move(w));
+  }
+  CoordinatorOptions o = Options(domain, 2);
+  o.job_id = job_id;
+  o.transport_extras = small;
+  HandOff h;
+  uint64_t most_tasks = 0, most_messages = 0;
+  o.progress = [&](const DistLevelStats& s) {
+    h.Add(s);
+    most_tasks = std::max<uint64_t>(most_tasks, s.subtree_tasks);
+    most_messages = std::max<uint64_t>(most_messages, s.subtree_task_messages);
+    // A level's tasks go as one SubtreeTasks message per worker (these are far below 4 MiB).
+    CHECK(s.subtree_task_messages <= 2);
+    if (s.subtree_tasks > 0) CHECK(s.subtree_task_messages >= 1);
+  };
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  INFO(forest.status().ToString());
+  REQUIRE(forest.ok());
+  CHECK(held >= 1);
+  INFO("most tasks in a level " << most_tasks);
+  CHECK(most_tasks >= 12);  // one sample each would be 3x the history
+  CHECK(coordinator.workers_lost() == 0);
+  CHECK(coordinator.rejected_messages() == 0);
   CHECK(core::SerializeForest(*forest) == reference);
 }
 

@@ -343,6 +343,8 @@ void ApplyDdsFlags(const DdsFlags& flags, dds::NodeConfig* c) {
   c->xml_file = flags.extras.xml_file;
   c->xml_profile = flags.extras.xml_profile;
   c->security = flags.extras.security;
+  c->keep_all_max_samples = flags.extras.keep_all_max_samples;
+  c->write_block_slice = flags.extras.write_block_slice;
 }
 
 }  // namespace poseforest::dist

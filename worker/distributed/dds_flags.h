@@ -18,6 +18,7 @@
 //   --security DIR              DDS-Security with the six files of DIR (deploy/security/make-test-ca.sh)
 
 #include <array>
+#include <chrono>
 #include <functional>
 #include <optional>
 #include <string>
@@ -36,6 +37,10 @@ struct TransportExtras {
   /// separated (dds::FormatDiscoveryServers); one id-0 server is "a.b.c.d:port" as before.
   std::string discovery_server;
   dds::SecurityFiles security;  ///< DDS-Security on any transport when enabled() (absolute paths)
+  /// Flow-control settings of the keep-all topics (dds::NodeConfig): tests lower them to fill a
+  /// history at CI size; 0 / the default: the node's.
+  int keep_all_max_samples = 0;
+  std::chrono::milliseconds write_block_slice{10000};
 };
 
 /// The value options ParseDdsFlags reads (to register with a command's argument parser).

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <condition_variable>
 #include <cstdio>
 #include <deque>
 #include <list>
@@ -146,12 +147,17 @@ struct DistWorker::Impl {
   int tree = -1;
   int subtree_log_tree = -1;  ///< progress lines of subtree tasks: tree, count, nodes, seconds
   uint64_t subtree_done = 0, subtree_nodes_done = 0;
-  double subtree_s = 0;
+  double subtree_s = 0;       ///< wall seconds of subtree work of tree subtree_log_tree
+  double subtree_mark = 0;    ///< when the last SubtreeResult was built (SendResult)
   bool have_shard = false;
   std::map<uint64_t, FrameData> cache;  // tree-local frame index -> frame
   // Frames of other shards rendered for SubtreeTasks, kept for the tree's later tasks within
   // WorkerOptions::task_cache_bytes.
   TaskFrameCache task_cache;
+  /// Task frames of tree task_tree (read by the heartbeat thread: /metrics, issue 13).
+  std::atomic<uint32_t> task_tree{0};
+  std::atomic<uint64_t> tree_task_rendered{0}, tree_task_cached{0}, tree_task_evictions{0};
+  uint64_t tree_evictions_at_start = 0;
   /// The frames batches of SubtreeTasks of tree `task_set_tree` trained on, each copied into
   /// the set's probe buffer once (not once per batch); its samples are a batch's. Dropped and
   /// started again when the tree changes or its frames would pass task_cache_bytes.
@@ -173,6 +179,49 @@ struct DistWorker::Impl {
         job_gate(dds::GateConfig{o.worker_id, "", 16, o.log}) {}
 
   void Log(const std::string& m) { opt.log(m); }
+
+  // DDS intake (issue 13): a thread of its own takes every sample off the DDS readers as it
+  // arrives and queues it here, whatever the training thread is doing. A worker deep in a long
+  // batch of subtree tasks thus never leaves the coordinator's keep-all control history full
+  // (which made the coordinator's writes fail). Bounded in bytes against a flood: past
+  // kInboxMaxBytes the intake pauses and DDS flow control applies again.
+  static constexpr uint64_t kInboxMaxBytes = uint64_t(1) << 30;
+  std::mutex inbox_mu;
+  std::condition_variable inbox_cv;
+  std::deque<dds::ReceivedSample> inbox;
+  uint64_t inbox_bytes = 0;
+  double intake_cpu = 0;  ///< the intake thread's CPU (added to cpu.receive after Run)
+
+  void IntakeLoop() {
+    CpuTimer timer(&intake_cpu);
+    while (!stop) {
+      {
+        std::unique_lock<std::mutex> lock(inbox_mu);
+        if (inbox_bytes > kInboxMaxBytes) {
+          inbox_cv.wait_for(lock, std::chrono::milliseconds(20));
+          continue;
+        }
+      }
+      std::optional<dds::ReceivedSample> s = node->Receive(std::chrono::milliseconds(50));
+      if (!s) continue;
+      std::lock_guard<std::mutex> lock(inbox_mu);
+      inbox_bytes += s->bytes.size();
+      inbox.push_back(std::move(*s));
+      inbox_cv.notify_all();
+    }
+  }
+
+  /// The next sample the intake thread queued, waiting up to `timeout`.
+  std::optional<dds::ReceivedSample> Take(std::chrono::milliseconds timeout) {
+    std::unique_lock<std::mutex> lock(inbox_mu);
+    if (!inbox_cv.wait_for(lock, timeout, [&] { return !inbox.empty() || stop; }) || inbox.empty())
+      return std::nullopt;
+    dds::ReceivedSample s = std::move(inbox.front());
+    inbox.pop_front();
+    inbox_bytes -= s.bytes.size();
+    inbox_cv.notify_all();
+    return s;
+  }
 
   /// Seals and writes `env`; `timed`: counted in cpu.publish (the receiving thread's sends).
   Status Publish(Topic topic, v1::Envelope& env, bool timed = true) {
@@ -224,6 +273,10 @@ struct DistWorker::Impl {
           const double span = now - recent.front().first;
           h->set_evaluations(e);
           h->set_evaluations_per_s(span > 0 ? double(e - recent.front().second) / span : 0);
+          h->set_task_tree(task_tree);
+          h->set_task_frames_rendered(tree_task_rendered);
+          h->set_task_frames_cached(tree_task_cached);
+          h->set_task_cache_evictions(tree_task_evictions);
         }
         (void)Publish(Topic::kPresence, env, /*timed=*/false);
       }
@@ -650,13 +703,27 @@ struct DistWorker::Impl {
   /// the task cache once done). `*src`: each wanted frame.
   Status TaskFrames(int t, const std::vector<uint64_t>& wanted, std::vector<uint64_t>* missing,
                     std::vector<FrameData>* loaded, std::vector<const FrameData*>* src) {
-    if (task_cache.tree != t) task_cache.Clear(t);
+    if (task_cache.tree != t) {
+      if (task_cache.tree >= 0 && (tree_task_rendered > 0 || tree_task_cached > 0))
+        Log("tree " + std::to_string(task_cache.tree) + " subtree frames: " + std::to_string(tree_task_rendered) +
+            " rendered again, " + std::to_string(tree_task_cached) + " from the shard or the task cache, " +
+            std::to_string(task_cache.evictions - tree_evictions_at_start) + " evicted (cache " +
+            std::to_string(task_cache.cap_bytes >> 20) + " MiB)");
+      task_cache.Clear(t);
+      task_tree = uint32_t(t);
+      tree_task_rendered = 0;
+      tree_task_cached = 0;
+      tree_evictions_at_start = task_cache.evictions;
+      tree_task_evictions = 0;
+    }
     const bool own = t == tree;
     missing->clear();
     for (uint64_t i : wanted)
       if (!(own && cache.count(i)) && !task_cache.Has(i)) missing->push_back(i);
     cpu.task_frames += missing->size();
     cpu.task_frames_cached += wanted.size() - missing->size();
+    tree_task_rendered += missing->size();
+    tree_task_cached += wanted.size() - missing->size();
     {
       CpuTimer timer(&cpu.subtree_render);
       Status st;
@@ -687,6 +754,7 @@ struct DistWorker::Impl {
     for (size_t j = 0; j < missing.size(); ++j) task_cache.Put(missing[j], std::move(loaded[j]));
     cpu.task_cache_peak_bytes = std::max(cpu.task_cache_peak_bytes, task_cache.peak_bytes);
     cpu.task_cache_evictions = task_cache.evictions;
+    tree_task_evictions = task_cache.evictions - tree_evictions_at_start;
   }
 
   Status RunSubtree(const v1::SubtreeTask& task) {
@@ -800,7 +868,11 @@ struct DistWorker::Impl {
     if (t != subtree_log_tree) subtree_log_tree = t, subtree_done = 0, subtree_nodes_done = 0, subtree_s = 0;
     ++subtree_done;
     subtree_nodes_done += out->nodes.size();
-    subtree_s += NowSeconds() - t0;
+    // Wall seconds of subtree work: the tasks of a batch share one stretch of time, so each
+    // adds only the time since the previous result (or its start), never the batch's whole.
+    const double now = NowSeconds();
+    subtree_s += now - std::max(t0, subtree_mark);
+    subtree_mark = now;
     if (subtree_done == 1)
       Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(task.position()) + " (" +
           std::to_string(num_samples) + " samples from " + std::to_string(num_frames) + " frames, " +
@@ -989,7 +1061,7 @@ struct DistWorker::Impl {
       std::optional<dds::ReceivedSample> more;
       {
         CpuTimer timer(&cpu.receive);
-        more = node->Receive(std::chrono::milliseconds(0));
+        more = Take(std::chrono::milliseconds(0));
       }
       if (!more) return true;
       if (more->topic == Topic::kJob) {
@@ -1005,6 +1077,15 @@ struct DistWorker::Impl {
           Listed(out.envelope.subtree_task())) {
         if (opt.die_on_subtree_task && opt.die_on_subtree_task()) return false;
         batch->push_back(std::move(out.envelope));
+        continue;
+      }
+      if (out.envelope.body_case() == v1::Envelope::kSubtreeTasks &&
+          out.envelope.subtree_tasks().tasks(0).tree() == batch->front().subtree_task().tree() &&
+          std::all_of(out.envelope.subtree_tasks().tasks().begin(), out.envelope.subtree_tasks().tasks().end(),
+                      Listed)) {
+        if (opt.die_on_subtree_task && opt.die_on_subtree_task()) return false;
+        for (const v1::SubtreeTask& task : out.envelope.subtree_tasks().tasks())
+          *batch->emplace_back().mutable_subtree_task() = task;
         continue;
       }
       pending.push_back({true, {}, std::move(out.envelope), std::move(out.sender)});
@@ -1035,6 +1116,7 @@ struct DistWorker::Impl {
           stop = true;
           return;
         }
+        if (opt.hold_on_subtree_task) opt.hold_on_subtree_task();
         if (Listed(env.subtree_task())) {
           std::vector<v1::Envelope> batch{env};
           if (!DrainTasks(&batch)) {
@@ -1049,6 +1131,36 @@ struct DistWorker::Impl {
         }
         st = RunSubtree(env.subtree_task());
         break;
+      case v1::Envelope::kSubtreeTasks: {
+        if (opt.die_on_subtree_task && opt.die_on_subtree_task()) {
+          Log("test hook: dying with subtree tasks");
+          stop = true;
+          return;
+        }
+        if (opt.hold_on_subtree_task) opt.hold_on_subtree_task();
+        // Tasks with sample lists train together (one SampleSet), with any listed tasks queued
+        // right behind; a task without a list (the coordinator routes none today) alone.
+        std::vector<v1::Envelope> batch;
+        for (const v1::SubtreeTask& task : env.subtree_tasks().tasks()) {
+          if (Listed(task)) {
+            *batch.emplace_back().mutable_subtree_task() = task;
+          } else if (Status one = RunSubtree(task); !one.ok()) {
+            Log("dropped SubtreeTask (position " + std::to_string(task.position()) + ") from " + sender + ": " +
+                one.ToString());
+          }
+        }
+        if (batch.empty()) break;
+        if (!DrainTasks(&batch)) {
+          Log("test hook: dying with subtree tasks");
+          stop = true;
+          return;
+        }
+        if (batch.size() > 1)
+          RunSubtreeBatch(batch, sender);
+        else
+          st = RunSubtree(batch.front().subtree_task());
+        break;
+      }
       case v1::Envelope::kStatus:
         if (env.status().kind() == v1::STATUS_KIND_JOB_DONE && opt.exit_when_done) {
           Log("job " + job_id + " done");
@@ -1101,13 +1213,16 @@ Status DistWorker::Run() {
   Impl impl(options_, stop_);
   impl.cpu.process_at_start = process0;
   std::optional<CpuTimer> participant_timer(&impl.cpu.participant);
-  auto node = dds::DdsNode::Create(MakeNodeConfig(options_.domain, options_.transport, false,
-                                                  options_.worker_id, options_.lease, options_.udp_peers,
-                                                  options_.udp_interfaces, options_.transport_extras));
+  dds::NodeConfig node_config =
+      MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id, options_.lease,
+                     options_.udp_peers, options_.udp_interfaces, options_.transport_extras);
+  node_config.log = options_.log;
+  auto node = dds::DdsNode::Create(node_config);
   if (!node.ok()) return node.status();
   impl.node = std::move(*node);
   participant_timer.reset();
   std::thread heartbeat([&] { impl.HeartbeatLoop(); });
+  std::thread intake([&] { impl.IntakeLoop(); });
   while (!stop_) {
     if (!impl.pending.empty()) {  // taken off DDS while a batch of subtree tasks was collected
       Impl::Pending p = std::move(impl.pending.front());
@@ -1121,11 +1236,14 @@ Status DistWorker::Run() {
     std::optional<dds::ReceivedSample> s;
     {
       CpuTimer timer(&impl.cpu.receive);
-      s = impl.node->Receive(std::chrono::milliseconds(50));
+      s = impl.Take(std::chrono::milliseconds(50));
     }
     if (s) impl.OnSample(*s);
   }
   heartbeat.join();
+  impl.inbox_cv.notify_all();
+  intake.join();
+  impl.cpu.receive += impl.intake_cpu;
   // Let the last replies reach the coordinator before the participant goes away.
   {
     CpuTimer timer(&impl.cpu.publish);

@@ -6,9 +6,11 @@
 // of the node that are not in its shard). A library with a thin CLI (`poseforest worker`), so tests run
 // workers as threads too.
 //
-// Threads: Run() receives and computes on the caller's thread; a heartbeat thread publishes
-// Hello/Heartbeat on the presence topic (which also asserts its DDS liveliness) while the main
-// thread computes. DDS listeners only enqueue (dds::DdsNode).
+// Threads: Run() computes on the caller's thread; an intake thread takes every sample off DDS as
+// it arrives and queues it for Run() (so a worker busy training never leaves the coordinator's
+// control history full); a heartbeat thread publishes Hello/Heartbeat on the presence topic
+// (which also asserts its DDS liveliness) while the main thread computes. DDS listeners only
+// enqueue (dds::DdsNode).
 
 #include <atomic>
 #include <chrono>
@@ -46,6 +48,9 @@ struct WorkerOptions {
   /// Tests: called when a SubtreeTask arrives; returning true makes the worker drop the task and
   /// stop at once, as if it were killed while holding it.
   std::function<bool()> die_on_subtree_task;
+  /// Tests: called on the training thread when subtree tasks arrive, before they are trained
+  /// (a test sleeps in it: a worker busy in a long batch while the coordinator goes on sending).
+  std::function<void()> hold_on_subtree_task;
   /// Tests: the next this many SubtreeResults are tampered with after they are built (a root
   /// at the wrong position, then part counts that do not add up), still well-formed for the
   /// gate: a hostile worker.
