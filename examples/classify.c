@@ -35,15 +35,16 @@ int main(int argc, char** argv) {
   printf("forest: %d trees, depth %d, %zu nodes, %d parts\n", pf_forest_num_trees(forest),
          pf_forest_max_depth(forest), pf_forest_num_nodes(forest), pf_forest_num_parts(forest));
 
-  if (pf_classify(forest, depth, kWidth, kHeight, 0, labels, sizeof labels, NULL, 0) != PF_OK) return fail("classify");
+  if (pf_classify(forest, depth, kWidth, kHeight, 0, labels, sizeof labels, NULL, 0) != PF_OK)
+    return fail("classify");
   int foreground = 0;
   for (int i = 0; i < kWidth * kHeight; ++i) foreground += labels[i] != 255;
   printf("foreground pixels: %d\n", foreground);
 
   if (pf_forest_has_joints(forest)) {
     size_t count = 0;
-    if (pf_propose_joints(forest, depth, kWidth, kHeight, PF_MEAN_SHIFT, 0, proposals, kMaxProposals, &count, NULL,
-                          0) != PF_OK)
+    if (pf_propose_joints(forest, depth, kWidth, kHeight, PF_MEAN_SHIFT, 0, proposals, kMaxProposals, &count,
+                          NULL, 0) != PF_OK)
       return fail("joints");
     printf("joint proposals: %zu\n", count);
     for (size_t k = 0; k < count; ++k)

@@ -3,11 +3,10 @@
 // labels (one byte per pixel) and P(part | pixel) (float32, height x width x parts).
 //   classify_cpp FOREST.pff DEPTH.raw [LABELS_OUT [DISTRIBUTIONS_OUT]]
 // Built by examples/CMakeLists.txt and examples/Makefile; run by the tests (tests/runtime).
-#include <poseforest/poseforest.hpp>
-
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <poseforest/poseforest.hpp>
 #include <vector>
 
 int main(int argc, char** argv) {
@@ -19,11 +18,13 @@ int main(int argc, char** argv) {
   std::vector<uint16_t> depth(size_t(width) * height);
   std::ifstream in(argv[2], std::ios::binary);
   if (!in.read(reinterpret_cast<char*>(depth.data()), std::streamsize(depth.size() * 2))) {
-    std::cerr << "classify_cpp: cannot read " << width << " x " << height << " depth values from " << argv[2] << "\n";
+    std::cerr << "classify_cpp: cannot read " << width << " x " << height << " depth values from " << argv[2]
+              << "\n";
     return 1;
   }
   try {
-    std::cout << "poseforest " << poseforest::api::Version() << " (headers " << POSEFOREST_VERSION_STRING << ")\n";
+    std::cout << "poseforest " << poseforest::api::Version() << " (headers " << POSEFOREST_VERSION_STRING
+              << ")\n";
     const poseforest::api::Forest forest(argv[1]);
     const poseforest::api::DepthView view{depth.data(), width, height};
     const auto result = forest.Classify(view, /*distributions=*/argc > 4);

@@ -1,14 +1,13 @@
 // The C API (poseforest/poseforest.h) over the runtime: the only code of libposeforest whose
 // symbols are exported. No exception leaves a pf_ function: each catches, and turns what it
 // caught into a status and the calling thread's message.
-#include "poseforest/poseforest.h"
-
 #include <cstring>
 #include <exception>
 #include <new>
 #include <string>
 #include <vector>
 
+#include "poseforest/poseforest.h"
 #include "runtime/classifier.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/joint_proposals.h"
@@ -30,14 +29,22 @@ constexpr int kMaxSide = 32768;
 
 pf_status ToPf(ErrorCode code) {
   switch (code) {
-    case ErrorCode::kOk: return PF_OK;
-    case ErrorCode::kInvalidArgument: return PF_INVALID_ARGUMENT;
-    case ErrorCode::kDataLoss: return PF_DATA_LOSS;
-    case ErrorCode::kVersionMismatch: return PF_VERSION_MISMATCH;
-    case ErrorCode::kIo: return PF_IO;
-    case ErrorCode::kNotFound: return PF_NOT_FOUND;
-    case ErrorCode::kUnimplemented: return PF_UNIMPLEMENTED;
-    case ErrorCode::kInternal: return PF_INTERNAL;
+    case ErrorCode::kOk:
+      return PF_OK;
+    case ErrorCode::kInvalidArgument:
+      return PF_INVALID_ARGUMENT;
+    case ErrorCode::kDataLoss:
+      return PF_DATA_LOSS;
+    case ErrorCode::kVersionMismatch:
+      return PF_VERSION_MISMATCH;
+    case ErrorCode::kIo:
+      return PF_IO;
+    case ErrorCode::kNotFound:
+      return PF_NOT_FOUND;
+    case ErrorCode::kUnimplemented:
+      return PF_UNIMPLEMENTED;
+    case ErrorCode::kInternal:
+      return PF_INTERNAL;
   }
   return PF_INTERNAL;
 }
@@ -70,7 +77,8 @@ pf_status Guard(const char* function, F&& body) noexcept {
   }
 }
 
-pf_status Adopt(poseforest::core::Result<poseforest::core::Forest> loaded, std::string source, pf_forest** out) {
+pf_status Adopt(poseforest::core::Result<poseforest::core::Forest> loaded, std::string source,
+                pf_forest** out) {
   if (!loaded.ok()) return Fail(loaded.status());
   auto* f = new pf_forest{std::move(*loaded), std::move(source), false};
   f->has_joints = f->forest.num_parts == poseforest::core::kNumParts &&
@@ -80,7 +88,8 @@ pf_status Adopt(poseforest::core::Result<poseforest::core::Forest> loaded, std::
 }
 
 /// Checks the image arguments shared by pf_classify and pf_propose_joints.
-pf_status CheckImage(const char* function, const pf_forest* forest, const uint16_t* depth_mm, int width, int height) {
+pf_status CheckImage(const char* function, const pf_forest* forest, const uint16_t* depth_mm, int width,
+                     int height) {
   if (!forest) return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": forest is NULL");
   if (!depth_mm) return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": depth_mm is NULL");
   if (width < 1 || height < 1 || width > kMaxSide || height > kMaxSide)
@@ -96,8 +105,8 @@ poseforest::core::DepthImage CopyDepth(const uint16_t* depth_mm, int width, int 
 }
 
 pf_status TooSmall(const char* function, const char* what, size_t given, size_t needed, const char* unit) {
-  return Fail(PF_BUFFER_TOO_SMALL, std::string(function) + ": " + what + " holds " + std::to_string(given) + " " +
-                                       unit + ", needs " + std::to_string(needed));
+  return Fail(PF_BUFFER_TOO_SMALL, std::string(function) + ": " + what + " holds " + std::to_string(given) +
+                                       " " + unit + ", needs " + std::to_string(needed));
 }
 
 }  // namespace
@@ -109,16 +118,26 @@ const char* pf_version_string(void) { return POSEFOREST_VERSION_STRING; }
 
 const char* pf_status_name(pf_status status) {
   switch (status) {
-    case PF_OK: return "Ok";
-    case PF_INVALID_ARGUMENT: return "InvalidArgument";
-    case PF_DATA_LOSS: return "DataLoss";
-    case PF_VERSION_MISMATCH: return "VersionMismatch";
-    case PF_IO: return "Io";
-    case PF_NOT_FOUND: return "NotFound";
-    case PF_UNIMPLEMENTED: return "Unimplemented";
-    case PF_INTERNAL: return "Internal";
-    case PF_BUFFER_TOO_SMALL: return "BufferTooSmall";
-    case PF_OUT_OF_MEMORY: return "OutOfMemory";
+    case PF_OK:
+      return "Ok";
+    case PF_INVALID_ARGUMENT:
+      return "InvalidArgument";
+    case PF_DATA_LOSS:
+      return "DataLoss";
+    case PF_VERSION_MISMATCH:
+      return "VersionMismatch";
+    case PF_IO:
+      return "Io";
+    case PF_NOT_FOUND:
+      return "NotFound";
+    case PF_UNIMPLEMENTED:
+      return "Unimplemented";
+    case PF_INTERNAL:
+      return "Internal";
+    case PF_BUFFER_TOO_SMALL:
+      return "BufferTooSmall";
+    case PF_OUT_OF_MEMORY:
+      return "OutOfMemory";
   }
   return "Unknown";
 }
@@ -164,8 +183,9 @@ const char* pf_joint_name(int joint) {
   return poseforest::core::JointName(joint).data();
 }
 
-pf_status pf_classify(const pf_forest* forest, const uint16_t* depth_mm, int width, int height, int num_threads,
-                      uint8_t* labels, size_t labels_len, float* distributions, size_t distributions_len) {
+pf_status pf_classify(const pf_forest* forest, const uint16_t* depth_mm, int width, int height,
+                      int num_threads, uint8_t* labels, size_t labels_len, float* distributions,
+                      size_t distributions_len) {
   namespace core = poseforest::core;
   namespace rt = poseforest::runtime;
   return Guard("pf_classify", [&]() -> pf_status {
@@ -207,7 +227,8 @@ pf_status pf_propose_joints(const pf_forest* forest, const uint16_t* depth_mm, i
   namespace core = poseforest::core;
   namespace rt = poseforest::runtime;
   return Guard("pf_propose_joints", [&]() -> pf_status {
-    if (pf_status st = CheckImage("pf_propose_joints", forest, depth_mm, width, height); st != PF_OK) return st;
+    if (pf_status st = CheckImage("pf_propose_joints", forest, depth_mm, width, height); st != PF_OK)
+      return st;
     if (!count) return Fail(PF_INVALID_ARGUMENT, "pf_propose_joints: count is NULL");
     *count = 0;
     if (!proposals && capacity != 0) return Fail(PF_INVALID_ARGUMENT, "pf_propose_joints: proposals is NULL");
@@ -215,15 +236,19 @@ pf_status pf_propose_joints(const pf_forest* forest, const uint16_t* depth_mm, i
       return Fail(PF_INVALID_ARGUMENT, "pf_propose_joints: unknown method " + std::to_string(int(method)));
     if (num_threads < 0) return Fail(PF_INVALID_ARGUMENT, "pf_propose_joints: num_threads < 0");
     const size_t pixels = size_t(width) * size_t(height);
-    if (labels && labels_len < pixels) return TooSmall("pf_propose_joints", "labels", labels_len, pixels, "bytes");
+    if (labels && labels_len < pixels)
+      return TooSmall("pf_propose_joints", "labels", labels_len, pixels, "bytes");
     if (!forest->has_joints)
-      return Fail(Status(core::ErrorCode::kInvalidArgument,
-                         forest->source + ": joint proposals need a forest with the paper's 31-part taxonomy (this one has " +
-                             std::to_string(forest->forest.num_parts) + " parts)"));
+      return Fail(
+          Status(core::ErrorCode::kInvalidArgument,
+                 forest->source +
+                     ": joint proposals need a forest with the paper's 31-part taxonomy (this one has " +
+                     std::to_string(forest->forest.num_parts) + " parts)"));
 
     // As `poseforest infer --joints` (infer_command.cpp): the forest's parameters for the method.
     rt::ProposalOptions options;
-    options.method = method == PF_FAST_CLUSTERING ? rt::ProposalMethod::kFastClustering : rt::ProposalMethod::kMeanShift;
+    options.method =
+        method == PF_FAST_CLUSTERING ? rt::ProposalMethod::kFastClustering : rt::ProposalMethod::kMeanShift;
     options.params = forest->forest.ProposalParamsFor(method == PF_FAST_CLUSTERING).params;
     options.num_threads = num_threads;
     rt::ClassifyOptions classify_options;
@@ -237,8 +262,7 @@ pf_status pf_propose_joints(const pf_forest* forest, const uint16_t* depth_mm, i
     size_t n = 0;
     for (const auto& list : found) n += list.size();
     *count = n;
-    if (n > capacity)
-      return TooSmall("pf_propose_joints", "proposals", capacity, n, "proposals");
+    if (n > capacity) return TooSmall("pf_propose_joints", "proposals", capacity, n, "proposals");
     size_t k = 0;
     for (int j = 0; j < core::kNumJoints; ++j)
       for (const rt::JointProposal& p : found[size_t(j)]) {

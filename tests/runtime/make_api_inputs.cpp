@@ -42,7 +42,8 @@ int main(int argc, char** argv) {
   if (!Write(out / "forest5.pff", core::SerializeForest(testing::MakeRandomForest(spec)))) return 1;
 
   const core::DepthImage depth = testing::MakePersonDepth(2.4, 640, 480, 0.1);
-  if (!Write(out / "person.raw", std::span(reinterpret_cast<const uint8_t*>(depth.data()), depth.pixels.size() * 2)))
+  if (!Write(out / "person.raw",
+             std::span(reinterpret_cast<const uint8_t*>(depth.data()), depth.pixels.size() * 2)))
     return 1;
   runtime::Classification c;
   runtime::Classifier(forest).Classify(depth, {}, &c);

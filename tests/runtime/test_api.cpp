@@ -2,12 +2,13 @@
 // application calls it: results equal the runtime's and the `poseforest infer` program's byte for
 // byte, errors carry the CLI's status and message, and docs/runtime/api.md names every function.
 #include <poseforest/poseforest.h>
-#include <poseforest/poseforest.hpp>
 
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <poseforest/poseforest.hpp>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -115,8 +116,8 @@ TEST_CASE("labels and distributions equal the runtime classifier's", "[api]") {
 
   std::vector<uint8_t> labels(pixels);
   std::vector<float> probs(pixels * core::kNumParts, -1.0f);
-  REQUIRE(pf_classify(f.forest, depth.data(), depth.width, depth.height, 2, labels.data(), labels.size(), probs.data(),
-                      probs.size()) == PF_OK);
+  REQUIRE(pf_classify(f.forest, depth.data(), depth.width, depth.height, 2, labels.data(), labels.size(),
+                      probs.data(), probs.size()) == PF_OK);
   runtime::ClassifyOptions dense;
   dense.want_distributions = true;
   runtime::Classification expected;
@@ -132,8 +133,8 @@ TEST_CASE("labels and distributions equal the runtime classifier's", "[api]") {
 
   // Labels alone, one thread, and through the C++ API: the same.
   std::vector<uint8_t> labels1(pixels);
-  REQUIRE(pf_classify(f.forest, depth.data(), depth.width, depth.height, 1, labels1.data(), labels1.size(), nullptr, 0) ==
-          PF_OK);
+  REQUIRE(pf_classify(f.forest, depth.data(), depth.width, depth.height, 1, labels1.data(), labels1.size(),
+                      nullptr, 0) == PF_OK);
   CHECK(labels1 == labels);
   const api::Forest cpp(path);
   const auto c = cpp.Classify({depth.data(), depth.width, depth.height}, true);
@@ -149,19 +150,23 @@ TEST_CASE("bad arguments give a status and a message, never a crash", "[api]") {
   std::vector<uint8_t> labels(depth.pixels.size());
   std::vector<float> probs(depth.pixels.size() * core::kNumParts);
 
-  CHECK(pf_classify(nullptr, depth.data(), 64, 48, 0, labels.data(), labels.size(), nullptr, 0) == PF_INVALID_ARGUMENT);
+  CHECK(pf_classify(nullptr, depth.data(), 64, 48, 0, labels.data(), labels.size(), nullptr, 0) ==
+        PF_INVALID_ARGUMENT);
   CHECK_THAT(pf_last_error_message(), Catch::StartsWith("InvalidArgument: pf_classify: forest is NULL"));
-  CHECK(pf_classify(f.forest, nullptr, 64, 48, 0, labels.data(), labels.size(), nullptr, 0) == PF_INVALID_ARGUMENT);
-  CHECK(pf_classify(f.forest, depth.data(), 0, 48, 0, labels.data(), labels.size(), nullptr, 0) == PF_INVALID_ARGUMENT);
+  CHECK(pf_classify(f.forest, nullptr, 64, 48, 0, labels.data(), labels.size(), nullptr, 0) ==
+        PF_INVALID_ARGUMENT);
+  CHECK(pf_classify(f.forest, depth.data(), 0, 48, 0, labels.data(), labels.size(), nullptr, 0) ==
+        PF_INVALID_ARGUMENT);
   CHECK_THAT(pf_last_error_message(), Catch::Contains("0x48"));
   CHECK(pf_classify(f.forest, depth.data(), 64, 48, 0, nullptr, 0, nullptr, 0) == PF_INVALID_ARGUMENT);
-  CHECK(pf_classify(f.forest, depth.data(), 64, 48, -1, labels.data(), labels.size(), nullptr, 0) == PF_INVALID_ARGUMENT);
+  CHECK(pf_classify(f.forest, depth.data(), 64, 48, -1, labels.data(), labels.size(), nullptr, 0) ==
+        PF_INVALID_ARGUMENT);
   std::vector<uint8_t> before = labels;
   CHECK(pf_classify(f.forest, depth.data(), 64, 48, 0, labels.data(), labels.size() - 1, nullptr, 0) ==
         PF_BUFFER_TOO_SMALL);
   CHECK_THAT(pf_last_error_message(), Catch::Contains("labels holds 3071 bytes, needs 3072"));
-  CHECK(pf_classify(f.forest, depth.data(), 64, 48, 0, labels.data(), labels.size(), probs.data(), probs.size() - 1) ==
-        PF_BUFFER_TOO_SMALL);
+  CHECK(pf_classify(f.forest, depth.data(), 64, 48, 0, labels.data(), labels.size(), probs.data(),
+                    probs.size() - 1) == PF_BUFFER_TOO_SMALL);
   CHECK(labels == before);  // nothing written
   // A success clears the message.
   CHECK(pf_classify(f.forest, depth.data(), 64, 48, 0, labels.data(), labels.size(), nullptr, 0) == PF_OK);
@@ -173,11 +178,11 @@ TEST_CASE("bad arguments give a status and a message, never a crash", "[api]") {
   CHECK(pf_forest_load_file(path.c_str(), nullptr) == PF_INVALID_ARGUMENT);
   CHECK(pf_forest_load_memory(nullptr, 10, nullptr, &out) == PF_INVALID_ARGUMENT);
   size_t count = 7;
-  CHECK(pf_propose_joints(f.forest, depth.data(), 64, 48, static_cast<pf_proposal_method>(7), 0, nullptr, 0, &count,
-                          nullptr, 0) == PF_INVALID_ARGUMENT);
+  CHECK(pf_propose_joints(f.forest, depth.data(), 64, 48, static_cast<pf_proposal_method>(7), 0, nullptr, 0,
+                          &count, nullptr, 0) == PF_INVALID_ARGUMENT);
   CHECK_THAT(pf_last_error_message(), Catch::Contains("unknown method 7"));
-  CHECK(pf_propose_joints(f.forest, depth.data(), 64, 48, PF_MEAN_SHIFT, 0, nullptr, 0, nullptr, nullptr, 0) ==
-        PF_INVALID_ARGUMENT);
+  CHECK(pf_propose_joints(f.forest, depth.data(), 64, 48, PF_MEAN_SHIFT, 0, nullptr, 0, nullptr, nullptr,
+                          0) == PF_INVALID_ARGUMENT);
 
   // The C++ API throws the same status and message.
   const api::Forest cpp(path);
@@ -206,7 +211,8 @@ TEST_CASE("a corrupt, truncated, missing or future forest gives the CLI's status
   auto flipped = good;
   flipped[good.size() / 2] ^= 0x40;  // payload damage: the checksum catches it
   cases.push_back({"flipped.pff", flipped, PF_DATA_LOSS});
-  cases.push_back({"truncated.pff", std::vector<uint8_t>(good.begin(), good.begin() + long(good.size() / 3)), PF_DATA_LOSS});
+  cases.push_back({"truncated.pff", std::vector<uint8_t>(good.begin(), good.begin() + long(good.size() / 3)),
+                   PF_DATA_LOSS});
   cases.push_back({"empty.pff", {}, PF_DATA_LOSS});
   auto future = good;
   future[8] = 2;  // major version 2
@@ -227,7 +233,8 @@ TEST_CASE("a corrupt, truncated, missing or future forest gives the CLI's status
     const std::string message = pf_last_error_message();
     CHECK(message == expected.ToString());
     // The program prints the same message after its prefix.
-    const auto run = testing::RunPoseforest("infer --quiet --forest " + path + " " + (dir / "frame.png").string());
+    const auto run =
+        testing::RunPoseforest("infer --quiet --forest " + path + " " + (dir / "frame.png").string());
     CHECK(run.exit_code == 1);
     CHECK(run.output == "poseforest infer: " + message + "\n");
     // From memory: the same status, the message names the source.
@@ -247,21 +254,24 @@ TEST_CASE("a corrupt, truncated, missing or future forest gives the CLI's status
   const std::string missing = (dir / "missing.pff").string();
   pf_forest* out = nullptr;
   CHECK(pf_forest_load_file(missing.c_str(), &out) == PF_NOT_FOUND);
-  const auto run = testing::RunPoseforest("infer --quiet --forest " + missing + " " + (dir / "frame.png").string());
+  const auto run =
+      testing::RunPoseforest("infer --quiet --forest " + missing + " " + (dir / "frame.png").string());
   CHECK(run.output == "poseforest infer: " + std::string(pf_last_error_message()) + "\n");
   CHECK_THAT(pf_last_error_message(), Catch::StartsWith("NotFound: ") && Catch::Contains("missing.pff"));
 }
 
-TEST_CASE("labels and distributions equal `poseforest infer --labels --distributions` byte for byte", "[api][cli]") {
+TEST_CASE("labels and distributions equal `poseforest infer --labels --distributions` byte for byte",
+          "[api][cli]") {
   const fs::path dir = testing::ScratchDir("api-cli");
   const std::string path = SaveTo(SmallForest(9), "cli.pff");
   const core::DepthImage depth = testing::MakePersonDepth(2.2, 640, 480, 0.2);
   // A raw frame, as a camera gives it.
   const std::string raw = (dir / "frame.raw").string();
-  REQUIRE(core::WriteFileAtomic(raw, std::span(reinterpret_cast<const uint8_t*>(depth.data()), depth.pixels.size() * 2))
+  REQUIRE(core::WriteFileAtomic(
+              raw, std::span(reinterpret_cast<const uint8_t*>(depth.data()), depth.pixels.size() * 2))
               .ok());
-  const auto run = testing::RunPoseforest("infer --quiet --labels --distributions --forest " + path + " --out-dir " +
-                                          (dir / "out").string() + " " + raw);
+  const auto run = testing::RunPoseforest("infer --quiet --labels --distributions --forest " + path +
+                                          " --out-dir " + (dir / "out").string() + " " + raw);
   INFO(run.output);
   REQUIRE(run.exit_code == 0);
 
@@ -300,13 +310,13 @@ TEST_CASE("joint proposals equal the runtime's; the buffer protocol and the 31-p
     REQUIRE(n_expected > 0);
 
     size_t count = 0;
-    CHECK(pf_propose_joints(f.forest, depth.data(), depth.width, depth.height, method, 0, nullptr, 0, &count, nullptr,
-                            0) == PF_BUFFER_TOO_SMALL);
+    CHECK(pf_propose_joints(f.forest, depth.data(), depth.width, depth.height, method, 0, nullptr, 0, &count,
+                            nullptr, 0) == PF_BUFFER_TOO_SMALL);
     CHECK(count == n_expected);
     std::vector<pf_joint_proposal> got(count);
     std::vector<uint8_t> labels(depth.pixels.size());
-    REQUIRE(pf_propose_joints(f.forest, depth.data(), depth.width, depth.height, method, 0, got.data(), got.size(),
-                              &count, labels.data(), labels.size()) == PF_OK);
+    REQUIRE(pf_propose_joints(f.forest, depth.data(), depth.width, depth.height, method, 0, got.data(),
+                              got.size(), &count, labels.data(), labels.size()) == PF_OK);
     REQUIRE(count == n_expected);
     CHECK(labels == c.labels.pixels);
     size_t k = 0;
@@ -320,9 +330,9 @@ TEST_CASE("joint proposals equal the runtime's; the buffer protocol and the 31-p
         ++k;
       }
     // The C++ API grows its buffer as needed.
-    const auto cpp = api::Forest(path).Joints({depth.data(), depth.width, depth.height},
-                                              method == PF_MEAN_SHIFT ? api::Method::kMeanShift
-                                                                      : api::Method::kFastClustering);
+    const auto cpp = api::Forest(path).Joints(
+        {depth.data(), depth.width, depth.height},
+        method == PF_MEAN_SHIFT ? api::Method::kMeanShift : api::Method::kFastClustering);
     REQUIRE(cpp.size() == got.size());
     CHECK(std::memcmp(cpp.data(), got.data(), got.size() * sizeof(pf_joint_proposal)) == 0);
   }
@@ -333,10 +343,11 @@ TEST_CASE("joint proposals equal the runtime's; the buffer protocol and the 31-p
   REQUIRE(pf_forest_load_file(five.c_str(), &g.forest) == PF_OK);
   CHECK(pf_forest_has_joints(g.forest) == 0);
   size_t count = 0;
-  CHECK(pf_propose_joints(g.forest, depth.data(), depth.width, depth.height, PF_MEAN_SHIFT, 0, nullptr, 0, &count,
-                          nullptr, 0) == PF_INVALID_ARGUMENT);
+  CHECK(pf_propose_joints(g.forest, depth.data(), depth.width, depth.height, PF_MEAN_SHIFT, 0, nullptr, 0,
+                          &count, nullptr, 0) == PF_INVALID_ARGUMENT);
   CHECK(std::string(pf_last_error_message()) ==
-        "InvalidArgument: " + five + ": joint proposals need a forest with the paper's 31-part taxonomy (this one has 5 parts)");
+        "InvalidArgument: " + five +
+            ": joint proposals need a forest with the paper's 31-part taxonomy (this one has 5 parts)");
 }
 
 TEST_CASE("many threads classify with one forest at once", "[api]") {
@@ -357,7 +368,8 @@ TEST_CASE("many threads classify with one forest at once", "[api]") {
   CHECK(equal == std::vector<int>(4, 3));
 }
 
-TEST_CASE("docs/runtime/api.md names every function and type of the public headers, and no others", "[api][docs]") {
+TEST_CASE("docs/runtime/api.md names every function and type of the public headers, and no others",
+          "[api][docs]") {
   const fs::path src = POSEFOREST_SOURCE_DIR;
   const std::string header = Slurp(src / "runtime/api/include/poseforest/poseforest.h");
   std::string cpp = Slurp(src / "runtime/api/include/poseforest/poseforest.hpp");
@@ -379,7 +391,8 @@ TEST_CASE("docs/runtime/api.md names every function and type of the public heade
   // Every pf_ function the page mentions exists (no stale names).
   const std::regex mentioned(R"(\b(pf_[a-z_]+)\s*\()");
   std::set<std::string> types = {"pf_status", "pf_forest", "pf_joint_proposal", "pf_proposal_method"};
-  for (auto it = std::sregex_iterator(doc.begin(), doc.end(), mentioned); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(doc.begin(), doc.end(), mentioned); it != std::sregex_iterator();
+       ++it) {
     INFO("docs/runtime/api.md mentions " << (*it)[1] << "(), which poseforest.h does not declare");
     CHECK((declared.count((*it)[1]) == 1 || types.count((*it)[1]) == 1));
   }
@@ -391,7 +404,8 @@ TEST_CASE("docs/runtime/api.md names every function and type of the public heade
     CHECK(doc.find(t) != std::string::npos);
   }
   // The C++ API's classes and functions.
-  const std::regex cpp_names(R"((?:class|struct|enum class) (\w+)|\n  [\w:<>,*& ]+ (\w+)\([^)]*\) const|inline [\w:<>]+ (\w+)\(|static \w+ (\w+)\()");
+  const std::regex cpp_names(
+      R"((?:class|struct|enum class) (\w+)|\n  [\w:<>,*& ]+ (\w+)\([^)]*\) const|inline [\w:<>]+ (\w+)\(|static \w+ (\w+)\()");
   std::set<std::string> cpp_declared;
   for (auto it = std::sregex_iterator(cpp.begin(), cpp.end(), cpp_names); it != std::sregex_iterator(); ++it)
     for (int g = 1; g <= 4; ++g)
@@ -403,4 +417,38 @@ TEST_CASE("docs/runtime/api.md names every function and type of the public heade
     INFO("C++ API name " << name << " is not in docs/runtime/api.md");
     CHECK(doc.find(name) != std::string::npos);
   }
+}
+
+TEST_CASE("the README's snippets of the runtime library are lines of the tested examples", "[api][docs]") {
+  const fs::path src = POSEFOREST_SOURCE_DIR;
+  const std::string readme = Slurp(src / "README.md");
+  const size_t begin = readme.find("\n## Use the runtime from your program");
+  REQUIRE(begin != std::string::npos);
+  const std::string section = readme.substr(begin, readme.find("\n## ", begin + 1) - begin);
+  auto trim = [](std::string l) {
+    l.erase(0, l.find_first_not_of(" \t"));
+    l.erase(l.find_last_not_of(" \t\r") + 1);
+    return l;
+  };
+  auto lines = [&](const std::string& text) {
+    std::vector<std::string> out;
+    std::istringstream in(text);
+    for (std::string l; std::getline(in, l);) out.push_back(trim(l));
+    return out;
+  };
+  int blocks = 0;
+  const std::regex fence("```\\w*\\n(?:#|//) (examples/[\\w.]+)\\n([\\s\\S]*?)```");
+  for (auto it = std::sregex_iterator(section.begin(), section.end(), fence); it != std::sregex_iterator();
+       ++it) {
+    const std::string file = (*it)[1];
+    const auto have = lines(Slurp(src / file));
+    REQUIRE_FALSE(have.empty());
+    for (const std::string& line : lines((*it)[2])) {
+      if (line.empty()) continue;
+      INFO("README snippet line not in " << file << ": " << line);
+      CHECK(std::find(have.begin(), have.end(), line) != have.end());
+    }
+    ++blocks;
+  }
+  CHECK(blocks == 5);  // CMake, Makefile, C, C++, Python
 }

@@ -22,7 +22,8 @@ py::array_t<uint16_t, py::array::c_style> DepthArray(const py::array& depth) {
     throw py::type_error("depth must be a uint16 array of millimetres, shape (height, width); got dtype " +
                          std::string(py::str(depth.dtype())));
   if (depth.ndim() != 2)
-    throw py::value_error("depth must have 2 dimensions (height, width); got " + std::to_string(depth.ndim()));
+    throw py::value_error("depth must have 2 dimensions (height, width); got " +
+                          std::to_string(depth.ndim()));
   return py::array_t<uint16_t, py::array::c_style>::ensure(depth);
 }
 
@@ -105,17 +106,22 @@ PYBIND11_MODULE(_poseforest, m) {
           [](const Forest& f, const py::array& depth, const std::string& method, int threads) {
             auto d = DepthArray(depth);
             poseforest::api::Method m;
-            if (method == "meanshift") m = poseforest::api::Method::kMeanShift;
-            else if (method == "fast") m = poseforest::api::Method::kFastClustering;
-            else throw py::value_error("method must be 'meanshift' or 'fast', got '" + method + "'");
+            if (method == "meanshift")
+              m = poseforest::api::Method::kMeanShift;
+            else if (method == "fast")
+              m = poseforest::api::Method::kFastClustering;
+            else
+              throw py::value_error("method must be 'meanshift' or 'fast', got '" + method + "'");
             const DepthView view = View(d);
             std::vector<pf_joint_proposal> found;
             {
               py::gil_scoped_release release;
               found = f.Joints(view, m, threads);
             }
-            py::array out(py::dtype::from_args(JointDtype()), std::vector<py::ssize_t>{py::ssize_t(found.size())});
-            if (!found.empty()) std::memcpy(out.mutable_data(), found.data(), found.size() * sizeof(pf_joint_proposal));
+            py::array out(py::dtype::from_args(JointDtype()),
+                          std::vector<py::ssize_t>{py::ssize_t(found.size())});
+            if (!found.empty())
+              std::memcpy(out.mutable_data(), found.data(), found.size() * sizeof(pf_joint_proposal));
             return out;
           },
           py::arg("depth"), py::arg("method") = "meanshift", py::arg("threads") = 0,

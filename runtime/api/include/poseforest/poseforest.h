@@ -46,21 +46,21 @@ extern "C" {
 /** Outcome of a call. The values are stable (they are part of the ABI). */
 typedef enum pf_status {
   PF_OK = 0,
-  PF_INVALID_ARGUMENT = 1,  /**< a bad value from the caller (null pointer, size, method) */
-  PF_DATA_LOSS = 2,         /**< a corrupt or truncated forest */
-  PF_VERSION_MISMATCH = 3,  /**< a forest file of another major format version */
-  PF_IO = 4,                /**< the OS failed to open or read a file */
-  PF_NOT_FOUND = 5,         /**< no such file */
+  PF_INVALID_ARGUMENT = 1, /**< a bad value from the caller (null pointer, size, method) */
+  PF_DATA_LOSS = 2,        /**< a corrupt or truncated forest */
+  PF_VERSION_MISMATCH = 3, /**< a forest file of another major format version */
+  PF_IO = 4,               /**< the OS failed to open or read a file */
+  PF_NOT_FOUND = 5,        /**< no such file */
   PF_UNIMPLEMENTED = 6,
-  PF_INTERNAL = 7,          /**< a bug: please report it with the message */
-  PF_BUFFER_TOO_SMALL = 8,  /**< an output buffer is too small; the needed size was returned */
+  PF_INTERNAL = 7,         /**< a bug: please report it with the message */
+  PF_BUFFER_TOO_SMALL = 8, /**< an output buffer is too small; the needed size was returned */
   PF_OUT_OF_MEMORY = 9
 } pf_status;
 
 /** Joint proposal method (section 3.4 of the paper). */
 typedef enum pf_proposal_method {
-  PF_MEAN_SHIFT = 0,      /**< weighted Gaussian mean shift (the paper's main method) */
-  PF_FAST_CLUSTERING = 1  /**< bottom-up clustering of the above-threshold pixels (faster) */
+  PF_MEAN_SHIFT = 0,     /**< weighted Gaussian mean shift (the paper's main method) */
+  PF_FAST_CLUSTERING = 1 /**< bottom-up clustering of the above-threshold pixels (faster) */
 } pf_proposal_method;
 
 /** A loaded, validated forest (opaque). */
@@ -68,10 +68,10 @@ typedef struct pf_forest pf_forest;
 
 /** One 3D joint proposal. */
 typedef struct pf_joint_proposal {
-  int32_t joint;         /**< 0 .. pf_num_joints()-1, see pf_joint_name */
-  float position_m[3];   /**< x right, y down, z forward; metres, camera frame (Kinect v1 intrinsics) */
-  float pixel[2];        /**< where the surface mode projects: x (column), y (row), pixels */
-  float confidence;      /**< summed weight (P * depth^2, m^2) of the seed pixels reaching the mode */
+  int32_t joint;       /**< 0 .. pf_num_joints()-1, see pf_joint_name */
+  float position_m[3]; /**< x right, y down, z forward; metres, camera frame (Kinect v1 intrinsics) */
+  float pixel[2];      /**< where the surface mode projects: x (column), y (row), pixels */
+  float confidence;    /**< summed weight (P * depth^2, m^2) of the seed pixels reaching the mode */
 } pf_joint_proposal;
 
 /* ---- version and errors -------------------------------------------------------------------- */
@@ -145,7 +145,7 @@ PF_API pf_status pf_propose_joints(const pf_forest* forest, const uint16_t* dept
                                    size_t capacity, size_t* count, uint8_t* labels, size_t labels_len);
 
 #ifdef __cplusplus
-}  /* extern "C" */
+} /* extern "C" */
 #endif
 
 #endif /* POSEFOREST_POSEFOREST_H_ */

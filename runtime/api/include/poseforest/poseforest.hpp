@@ -105,29 +105,30 @@ class Forest {
     const size_t pixels = Pixels(depth);
     c.labels.resize(pixels);
     if (distributions) c.distributions.resize(pixels * size_t(c.num_parts));
-    Check(pf_classify(forest_, depth.data, depth.width, depth.height, num_threads, c.labels.data(), c.labels.size(),
-                      distributions ? c.distributions.data() : nullptr, c.distributions.size()));
+    Check(pf_classify(forest_, depth.data, depth.width, depth.height, num_threads, c.labels.data(),
+                      c.labels.size(), distributions ? c.distributions.data() : nullptr,
+                      c.distributions.size()));
     return c;
   }
   /// Into caller-owned buffers (either may be null; sizes in elements), as pf_classify.
-  void Classify(DepthView depth, uint8_t* labels, size_t labels_len, float* distributions, size_t distributions_len,
-                int num_threads = 0) const {
-    Check(pf_classify(forest_, depth.data, depth.width, depth.height, num_threads, labels, labels_len, distributions,
-                      distributions_len));
+  void Classify(DepthView depth, uint8_t* labels, size_t labels_len, float* distributions,
+                size_t distributions_len, int num_threads = 0) const {
+    Check(pf_classify(forest_, depth.data, depth.width, depth.height, num_threads, labels, labels_len,
+                      distributions, distributions_len));
   }
 
   /// 3D joint proposals, grouped by joint in joint order, most confident first (see
   /// pf_propose_joints). If `labels` is given it receives the labels of the same pass.
-  std::vector<pf_joint_proposal> Joints(DepthView depth, Method method = Method::kMeanShift, int num_threads = 0,
-                                        std::vector<uint8_t>* labels = nullptr) const {
+  std::vector<pf_joint_proposal> Joints(DepthView depth, Method method = Method::kMeanShift,
+                                        int num_threads = 0, std::vector<uint8_t>* labels = nullptr) const {
     std::vector<pf_joint_proposal> out(size_t(pf_num_joints()) * 8);
     if (labels) labels->resize(Pixels(depth));
     for (;;) {
       size_t count = 0;
       const pf_status st =
-          pf_propose_joints(forest_, depth.data, depth.width, depth.height, static_cast<pf_proposal_method>(method),
-                            num_threads, out.data(), out.size(), &count, labels ? labels->data() : nullptr,
-                            labels ? labels->size() : 0);
+          pf_propose_joints(forest_, depth.data, depth.width, depth.height,
+                            static_cast<pf_proposal_method>(method), num_threads, out.data(), out.size(),
+                            &count, labels ? labels->data() : nullptr, labels ? labels->size() : 0);
       if (st == PF_BUFFER_TOO_SMALL && count > out.size()) {
         out.resize(count);
         continue;
@@ -143,7 +144,9 @@ class Forest {
 
  private:
   explicit Forest(pf_forest* f) : forest_(f) {}
-  static size_t Pixels(DepthView d) { return d.width > 0 && d.height > 0 ? size_t(d.width) * size_t(d.height) : 0; }
+  static size_t Pixels(DepthView d) {
+    return d.width > 0 && d.height > 0 ? size_t(d.width) * size_t(d.height) : 0;
+  }
   pf_forest* forest_ = nullptr;
 };
 
