@@ -77,6 +77,14 @@ symbols)
     grep -vE '<(stddef|stdint)\.h>|<(cstddef|cstdint|stdexcept|string|utility|vector)>|"poseforest/(poseforest|version)\.h"' || true)
   [[ -z $bad ]] || fail "installed headers include more than the standard library and each other: $bad"
   echo "ok: the installed headers include only standard headers and each other"
+  # ... and compile cleanly as strict C99 and C++17.
+  echo '#include <poseforest/poseforest.h>' >"$PF_WORK/strict.c"
+  "$PF_CC" -std=c99 -pedantic-errors -Wall -Wextra -Werror -I"$prefix/$PF_INCLUDEDIR" -c "$PF_WORK/strict.c" \
+    -o "$PF_WORK/strict_c.o" || fail "poseforest.h is not clean C99"
+  echo '#include <poseforest/poseforest.hpp>' >"$PF_WORK/strict.cpp"
+  "$PF_CXX" -std=c++17 -pedantic-errors -Wall -Wextra -Wshadow -Werror -I"$prefix/$PF_INCLUDEDIR" \
+    -c "$PF_WORK/strict.cpp" -o "$PF_WORK/strict_cpp.o" || fail "poseforest.hpp is not clean C++17"
+  echo "ok: poseforest.h compiles as strict C99, poseforest.hpp as strict C++17"
   ;;
 
 cmake)
