@@ -2,10 +2,13 @@
 # Installs what poseforest needs on Debian 12 with apt-get, only if something is missing.
 # Idempotent and fast when everything is there (one dpkg query).
 #   scripts/setup.sh            everything (training + runtime + tests)
-#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen (+ Catch2 for its tests)
+#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen (+ Catch2 for its tests,
+#                               pybind11 + NumPy for the optional Python module)
 set -euo pipefail
 
-runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2)
+runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2
+  python3-dev python3-pybind11 python3-numpy  # the optional Python module and its test (consumer_python)
+)
 training_pkgs=(
   libprotobuf-dev protobuf-compiler         # job configs and wire messages
   libfastrtps-dev fastdds-tools             # Fast DDS 2.9 (coordinator <-> workers)
