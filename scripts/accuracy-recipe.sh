@@ -36,8 +36,16 @@ echo "== pose library from $data/mocap"
 write_default_job "$out/job.textproto" "$per_tree" 30 "$out/mocap.pfposes" "$data"
 
 echo "== training: 3 trees x $per_tree images ($out/job.textproto)"
-# shellcheck disable=SC2086
-"$bin/poseforest" train "$out/job.textproto" --out "$out/forest.pff" ${POSEFOREST_TRAIN_ARGS:-} 2>&1 | tee "$out/train.log"
+# Through the distributed service (--local-workers, --domain, --min-workers in POSEFOREST_TRAIN_ARGS):
+# a checkpoint after every level, and a run of the recipe that finds one resumes from it, so a
+# crash or a kill costs the level in progress, not the run.
+train_args=(${POSEFOREST_TRAIN_ARGS:-})
+if [[ " ${train_args[*]} " =~ \ --(local-workers|domain|min-workers)[\ =] ]]; then
+  train_args+=(--checkpoint "$out/checkpoint" --resume)
+  [[ -f "$out/checkpoint/checkpoint.pb" ]] && echo "== resuming from $out/checkpoint"
+fi
+set -o pipefail
+"$bin/poseforest" train "$out/job.textproto" --out "$out/forest.pff" "${train_args[@]}" 2>&1 | tee "$out/train.log"
 echo "== learning b, lambda, zeta on 150 validation renders of the train clips"
 "$bin/poseforest" tune-joints --forest "$out/forest.pff" --validation "$out/job.textproto" --frames 150 \
   --out "$out/forest_tuned.pff" 2>&1 | tee "$out/tune.log"
