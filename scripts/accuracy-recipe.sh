@@ -9,7 +9,8 @@
 # ../shared/data). Outputs go to $POSEFOREST_OUT/accuracy-N (default ./out/accuracy-N): job, forest,
 # tuned forest, training/tuning/eval logs and PR curves. Extra training flags (for instance
 # `--local-workers 2` to train through the distributed service, same forest) come from
-# POSEFOREST_TRAIN_ARGS.
+# POSEFOREST_TRAIN_ARGS; through the service the recipe checkpoints every level into
+# OUT/checkpoint and a second run resumes from it.
 #
 # Time and memory on two cores (quiet machine, engine): 667 images per tree ~6 min and 5.6 GiB;
 # 2000 per tree 7.2 GiB; 4000 per tree 34 min (lightly loaded) and 9.1 GiB (docs/runtime/joints.md).

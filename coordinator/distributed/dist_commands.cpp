@@ -517,7 +517,8 @@ int WorkerMain(int argc, char** argv) {
                  "         [--exit-with-parent [--parent-pid PID]]   (exit when the process that started this\n"
                  "          one exits; PID: that process, checked at start; `coordinator --local-workers` passes both)\n"
                  "         [--task-cache-mb M]   (frames of other shards kept between subtree tasks of a\n"
-                 "          tree, least recently used dropped first; default 256)\n"
+                 "          tree, least recently used dropped first; default 0 = auto: every frame of a tree,\n"
+                 "          at most an eighth of this machine's memory, at least 256 MiB)\n"
                  "         [--check-config]   (parse the flags, load the XML profile and the security files,\n"
                  "          print what would run and exit 0, without joining DDS; 2 on a bad setting)\n"
                  "%s",
@@ -547,7 +548,7 @@ int WorkerMain(int argc, char** argv) {
   }
   auto domain = args.GetInt("domain", job_dds.values.count("domain") ? std::stol(job_dds.values["domain"]) : 0, 0, 232);
   auto threads = args.GetInt("threads", 1, 1, 1024);
-  auto task_cache_mb = args.GetInt("task-cache-mb", 256, 0, 1 << 20);
+  auto task_cache_mb = args.GetInt("task-cache-mb", 0, 0, 1 << 20);
   auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return job_dds.Get(args, name); });
   if (!domain.ok() || !threads.ok() || !task_cache_mb.ok() || !dds_flags.ok()) {
     std::fprintf(stderr, "worker: %s\n",

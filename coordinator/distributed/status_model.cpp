@@ -250,6 +250,12 @@ void StatusModel::OnWorkerHeartbeat(const std::string& id, const v1::Heartbeat& 
   // The gate has checked the figures (finite, 0..1e13); a restarted worker counts from 0 again.
   it->second.reported_evaluations = hb.evaluations();
   it->second.reported_rate = hb.evaluations_per_s();
+  if (hb.task_frames_rendered() + hb.task_frames_cached() > 0) {
+    it->second.task_tree = int(hb.task_tree());
+    it->second.task_rendered = hb.task_frames_rendered();
+    it->second.task_cached = hb.task_frames_cached();
+    it->second.task_evicted = hb.task_cache_evictions();
+  }
 }
 
 void StatusModel::FillStatus(v1::StatusEvent* e) {
@@ -500,7 +506,23 @@ std::string StatusModel::Prometheus() const {
     bytes.push_back({l, double(w.bytes)});
     seen.push_back({l, w.last_seen > 0 ? now - w.last_seen : std::nan("")});
   }
+  std::vector<std::pair<std::string, double>> task_rendered, task_cached, task_evicted;
+  for (const auto& [id, w] : workers_) {
+    if (w.task_tree < 0) continue;
+    const std::string l = "worker=\"" + Label(id) + "\",tree=\"" + std::to_string(w.task_tree) + "\"";
+    task_rendered.push_back({l, double(w.task_rendered)});
+    task_cached.push_back({l, double(w.task_cached)});
+    task_evicted.push_back({l, double(w.task_evicted)});
+  }
   metric("poseforest_worker_up", "gauge", "1 while the worker is alive.", up);
+  if (!task_rendered.empty()) {
+    metric("poseforest_worker_task_frames_rendered", "gauge",
+           "Frames of other shards rendered again for subtree tasks, this tree.", task_rendered);
+    metric("poseforest_worker_task_frames_cached", "gauge",
+           "Subtree-task frames found in the shard or the task-frame cache, this tree.", task_cached);
+    metric("poseforest_worker_task_cache_evictions", "gauge",
+           "Frames dropped from the task-frame cache to stay under its cap, this tree.", task_evicted);
+  }
   metric("poseforest_worker_evaluations_per_second", "gauge", "Evaluations per second over the last 10 s.",
          rate);
   metric("poseforest_worker_evaluations_total", "counter", "Evaluations in the worker's histograms.", evals);

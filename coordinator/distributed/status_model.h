@@ -82,6 +82,9 @@ class StatusModel : public CoordinatorObserver {
     // Its heartbeats' figures: histogram rounds and subtree tasks (those replies lack).
     uint64_t reported_evaluations = 0;
     double reported_rate = 0;
+    // Frames of other shards for its subtree tasks, of tree task_tree (counts restart per tree).
+    int task_tree = -1;
+    uint64_t task_rendered = 0, task_cached = 0, task_evicted = 0;
     // Throughput over its recent replies (a sliding window of ~10 s of compute).
     std::deque<std::pair<double, uint64_t>> recent;  ///< (steady time, evaluations)
   };

@@ -1080,3 +1080,26 @@ TEST_CASE("a live job: status events carry the figures, a worker's hostile heart
   CHECK(last.evaluations() > 0);
   for (const v1::WorkerStatus& w : last.workers()) CHECK(w.state() == v1::WORKER_STATE_DONE);
 }
+
+// Issue 13: frames rendered again for subtree tasks and task-cache evictions, per worker and
+// tree, from the workers' heartbeats into /metrics (a cache that thrashes shows here).
+TEST_CASE("/metrics shows each worker's subtree-task frames of the current tree", "[monitoring][unit]") {
+  StatusModel model({"job-1", 0, "shm", 2, 4, 10, 100, 20, 8, ""});
+  v1::StatusEvent j;
+  j.set_kind(v1::STATUS_KIND_WORKER_JOINED);
+  j.set_worker_id("w-a");
+  model.OnStatus(j);
+  model.OnWorkerAssigned("w-a", 0, 5);
+  CHECK(model.Prometheus().find("poseforest_worker_task_frames_rendered") == std::string::npos);  // none yet
+  v1::Heartbeat beat;
+  beat.set_task_tree(2);
+  beat.set_task_frames_rendered(1234);
+  beat.set_task_frames_cached(5678);
+  beat.set_task_cache_evictions(91);
+  model.OnWorkerHeartbeat("w-a", beat);
+  const std::string m = model.Prometheus();
+  CHECK(m.find("# TYPE poseforest_worker_task_frames_rendered gauge") != std::string::npos);
+  CHECK(m.find("poseforest_worker_task_frames_rendered{job=\"job-1\",worker=\"w-a\",tree=\"2\"} 1234") != std::string::npos);
+  CHECK(m.find("poseforest_worker_task_frames_cached{job=\"job-1\",worker=\"w-a\",tree=\"2\"} 5678") != std::string::npos);
+  CHECK(m.find("poseforest_worker_task_cache_evictions{job=\"job-1\",worker=\"w-a\",tree=\"2\"} 91") != std::string::npos);
+}

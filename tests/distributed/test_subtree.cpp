@@ -498,3 +498,18 @@ TEST_CASE("a worker's task set: frames added once in any order, samples per batc
   }
   CHECK(kept.num_frames() == 12);  // no frame copied twice
 }
+
+TEST_CASE("the automatic task-frame cache holds a tree's frames within an eighth of memory",
+          "[distributed][unit]") {
+  worker::TrainParams p;
+  p.source.width = 640;
+  p.source.height = 480;
+  p.pixels_per_image = 2000;
+  p.images_per_tree = 2000;
+  const uint64_t frame = 640 * 480 * 2 + 2000 * sizeof(worker::PixelSample);
+  // The 2,000-image tree of issue 13 (13,029 evictions at the old 256 MiB): all of it fits.
+  CHECK(TaskCacheBytesFor(p, uint64_t(24) << 30) == 2000 * frame);
+  CHECK(TaskCacheBytesFor(p, uint64_t(4) << 30) == uint64_t(512) << 20);  // an eighth of 4 GiB
+  p.images_per_tree = 12;
+  CHECK(TaskCacheBytesFor(p, uint64_t(24) << 30) == uint64_t(256) << 20);  // at least 256 MiB
+}

@@ -311,7 +311,12 @@ struct DistWorker::Impl {
     have_shard = false;
     cache.clear();
     task_cache.Clear(-1);
-    task_cache.cap_bytes = opt.task_cache_bytes;
+    task_cache.cap_bytes = opt.task_cache_bytes > 0
+                               ? opt.task_cache_bytes
+                               : TaskCacheBytesFor(params, uint64_t(::sysconf(_SC_PHYS_PAGES)) *
+                                                               uint64_t(::sysconf(_SC_PAGE_SIZE)));
+    Log("task frame cache: " + std::to_string(task_cache.cap_bytes >> 20) + " MiB" +
+        (opt.task_cache_bytes > 0 ? "" : " (auto: a tree's frames; --task-cache-mb to set)"));
     task_set = worker::SampleSet{};
     task_set_tree = -1;
     task_set_frames.clear();
@@ -1175,6 +1180,15 @@ struct DistWorker::Impl {
           st.ToString());
   }
 };
+
+uint64_t TaskCacheBytesFor(const worker::TrainParams& params, uint64_t physical_bytes) {
+  const uint64_t frame = uint64_t(std::max(0, params.source.width)) * uint64_t(std::max(0, params.source.height)) *
+                             sizeof(uint16_t) +
+                         uint64_t(std::max(0, params.pixels_per_image)) * sizeof(worker::PixelSample);
+  const uint64_t tree = frame * uint64_t(std::max(0, params.images_per_tree));
+  const uint64_t floor = uint64_t(256) << 20;
+  return std::max(floor, std::min(tree, physical_bytes / 8));
+}
 
 Status SelectListedSamples(std::span<const worker::PixelSample> picked, int width, uint64_t frame,
                            std::span<const uint32_t> deltas, std::vector<worker::PixelSample>* out) {
