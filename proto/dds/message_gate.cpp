@@ -273,16 +273,6 @@ Status ValidateStatus(const v1::StatusEvent& m) {
   return Status::Ok();
 }
 
-const char* VerdictName(MessageGate::Verdict v) {
-  switch (v) {
-    case MessageGate::Verdict::kAccepted: return "accepted";
-    case MessageGate::Verdict::kIgnored: return "ignored";
-    case MessageGate::Verdict::kStale: return "stale";
-    case MessageGate::Verdict::kRejected: return "rejected";
-  }
-  return "?";
-}
-
 MessageGate::MessageGate(GateConfig config) : config_(std::move(config)) {
   if (!config_.log) config_.log = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
 }

@@ -145,6 +145,4 @@ class MessageGate {
   uint64_t total_rejected_ = 0;
 };
 
-const char* VerdictName(MessageGate::Verdict v);
-
 }  // namespace poseforest::dds

@@ -52,10 +52,4 @@ inline constexpr const char* TopicName(Topic t) {
 /// Short name for logs ("control").
 inline constexpr const char* TopicShortName(Topic t) { return TopicName(t) + 11; }
 
-inline std::optional<Topic> TopicFromShortName(std::string_view name) {
-  for (Topic t : kAllTopics)
-    if (name == TopicShortName(t)) return t;
-  return std::nullopt;
-}
-
 }  // namespace poseforest::dds

@@ -140,22 +140,6 @@ void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& p
   if (len_index >= 0) runs->Set(len_index, uint64_t(runs->size() - len_index - 1));
 }
 
-bool AddWireCounts(const std::vector<uint32_t>& wire, const worker::NodePlan& plan, int num_parts,
-                   worker::NodeHistogram* hist) {
-  const size_t kb_count = size_t(hist->num_candidates) * size_t(hist->num_bins),
-               slots = size_t(hist->num_slots);
-  for (size_t kb = 0; kb < kb_count; ++kb) {
-    const uint32_t* row = wire.data() + kb * size_t(num_parts);
-    for (int p = 0; p < num_parts; ++p) {
-      if (row[p] == 0) continue;
-      const uint8_t slot = plan.part_slot[size_t(p)];
-      if (slot == 0xFF) return false;
-      hist->counts[kb * slots + slot] += row[p];
-    }
-  }
-  return true;
-}
-
 bool AddWireRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const dds::HistogramDims& dims,
                  const worker::NodePlan& plan, worker::NodeHistogram* hist) {
   const uint64_t cells = dims.cells();

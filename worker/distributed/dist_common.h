@@ -51,11 +51,6 @@ std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const work
 void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,
                     google::protobuf::RepeatedField<uint64_t>* runs);
 
-/// Adds a wire tensor into `hist` (dense, shaped for `plan`). False if a count sits on a part
-/// absent from the node (a worker that disagrees with the coordinator's part counts).
-bool AddWireCounts(const std::vector<uint32_t>& wire, const worker::NodePlan& plan, int num_parts,
-                   worker::NodeHistogram* hist);
-
 /// Adds a run-encoded wire tensor (dds/histogram_codec.h layout, `dims`) into `hist` without
 /// expanding it. False when the runs overrun the tensor or count a part absent from the node.
 bool AddWireRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const dds::HistogramDims& dims,
