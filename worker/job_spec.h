@@ -92,8 +92,8 @@ core::Result<v1::TrainerConfig> ParseJobText(const std::string& text, const std:
 core::Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& config, const std::string& source_name);
 
 /// Makes the relative file paths of a config (source / test_set.source rendered.pose_library,
-/// rendered.makehuman_kit and rendered.body_meshes) relative to the folder of `job_path` (the job file), so the job
-/// means the same whatever the working directory. Absolute and empty paths stay as they are.
+/// rendered.makehuman_kit and rendered.body_meshes) relative to the folder of `job_path` (the job file), so
+/// the job means the same whatever the working directory. Absolute and empty paths stay as they are.
 void ResolveJobPaths(const std::string& job_path, v1::TrainerConfig* config);
 
 /// Reads, parses (ResolveJobPaths against `path`) and validates a job file.

@@ -7,6 +7,7 @@
 
 #include "coordinator/evaluation.h"
 #include "coordinator/local_trainer.h"
+#include "poseforest/v1/job.pb.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/core/forest_format.h"
 #include "tests/support/paths.h"
@@ -41,12 +42,13 @@ TEST_CASE("a job whose only bodies are rigged meshes renders them, trains and ev
   const fs::path dir = testing::ScratchDir("mesh-bodies");
   fs::create_directory_symlink(testing::DataDir() / "meshes", dir / "meshes");  // never copied
   const fs::path job = dir / "job.textproto";
-  std::ofstream(job) << "seed: 5 num_trees: 1 max_depth: 5 images_per_tree: 3 pixels_per_image: 200\n"
-                        "candidate_features: 20 thresholds_per_feature: 6\n"
-                        "source { rendered { seed: 3 kinect_noise: false procedural_bodies: false\n"
-                        "                    body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } }\n"
-                        "test_set { source { rendered { seed: 4 kinect_noise: false procedural_bodies: false\n"
-                        "                    body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } } num_images: 2 }\n";
+  std::ofstream(job)
+      << "seed: 5 num_trees: 1 max_depth: 5 images_per_tree: 3 pixels_per_image: 200\n"
+         "candidate_features: 20 thresholds_per_feature: 6\n"
+         "source { rendered { seed: 3 kinect_noise: false procedural_bodies: false\n"
+         "                    body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } }\n"
+         "test_set { source { rendered { seed: 4 kinect_noise: false procedural_bodies: false\n"
+         "                    body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } } num_images: 2 }\n";
   auto params = worker::LoadJob(job.string());
   REQUIRE(params.ok());
   REQUIRE(params->source.body_meshes.size() == 1);
@@ -100,4 +102,41 @@ TEST_CASE("a job whose only bodies are rigged meshes renders them, trains and ev
   for (int c = 0; c < m->num_parts; ++c) pixels += m->TruthTotal(c);
   CHECK(pixels > 500);
   fs::remove_all(dir);
+}
+
+TEST_CASE("the job's order of body_meshes is the scene's order of bodies", "[training][mesh][egl][data]") {
+  const fs::path meshes = testing::DataDir() / "meshes";
+  const std::string cesium = (meshes / "cesium_man" / "CesiumMan.glb").string(),
+                    female = (meshes / "quaternius_casual_female" / "Casual_Female.gltf").string();
+  auto params = [&](const std::string& first, const std::string& second) {
+    auto config = worker::ParseJobText(
+        "images_per_tree: 4 source { rendered { seed: 8 kinect_noise: false "
+        "procedural_bodies: false body_meshes: \"" +
+            first + "\" body_meshes: \"" + second + "\" } }",
+        "job.textproto");
+    REQUIRE(config.ok());
+    auto p = worker::ParamsFromConfig(*config, "job.textproto");
+    REQUIRE(p.ok());
+    return *p;
+  };
+  const worker::TrainParams ab = params(cesium, female), ba = params(female, cesium);
+  REQUIRE(ab.source.body_meshes == std::vector<std::string>{cesium, female});
+  auto a1 = worker::MakeImageSource(ab.source);
+  auto a2 = worker::MakeImageSource(ab.source);
+  auto b = worker::MakeImageSource(ba.source);
+  REQUIRE(a1.ok());
+  REQUIRE(a2.ok());
+  REQUIRE(b.ok());
+  CHECK_THAT((*a1)->Describe(), Catch::EndsWith("bodies: mesh CesiumMan.glb + mesh Casual_Female.gltf"));
+  int differ = 0;
+  for (uint64_t i = 0; i < 4; ++i) {
+    auto x = (*a1)->Frame(i), y = (*a2)->Frame(i), z = (*b)->Frame(i);
+    REQUIRE(x.ok());
+    REQUIRE(y.ok());
+    REQUIRE(z.ok());
+    CHECK(x->labels.pixels == y->labels.pixels);  // a pure function of (job, seed, index)
+    CHECK(x->depth.pixels == y->depth.pixels);
+    differ += x->depth.pixels != z->depth.pixels;
+  }
+  CHECK(differ > 0);  // the same draws pick the other mesh
 }

@@ -181,19 +181,21 @@ TEST_CASE("bad mocap options give errors naming the field and the path", "[train
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("body_meshes name rigged meshes, with paths relative to the job file", "[training][config][mesh][data]") {
+TEST_CASE("body_meshes name rigged meshes, with paths relative to the job file",
+          "[training][config][mesh][data]") {
   namespace fs = std::filesystem;
   const auto dir = testing::ScratchDir("job-config-meshes");
   // The job's folder sees the shared meshes as meshes/ (a link: shared data is never copied).
   fs::create_directory_symlink(testing::DataDir() / "meshes", dir / "meshes");
   const fs::path cesium = testing::DataDir() / "meshes" / "cesium_man" / "CesiumMan.glb";
   const auto path = (dir / "job.textproto").string();
-  std::ofstream(path) << "images_per_tree: 3\n"
-                         "source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\"\n"
-                         "                    body_meshes: \""
-                      << cesium.string()
-                      << "\" procedural_bodies: false } }\n"
-                         "test_set { source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } } }\n";
+  std::ofstream(path)
+      << "images_per_tree: 3\n"
+         "source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\"\n"
+         "                    body_meshes: \""
+      << cesium.string()
+      << "\" procedural_bodies: false } }\n"
+         "test_set { source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } } }\n";
   auto p = worker::LoadJob(path);
   REQUIRE(p.ok());
   // Job order, relative paths against the job's folder, absolute ones as given.
@@ -228,7 +230,8 @@ TEST_CASE("body_meshes that cannot be bodies are refused naming the field and th
   SECTION("a missing file (relative: the error names the resolved path)") {
     CHECK_THAT(job_error("body_meshes: \"bodies/nope.glb\""),
                Catch::Contains("test_set.source.rendered.body_meshes[0]") &&
-                   Catch::Contains((dir / "bodies" / "nope.glb").string()) && Catch::Contains("no such file"));
+                   Catch::Contains((dir / "bodies" / "nope.glb").string()) &&
+                   Catch::Contains("no such file"));
   }
   SECTION("a folder") {
     CHECK_THAT(job_error("body_meshes: \"" + dir.string() + "\""),
