@@ -16,8 +16,8 @@
 #include "runtime/joint_proposals.h"
 #include "runtime/visualize.h"
 #if POSEFOREST_HAS_RENDERER
-#include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
+#include "worker/rendered_scene.h"
 #endif
 
 namespace poseforest::coordinator {
@@ -106,6 +106,7 @@ class RenderedEvalSource final : public EvalFrameSource {
             : spec_.clips == worker::ClipSet::kTrain ? "train"
                                                      : "all") +
            " clips of " + spec_.pose_library;
+    if (const std::string bodies = worker::DescribeBodies(spec_); !bodies.empty()) d += ", bodies: " + bodies;
     d += ", " + std::to_string(renderer_->config().min_people) +
          (people > renderer_->config().min_people ? ".." + std::to_string(people) : std::string()) +
          " people/frame";
@@ -263,31 +264,11 @@ Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const worker::Sourc
     }
     case worker::SourceKind::kRendered: {
 #if POSEFOREST_HAS_RENDERER
+      // The job's scene (poses, bodies in job order), as the training frames are rendered;
+      // --people overrides the number of people.
       renderer::SceneConfig scene;
-      scene.rotation_range_deg = source.rotation_range_deg;
-      scene.min_people = people > 0 ? people : 1;
-      scene.max_people = people > 0 ? people : source.max_people;
-      scene.noise.enabled = source.kinect_noise;
-      scene.min_distance_m = source.min_distance_m;
-      scene.max_distance_m = source.max_distance_m;
-      if (!source.pose_library.empty()) {
-        renderer::PoseSelection sel;
-        sel.library = source.pose_library;
-        sel.clips = source.clips == worker::ClipSet::kTrain  ? renderer::ClipSet::kTrain
-                    : source.clips == worker::ClipSet::kTest ? renderer::ClipSet::kTest
-                                                             : renderer::ClipSet::kAll;
-        sel.test_fraction = source.test_fraction;
-        sel.split_seed = source.split_seed;
-        auto poses = renderer::LoadPoseSelection(sel);
-        if (!poses.ok()) return poses.status();
-        scene.shared_poses = *poses;
-      }
-      scene.use_procedural_bodies = source.procedural_bodies;
-      if (!source.makehuman_kit.empty()) {
-        auto bodies = renderer::MakeHumanPresetBodies(source.makehuman_kit);
-        if (!bodies.ok()) return bodies.status();
-        scene.bodies = std::move(*bodies);
-      }
+      POSEFOREST_RETURN_IF_ERROR(worker::ApplySceneOptions(source, &scene));
+      if (people > 0) scene.min_people = scene.max_people = people;
       auto r = renderer::SyntheticRenderer::Create(scene);
       if (!r.ok()) return r.status();
       return std::unique_ptr<EvalFrameSource>(new RenderedEvalSource(source, std::move(*r)));

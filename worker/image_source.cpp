@@ -14,8 +14,11 @@
 #include <mutex>
 #include <utility>
 
+#include "renderer/assets/mesh_loader.h"
+#include "renderer/part_labels.h"
 #include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
+#include "worker/rendered_scene.h"
 #endif
 
 namespace poseforest::worker {
@@ -67,10 +70,11 @@ class DatasetImageSource final : public ImageSource {
 /// A small process-wide cache of loaded assets: every thread (and every tree) of a job creates
 /// its own ImageSource, but the pose library is read and the MakeHuman bodies are built once.
 /// Keys name the file and its size + modification time, so an edited library is reloaded; the
-/// few most recent entries are kept (a long-lived worker may see several jobs).
+/// `max_entries` most recent entries are kept (a long-lived worker may see several jobs).
 template <typename T>
 class AssetCache {
  public:
+  explicit AssetCache(size_t max_entries = 4) : max_entries_(max_entries) {}
   template <typename Make>
   Result<std::shared_ptr<const T>> Get(const std::string& key, Make make) {
     std::lock_guard<std::mutex> lock(mu_);  // held while loading: the other threads wait for it
@@ -79,12 +83,12 @@ class AssetCache {
     Result<std::shared_ptr<const T>> made = make();
     if (!made.ok()) return made.status();
     entries_.emplace_back(key, *made);
-    if (entries_.size() > kMaxEntries) entries_.pop_front();
+    if (entries_.size() > max_entries_) entries_.pop_front();
     return made;
   }
 
  private:
-  static constexpr size_t kMaxEntries = 4;
+  const size_t max_entries_;
   std::mutex mu_;
   std::deque<std::pair<std::string, std::shared_ptr<const T>>> entries_;
 };
@@ -125,6 +129,23 @@ Result<std::shared_ptr<const std::vector<renderer::BodyMesh>>> SharedMakeHumanBo
       });
 }
 
+/// Rigged meshes, each labelled once here (as MakeHumanPresetBodies labels its presets) so the
+/// renderer of every thread does not label it again. Room for the meshes of a few jobs.
+Result<std::shared_ptr<const renderer::BodyMesh>> SharedBodyMesh(const std::string& path) {
+  static AssetCache<renderer::BodyMesh> cache(32);
+  return cache.Get(FileKey(path), [&]() -> Result<std::shared_ptr<const renderer::BodyMesh>> {
+    auto body = renderer::assets::LoadRiggedMesh(path);
+    if (!body.ok()) return body.status();
+    renderer::LabelBodyParts(*body);
+    renderer::RefinePartBoundaries(*body, 2);
+    return std::make_shared<const renderer::BodyMesh>(std::move(body).value());
+  });
+}
+#endif
+
+}  // namespace
+
+#if POSEFOREST_HAS_RENDERER
 Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
   scene->rotation_range_deg = spec.rotation_range_deg;
   scene->min_people = 1;
@@ -143,8 +164,27 @@ Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
     if (!bodies.ok()) return bodies.status();
     scene->bodies = **bodies;  // the renderer keeps its own copy (uploaded to its GL context)
   }
+  for (const std::string& path : spec.body_meshes) {  // after the presets, in job order
+    auto body = SharedBodyMesh(path);
+    if (!body.ok()) return body.status();
+    scene->bodies.push_back(**body);
+  }
   return Status::Ok();
 }
+#endif
+
+Status PreloadBodyMesh(const std::string& path) {
+#if POSEFOREST_HAS_RENDERER
+  auto body = SharedBodyMesh(path);
+  return body.ok() ? Status::Ok() : body.status();
+#else
+  (void)path;
+  return Status::Ok();
+#endif
+}
+
+namespace {
+#if POSEFOREST_HAS_RENDERER
 
 class RenderedImageSource final : public ImageSource {
  public:
@@ -167,8 +207,7 @@ class RenderedImageSource final : public ImageSource {
                                                           : "all";
       d += ", poses: " + std::string(clips) + " clips of " + spec_.pose_library;
     }
-    if (!spec_.makehuman_kit.empty())
-      d += std::string(", bodies: MakeHuman") + (spec_.procedural_bodies ? " + procedural" : "");
+    if (const std::string bodies = DescribeBodies(spec_); !bodies.empty()) d += ", bodies: " + bodies;
     return d;
   }
 

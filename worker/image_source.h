@@ -36,6 +36,14 @@ class ImageSource {
 /// frame; rendered sources fail with Unimplemented in builds without the renderer.
 core::Result<std::unique_ptr<ImageSource>> MakeImageSource(const SourceSpec& spec);
 
+/// Loads the rigged mesh at `path` as a body (Assimp, retargeted to the canonical skeleton and
+/// labelled with the 31 parts) into a process-wide cache keyed by the file's path, size and
+/// modification time, where the rendered sources of every thread take it from. Ok when it can be
+/// a body; else the loader's error, which names the file: kNotFound, kIo (Assimp cannot read it),
+/// kInvalidArgument (no bones, bones that do not map to the canonical skeleton). Builds without
+/// the renderer cannot load meshes and return Ok (their rendered sources fail in MakeImageSource).
+core::Status PreloadBodyMesh(const std::string& path);
+
 /// Procedural frame `index` (see ProceduralSource in job.proto): a blocky figure of
 /// spec.num_parts labelled cells at 1.5..4 m, randomly placed and deformed per frame.
 LabelledFrame MakeProceduralFrame(const SourceSpec& spec, uint64_t index);

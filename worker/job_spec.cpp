@@ -10,6 +10,7 @@
 
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/body_parts.h"
+#include "worker/image_source.h"
 
 namespace poseforest::worker {
 
@@ -108,10 +109,25 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
       if (!spec.makehuman_kit.empty() && !fs::is_directory(spec.makehuman_kit, ec))
         return Bad(source, field + ".rendered.makehuman_kit", "\"" + spec.makehuman_kit + "\"",
                    "no such folder (expected the MakeHuman hm08 kit, e.g. <data>/meshes/makehuman_hm08_kit)");
+      for (int i = 0; i < r.body_meshes_size(); ++i) {
+        const std::string& mesh = r.body_meshes(i);
+        const std::string name = field + ".rendered.body_meshes[" + Str(i) + "]";
+        if (mesh.empty()) return Bad(source, name, "\"\"", "is empty (expected a rigged mesh file)");
+        if (!fs::is_regular_file(mesh, ec))
+          return Bad(source, name, "\"" + mesh + "\"",
+                     fs::exists(mesh, ec) ? "is not a file (expected a rigged mesh: glTF, FBX, ...)"
+                                          : "no such file (expected a rigged mesh: glTF, FBX, ...)");
+        // Loaded now (and kept for the renderers), so a mesh that cannot be a body fails the job
+        // when it is read, not in every worker's first frame. The loader's message names the file.
+        const Status loaded = PreloadBodyMesh(mesh);
+        if (!loaded.ok())
+          return Bad(source, name, "\"" + mesh + "\"", "cannot be a body: " + loaded.message());
+        spec.body_meshes.push_back(mesh);
+      }
       spec.procedural_bodies = r.has_procedural_bodies() ? r.procedural_bodies() : true;
-      if (!spec.procedural_bodies && spec.makehuman_kit.empty())
+      if (!spec.procedural_bodies && spec.makehuman_kit.empty() && spec.body_meshes.empty())
         return Bad(source, field + ".rendered.procedural_bodies", "false",
-                   "leaves no bodies: set makehuman_kit or keep the procedural bodies");
+                   "leaves no bodies: set makehuman_kit or body_meshes, or keep the procedural bodies");
       break;
     }
     case v1::ImageSource::kDataset: {
@@ -261,6 +277,7 @@ void ResolveJobPaths(const std::string& job_path, v1::TrainerConfig* config) {
     v1::RenderedSource* r = src->mutable_rendered();
     if (r->has_pose_library()) fix(r->mutable_pose_library());
     if (r->has_makehuman_kit()) fix(r->mutable_makehuman_kit());
+    for (std::string& mesh : *r->mutable_body_meshes()) fix(&mesh);
   }
 }
 
@@ -274,6 +291,16 @@ Result<TrainParams> LoadJob(const std::string& path) {
   if (!config.ok()) return config.status();
   ResolveJobPaths(path, &*config);
   return ParamsFromConfig(*config, path);
+}
+
+std::string DescribeBodies(const SourceSpec& spec) {
+  if (spec.makehuman_kit.empty() && spec.body_meshes.empty()) return "";
+  std::string bodies;
+  auto add = [&](const std::string& b) { bodies += (bodies.empty() ? "" : " + ") + b; };
+  if (!spec.makehuman_kit.empty()) add("MakeHuman");
+  for (const std::string& m : spec.body_meshes) add("mesh " + std::filesystem::path(m).filename().string());
+  if (spec.procedural_bodies) add("procedural");
+  return bodies;
 }
 
 std::string DescribeParams(const TrainParams& p) {

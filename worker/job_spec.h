@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "runtime/core/feature.h"
 #include "runtime/core/result.h"
@@ -42,6 +43,10 @@ struct SourceSpec {
   uint64_t split_seed = 0;        ///< rendered: seed of the clip split
   std::string makehuman_kit;      ///< rendered: MakeHuman hm08 kit folder ("" = none)
   bool procedural_bodies = true;  ///< rendered: the procedural body family
+  /// rendered: rigged mesh files (glTF, FBX, ... through Assimp) used as bodies after the
+  /// MakeHuman presets, in this order (the order is part of the job: body i of a scene). Paths
+  /// as pose_library; ParamsFromConfig has loaded each once (PreloadBodyMesh), so they are known good.
+  std::vector<std::string> body_meshes;
 };
 
 /// Everything the trainer needs, validated: see job.proto for meanings and defaults.
@@ -81,16 +86,22 @@ struct TrainParams {
 core::Result<v1::TrainerConfig> ParseJobText(const std::string& text, const std::string& source_name);
 
 /// Validates a config and fills defaults. Errors are InvalidArgument naming the field, e.g.
-/// "job.textproto: thresholds_per_feature = 300: must be in 1..255".
+/// "job.textproto: thresholds_per_feature = 300: must be in 1..255". Files a rendered source
+/// names must exist; its body_meshes are loaded here (once per process, see PreloadBodyMesh in
+/// image_source.h), so a mesh that cannot be a body fails the job when it is read.
 core::Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& config, const std::string& source_name);
 
-/// Makes the relative file paths of a config (source / test_set.source rendered.pose_library
-/// and rendered.makehuman_kit) relative to the folder of `job_path` (the job file), so the job
-/// means the same whatever the working directory. Absolute and empty paths stay as they are.
+/// Makes the relative file paths of a config (source / test_set.source rendered.pose_library,
+/// rendered.makehuman_kit and rendered.body_meshes) relative to the folder of `job_path` (the job file), so
+/// the job means the same whatever the working directory. Absolute and empty paths stay as they are.
 void ResolveJobPaths(const std::string& job_path, v1::TrainerConfig* config);
 
 /// Reads, parses (ResolveJobPaths against `path`) and validates a job file.
 core::Result<TrainParams> LoadJob(const std::string& path);
+
+/// The bodies of a rendered source for its description line: "MakeHuman + mesh CesiumMan.glb +
+/// procedural" (job order); "" when it has only the procedural family (the default).
+std::string DescribeBodies(const SourceSpec& spec);
 
 /// One-line human summary ("3 trees, depth 20, 1000 images/tree, ...").
 std::string DescribeParams(const TrainParams& params);

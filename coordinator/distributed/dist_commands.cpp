@@ -57,9 +57,9 @@ std::string Human(double bytes) {
   return buf;
 }
 
-/// The job file's TrainerConfig with its relative paths (pose library, MakeHuman kit, dataset
-/// folders) resolved against the file's folder, as `poseforest train` does: kIo when the file
-/// cannot be read, the parser's error (naming the file) when it does not parse.
+/// The job file's TrainerConfig with its relative paths (pose library, MakeHuman kit, body meshes)
+/// resolved against the file's folder, as `poseforest train` does: kIo when the file cannot be
+/// read, the parser's error (naming the file) when it does not parse.
 core::Result<v1::TrainerConfig> ReadJobConfig(const std::string& path) {
   std::ifstream in(path);
   if (!in) return Status(core::ErrorCode::kIo, "cannot read " + path);

@@ -180,3 +180,86 @@ TEST_CASE("bad mocap options give errors naming the field and the path", "[train
                                          Catch::Contains((dir / "nope.pfposes").string()));
   std::filesystem::remove_all(dir);
 }
+
+TEST_CASE("body_meshes name rigged meshes, with paths relative to the job file",
+          "[training][config][mesh][data]") {
+  namespace fs = std::filesystem;
+  const auto dir = testing::ScratchDir("job-config-meshes");
+  // The job's folder sees the shared meshes as meshes/ (a link: shared data is never copied).
+  fs::create_directory_symlink(testing::DataDir() / "meshes", dir / "meshes");
+  const fs::path cesium = testing::DataDir() / "meshes" / "cesium_man" / "CesiumMan.glb";
+  const auto path = (dir / "job.textproto").string();
+  std::ofstream(path)
+      << "images_per_tree: 3\n"
+         "source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\"\n"
+         "                    body_meshes: \""
+      << cesium.string()
+      << "\" procedural_bodies: false } }\n"
+         "test_set { source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } } }\n";
+  auto p = worker::LoadJob(path);
+  REQUIRE(p.ok());
+  // Job order, relative paths against the job's folder, absolute ones as given.
+  REQUIRE(p->source.body_meshes.size() == 2);
+  CHECK(p->source.body_meshes[0] == (dir / "meshes" / "cesium_man" / "CesiumMan.glb").string());
+  CHECK(p->source.body_meshes[1] == cesium.string());
+  CHECK_FALSE(p->source.procedural_bodies);  // the meshes are bodies enough
+  CHECK(worker::DescribeBodies(p->source) == "mesh CesiumMan.glb + mesh CesiumMan.glb");
+  REQUIRE(p->has_test_set);
+  REQUIRE(p->test_source.body_meshes.size() == 1);
+  CHECK(p->test_source.procedural_bodies);
+  CHECK(worker::DescribeBodies(p->test_source) == "mesh CesiumMan.glb + procedural");
+  CHECK(worker::DescribeBodies(worker::SourceSpec{}) == "");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("body_meshes that cannot be bodies are refused naming the field and the file",
+          "[training][config][mesh][data]") {
+  namespace fs = std::filesystem;
+  const auto dir = testing::ScratchDir("job-config-meshes-bad");
+  auto job_error = [&](const std::string& meshes) {
+    const auto path = (dir / "job.textproto").string();
+    std::ofstream(path) << "images_per_tree: 3 source { procedural { } }\n"
+                           "test_set { source { rendered { "
+                        << meshes << " procedural_bodies: false } } }\n";
+    auto p = worker::LoadJob(path);
+    REQUIRE_FALSE(p.ok());
+    CHECK(p.status().code() == core::ErrorCode::kInvalidArgument);
+    CHECK_THAT(p.status().message(), Catch::Contains(path));
+    return p.status().message();
+  };
+  SECTION("a missing file (relative: the error names the resolved path)") {
+    CHECK_THAT(job_error("body_meshes: \"bodies/nope.glb\""),
+               Catch::Contains("test_set.source.rendered.body_meshes[0]") &&
+                   Catch::Contains((dir / "bodies" / "nope.glb").string()) &&
+                   Catch::Contains("no such file"));
+  }
+  SECTION("a folder") {
+    CHECK_THAT(job_error("body_meshes: \"" + dir.string() + "\""),
+               Catch::Contains("body_meshes[0]") && Catch::Contains("is not a file"));
+  }
+  SECTION("an empty path") {
+    CHECK_THAT(job_error("body_meshes: \"\""), Catch::Contains("body_meshes[0]") && Catch::Contains("empty"));
+  }
+#if POSEFOREST_HAS_RENDERER
+  const fs::path cesium = testing::DataDir() / "meshes" / "cesium_man" / "CesiumMan.glb";
+  SECTION("a mesh without bones (the staged MakeHuman m07 OBJ), after a good one") {
+    const fs::path obj = testing::DataDir() / "meshes" / "makehuman_m07_pcl_bodypart_labels" / "base_m07.obj";
+    CHECK_THAT(job_error("body_meshes: \"" + cesium.string() + "\" body_meshes: \"" + obj.string() + "\""),
+               Catch::Contains("test_set.source.rendered.body_meshes[1]") && Catch::Contains(obj.string()) &&
+                   Catch::Contains("cannot be a body") && Catch::Contains("no skinned mesh"));
+  }
+  SECTION("a file that is no mesh at all") {
+    const fs::path text = testing::DataDir() / "meshes" / "cesium_man" / "LICENSE.md";
+    CHECK_THAT(job_error("body_meshes: \"" + text.string() + "\""),
+               Catch::Contains("body_meshes[0]") && Catch::Contains(text.string()) &&
+                   Catch::Contains("cannot be a body") && Catch::Contains("Assimp cannot read it"));
+  }
+  SECTION("junk named .glb") {
+    const fs::path junk = dir / "junk.glb";
+    std::ofstream(junk) << "this is not a mesh at all";
+    CHECK_THAT(job_error("body_meshes: \"junk.glb\""),
+               Catch::Contains(junk.string()) && Catch::Contains("Assimp cannot read it"));
+  }
+#endif
+  fs::remove_all(dir);
+}
