@@ -263,7 +263,10 @@ struct DistCoordinator::Impl {
             MarkLost(id, "participant lost");
       }
     }
-    if (auto s = node->Receive(timeout)) {
+    // Everything already queued is taken before the heartbeat check below: after a long merge
+    // the presence samples that arrived meanwhile wait behind replies, and one sample per call
+    // made a busy coordinator take live workers for lost (seen in the 2,000-image run of issue 13).
+    for (auto s = node->Receive(timeout); s; s = node->Receive(std::chrono::milliseconds(0))) {
       auto out = gate->Check(s->topic, s->bytes, s->writer_guid);
       if (out.verdict == Verdict::kStale) ++stale_count;
       if (out.verdict == Verdict::kAccepted) {

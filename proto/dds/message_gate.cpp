@@ -47,12 +47,16 @@ Status ValidateCapacity(const v1::WorkerCapacity& c) {
 }
 }  // namespace
 
-std::string EnvelopeStamper::Seal(Topic topic, v1::Envelope& env) {
+void EnvelopeStamper::Stamp(Topic topic, v1::Envelope& env) {
   env.set_job_id(job_id_);
   env.set_sender_id(sender_id_);
   env.set_sender_kind(kind_);
   env.set_protocol_version(kProtocolVersion);
   env.set_sequence(++sequence_[static_cast<int>(topic)]);
+}
+
+std::string EnvelopeStamper::Seal(Topic topic, v1::Envelope& env) {
+  Stamp(topic, env);
   return env.SerializeAsString();
 }
 

@@ -41,6 +41,9 @@ class EnvelopeStamper {
       : job_id_(std::move(job_id)), sender_id_(std::move(sender_id)), kind_(kind) {}
   /// Stamps `env` (its body must be set) for `topic` and returns the bytes to publish.
   std::string Seal(Topic topic, poseforest::v1::Envelope& env);
+  /// Seal without the serialization: fills the header only, so a caller that guards the stamper
+  /// with a lock serializes a large envelope outside it.
+  void Stamp(Topic topic, poseforest::v1::Envelope& env);
   void set_job_id(std::string job_id) { job_id_ = std::move(job_id); }
   const std::string& sender_id() const { return sender_id_; }
 

@@ -227,11 +227,13 @@ struct DistWorker::Impl {
   Status Publish(Topic topic, v1::Envelope& env, bool timed = true) {
     std::optional<CpuTimer> timer;
     if (timed) timer.emplace(&cpu.publish);
-    std::string bytes;
     {
       std::lock_guard<std::mutex> lock(send_mu);
-      bytes = stamper.Seal(topic, env);
+      stamper.Stamp(topic, env);
     }
+    // Serialized outside the lock: a reply of tens of MiB took the heartbeat thread's lock long
+    // enough, on a loaded machine, for the coordinator to take the worker for lost.
+    const std::string bytes = env.SerializeAsString();
     return node->Publish(topic, bytes);
   }
 
