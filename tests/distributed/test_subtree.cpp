@@ -225,6 +225,34 @@ TEST_CASE("a worker busy in a subtree batch never fails the job (small control h
   CHECK(core::SerializeForest(*forest) == reference);
 }
 
+// Issue 13's 2,000-image run: a coordinator busy for longer than the heartbeat timeout (a long
+// merge on a loaded machine) took a live worker for lost, because it handled one queued sample
+// and then checked the heartbeats, the rest of them still queued. Here the coordinator sleeps
+// 3 s after each level with a 2 s heartbeat timeout; the workers heartbeat all along.
+TEST_CASE("a coordinator busy past the heartbeat timeout does not take live workers for lost",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(1, 3));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(49);
+  const std::string job_id = "t-busy-coordinator";
+  ThreadWorkers workers(2, domain, job_id);
+  CoordinatorOptions o = Options(domain, 2);
+  o.job_id = job_id;
+  o.heartbeat_timeout = std::chrono::milliseconds(2000);
+  int levels = 0;
+  o.progress = [&](const DistLevelStats&) {
+    ++levels;
+    std::this_thread::sleep_for(std::chrono::milliseconds(3000));
+  };
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  INFO(forest.status().ToString());
+  REQUIRE(forest.ok());
+  CHECK(levels >= 2);
+  CHECK(coordinator.workers_lost() == 0);
+  CHECK(core::SerializeForest(*forest) == reference);
+}
+
 TEST_CASE("a hostile SubtreeResult is dropped, counted, its sender evicted; same forest",
           "[distributed][integration]") {
   const Job job = ParseJob(TinyJobText(1, 6, kSubtreeMax));
