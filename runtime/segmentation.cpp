@@ -1,0 +1,329 @@
+#include "runtime/segmentation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <Eigen/Dense>
+
+#include "runtime/core/rng.h"
+
+namespace poseforest::runtime {
+namespace {
+
+// A horizontal run of foreground pixels with no depth jump inside: the unit of the components.
+struct Run {
+  int y, x0, x1;  // inclusive
+  uint32_t parent;
+};
+
+uint32_t Find(std::vector<Run>& runs, uint32_t i) {
+  while (runs[i].parent != i) {
+    runs[i].parent = runs[runs[i].parent].parent;
+    i = runs[i].parent;
+  }
+  return i;
+}
+void Union(std::vector<Run>& runs, uint32_t a, uint32_t b) {
+  a = Find(runs, a), b = Find(runs, b);
+  if (a == b) return;
+  if (a < b) std::swap(a, b);
+  runs[a].parent = b;  // the smaller index (earlier run) becomes the root: deterministic
+}
+
+inline int JumpLimit(int d, const SegmentationOptions& o) {
+  return std::max(o.jump_mm, int(o.jump_fraction * d));
+}
+
+// Seeded RANSAC over a grid sample of back-projected points; the best plane that is roughly
+// horizontal (normal near the camera's y axis) and below the camera, refitted by least squares
+// on its inliers.
+std::optional<Eigen::Vector4d> FitFloor(const core::DepthImage& depth, const core::CameraIntrinsics& cam,
+                                        const SegmentationOptions& o) {
+  std::vector<Eigen::Vector3d> pts;
+  const int w = depth.width, h = depth.height;
+  const int cells = std::max(1, o.ransac_samples);
+  const double step = std::sqrt(double(w) * h / cells);
+  const int s = std::max(1, int(step));
+  for (int y = s / 2; y < h; y += s)
+    for (int x = s / 2; x < w; x += s) {
+      const uint16_t d = depth.at(x, y);
+      if (d == 0 || d > o.far_m * 1000 * 1.5) continue;
+      pts.push_back(cam.PixelToPoint(x, y, d));
+    }
+  if (pts.size() < 16) return std::nullopt;
+  const double cos_tilt = std::cos(o.floor_max_tilt_deg * std::numbers::pi / 180.0);
+  core::RngStream rng(core::CounterRng(o.seed, 0, 0, 0x466c6f6f72ull));  // "Floor"
+  const uint32_t n = uint32_t(pts.size());
+  int best = 0;
+  Eigen::Vector4d best_plane;
+  for (int it = 0; it < o.ransac_iterations; ++it) {
+    const Eigen::Vector3d& a = pts[rng.UniformInt(n)];
+    const Eigen::Vector3d& b = pts[rng.UniformInt(n)];
+    const Eigen::Vector3d& c = pts[rng.UniformInt(n)];
+    Eigen::Vector3d nrm = (b - a).cross(c - a);
+    const double len = nrm.norm();
+    if (len < 1e-9) continue;
+    nrm /= len;
+    if (nrm.y() < 0) nrm = -nrm;  // point "down" (+y): the floor is below the camera
+    if (nrm.y() < cos_tilt) continue;
+    const double d = -nrm.dot(a);
+    if (d >= 0) continue;  // the camera (origin) must be above the plane: n.0 + d < 0
+    int inliers = 0;
+    for (const auto& p : pts) inliers += std::abs(nrm.dot(p) + d) < o.floor_distance_m;
+    if (inliers > best) best = inliers, best_plane << nrm, d;
+  }
+  if (best < std::max(16, int(o.min_floor_fraction * double(pts.size())))) return std::nullopt;
+  // Least-squares refit on the inliers (smallest eigenvector of their covariance).
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  int k = 0;
+  for (const auto& p : pts)
+    if (std::abs(best_plane.head<3>().dot(p) + best_plane[3]) < o.floor_distance_m) mean += p, ++k;
+  mean /= k;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : pts)
+    if (std::abs(best_plane.head<3>().dot(p) + best_plane[3]) < o.floor_distance_m) cov += (p - mean) * (p - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  Eigen::Vector3d nrm = es.eigenvectors().col(0);
+  if (nrm.y() < 0) nrm = -nrm;
+  if (nrm.y() < cos_tilt) return best_plane;
+  Eigen::Vector4d plane;
+  plane << nrm, -nrm.dot(mean);
+  return plane;
+}
+
+}  // namespace
+
+void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& cam, const SegmentationOptions& o,
+                   SegmentationResult* out) {
+  const int w = depth.width, h = depth.height;
+  out->people.clear();
+  out->floor.reset();
+  out->floor_pixels = 0;
+  out->components = 0;
+  out->presegmented = false;
+  out->labels.width = w, out->labels.height = h;
+  out->depth.width = w, out->depth.height = h;
+  out->labels.pixels.assign(size_t(w) * size_t(h), 0);
+  const size_t zeros = size_t(std::count(depth.pixels.begin(), depth.pixels.end(), uint16_t(0)));
+
+  // Floor first: with a floor in view the frame is raw whatever its zeros.
+  if (o.floor_plane) out->floor = o.floor_plane;
+  else if (o.find_floor && o.presegmented != std::optional<bool>(true)) out->floor = FitFloor(depth, cam, o);
+
+  bool pass = o.presegmented.value_or(!out->floor && double(zeros) >= o.presegmented_zero_fraction * double(w) * h);
+  if (pass) {
+    out->presegmented = true;
+    out->depth.pixels = depth.pixels;
+    PersonInfo p;
+    p.label = 1;
+    p.x0 = w, p.y0 = h, p.x1 = -1, p.y1 = -1;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        if (depth.at(x, y)) {
+          out->labels.at(x, y) = 1;
+          ++p.pixels;
+          p.x0 = std::min(p.x0, x), p.x1 = std::max(p.x1, x), p.y0 = std::min(p.y0, y), p.y1 = std::max(p.y1, y);
+        }
+    if (p.pixels) out->people.push_back(p);
+    return;
+  }
+
+  // 1-3: floor, band and runs in one pass over the rows.
+  const int near_mm = int(o.near_m * 1000), far_mm = int(o.far_m * 1000);
+  std::vector<float> col_term(size_t(w), 0.0f);
+  float floor_d = 0, floor_tol = 0;
+  const bool has_floor = out->floor.has_value();
+  if (has_floor) {
+    const Eigen::Vector4d& p = *out->floor;
+    for (int x = 0; x < w; ++x) col_term[size_t(x)] = float(p[0] * (x - cam.cx) / cam.fx);
+    floor_d = float(p[3] * 1000.0);  // mm
+    floor_tol = float(o.floor_distance_m * 1000.0);
+  }
+  std::vector<Run> runs;
+  runs.reserve(4096);
+  std::vector<uint32_t> row_start(size_t(h) + 1, 0);
+  std::vector<uint8_t> fg(size_t(w));
+  for (int y = 0; y < h; ++y) {
+    row_start[size_t(y)] = uint32_t(runs.size());
+    const uint16_t* row = depth.data() + size_t(y) * size_t(w);
+    const Eigen::Vector4d& p = has_floor ? *out->floor : Eigen::Vector4d::Zero().eval();
+    const float row_term = has_floor ? float(p[1] * (y - cam.cy) / cam.fy + p[2]) : 0.0f;
+    int floor_here = 0;
+    for (int x = 0; x < w; ++x) {
+      const int d = row[x];
+      bool f = d >= near_mm && d <= far_mm && d != 0;
+      if (f && has_floor) {
+        // Signed distance (mm) of the pixel's point from the plane: d * (n.ray) + plane d.
+        const float dist = float(d) * (col_term[size_t(x)] + row_term) + floor_d;
+        const bool on_floor = std::abs(dist) < floor_tol;
+        floor_here += on_floor;
+        f = !on_floor && dist < floor_tol;  // below the floor is noise
+      }
+      fg[size_t(x)] = f;
+    }
+    out->floor_pixels += floor_here;
+    int x = 0;
+    while (x < w) {
+      while (x < w && !fg[size_t(x)]) ++x;
+      if (x >= w) break;
+      const int x0 = x;
+      int prev = row[x];
+      ++x;
+      while (x < w && fg[size_t(x)] && std::abs(int(row[x]) - prev) <= JumpLimit(prev, o)) prev = row[x], ++x;
+      runs.push_back({y, x0, x - 1, uint32_t(runs.size())});
+    }
+  }
+  row_start[size_t(h)] = uint32_t(runs.size());
+
+  // Join runs of consecutive rows that overlap where some column's depths are close; remember
+  // the pairs that overlap only across a jump (for the small-piece merge).
+  std::vector<std::pair<uint32_t, uint32_t>> jump_edges;
+  for (int y = 1; y < h; ++y) {
+    uint32_t i = row_start[size_t(y - 1)], j = row_start[size_t(y)];
+    const uint32_t ie = row_start[size_t(y)], je = row_start[size_t(y) + 1];
+    const uint16_t* up = depth.data() + size_t(y - 1) * size_t(w);
+    const uint16_t* row = depth.data() + size_t(y) * size_t(w);
+    while (i < ie && j < je) {
+      const Run &a = runs[i], &b = runs[j];
+      const int lo = std::max(a.x0, b.x0), hi = std::min(a.x1, b.x1);
+      if (lo <= hi) {
+        bool joined = false;
+        for (int x = lo; x <= hi; ++x)
+          if (std::abs(int(up[x]) - int(row[x])) <= JumpLimit(row[x], o)) {
+            joined = true;
+            break;
+          }
+        if (joined) Union(runs, i, j);
+        else jump_edges.emplace_back(i, j);
+      }
+      if (a.x1 < b.x1) ++i;
+      else ++j;
+    }
+  }
+
+  // Component statistics.
+  const uint32_t nr = uint32_t(runs.size());
+  std::vector<int32_t> comp_of(nr, -1);
+  struct Comp {
+    double area = 0, sum_d = 0, xmin = 1e9, xmax = -1e9, ymin = 1e9, ymax = -1e9;
+    int pixels = 0, x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+    int32_t merged_into = -1;
+  };
+  std::vector<Comp> comps;
+  const double inv_fx = 1.0 / cam.fx, inv_fy = 1.0 / cam.fy;
+  for (uint32_t r = 0; r < nr; ++r) {
+    const uint32_t root = Find(runs, r);
+    if (comp_of[root] < 0) comp_of[root] = int32_t(comps.size()), comps.emplace_back();
+    comp_of[r] = comp_of[root];
+    Comp& c = comps[size_t(comp_of[r])];
+    const Run& run = runs[r];
+    const uint16_t* row = depth.data() + size_t(run.y) * size_t(w);
+    double sd = 0, sd2 = 0;
+    for (int x = run.x0; x <= run.x1; ++x) sd += row[x], sd2 += double(row[x]) * row[x];
+    const int n = run.x1 - run.x0 + 1;
+    c.pixels += n;
+    c.sum_d += sd;
+    c.area += sd2 * 1e-6 * inv_fx * inv_fy;
+    const double d0 = row[run.x0] * 1e-3, d1 = row[run.x1] * 1e-3, dm = sd / n * 1e-3;
+    c.xmin = std::min(c.xmin, (run.x0 - cam.cx) * d0 * inv_fx);
+    c.xmax = std::max(c.xmax, (run.x1 - cam.cx) * d1 * inv_fx);
+    const double yv = (run.y - cam.cy) * dm * inv_fy;
+    c.ymin = std::min(c.ymin, yv), c.ymax = std::max(c.ymax, yv);
+    c.x0 = std::min(c.x0, run.x0), c.x1 = std::max(c.x1, run.x1);
+    c.y0 = std::min(c.y0, run.y), c.y1 = std::max(c.y1, run.y);
+  }
+  out->components = int(comps.size());
+  auto is_small = [&](const Comp& c) { return c.area < o.min_area_m2 || (c.ymax - c.ymin) < o.min_height_m; };
+  // Small pieces (an arm in front of the body, split off by its depth jump) rejoin the
+  // neighbouring component nearest in depth, if within merge_distance_m; biggest neighbours first.
+  {
+    std::vector<std::pair<int32_t, int32_t>> pairs;
+    for (const auto& [a, b] : jump_edges) {
+      const int32_t ca = comp_of[a], cb = comp_of[b];
+      if (ca != cb) pairs.emplace_back(std::min(ca, cb), std::max(ca, cb));
+    }
+    std::sort(pairs.begin(), pairs.end());
+    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+    std::vector<int32_t> target(comps.size(), -1);
+    std::vector<double> target_gap(comps.size(), 1e9);
+    for (const auto& [a, b] : pairs) {
+      const double da = comps[size_t(a)].sum_d / comps[size_t(a)].pixels * 1e-3;
+      const double db = comps[size_t(b)].sum_d / comps[size_t(b)].pixels * 1e-3;
+      const double gap = std::abs(da - db);
+      if (gap > o.merge_distance_m) continue;
+      for (const auto& [s, l] : {std::pair{a, b}, std::pair{b, a}}) {
+        if (!is_small(comps[size_t(s)]) || is_small(comps[size_t(l)])) continue;
+        if (gap < target_gap[size_t(s)]) target_gap[size_t(s)] = gap, target[size_t(s)] = l;
+      }
+    }
+    for (size_t s = 0; s < comps.size(); ++s) {
+      if (target[s] < 0) continue;
+      Comp &c = comps[s], &t = comps[size_t(target[s])];
+      t.area += c.area, t.sum_d += c.sum_d, t.pixels += c.pixels;
+      t.xmin = std::min(t.xmin, c.xmin), t.xmax = std::max(t.xmax, c.xmax);
+      t.ymin = std::min(t.ymin, c.ymin), t.ymax = std::max(t.ymax, c.ymax);
+      t.x0 = std::min(t.x0, c.x0), t.x1 = std::max(t.x1, c.x1), t.y0 = std::min(t.y0, c.y0), t.y1 = std::max(t.y1, c.y1);
+      c.merged_into = target[s];
+    }
+  }
+  // 4: size limits and fill ratio.
+  std::vector<int32_t> person_of(comps.size(), 0);
+  std::vector<size_t> order;
+  for (size_t c = 0; c < comps.size(); ++c) {
+    const Comp& k = comps[c];
+    if (k.merged_into >= 0) continue;
+    const double height = k.ymax - k.ymin, width = k.xmax - k.xmin;
+    const double fill = double(k.pixels) / (double(k.x1 - k.x0 + 1) * double(k.y1 - k.y0 + 1));
+    if (k.area < o.min_area_m2 || k.area > o.max_area_m2) continue;
+    if (height < o.min_height_m || height > o.max_height_m || width > o.max_width_m) continue;
+    if (fill > o.max_fill) continue;
+    order.push_back(c);
+  }
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return comps[a].pixels > comps[b].pixels; });
+  if (order.size() > 254) order.resize(254);
+  for (size_t i = 0; i < order.size(); ++i) {
+    person_of[order[i]] = int32_t(i + 1);
+    const Comp& k = comps[order[i]];
+    PersonInfo p;
+    p.label = int(i + 1);
+    p.pixels = k.pixels;
+    p.x0 = k.x0, p.y0 = k.y0, p.x1 = k.x1, p.y1 = k.y1;
+    p.height_m = k.ymax - k.ymin, p.width_m = k.xmax - k.xmin, p.area_m2 = k.area;
+    p.mean_depth_m = k.sum_d / k.pixels * 1e-3;
+    out->people.push_back(p);
+  }
+  for (size_t c = 0; c < comps.size(); ++c)
+    if (comps[c].merged_into >= 0) person_of[c] = person_of[size_t(comps[c].merged_into)];
+
+  out->depth.pixels.assign(size_t(w) * size_t(h), 0);
+  for (uint32_t r = 0; r < nr; ++r) {
+    const int32_t label = person_of[size_t(comp_of[r])];
+    if (!label) continue;
+    const Run& run = runs[r];
+    const size_t base = size_t(run.y) * size_t(w);
+    std::copy(depth.pixels.begin() + ptrdiff_t(base + size_t(run.x0)), depth.pixels.begin() + ptrdiff_t(base + size_t(run.x1) + 1),
+              out->depth.pixels.begin() + ptrdiff_t(base + size_t(run.x0)));
+    std::fill(out->labels.pixels.begin() + ptrdiff_t(base + size_t(run.x0)),
+              out->labels.pixels.begin() + ptrdiff_t(base + size_t(run.x1) + 1), uint8_t(label));
+  }
+}
+
+core::DepthImage PersonDepth(const SegmentationResult& seg, int label) {
+  core::DepthImage d(seg.depth.width, seg.depth.height);
+  for (size_t i = 0; i < d.pixels.size(); ++i)
+    if (seg.labels.pixels[i] == label) d.pixels[i] = seg.depth.pixels[i];
+  return d;
+}
+
+double MaskIoU(const core::LabelImage& a, int a_label, const core::LabelImage& b, int b_label) {
+  size_t inter = 0, uni = 0;
+  for (size_t i = 0; i < a.pixels.size() && i < b.pixels.size(); ++i) {
+    const bool x = a.pixels[i] == a_label, y = b.pixels[i] == b_label;
+    inter += x && y;
+    uni += x || y;
+  }
+  return uni ? double(inter) / double(uni) : 1.0;
+}
+
+}  // namespace poseforest::runtime
