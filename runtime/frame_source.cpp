@@ -81,7 +81,7 @@ Result<std::vector<core::DepthImage>> DecodeNpyFrames(const std::vector<uint8_t>
   std::vector<core::DepthImage> frames;
   const uint8_t* p = bytes.data() + h->data_offset;
   for (int64_t f = 0; f < n; ++f) {
-    core::DepthImage d(int(cols), int(rows));
+    core::DepthImage d{int(cols), int(rows)};
     for (size_t i = 0; i < d.pixels.size(); ++i, p += elem) {
       if (elem == 2) {
         d.pixels[i] = uint16_t(p[0] | p[1] << 8);
@@ -510,7 +510,7 @@ Result<core::DepthImage> ReadPcdDepth(const std::string& path) {
   if (zi < 0 || sizes[size_t(zi)] != 4 || types[size_t(zi)] != 'F' || counts[size_t(zi)] != 1)
     return Status(ErrorCode::kInvalidArgument, path + ": PCD has no float32 'z' field (metres) to read depth from");
   const size_t n = size_t(width) * size_t(height);
-  core::DepthImage depth(int(width), int(height));
+  core::DepthImage depth{int(width), int(height)};
   auto to_mm = [](float z) -> uint16_t {
     return (std::isfinite(z) && z > 0 && z < 65.535f) ? uint16_t(std::lround(double(z) * 1000.0)) : 0;
   };

@@ -69,8 +69,18 @@ std::optional<Eigen::Vector4d> FitFloor(const core::DepthImage& depth, const cor
     if (nrm.y() < cos_tilt) continue;
     const double d = -nrm.dot(a);
     if (d >= 0) continue;  // the camera (origin) must be above the plane: n.0 + d < 0
-    int inliers = 0;
-    for (const auto& p : pts) inliers += std::abs(nrm.dot(p) + d) < o.floor_distance_m;
+    int inliers = 0, below = 0;
+    double zmin = 1e9, zmax = 0;
+    for (const auto& p : pts) {
+      const double dist = nrm.dot(p) + d;
+      if (std::abs(dist) < o.floor_distance_m) ++inliers, zmin = std::min(zmin, p.z()), zmax = std::max(zmax, p.z());
+      else below += dist > 0;
+    }
+    // Nothing is seen through a floor: a plane with many points beyond it is not one.
+    if (below > o.floor_max_below_fraction * double(pts.size())) continue;
+    // A floor recedes from the camera: its points span a range of depths (a person's shoulders
+    // or a table top seen from above do not).
+    if (zmax - zmin < o.floor_min_depth_range_m) continue;
     if (inliers > best) best = inliers, best_plane << nrm, d;
   }
   if (best < std::max(16, int(o.min_floor_fraction * double(pts.size())))) return std::nullopt;
@@ -143,7 +153,7 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
   std::vector<Run> runs;
   runs.reserve(4096);
   std::vector<uint32_t> row_start(size_t(h) + 1, 0);
-  std::vector<uint8_t> fg(size_t(w));
+  std::vector<uint8_t> fg(static_cast<size_t>(w));
   for (int y = 0; y < h; ++y) {
     row_start[size_t(y)] = uint32_t(runs.size());
     const uint16_t* row = depth.data() + size_t(y) * size_t(w);
@@ -235,37 +245,77 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
   }
   out->components = int(comps.size());
   auto is_small = [&](const Comp& c) { return c.area < o.min_area_m2 || (c.ymax - c.ymin) < o.min_height_m; };
-  // Small pieces (an arm in front of the body, split off by its depth jump) rejoin the
-  // neighbouring component nearest in depth, if within merge_distance_m; biggest neighbours first.
+  auto mean_m = [&](const Comp& c) { return c.sum_d / c.pixels * 1e-3; };
+  auto root = [&](int32_t c) {
+    while (comps[size_t(c)].merged_into >= 0) c = comps[size_t(c)].merged_into;
+    return c;
+  };
+  auto absorb = [&](int32_t into, int32_t from) {
+    Comp &t = comps[size_t(into)], &c = comps[size_t(from)];
+    t.area += c.area, t.sum_d += c.sum_d, t.pixels += c.pixels;
+    t.xmin = std::min(t.xmin, c.xmin), t.xmax = std::max(t.xmax, c.xmax);
+    t.ymin = std::min(t.ymin, c.ymin), t.ymax = std::max(t.ymax, c.ymax);
+    t.x0 = std::min(t.x0, c.x0), t.x1 = std::max(t.x1, c.x1), t.y0 = std::min(t.y0, c.y0), t.y1 = std::max(t.y1, c.y1);
+    c.merged_into = into;
+  };
+  // Component pairs that touch across a depth jump.
+  std::vector<std::pair<int32_t, int32_t>> pairs;
+  for (const auto& [a, b] : jump_edges) {
+    const int32_t ca = comp_of[a], cb = comp_of[b];
+    if (ca != cb) pairs.emplace_back(std::min(ca, cb), std::max(ca, cb));
+  }
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  // (a) Small pieces (an arm in front of the body, split off by its depth jump) rejoin the
+  // neighbouring big component nearest in depth, if within merge_distance_m.
   {
-    std::vector<std::pair<int32_t, int32_t>> pairs;
-    for (const auto& [a, b] : jump_edges) {
-      const int32_t ca = comp_of[a], cb = comp_of[b];
-      if (ca != cb) pairs.emplace_back(std::min(ca, cb), std::max(ca, cb));
-    }
-    std::sort(pairs.begin(), pairs.end());
-    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
     std::vector<int32_t> target(comps.size(), -1);
     std::vector<double> target_gap(comps.size(), 1e9);
     for (const auto& [a, b] : pairs) {
-      const double da = comps[size_t(a)].sum_d / comps[size_t(a)].pixels * 1e-3;
-      const double db = comps[size_t(b)].sum_d / comps[size_t(b)].pixels * 1e-3;
-      const double gap = std::abs(da - db);
+      const double gap = std::abs(mean_m(comps[size_t(a)]) - mean_m(comps[size_t(b)]));
       if (gap > o.merge_distance_m) continue;
-      for (const auto& [s, l] : {std::pair{a, b}, std::pair{b, a}}) {
-        if (!is_small(comps[size_t(s)]) || is_small(comps[size_t(l)])) continue;
-        if (gap < target_gap[size_t(s)]) target_gap[size_t(s)] = gap, target[size_t(s)] = l;
+      for (const auto& [sm, lg] : {std::pair{a, b}, std::pair{b, a}}) {
+        if (!is_small(comps[size_t(sm)]) || is_small(comps[size_t(lg)])) continue;
+        if (gap < target_gap[size_t(sm)]) target_gap[size_t(sm)] = gap, target[size_t(sm)] = lg;
       }
     }
-    for (size_t s = 0; s < comps.size(); ++s) {
-      if (target[s] < 0) continue;
-      Comp &c = comps[s], &t = comps[size_t(target[s])];
-      t.area += c.area, t.sum_d += c.sum_d, t.pixels += c.pixels;
-      t.xmin = std::min(t.xmin, c.xmin), t.xmax = std::max(t.xmax, c.xmax);
-      t.ymin = std::min(t.ymin, c.ymin), t.ymax = std::max(t.ymax, c.ymax);
-      t.x0 = std::min(t.x0, c.x0), t.x1 = std::max(t.x1, c.x1), t.y0 = std::min(t.y0, c.y0), t.y1 = std::max(t.y1, c.y1);
-      c.merged_into = target[s];
+    for (size_t sm = 0; sm < comps.size(); ++sm)
+      if (target[sm] >= 0) absorb(target[sm], int32_t(sm));
+  }
+  // (b) One body cut in two by something in front of it (another person's arm): two components
+  // at about the same depth that both touch the same nearer component become one.
+  {
+    std::vector<std::vector<int32_t>> behind(comps.size());  // nearer component -> those behind it
+    for (const auto& [a0, b0] : pairs) {
+      const int32_t a = root(a0), b = root(b0);
+      if (a == b) continue;
+      const bool a_near = mean_m(comps[size_t(a)]) < mean_m(comps[size_t(b)]);
+      behind[size_t(a_near ? a : b)].push_back(a_near ? b : a);
     }
+    for (auto& list : behind) {
+      for (size_t i = 0; i < list.size(); ++i)
+        for (size_t j = i + 1; j < list.size(); ++j) {
+          const int32_t a = root(list[i]), b = root(list[j]);
+          if (a == b) continue;
+          const Comp &ca = comps[size_t(a)], &cb = comps[size_t(b)];
+          if (std::abs(mean_m(ca) - mean_m(cb)) > o.merge_distance_m) continue;
+          // Close in space too: their metric boxes overlap or nearly touch.
+          const double gx = std::max(ca.xmin, cb.xmin) - std::min(ca.xmax, cb.xmax);
+          const double gy = std::max(ca.ymin, cb.ymin) - std::min(ca.ymax, cb.ymax);
+          if (gx > o.merge_distance_m || gy > o.merge_distance_m) continue;
+          absorb(std::min(a, b), std::max(a, b));
+        }
+    }
+  }
+  // Background seen through a gap (the wall between a person's arm and body, or between two
+  // people): a component behind every component it touches across a depth jump.
+  std::vector<uint8_t> has_nearer(comps.size(), 0), has_farther(comps.size(), 0);
+  for (const auto& [a0, b0] : pairs) {
+    const int32_t ca = root(a0), cb = root(b0);
+    if (ca == cb) continue;
+    const bool a_far = mean_m(comps[size_t(ca)]) > mean_m(comps[size_t(cb)]);
+    has_nearer[size_t(a_far ? ca : cb)] = 1;
+    has_farther[size_t(a_far ? cb : ca)] = 1;
   }
   // 4: size limits and fill ratio.
   std::vector<int32_t> person_of(comps.size(), 0);
@@ -276,8 +326,9 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     const double height = k.ymax - k.ymin, width = k.xmax - k.xmin;
     const double fill = double(k.pixels) / (double(k.x1 - k.x0 + 1) * double(k.y1 - k.y0 + 1));
     if (k.area < o.min_area_m2 || k.area > o.max_area_m2) continue;
-    if (height < o.min_height_m || height > o.max_height_m || width > o.max_width_m) continue;
+    if (height < o.min_height_m || height > o.max_height_m || width < o.min_width_m || width > o.max_width_m) continue;
     if (fill > o.max_fill) continue;
+    if (has_nearer[c] && !has_farther[c]) continue;
     order.push_back(c);
   }
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return comps[a].pixels > comps[b].pixels; });
@@ -294,7 +345,7 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     out->people.push_back(p);
   }
   for (size_t c = 0; c < comps.size(); ++c)
-    if (comps[c].merged_into >= 0) person_of[c] = person_of[size_t(comps[c].merged_into)];
+    if (comps[c].merged_into >= 0) person_of[c] = person_of[size_t(root(int32_t(c)))];
 
   out->depth.pixels.assign(size_t(w) * size_t(h), 0);
   for (uint32_t r = 0; r < nr; ++r) {

@@ -10,9 +10,11 @@
 //   3. depth-aware connected components: 4-neighbours join only if their depths differ by at most
 //      max(jump_mm, jump_fraction * depth), so people touching in the image at different depths
 //      split; pieces too small to be a person (an arm in front of the body) rejoin the
-//      neighbouring component nearest in depth;
+//      neighbouring component nearest in depth, and two pieces of one body cut apart by something
+//      in front (another person's arm) rejoin;
 //   4. size limits: a person is a component of metric height, width and area within limits that
-//      does not fill its bounding box like a box or a wall panel (fill ratio).
+//      does not fill its bounding box like a box or a wall panel (fill ratio), and is not
+//      background seen through a gap (a component behind everything it touches across a jump).
 // Pre-segmented input (most pixels 0 and no floor) passes unchanged; `presegmented` forces it.
 
 #include <cstdint>
@@ -36,12 +38,14 @@ struct SegmentationOptions {
   uint64_t seed = 1;                  ///< RANSAC draws; the result is deterministic
   double floor_max_tilt_deg = 45;     ///< floor normal within this of the camera's up axis
   double min_floor_fraction = 0.08;   ///< a floor holds at least this fraction of the sampled points
+  double floor_min_depth_range_m = 1.0;  ///< ... spanning at least this range of depths
+  double floor_max_below_fraction = 0.02;  ///< ... with at most this fraction of points beyond it
   double near_m = 0.4, far_m = 4.5;   ///< depth band, metres
   int jump_mm = 50;                   ///< neighbour depth jump that separates components ...
   double jump_fraction = 0.03;        ///< ... or this fraction of the depth, whichever is larger
-  double merge_distance_m = 0.5;      ///< a small piece rejoins a neighbour within this depth
+  double merge_distance_m = 0.3;      ///< pieces of one body rejoin within this depth gap
   double min_height_m = 0.35, max_height_m = 2.3;  ///< person's extent along the image's vertical
-  double max_width_m = 2.0;
+  double min_width_m = 0.15, max_width_m = 2.0;
   double min_area_m2 = 0.04, max_area_m2 = 2.0;    ///< silhouette area (pixels x (d/f)^2)
   double max_fill = 0.86;             ///< a component filling more of its bounding box is a box
   /// Pre-segmented detection: at least this fraction of pixels 0 and no floor -> unchanged.
