@@ -20,6 +20,7 @@
 #include "runtime/segmentation.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
+#include "runtime/cli/frame_options.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #include "runtime/joint_proposals.h"
@@ -140,19 +141,6 @@ int Fail(const core::Status& st) {
 }
 
 
-// Parses a number option; error names the option.
-core::Result<double> GetDouble(const Args& args, const std::string& name, double fallback, double lo, double hi) {
-  const auto v = args.Get(name);
-  if (!v) return fallback;
-  char* end = nullptr;
-  const double d = std::strtod(v->c_str(), &end);
-  if (end == v->c_str() || *end != '\0' || !(d >= lo && d <= hi))
-    return core::Status(core::ErrorCode::kInvalidArgument,
-                        "--" + name + " must be a number in [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                            "] (got '" + *v + "')");
-  return d;
-}
-
 // Output stem of a frame: a file's name without .png/.raw/.npy/.pcd, else "<source>-<index>".
 std::string FrameStem(const runtime::Frame& f) {
   const bool file = f.source.find(':') == std::string::npos && f.source != "stdin" && f.source.find('[') == std::string::npos;
@@ -175,9 +163,10 @@ std::string FrameStem(const runtime::Frame& f) {
 }  // namespace
 
 int InferMain(int argc, char** argv) {
-  Args args({"forest", "out", "out-dir", "raw-size", "threads", "method", "min-confidence", "source", "camera", "fx", "fy",
-             "cx", "cy", "depth-scale", "fps", "segment", "floor", "near", "far"},
-            {"labels", "distributions", "joints", "quiet", "help", "masks"});
+  std::set<std::string> value_options = {"forest", "out", "out-dir", "threads", "method", "min-confidence",
+                                          "source", "segment", "floor", "near", "far"};
+  for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
+  Args args(value_options, {"labels", "distributions", "joints", "quiet", "help", "masks"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest infer: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -201,47 +190,8 @@ int InferMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest infer: %s\n", msg.c_str());
     return 2;
   };
-  // Camera model: a preset, then explicit intrinsics on top.
   runtime::FrameSourceOptions source_options;
-  const bool camera_flags = args.Has("camera") || args.Has("fx") || args.Has("fy") || args.Has("cx") || args.Has("cy");
-  {
-    auto preset = runtime::CameraPreset(args.GetOr("camera", "kinect-v1"));
-    if (!preset.ok()) return usage_error("--camera: " + preset.status().message());
-    source_options.camera = *preset;
-    auto& k = source_options.camera.intrinsics;
-    bool custom = false;
-    for (const auto& [name, field] : {std::pair<const char*, double*>{"fx", &k.fx}, {"fy", &k.fy}, {"cx", &k.cx}, {"cy", &k.cy}}) {
-      auto v = GetDouble(args, name, *field, 1e-3, 1e6);
-      if (!v.ok()) return usage_error(v.status().message());
-      custom |= args.Has(name);
-      *field = *v;
-    }
-    if (args.Has("fx") && !args.Has("fy")) k.fy = k.fx;  // square pixels unless told
-    if (custom) source_options.camera.name = source_options.camera.name + "+custom";
-    auto scale = GetDouble(args, "depth-scale", 1.0, 1e-6, 1e6);
-    if (!scale.ok()) return usage_error(scale.status().message());
-    source_options.camera.depth_scale_mm = *scale;
-    source_options.camera_given = camera_flags;
-  }
-  if (auto rs = args.Get("raw-size")) {
-    int raw_w = 0, raw_h = 0;
-    if (std::sscanf(rs->c_str(), "%dx%d", &raw_w, &raw_h) != 2 || raw_w <= 0 || raw_h <= 0 || raw_w > 32768 || raw_h > 32768) {
-      std::fprintf(stderr, "poseforest infer: --raw-size must be WxH, e.g. 640x480 (got '%s')\n", rs->c_str());
-      return 2;
-    }
-    source_options.raw_width = raw_w, source_options.raw_height = raw_h;
-    // Without a camera flag, --raw-size says the frame size: the default model follows it
-    // (principal point at the centre, Kinect v1 focal length).
-    if (!camera_flags) {
-      auto& k = source_options.camera.intrinsics;
-      k.width = raw_w, k.height = raw_h, k.cx = (raw_w - 1) / 2.0, k.cy = (raw_h - 1) / 2.0;
-    }
-  }
-  {
-    auto fps = GetDouble(args, "fps", 0.0, 0.0, 100000.0);
-    if (!fps.ok()) return usage_error(fps.status().message());
-    source_options.fps = *fps;
-  }
+  if (auto st = ParseFrameSourceOptions(args, &source_options); !st.ok()) return usage_error(st.message());
   const std::string segment_mode = args.GetOr("segment", "auto");
   if (segment_mode != "auto" && segment_mode != "on" && segment_mode != "off")
     return usage_error("--segment must be auto, on or off (got '" + segment_mode + "')");
