@@ -32,6 +32,10 @@ struct Frame {
 /// error for one bad frame (truncated, wrong size, unreadable), whose message names the source
 /// and the frame. After a bad frame the caller may call Next() again for the following one; a
 /// source that cannot go on (a device lost, a pipe cut mid-frame) reports it once and then ends.
+/// A reader gives up on a source after this many bad frames in a row (a stream that only ever
+/// yields bad frames would otherwise never end).
+inline constexpr int kMaxConsecutiveBadFrames = 100;
+
 class FrameSource {
  public:
   virtual ~FrameSource() = default;

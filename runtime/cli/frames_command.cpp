@@ -94,15 +94,21 @@ int FramesMain(int argc, char** argv) {
   }
   std::vector<core::DepthImage> kept;  // for --npy / --fakenect
   const bool keep = args.Has("npy") || args.Has("fakenect");
-  int good = 0, bad = 0, write_errors = 0;
+  int good = 0, bad = 0, write_errors = 0, bad_in_a_row = 0;
   runtime::Frame f;
   while (*max_frames < 0 || good < *max_frames) {
     auto r = (*source)->Next(&f);
     if (!r.ok()) {
       std::fprintf(stderr, "poseforest frames: %s\n", r.status().ToString().c_str());
       ++bad;
+      if (++bad_in_a_row >= runtime::kMaxConsecutiveBadFrames) {
+        std::fprintf(stderr, "poseforest frames: %s: giving up after %d bad frames in a row\n", (*source)->Describe().c_str(),
+                     bad_in_a_row);
+        break;
+      }
       continue;
     }
+    bad_in_a_row = 0;
     if (!*r) break;
     ++good;
     int valid = 0, lo = 65535, hi = 0;

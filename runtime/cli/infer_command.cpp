@@ -270,15 +270,21 @@ int InferMain(int argc, char** argv) {
   options.want_foreground_distributions = args.Has("distributions") || joints;
   runtime::Classification result;
   runtime::SegmentationResult seg;
-  int failures = 0, bad_frames = 0, frames_done = 0, segmented_frames = 0;
+  int failures = 0, bad_frames = 0, frames_done = 0, segmented_frames = 0, bad_in_a_row = 0;
   runtime::Frame frame;
   while (true) {
     auto next = (*source)->Next(&frame);
     if (!next.ok()) {
       std::fprintf(stderr, "poseforest infer: %s\n", next.status().ToString().c_str());
       ++bad_frames;
+      if (++bad_in_a_row >= runtime::kMaxConsecutiveBadFrames) {
+        std::fprintf(stderr, "poseforest infer: %s: giving up after %d bad frames in a row\n", (*source)->Describe().c_str(),
+                     bad_in_a_row);
+        break;
+      }
       continue;
     }
+    bad_in_a_row = 0;
     if (!*next) break;
     if (args.Get("out") && frames_done > 0) {
       std::fprintf(stderr, "poseforest infer: %s: --out takes one frame but the source holds more; use --out-dir\n",

@@ -123,6 +123,8 @@ class OpenNi2Source : public FrameSource {
       if (hfov > 0.1f && vfov > 0.1f) k.fx = w / 2.0 / std::tan(hfov / 2.0), k.fy = h / 2.0 / std::tan(vfov / 2.0);
       camera_.name = "openni2";
     }
+    // A device whose frames contradict the camera model never fixes itself: refuse it up front.
+    POSEFOREST_RETURN_IF_ERROR(CheckFrameSize(camera_, mode.getResolutionX(), mode.getResolutionY(), name_ + "'s depth stream"));
     if (stream_.start() != openni::STATUS_OK) return {ErrorCode::kIo, name_ + ": cannot start the depth stream"};
     return Status::Ok();
   }
