@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 
 #include <Eigen/Dense>
@@ -40,27 +41,44 @@ inline int JumpLimit(int d, const SegmentationOptions& o) {
 // on its inliers.
 std::optional<Eigen::Vector4d> FitFloor(const core::DepthImage& depth, const core::CameraIntrinsics& cam,
                                         const SegmentationOptions& o) {
-  std::vector<Eigen::Vector3d> pts;
+  // A grid of back-projected points; hypotheses come from three grid neighbours (a local patch),
+  // so a floor that fills a fifth of the view is hit by a fifth of the hypotheses, where three
+  // independent random points would all lie on it only 1% of the time.
   const int w = depth.width, h = depth.height;
-  const int cells = std::max(1, o.ransac_samples);
-  const double step = std::sqrt(double(w) * h / cells);
-  const int s = std::max(1, int(step));
-  for (int y = s / 2; y < h; y += s)
-    for (int x = s / 2; x < w; x += s) {
+  const int cells = std::max(16, o.ransac_samples);
+  const int s = std::max(1, int(std::sqrt(double(w) * h / cells)));
+  const int gw = (w - s / 2 + s - 1) / s, gh = (h - s / 2 + s - 1) / s;
+  std::vector<Eigen::Vector3d> grid(size_t(gw) * size_t(gh));
+  std::vector<uint8_t> valid(grid.size(), 0);
+  std::vector<Eigen::Vector3d> pts;
+  std::vector<uint32_t> valid_cells;
+  for (int gy = 0; gy < gh; ++gy)
+    for (int gx = 0; gx < gw; ++gx) {
+      const int x = s / 2 + gx * s, y = s / 2 + gy * s;
       const uint16_t d = depth.at(x, y);
       if (d == 0 || d > o.far_m * 1000 * 1.5) continue;
-      pts.push_back(cam.PixelToPoint(x, y, d));
+      const size_t c = size_t(gy) * size_t(gw) + size_t(gx);
+      grid[c] = cam.PixelToPoint(x, y, d);
+      valid[c] = 1;
+      pts.push_back(grid[c]);
+      valid_cells.push_back(uint32_t(c));
     }
   if (pts.size() < 16) return std::nullopt;
   const double cos_tilt = std::cos(o.floor_max_tilt_deg * std::numbers::pi / 180.0);
   core::RngStream rng(core::CounterRng(o.seed, 0, 0, 0x466c6f6f72ull));  // "Floor"
-  const uint32_t n = uint32_t(pts.size());
   int best = 0;
   Eigen::Vector4d best_plane;
   for (int it = 0; it < o.ransac_iterations; ++it) {
-    const Eigen::Vector3d& a = pts[rng.UniformInt(n)];
-    const Eigen::Vector3d& b = pts[rng.UniformInt(n)];
-    const Eigen::Vector3d& c = pts[rng.UniformInt(n)];
+    const uint32_t c0 = valid_cells[rng.UniformInt(uint32_t(valid_cells.size()))];
+    const int gx = int(c0 % uint32_t(gw)), gy = int(c0 / uint32_t(gw));
+    const int step = 1 + int(rng.UniformInt(3));
+    const int gx1 = gx + step < gw ? gx + step : gx - step, gy2 = gy + step < gh ? gy + step : gy - step;
+    if (gx1 < 0 || gy2 < 0) continue;
+    const size_t c1 = size_t(gy) * size_t(gw) + size_t(gx1), c2 = size_t(gy2) * size_t(gw) + size_t(gx);
+    if (!valid[c1] || !valid[c2]) continue;
+    const Eigen::Vector3d& a = grid[c0];
+    const Eigen::Vector3d& b = grid[c1];
+    const Eigen::Vector3d& c = grid[c2];
     Eigen::Vector3d nrm = (b - a).cross(c - a);
     const double len = nrm.norm();
     if (len < 1e-9) continue;
@@ -84,21 +102,27 @@ std::optional<Eigen::Vector4d> FitFloor(const core::DepthImage& depth, const cor
     if (inliers > best) best = inliers, best_plane << nrm, d;
   }
   if (best < std::max(16, int(o.min_floor_fraction * double(pts.size())))) return std::nullopt;
-  // Least-squares refit on the inliers (smallest eigenvector of their covariance).
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  int k = 0;
-  for (const auto& p : pts)
-    if (std::abs(best_plane.head<3>().dot(p) + best_plane[3]) < o.floor_distance_m) mean += p, ++k;
-  mean /= k;
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const auto& p : pts)
-    if (std::abs(best_plane.head<3>().dot(p) + best_plane[3]) < o.floor_distance_m) cov += (p - mean) * (p - mean).transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-  Eigen::Vector3d nrm = es.eigenvectors().col(0);
-  if (nrm.y() < 0) nrm = -nrm;
-  if (nrm.y() < cos_tilt) return best_plane;
-  Eigen::Vector4d plane;
-  plane << nrm, -nrm.dot(mean);
+  // Least-squares refits on the inliers (smallest eigenvector of their covariance), the band
+  // narrowing to a third of the tolerance, so that a hypothesis from a slightly tilted patch
+  // settles on the floor itself.
+  Eigen::Vector4d plane = best_plane;
+  for (int round = 0; round < 3; ++round) {
+    const double band = o.floor_distance_m / (1.0 + round);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    int k = 0;
+    for (const auto& p : pts)
+      if (std::abs(plane.head<3>().dot(p) + plane[3]) < band) mean += p, ++k;
+    if (k < 16) break;
+    mean /= k;
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const auto& p : pts)
+      if (std::abs(plane.head<3>().dot(p) + plane[3]) < band) cov += (p - mean) * (p - mean).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    Eigen::Vector3d nrm = es.eigenvectors().col(0);
+    if (nrm.y() < 0) nrm = -nrm;
+    if (nrm.y() < cos_tilt) break;
+    plane << nrm, -nrm.dot(mean);
+  }
   return plane;
 }
 
@@ -153,35 +177,62 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
   std::vector<Run> runs;
   runs.reserve(4096);
   std::vector<uint32_t> row_start(size_t(h) + 1, 0);
-  std::vector<uint8_t> fg(static_cast<size_t>(w));
+  // Per row: the foreground mask (band, not floor), then the run boundaries (foreground starts
+  // or ends, or a depth jump inside it), both in branch-free loops the compiler vectorizes; the
+  // boundaries are rare, found 8 bytes at a time.
+  std::vector<uint8_t> fg(static_cast<size_t>(w) + 8, 0), edge(static_cast<size_t>(w) + 16, 0);
+  const int jump_q16 = int(o.jump_fraction * 65536.0);
+  const int jump_mm = o.jump_mm;
   for (int y = 0; y < h; ++y) {
     row_start[size_t(y)] = uint32_t(runs.size());
     const uint16_t* row = depth.data() + size_t(y) * size_t(w);
-    const Eigen::Vector4d& p = has_floor ? *out->floor : Eigen::Vector4d::Zero().eval();
-    const float row_term = has_floor ? float(p[1] * (y - cam.cy) / cam.fy + p[2]) : 0.0f;
-    int floor_here = 0;
-    for (int x = 0; x < w; ++x) {
-      const int d = row[x];
-      bool f = d >= near_mm && d <= far_mm && d != 0;
-      if (f && has_floor) {
-        // Signed distance (mm) of the pixel's point from the plane: d * (n.ray) + plane d.
-        const float dist = float(d) * (col_term[size_t(x)] + row_term) + floor_d;
-        const bool on_floor = std::abs(dist) < floor_tol;
-        floor_here += on_floor;
-        f = !on_floor && dist < floor_tol;  // below the floor is noise
+    uint8_t* f = fg.data();
+    if (has_floor) {
+      const Eigen::Vector4d& p = *out->floor;
+      const float row_term = float(p[1] * (y - cam.cy) / cam.fy + p[2]);
+      const float* ct = col_term.data();
+      int floor_here = 0;
+      for (int x = 0; x < w; ++x) {
+        const int d = row[x];
+        const bool band = d >= near_mm && d <= far_mm && d != 0;
+        // Signed distance (mm) of the pixel's point from the plane: d * (n.ray) + plane d;
+        // negative above the floor. Below it (positive beyond the tolerance) is noise.
+        const float dist = float(d) * (ct[x] + row_term) + floor_d;
+        floor_here += band & (std::abs(dist) < floor_tol);
+        f[x] = uint8_t(band & (dist <= -floor_tol));
       }
-      fg[size_t(x)] = f;
+      out->floor_pixels += floor_here;
+    } else {
+      for (int x = 0; x < w; ++x) {
+        const int d = row[x];
+        f[x] = uint8_t(d >= near_mm && d <= far_mm && d != 0);
+      }
     }
-    out->floor_pixels += floor_here;
+    uint8_t* e = edge.data();
+    e[0] = f[0];
+    for (int x = 1; x < w; ++x) {
+      const int d = row[x], q = row[x - 1];
+      const int limit = std::max(jump_mm, (q * jump_q16) >> 16);
+      const int diff = d > q ? d - q : q - d;
+      e[x] = uint8_t((f[x] ^ f[x - 1]) | (f[x] & f[x - 1] & (diff > limit)));
+    }
+    e[w] = f[w - 1];
+    int open = -1;
     int x = 0;
-    while (x < w) {
-      while (x < w && !fg[size_t(x)]) ++x;
-      if (x >= w) break;
-      const int x0 = x;
-      int prev = row[x];
+    while (x <= w) {
+      uint64_t word;
+      std::memcpy(&word, e + x, 8);
+      if (word == 0) {
+        x += 8;
+        continue;
+      }
+      if (!e[x]) {
+        ++x;
+        continue;
+      }
+      if (open >= 0) runs.push_back({y, open, x - 1, uint32_t(runs.size())});
+      open = (x < w && f[x]) ? x : -1;
       ++x;
-      while (x < w && fg[size_t(x)] && std::abs(int(row[x]) - prev) <= JumpLimit(prev, o)) prev = row[x], ++x;
-      runs.push_back({y, x0, x - 1, uint32_t(runs.size())});
     }
   }
   row_start[size_t(h)] = uint32_t(runs.size());
@@ -229,8 +280,9 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     Comp& c = comps[size_t(comp_of[r])];
     const Run& run = runs[r];
     const uint16_t* row = depth.data() + size_t(run.y) * size_t(w);
-    double sd = 0, sd2 = 0;
-    for (int x = run.x0; x <= run.x1; ++x) sd += row[x], sd2 += double(row[x]) * row[x];
+    uint64_t isd = 0, isd2 = 0;
+    for (int x = run.x0; x <= run.x1; ++x) isd += row[x], isd2 += uint32_t(row[x]) * uint32_t(row[x]);
+    const double sd = double(isd), sd2 = double(isd2);
     const int n = run.x1 - run.x0 + 1;
     c.pixels += n;
     c.sum_d += sd;
