@@ -269,6 +269,7 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
   struct Comp {
     double area = 0, sum_d = 0, xmin = 1e9, xmax = -1e9, ymin = 1e9, ymax = -1e9;
     int pixels = 0, x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+    int dmin = 1 << 30, dmax = 0;  // mm
     int32_t merged_into = -1;
   };
   std::vector<Comp> comps;
@@ -281,7 +282,13 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     const Run& run = runs[r];
     const uint16_t* row = depth.data() + size_t(run.y) * size_t(w);
     uint64_t isd = 0, isd2 = 0;
-    for (int x = run.x0; x <= run.x1; ++x) isd += row[x], isd2 += uint32_t(row[x]) * uint32_t(row[x]);
+    int rmin = 65535, rmax = 0;
+    for (int x = run.x0; x <= run.x1; ++x) {
+      const uint32_t d = row[x];
+      isd += d, isd2 += d * d;
+      rmin = std::min(rmin, int(d)), rmax = std::max(rmax, int(d));
+    }
+    c.dmin = std::min(c.dmin, rmin), c.dmax = std::max(c.dmax, rmax);
     const double sd = double(isd), sd2 = double(isd2);
     const int n = run.x1 - run.x0 + 1;
     c.pixels += n;
@@ -308,6 +315,7 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     t.xmin = std::min(t.xmin, c.xmin), t.xmax = std::max(t.xmax, c.xmax);
     t.ymin = std::min(t.ymin, c.ymin), t.ymax = std::max(t.ymax, c.ymax);
     t.x0 = std::min(t.x0, c.x0), t.x1 = std::max(t.x1, c.x1), t.y0 = std::min(t.y0, c.y0), t.y1 = std::max(t.y1, c.y1);
+    t.dmin = std::min(t.dmin, c.dmin), t.dmax = std::max(t.dmax, c.dmax);
     c.merged_into = into;
   };
   // Component pairs that touch across a depth jump.
@@ -354,13 +362,27 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
           // Close in space too: their metric boxes overlap or nearly touch.
           const double gx = std::max(ca.xmin, cb.xmin) - std::min(ca.xmax, cb.xmax);
           const double gy = std::max(ca.ymin, cb.ymin) - std::min(ca.ymax, cb.ymax);
-          if (gx > o.merge_distance_m || gy > o.merge_distance_m) continue;
+          if (gx > o.occlusion_gap_m || gy > o.occlusion_gap_m) continue;
           absorb(std::min(a, b), std::max(a, b));
         }
     }
   }
   // Background seen through a gap (the wall between a person's arm and body, or between two
-  // people): a component behind every component it touches across a depth jump.
+  // people): a component behind every component it touches across a depth jump, at the depth of
+  // something too big to be a person (the wall it is part of). A person behind another person,
+  // with the wall beyond the depth band, touches only nearer things too, but no wall is there.
+  auto oversize = [&](const Comp& k) {
+    return k.area > o.max_area_m2 || k.xmax - k.xmin > o.max_width_m || k.ymax - k.ymin > o.max_height_m;
+  };
+  std::vector<std::pair<int, int>> background_depths;  // mm ranges of oversize components
+  for (const Comp& k : comps)
+    if (k.merged_into < 0 && oversize(k)) background_depths.emplace_back(k.dmin - 100, k.dmax + 100);
+  auto at_background_depth = [&](const Comp& k) {
+    const double d = k.sum_d / k.pixels;
+    for (const auto& [lo, hi] : background_depths)
+      if (d >= lo && d <= hi) return true;
+    return false;
+  };
   std::vector<uint8_t> has_nearer(comps.size(), 0), has_farther(comps.size(), 0);
   for (const auto& [a0, b0] : pairs) {
     const int32_t ca = root(a0), cb = root(b0);
@@ -380,7 +402,7 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     if (k.area < o.min_area_m2 || k.area > o.max_area_m2) continue;
     if (height < o.min_height_m || height > o.max_height_m || width < o.min_width_m || width > o.max_width_m) continue;
     if (fill > o.max_fill) continue;
-    if (has_nearer[c] && !has_farther[c]) continue;
+    if (has_nearer[c] && !has_farther[c] && at_background_depth(k)) continue;
     order.push_back(c);
   }
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return comps[a].pixels > comps[b].pixels; });

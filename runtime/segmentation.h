@@ -37,15 +37,16 @@ struct SegmentationOptions {
   int ransac_samples = 1024;          ///< points the fit scores hypotheses on (a grid over the frame)
   uint64_t seed = 1;                  ///< RANSAC draws; the result is deterministic
   double floor_max_tilt_deg = 45;     ///< floor normal within this of the camera's up axis
-  double min_floor_fraction = 0.08;   ///< a floor holds at least this fraction of the sampled points
-  double floor_min_depth_range_m = 1.0;  ///< ... spanning at least this range of depths
+  double min_floor_fraction = 0.03;   ///< a floor holds at least this fraction of the sampled points
+  double floor_min_depth_range_m = 0.5;  ///< ... spanning at least this range of depths
   double floor_max_below_fraction = 0.02;  ///< ... with at most this fraction of points beyond it
   double near_m = 0.4, far_m = 4.5;   ///< depth band, metres
   int jump_mm = 50;                   ///< neighbour depth jump that separates components ...
   double jump_fraction = 0.03;        ///< ... or this fraction of the depth, whichever is larger
-  double merge_distance_m = 0.3;      ///< pieces of one body rejoin within this depth gap
+  double merge_distance_m = 0.3;      ///< pieces of one body rejoin within this depth gap ...
+  double occlusion_gap_m = 0.6;       ///< ... and, cut apart by something in front, this far apart
   double min_height_m = 0.35, max_height_m = 2.3;  ///< person's extent along the image's vertical
-  double min_width_m = 0.15, max_width_m = 2.0;
+  double min_width_m = 0.15, max_width_m = 2.6;
   double min_area_m2 = 0.04, max_area_m2 = 2.0;    ///< silhouette area (pixels x (d/f)^2)
   double max_fill = 0.86;             ///< a component filling more of its bounding box is a box
   /// Pre-segmented detection: at least this fraction of pixels 0 and no floor -> unchanged.
