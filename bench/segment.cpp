@@ -91,12 +91,14 @@ void DrawPanel(const core::DepthImage& depth, const core::LabelImage* labels, st
 int main(int argc, char** argv) {
   int threads = 2, num_frames = 24;
   double seconds = 3.0;
-  std::string dump;  // --dump DIR: a picture per frame (depth | truth | segmentation)
+  std::string dump;      // --dump DIR: a picture per frame (depth | truth | segmentation)
+  std::string pictures;  // --pictures DIR: the pictures of docs/runtime/frames.md
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--threads")) threads = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--frames")) num_frames = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--seconds")) seconds = std::atof(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--dump")) dump = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--pictures")) pictures = argv[i + 1];
   }
   const auto cam = core::CameraIntrinsics::KinectV1();
 
@@ -184,6 +186,31 @@ int main(int argc, char** argv) {
       }
       for (const auto& q : seg.people) std::printf(" [%d px h %.2f w %.2f a %.2f z %.2f]", q.pixels, q.height_m, q.width_m, q.area_m2, q.mean_depth_m);
       std::printf("\n");
+    }
+  }
+
+  if (!pictures.empty()) {
+    // person.pcd (a real Kinect cloud of a person in a room): depth | segmentation.
+    fs::create_directories(pictures);
+    if (auto pcd = runtime::ReadPcdDepth((DataDir() / "real/pcl_person_pcd/person.pcd").string()); pcd.ok()) {
+      runtime::SegmentationResult seg;
+      runtime::SegmentPeople(*pcd, cam, options, &seg);
+      std::vector<uint8_t> rgb(size_t(640 * 2) * 480 * 3);
+      DrawPanel(*pcd, nullptr, rgb, 0, 2);
+      DrawPanel(*pcd, &seg.labels, rgb, 1, 2);
+      (void)runtime::WriteRgbPng(pictures + "/segmentation_person_pcd.png", 640 * 2, 480, rgb);
+      std::printf("person.pcd: %zu person(s), floor %s\n", seg.people.size(), seg.floor ? "found" : "none");
+    }
+    // A cluttered frame with two people touching at different depths: depth | truth | result.
+    for (int k : {14, 3}) {
+      if (k >= num_frames) continue;
+      runtime::SegmentationResult seg;
+      runtime::SegmentPeople(items[size_t(k)].frame.depth, cam, options, &seg);
+      std::vector<uint8_t> rgb(size_t(640 * 3) * 480 * 3);
+      DrawPanel(items[size_t(k)].frame.depth, nullptr, rgb, 0, 3);
+      DrawPanel(items[size_t(k)].frame.depth, &items[size_t(k)].frame.truth, rgb, 1, 3);
+      DrawPanel(items[size_t(k)].frame.depth, &seg.labels, rgb, 2, 3);
+      (void)runtime::WriteRgbPng(pictures + "/segmentation_cluttered_" + std::to_string(k) + ".png", 640 * 3, 480, rgb);
     }
   }
 
