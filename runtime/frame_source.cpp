@@ -157,6 +157,8 @@ class FileListSource : public FrameSource {
       // An organized cloud says its own size; the default model is fitted to it.
       f.camera.intrinsics.width = f.depth.width;
       f.camera.intrinsics.height = f.depth.height;
+      f.camera.intrinsics.cx = (f.depth.width - 1) / 2.0;
+      f.camera.intrinsics.cy = (f.depth.height - 1) / 2.0;
     }
     POSEFOREST_RETURN_IF_ERROR(CheckFrameSize(f.camera, f.depth.width, f.depth.height, f.source));
     return true;

@@ -88,12 +88,20 @@ std::optional<Eigen::Vector4d> FitFloor(const core::DepthImage& depth, const cor
     const double d = -nrm.dot(a);
     if (d >= 0) continue;  // the camera (origin) must be above the plane: n.0 + d < 0
     int inliers = 0, below = 0;
-    double zmin = 1e9, zmax = 0;
+    double zmin = 1e9, zmax = 0, xmin = 1e9, xmax = -1e9;
     for (const auto& p : pts) {
       const double dist = nrm.dot(p) + d;
-      if (std::abs(dist) < o.floor_distance_m) ++inliers, zmin = std::min(zmin, p.z()), zmax = std::max(zmax, p.z());
-      else below += dist > 0;
+      if (std::abs(dist) < o.floor_distance_m) {
+        ++inliers;
+        zmin = std::min(zmin, p.z()), zmax = std::max(zmax, p.z());
+        xmin = std::min(xmin, p.x()), xmax = std::max(xmax, p.x());
+      } else {
+        below += dist > 0;
+      }
     }
+    // ... and is wide: a person lying on the ground (pre-segmented renders have such poses) is
+    // not the floor.
+    if (xmax - xmin < o.floor_min_width_m) continue;
     // Nothing is seen through a floor: a plane with many points beyond it is not one.
     if (below > o.floor_max_below_fraction * double(pts.size())) continue;
     // A floor recedes from the camera: its points span a range of depths (a person's shoulders

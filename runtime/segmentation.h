@@ -39,6 +39,7 @@ struct SegmentationOptions {
   double floor_max_tilt_deg = 45;     ///< floor normal within this of the camera's up axis
   double min_floor_fraction = 0.03;   ///< a floor holds at least this fraction of the sampled points
   double floor_min_depth_range_m = 0.5;  ///< ... spanning at least this range of depths
+  double floor_min_width_m = 1.0;        ///< ... and at least this width
   double floor_max_below_fraction = 0.02;  ///< ... with at most this fraction of points beyond it
   double near_m = 0.4, far_m = 4.5;   ///< depth band, metres
   int jump_mm = 50;                   ///< neighbour depth jump that separates components ...

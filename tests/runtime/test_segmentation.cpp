@@ -158,6 +158,21 @@ TEST_CASE("pre-segmented input is detected, and the flag forces either way", "[s
   runtime::SegmentPeople(scene.depth, cam, force, &seg);
   CHECK(seg.presegmented);
   CHECK(seg.depth.pixels == scene.depth.pixels);
+  // A person lying on the ground, alone (pre-segmented renders have such poses): its top is a
+  // horizontal surface receding 1.7 m, but it is no floor (too narrow), so the frame passes.
+  testing::ClutterSpec lying;
+  lying.floor_y_m = 0, lying.back_wall_z_m = 0, lying.side_wall_x_m = 0;
+  lying.boxes.push_back({{-0.25, 0.75, 2.0}, {0.25, 1.0, 3.7}});
+  const auto body = testing::ComposeScene(cam, lying, {});
+  REQUIRE(core::CountForeground(body.depth) > 5000);
+  runtime::SegmentPeople(body.depth, cam, {}, &seg);
+  CHECK(seg.presegmented);
+  CHECK(seg.depth.pixels == body.depth.pixels);
+  runtime::SegmentationOptions narrow_floor;
+  narrow_floor.floor_min_width_m = 0.1;  // the old rule: then it would be taken for a floor
+  runtime::SegmentPeople(body.depth, cam, narrow_floor, &seg);
+  CHECK_FALSE(seg.presegmented);
+
   force.presegmented = false;
   runtime::SegmentPeople(person, cam, force, &seg);
   CHECK_FALSE(seg.presegmented);
