@@ -361,3 +361,124 @@ TEST_CASE("infer segments a raw cluttered frame, passes a pre-segmented one unch
   CHECK_THAT(off.output, Catch::Contains("24") || Catch::Contains("foreground pixels"));
   fs::remove_all(dir);
 }
+
+namespace {
+
+// A small organized PCD (x y z float32 metres) in one of PCL's encodings. binary_compressed is
+// written as LZF literal runs (valid LZF, as liblzf decodes it), fields one after the other.
+std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encoding) {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  std::string header = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+                       "COUNT 1 1 1\nWIDTH " + std::to_string(d.width) + "\nHEIGHT " + std::to_string(d.height) +
+                       "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(d.width * d.height) + "\nDATA " + encoding + "\n";
+  std::vector<float> xyz;  // point-major
+  for (int y = 0; y < d.height; ++y)
+    for (int x = 0; x < d.width; ++x) {
+      const uint16_t mm = d.at(x, y);
+      if (!mm) {
+        for (int k = 0; k < 3; ++k) xyz.push_back(std::nanf(""));
+        continue;
+      }
+      const auto p = cam.PixelToPoint(x, y, mm);
+      xyz.push_back(float(p.x())), xyz.push_back(float(p.y())), xyz.push_back(float(mm) / 1000.0f);
+    }
+  std::vector<uint8_t> out(header.begin(), header.end());
+  if (encoding == "ascii") {
+    std::string text;
+    for (size_t i = 0; i < xyz.size(); i += 3) {
+      char line[96];
+      std::snprintf(line, sizeof line, "%.6f %.6f %.6f\n", double(xyz[i]), double(xyz[i + 1]), double(xyz[i + 2]));
+      text += line;
+    }
+    out.insert(out.end(), text.begin(), text.end());
+  } else if (encoding == "binary") {
+    const auto* b = reinterpret_cast<const uint8_t*>(xyz.data());
+    out.insert(out.end(), b, b + xyz.size() * 4);
+  } else {
+    std::vector<float> soa;
+    for (int f = 0; f < 3; ++f)
+      for (size_t i = f; i < xyz.size(); i += 3) soa.push_back(xyz[i]);
+    const auto* raw = reinterpret_cast<const uint8_t*>(soa.data());
+    const size_t n = soa.size() * 4;
+    std::vector<uint8_t> lzf;
+    for (size_t i = 0; i < n; i += 32) {
+      const size_t len = std::min<size_t>(32, n - i);
+      lzf.push_back(uint8_t(len - 1));
+      lzf.insert(lzf.end(), raw + i, raw + i + len);
+    }
+    const uint32_t sizes[2] = {uint32_t(lzf.size()), uint32_t(n)};
+    const auto* s = reinterpret_cast<const uint8_t*>(sizes);
+    out.insert(out.end(), s, s + 8);
+    out.insert(out.end(), lzf.begin(), lzf.end());
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors, never crash", "[frames][pcd][hostile]") {
+  const auto dir = testing::ScratchDir("frames-pcd");
+  core::DepthImage d(16, 12, 0);
+  for (int y = 2; y < 10; ++y)
+    for (int x = 3; x < 13; ++x) d.at(x, y) = uint16_t(1000 + 37 * x + 11 * y);
+  for (const std::string enc : {"ascii", "binary", "binary_compressed"}) {
+    const auto bytes = MakePcd(d, enc);
+    const std::string path = (dir / ("c_" + enc + ".pcd")).string();
+    REQUIRE(core::WriteFileAtomic(path, bytes).ok());
+    auto read = runtime::ReadPcdDepth(path);
+    INFO(enc);
+    REQUIRE(read.ok());
+    CHECK(read->pixels == d.pixels);
+    // Every truncation and some corruptions: an error or a frame, never a crash (ASan builds
+    // make any overread fatal).
+    int errors = 0;
+    for (size_t len = 0; len < bytes.size(); len += (enc == "ascii" ? 7 : 1)) {
+      REQUIRE(core::WriteFileAtomic(path, std::span(bytes.data(), len)).ok());
+      auto r = runtime::ReadPcdDepth(path);
+      if (!r.ok()) {
+        ++errors;
+        CHECK_THAT(r.status().message(), Catch::Contains(path));
+      }
+    }
+    CHECK(errors > 0);
+    for (size_t i = 0; i < bytes.size(); i += 5) {
+      auto bad = bytes;
+      bad[i] ^= 0xA5;
+      REQUIRE(core::WriteFileAtomic(path, bad).ok());
+      (void)runtime::ReadPcdDepth(path);
+    }
+  }
+  fs::remove_all(dir);
+}
+
+TEST_CASE(".npy truncated or corrupted at every byte: an error or a frame, never a crash", "[frames][npy][hostile]") {
+  const auto dir = testing::ScratchDir("frames-npy-hostile");
+  const std::string path = (dir / "a.npy").string();
+  REQUIRE(runtime::WriteDepthNpy(path, {core::DepthImage(8, 6, 1234), core::DepthImage(8, 6, 2345)}).ok());
+  auto bytes = core::ReadFileBytes(path);
+  REQUIRE(bytes.ok());
+  runtime::FrameSourceOptions o;
+  o.camera.intrinsics.width = 8, o.camera.intrinsics.height = 6;
+  auto drain = [&](const std::string& p) {
+    auto src = runtime::OpenFrameSource(p, o);
+    if (!src.ok()) return;
+    runtime::Frame f;
+    for (int k = 0; k < 10; ++k) {
+      auto r = (*src)->Next(&f);
+      if (r.ok() && !*r) break;
+    }
+  };
+  for (size_t len = 0; len < bytes->size(); ++len) {
+    REQUIRE(core::WriteFileAtomic(path, std::span(bytes->data(), len)).ok());
+    auto r = runtime::ReadDepthFile(path, o);
+    CHECK_FALSE(r.ok());  // one frame of the two is never "all of it"
+    drain(path);
+  }
+  for (size_t i = 0; i < bytes->size(); ++i) {
+    auto bad = *bytes;
+    bad[i] ^= 0x5A;
+    REQUIRE(core::WriteFileAtomic(path, bad).ok());
+    drain(path);
+  }
+  fs::remove_all(dir);
+}
