@@ -36,7 +36,8 @@ fs::path DataDir() {
 }
 
 // Moves a person image `dz_mm` back and `dx_px` sideways (the silhouette shrinks with depth).
-core::DepthImage Place(const core::DepthImage& person, const core::CameraIntrinsics& cam, int dz_mm, double dx_m) {
+core::DepthImage Place(const core::DepthImage& person, const core::CameraIntrinsics& cam, int dz_mm,
+                       double dx_m) {
   core::DepthImage out(person.width, person.height, 0);
   for (int y = 0; y < person.height; ++y)
     for (int x = 0; x < person.width; ++x) {
@@ -45,7 +46,8 @@ core::DepthImage Place(const core::DepthImage& person, const core::CameraIntrins
       const double z = d * 1e-3, z2 = z + dz_mm * 1e-3;
       // Same 3D point shape, further away: project (X + dx, Y, Z + dz).
       const double X = (x - cam.cx) * z / cam.fx + dx_m, Y = (y - cam.cy) * z / cam.fy;
-      const int u = int(std::lround(cam.cx + cam.fx * X / z2)), v = int(std::lround(cam.cy + cam.fy * Y / z2));
+      const int u = int(std::lround(cam.cx + cam.fx * X / z2)),
+                v = int(std::lround(cam.cy + cam.fy * Y / z2));
       if (!out.InBounds(u, v)) continue;
       const uint16_t nd = uint16_t(std::lround(z2 * 1000));
       if (!out.at(u, v) || nd < out.at(u, v)) out.at(u, v) = nd;
@@ -65,9 +67,10 @@ core::DepthImage Place(const core::DepthImage& person, const core::CameraIntrins
 }
 
 // Depth as grey (near = bright), then person labels as colours over a dimmed depth.
-void DrawPanel(const core::DepthImage& depth, const core::LabelImage* labels, std::vector<uint8_t>& rgb, int panel,
-               int panels) {
-  static const uint8_t kColours[6][3] = {{230, 60, 50}, {50, 140, 230}, {60, 200, 80}, {240, 200, 40}, {200, 80, 220}, {40, 220, 220}};
+void DrawPanel(const core::DepthImage& depth, const core::LabelImage* labels, std::vector<uint8_t>& rgb,
+               int panel, int panels) {
+  static const uint8_t kColours[6][3] = {{230, 60, 50},  {50, 140, 230}, {60, 200, 80},
+                                         {240, 200, 40}, {200, 80, 220}, {40, 220, 220}};
   const int w = depth.width, h = depth.height;
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
@@ -94,11 +97,16 @@ int main(int argc, char** argv) {
   std::string dump;      // --dump DIR: a picture per frame (depth | truth | segmentation)
   std::string pictures;  // --pictures DIR: the pictures of docs/runtime/frames.md
   for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--threads")) threads = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--frames")) num_frames = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--seconds")) seconds = std::atof(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--dump")) dump = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--pictures")) pictures = argv[i + 1];
+    if (!std::strcmp(argv[i], "--threads"))
+      threads = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--frames"))
+      num_frames = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--seconds"))
+      seconds = std::atof(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--dump"))
+      dump = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--pictures"))
+      pictures = argv[i + 1];
   }
   const auto cam = core::CameraIntrinsics::KinectV1();
 
@@ -109,7 +117,8 @@ int main(int argc, char** argv) {
   for (const auto& e : fs::directory_iterator(DataDir() / "real/skeltrack_kinect_depth", ec))
     if (e.path().filename().string().rfind("depth-data-", 0) == 0)
       if (auto d = runtime::ReadDepthFile(e.path().string(), fo); d.ok()) real_people.push_back(*d);
-  std::printf("building %d cluttered 640x480 frames (%zu real Kinect people available)...\n", num_frames, real_people.size());
+  std::printf("building %d cluttered 640x480 frames (%zu real Kinect people available)...\n", num_frames,
+              real_people.size());
 
   struct Item {
     testing::ClutteredFrame frame;
@@ -119,7 +128,7 @@ int main(int argc, char** argv) {
   core::RngStream rng(core::CounterRng(14, 0, 0, 0x5E6));
   for (int k = 0; k < num_frames; ++k) {
     testing::ClutterSpec spec;
-    spec.floor_y_m = rng.UniformIn(0.8, 1.3);          // camera height above the floor
+    spec.floor_y_m = rng.UniformIn(0.8, 1.3);  // camera height above the floor
     spec.back_wall_z_m = rng.UniformIn(3.8, 5.5);
     spec.side_wall_x_m = (rng.UniformInt(2) ? 1 : -1) * rng.UniformIn(1.6, 2.6);
     const int boxes = 1 + int(rng.UniformInt(3));
@@ -138,7 +147,8 @@ int main(int argc, char** argv) {
       } else {
         // Standing on the floor: the figure's feet are 0.98 m below its pelvis.
         const double z = rng.UniformIn(1.8, 3.3);
-        people.push_back(testing::MakePersonDepth(z, 640, 480, rng.UniformIn(-0.8, 0.8), spec.floor_y_m - 0.98));
+        people.push_back(
+            testing::MakePersonDepth(z, 640, 480, rng.UniformIn(-0.8, 0.8), spec.floor_y_m - 0.98));
       }
     }
     items[size_t(k)].frame = testing::ComposeScene(cam, spec, people);
@@ -184,7 +194,9 @@ int main(int argc, char** argv) {
           best = std::max(best, runtime::MaskIoU(seg.labels, person.label, it.frame.truth, p));
         std::printf(" IoU %.2f", best);
       }
-      for (const auto& q : seg.people) std::printf(" [%d px h %.2f w %.2f a %.2f z %.2f]", q.pixels, q.height_m, q.width_m, q.area_m2, q.mean_depth_m);
+      for (const auto& q : seg.people)
+        std::printf(" [%d px h %.2f w %.2f a %.2f z %.2f]", q.pixels, q.height_m, q.width_m, q.area_m2,
+                    q.mean_depth_m);
       std::printf("\n");
     }
   }
@@ -210,7 +222,8 @@ int main(int argc, char** argv) {
       DrawPanel(items[size_t(k)].frame.depth, nullptr, rgb, 0, 3);
       DrawPanel(items[size_t(k)].frame.depth, &items[size_t(k)].frame.truth, rgb, 1, 3);
       DrawPanel(items[size_t(k)].frame.depth, &seg.labels, rgb, 2, 3);
-      (void)runtime::WriteRgbPng(pictures + "/segmentation_cluttered_" + std::to_string(k) + ".png", 640 * 3, 480, rgb);
+      (void)runtime::WriteRgbPng(pictures + "/segmentation_cluttered_" + std::to_string(k) + ".png", 640 * 3,
+                                 480, rgb);
     }
   }
 
@@ -234,11 +247,16 @@ int main(int argc, char** argv) {
     elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
   const double fps = double(done) / elapsed;
-  std::printf("frames: %d distinct cluttered frames (floor, 2 walls, 1-3 boxes, 1-2 people), %ld segmented in %.2f s\n",
-              num_frames, done, elapsed);
-  std::printf("people: %d visible, mean IoU %.3f; frames with the right person count %d/%d; taken as pre-segmented %d\n",
-              persons, persons ? iou_sum / persons : 0.0, count_right, num_frames, presegmented);
-  std::printf("threads: %d, %.3f ms per frame per thread\n", threads, 1000.0 * elapsed * threads / double(done));
+  std::printf(
+      "frames: %d distinct cluttered frames (floor, 2 walls, 1-3 boxes, 1-2 people), %ld segmented in %.2f "
+      "s\n",
+      num_frames, done, elapsed);
+  std::printf(
+      "people: %d visible, mean IoU %.3f; frames with the right person count %d/%d; taken as pre-segmented "
+      "%d\n",
+      persons, persons ? iou_sum / persons : 0.0, count_right, num_frames, presegmented);
+  std::printf("threads: %d, %.3f ms per frame per thread\n", threads,
+              1000.0 * elapsed * threads / double(done));
   std::printf("frames/s: %.0f frames/s\n", fps);
   return 0;
 }

@@ -13,7 +13,8 @@ double FocalFromFov(int size_px, double fov_deg) {
   return 0.5 * size_px / std::tan(0.5 * fov_deg * std::numbers::pi / 180.0);
 }
 
-CameraModel Nominal(const std::string& name, int w, int h, double hfov_deg, double vfov_deg, double scale = 1.0) {
+CameraModel Nominal(const std::string& name, int w, int h, double hfov_deg, double vfov_deg,
+                    double scale = 1.0) {
   CameraModel m;
   m.name = name;
   m.intrinsics.width = w;
@@ -69,7 +70,8 @@ core::Result<CameraModel> CameraPreset(const std::string& name) {
   }
   std::string list;
   for (const auto& n : CameraPresetNames()) list += (list.empty() ? "" : ", ") + n;
-  return core::Status(core::ErrorCode::kInvalidArgument, "unknown camera preset '" + name + "' (presets: " + list + ")");
+  return core::Status(core::ErrorCode::kInvalidArgument,
+                      "unknown camera preset '" + name + "' (presets: " + list + ")");
 }
 
 core::Status CheckFrameSize(const CameraModel& camera, int width, int height, const std::string& what) {
@@ -77,7 +79,8 @@ core::Status CheckFrameSize(const CameraModel& camera, int width, int height, co
   return {core::ErrorCode::kInvalidArgument,
           what + " is " + std::to_string(width) + "x" + std::to_string(height) + " but the camera model " +
               camera.name + " is " + std::to_string(camera.intrinsics.width) + "x" +
-              std::to_string(camera.intrinsics.height) + " (choose --camera or --fx/--fy/--cx/--cy for this size)"};
+              std::to_string(camera.intrinsics.height) +
+              " (choose --camera or --fx/--fy/--cx/--cy for this size)"};
 }
 
 bool SameFocalLength(const core::Forest& forest, double fx, double fy) {

@@ -15,9 +15,9 @@ namespace poseforest::runtime {
 /// A depth camera: its pinhole intrinsics (size, focal lengths and principal point in pixels) and
 /// the unit of its raw depth values.
 struct CameraModel {
-  std::string name = "kinect-v1";         ///< preset name, or "custom"
-  core::CameraIntrinsics intrinsics;      ///< pixels; defaults: Kinect v1 640x480
-  double depth_scale_mm = 1.0;            ///< millimetres per raw depth unit (1: raw is mm)
+  std::string name = "kinect-v1";     ///< preset name, or "custom"
+  core::CameraIntrinsics intrinsics;  ///< pixels; defaults: Kinect v1 640x480
+  double depth_scale_mm = 1.0;        ///< millimetres per raw depth unit (1: raw is mm)
 
   /// One line for messages: "kinect-v1 640x480 fx 575.8 fy 575.8 cx 319.5 cy 239.5".
   std::string Describe() const;

@@ -30,26 +30,29 @@ uint16_t MmToKinectDisparity(uint16_t mm) {
   // The neighbour whose depth is nearest (the fit is not linear).
   int best = r;
   for (int c = std::max(0, r - 1); c <= std::min(1083, r + 1); ++c)
-    if (std::abs(int(KinectDisparityToMm(uint16_t(c))) - int(mm)) < std::abs(int(KinectDisparityToMm(uint16_t(best))) - int(mm)))
+    if (std::abs(int(KinectDisparityToMm(uint16_t(c))) - int(mm)) <
+        std::abs(int(KinectDisparityToMm(uint16_t(best))) - int(mm)))
       best = c;
   return uint16_t(best);
 }
 
-core::Status WriteFakenectRecording(const std::string& dir, const std::vector<core::DepthImage>& frames, double fps,
-                                    double start_time_s) {
+core::Status WriteFakenectRecording(const std::string& dir, const std::vector<core::DepthImage>& frames,
+                                    double fps, double start_time_s) {
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) return {core::ErrorCode::kIo, dir + ": cannot create folder: " + ec.message()};
   const fs::path index = fs::path(dir) / "INDEX.txt";
-  if (fs::exists(index)) return {core::ErrorCode::kInvalidArgument, index.string() + ": already exists (a recording is not overwritten)"};
+  if (fs::exists(index))
+    return {core::ErrorCode::kInvalidArgument,
+            index.string() + ": already exists (a recording is not overwritten)"};
   if (!(fps > 0)) return {core::ErrorCode::kInvalidArgument, "fakenect recording: fps must be positive"};
   std::string lines;
   for (size_t k = 0; k < frames.size(); ++k) {
     const core::DepthImage& f = frames[k];
     if (f.width != kW || f.height != kH)
-      return {core::ErrorCode::kInvalidArgument, "fakenect recording frame " + std::to_string(k) + " is " +
-                                                     std::to_string(f.width) + "x" + std::to_string(f.height) +
-                                                     "; fakenect replays 640x480 Kinect v1 frames only"};
+      return {core::ErrorCode::kInvalidArgument,
+              "fakenect recording frame " + std::to_string(k) + " is " + std::to_string(f.width) + "x" +
+                  std::to_string(f.height) + "; fakenect replays 640x480 Kinect v1 frames only"};
     char name[96];
     std::snprintf(name, sizeof name, "d-%f-%u.pgm", start_time_s + double(k) / fps,
                   unsigned(1000000 + uint64_t(double(k) * 60e6 / fps)));
@@ -66,13 +69,15 @@ core::Status WriteFakenectRecording(const std::string& dir, const std::vector<co
     lines += name;
     lines += '\n';
   }
-  return core::WriteFileAtomic(index.string(), std::span(reinterpret_cast<const uint8_t*>(lines.data()), lines.size()));
+  return core::WriteFileAtomic(index.string(),
+                               std::span(reinterpret_cast<const uint8_t*>(lines.data()), lines.size()));
 }
 
 core::Result<std::vector<FakenectEntry>> CheckFakenectRecording(const std::string& dir) {
   const fs::path index = fs::path(dir) / "INDEX.txt";
   std::ifstream in(index);
-  if (!in) return core::Status(core::ErrorCode::kNotFound, index.string() + ": cannot read the recording's index");
+  if (!in)
+    return core::Status(core::ErrorCode::kNotFound, index.string() + ": cannot read the recording's index");
   std::vector<FakenectEntry> out;
   std::string line;
   while (std::getline(in, line)) {
@@ -90,9 +95,12 @@ core::Result<std::vector<FakenectEntry>> CheckFakenectRecording(const std::strin
       std::getline(f, header);
       const uint64_t size = fs::file_size(p, ec);
       const uint64_t want = header.size() + 1 + uint64_t(kW) * kH * 2;
-      if (header.rfind("P5", 0) != 0) e.problem = "not a PGM depth frame (header '" + header.substr(0, 20) + "')";
-      else if (size < want) e.problem = "truncated: " + std::to_string(size) + " of " + std::to_string(want) + " bytes";
-      else e.ok = true;
+      if (header.rfind("P5", 0) != 0)
+        e.problem = "not a PGM depth frame (header '" + header.substr(0, 20) + "')";
+      else if (size < want)
+        e.problem = "truncated: " + std::to_string(size) + " of " + std::to_string(want) + " bytes";
+      else
+        e.ok = true;
     }
     out.push_back(std::move(e));
   }

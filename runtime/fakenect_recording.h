@@ -35,9 +35,9 @@ core::Status WriteFakenectRecording(const std::string& dir, const std::vector<co
 
 /// One depth entry of a recording's INDEX.txt and whether its file is a complete frame.
 struct FakenectEntry {
-  std::string file;        ///< as listed in INDEX.txt
+  std::string file;  ///< as listed in INDEX.txt
   bool ok = false;
-  std::string problem;     ///< why not ("truncated: 1000 of 614417 bytes", "missing")
+  std::string problem;  ///< why not ("truncated: 1000 of 614417 bytes", "missing")
 };
 /// Reads a recording's INDEX.txt and checks every depth file (exists, a header line, then
 /// exactly 640*480*2 bytes). Error if INDEX.txt cannot be read.

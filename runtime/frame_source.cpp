@@ -32,8 +32,9 @@ Result<std::vector<uint8_t>> ReadAll(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     const int err = errno;
-    return Status(err == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
-                  path + (err == ENOENT ? ": no such file" : ": cannot open: " + std::string(std::strerror(err))));
+    return Status(
+        err == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
+        path + (err == ENOENT ? ": no such file" : ": cannot open: " + std::string(std::strerror(err))));
   }
   std::vector<uint8_t> out;
   uint8_t buf[1 << 16];
@@ -56,8 +57,12 @@ bool StartsWith(const std::vector<uint8_t>& b, std::string_view s) {
   return b.size() >= s.size() && std::memcmp(b.data(), s.data(), s.size()) == 0;
 }
 
-int RawWidth(const FrameSourceOptions& o) { return o.raw_width > 0 ? o.raw_width : o.camera.intrinsics.width; }
-int RawHeight(const FrameSourceOptions& o) { return o.raw_height > 0 ? o.raw_height : o.camera.intrinsics.height; }
+int RawWidth(const FrameSourceOptions& o) {
+  return o.raw_width > 0 ? o.raw_width : o.camera.intrinsics.width;
+}
+int RawHeight(const FrameSourceOptions& o) {
+  return o.raw_height > 0 ? o.raw_height : o.camera.intrinsics.height;
+}
 
 void ApplyDepthScale(core::DepthImage* depth, double scale_mm) {
   if (scale_mm == 1.0) return;
@@ -65,8 +70,8 @@ void ApplyDepthScale(core::DepthImage* depth, double scale_mm) {
 }
 
 // Frames held by one .npy: uint16 mm or float32 metres, [H,W] or [N,H,W].
-Result<std::vector<core::DepthImage>> DecodeNpyFrames(const std::vector<uint8_t>& bytes, const std::string& path,
-                                                      double depth_scale_mm) {
+Result<std::vector<core::DepthImage>> DecodeNpyFrames(const std::vector<uint8_t>& bytes,
+                                                      const std::string& path, double depth_scale_mm) {
   auto h = ParseNpyHeader(bytes, path);
   if (!h.ok()) return h.status();
   const int64_t n = h->shape.size() == 3 ? h->shape[0] : 1;
@@ -74,9 +79,9 @@ Result<std::vector<core::DepthImage>> DecodeNpyFrames(const std::vector<uint8_t>
   const size_t elem = h->descr == "<u2" ? 2 : 4;
   const uint64_t need = uint64_t(n) * uint64_t(rows) * uint64_t(cols) * elem;
   if (bytes.size() - h->data_offset < need)
-    return Status(ErrorCode::kDataLoss, path + ": .npy of shape " + std::to_string(n) + "x" + std::to_string(rows) +
-                                            "x" + std::to_string(cols) + " needs " + std::to_string(need) +
-                                            " bytes of data but holds " +
+    return Status(ErrorCode::kDataLoss, path + ": .npy of shape " + std::to_string(n) + "x" +
+                                            std::to_string(rows) + "x" + std::to_string(cols) + " needs " +
+                                            std::to_string(need) + " bytes of data but holds " +
                                             std::to_string(bytes.size() - h->data_offset) + " (truncated)");
   std::vector<core::DepthImage> frames;
   const uint8_t* p = bytes.data() + h->data_offset;
@@ -89,7 +94,8 @@ Result<std::vector<core::DepthImage>> DecodeNpyFrames(const std::vector<uint8_t>
         float m;
         std::memcpy(&m, p, 4);
         // Metres to mm; NaN, inf, <= 0 and beyond 65.535 m are "no reading".
-        d.pixels[i] = (std::isfinite(m) && m > 0 && m < 65.535f) ? uint16_t(std::lround(double(m) * 1000.0)) : 0;
+        d.pixels[i] =
+            (std::isfinite(m) && m > 0 && m < 65.535f) ? uint16_t(std::lround(double(m) * 1000.0)) : 0;
       }
     }
     if (elem == 2) ApplyDepthScale(&d, depth_scale_mm);
@@ -130,7 +136,10 @@ bool LzfDecompress(const uint8_t* in, size_t in_len, uint8_t* out, size_t out_le
 class FileListSource : public FrameSource {
  public:
   FileListSource(std::vector<std::string> files, std::string what, FrameSourceOptions options)
-      : files_(std::move(files)), what_(std::move(what)), options_(std::move(options)), opened_(Clock::now()) {}
+      : files_(std::move(files)),
+        what_(std::move(what)),
+        options_(std::move(options)),
+        opened_(Clock::now()) {}
 
   Result<bool> Next(Frame* frame) override {
     if (pending_.empty()) {
@@ -224,7 +233,8 @@ class RawStreamSource : public FrameSource {
       if (n < 0) {
         if (errno == EINTR) continue;
         ended_ = true;
-        return Status(ErrorCode::kIo, name_ + " frame " + std::to_string(index_) + ": read failed: " + std::strerror(errno));
+        return Status(ErrorCode::kIo,
+                      name_ + " frame " + std::to_string(index_) + ": read failed: " + std::strerror(errno));
       }
       if (n == 0) break;
       got += size_t(n);
@@ -235,13 +245,15 @@ class RawStreamSource : public FrameSource {
     }
     if (got < need) {
       ended_ = true;
-      return Status(ErrorCode::kDataLoss, name_ + " frame " + std::to_string(index_) + ": truncated: the stream ended after " +
-                                              std::to_string(got) + " of " + std::to_string(need) + " bytes (raw " +
+      return Status(ErrorCode::kDataLoss, name_ + " frame " + std::to_string(index_) +
+                                              ": truncated: the stream ended after " + std::to_string(got) +
+                                              " of " + std::to_string(need) + " bytes (raw " +
                                               std::to_string(w) + "x" + std::to_string(h) + " uint16)");
     }
     Frame& f = *frame;
     f.depth = core::DepthImage(w, h);
-    for (size_t i = 0; i < f.depth.pixels.size(); ++i) f.depth.pixels[i] = uint16_t(buf_[2 * i] | buf_[2 * i + 1] << 8);
+    for (size_t i = 0; i < f.depth.pixels.size(); ++i)
+      f.depth.pixels[i] = uint16_t(buf_[2 * i] | buf_[2 * i + 1] << 8);
     ApplyDepthScale(&f.depth, options_.camera.depth_scale_mm);
     f.camera = options_.camera;
     f.source = name_;
@@ -252,7 +264,8 @@ class RawStreamSource : public FrameSource {
     return true;
   }
   std::string Describe() const override {
-    return name_ + ", raw " + std::to_string(RawWidth(options_)) + "x" + std::to_string(RawHeight(options_)) + " uint16";
+    return name_ + ", raw " + std::to_string(RawWidth(options_)) + "x" + std::to_string(RawHeight(options_)) +
+           " uint16";
   }
 
  private:
@@ -268,15 +281,18 @@ class RawStreamSource : public FrameSource {
 // Delivers at most `fps` frames per second: sleeps until each frame's slot.
 class PacedSource : public FrameSource {
  public:
-  PacedSource(std::unique_ptr<FrameSource> inner, double fps) : inner_(std::move(inner)), period_(1.0 / fps) {}
+  PacedSource(std::unique_ptr<FrameSource> inner, double fps)
+      : inner_(std::move(inner)), period_(1.0 / fps) {}
   Result<bool> Next(Frame* frame) override {
     auto r = inner_->Next(frame);
     if (r.ok() && *r) {
       const auto now = Clock::now();
       if (started_) {
         next_ += std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_));
-        if (next_ > now) std::this_thread::sleep_until(next_);
-        else next_ = now;  // late: no burst to catch up
+        if (next_ > now)
+          std::this_thread::sleep_until(next_);
+        else
+          next_ = now;  // late: no burst to catch up
       } else {
         started_ = true;
         next_ = now;
@@ -366,9 +382,11 @@ Result<NpyHeader> ParseNpyHeader(const std::vector<uint8_t>& b, const std::strin
     header_len = size_t(b[8]) | size_t(b[9]) << 8 | size_t(b[10]) << 16 | size_t(b[11]) << 24;
     start = 12;
   } else {
-    return bad(".npy format version " + std::to_string(major) + "." + std::to_string(b[7]) + " is not 1, 2 or 3");
+    return bad(".npy format version " + std::to_string(major) + "." + std::to_string(b[7]) +
+               " is not 1, 2 or 3");
   }
-  if (b.size() - start < header_len) return bad(".npy header of " + std::to_string(header_len) + " bytes is truncated");
+  if (b.size() - start < header_len)
+    return bad(".npy header of " + std::to_string(header_len) + " bytes is truncated");
   const std::string h(reinterpret_cast<const char*>(b.data() + start), header_len);
   // The header is a Python dict literal: {'descr': '<u2', 'fortran_order': False, 'shape': (480, 640), }
   auto value_of = [&](const std::string& key) -> std::optional<std::string> {
@@ -398,15 +416,18 @@ Result<NpyHeader> ParseNpyHeader(const std::vector<uint8_t>& b, const std::strin
     return std::nullopt;
   };
   const auto descr = value_of("descr"), fortran = value_of("fortran_order"), shape = value_of("shape");
-  if (!descr || !fortran || !shape) return bad(".npy header is not a dict with descr, fortran_order and shape: " + h);
+  if (!descr || !fortran || !shape)
+    return bad(".npy header is not a dict with descr, fortran_order and shape: " + h);
   NpyHeader out;
   out.descr = *descr;
   if (out.descr == "|u2" || out.descr == "=u2") out.descr = "<u2";  // single-byte order marks on LE hosts
   if (out.descr != "<u2" && out.descr != "<f4")
-    return Status(ErrorCode::kInvalidArgument, source + ": .npy holds dtype '" + *descr +
-                                                   "'; depth must be uint16 millimetres ('<u2') or float32 metres ('<f4')");
+    return Status(ErrorCode::kInvalidArgument,
+                  source + ": .npy holds dtype '" + *descr +
+                      "'; depth must be uint16 millimetres ('<u2') or float32 metres ('<f4')");
   if (fortran->find("False") == std::string::npos)
-    return Status(ErrorCode::kInvalidArgument, source + ": .npy is in Fortran order; save it C-ordered (np.ascontiguousarray)");
+    return Status(ErrorCode::kInvalidArgument,
+                  source + ": .npy is in Fortran order; save it C-ordered (np.ascontiguousarray)");
   // Shape "(480, 640)" or "(3, 480, 640)".
   std::string s = *shape;
   for (char& c : s)
@@ -425,10 +446,12 @@ Result<NpyHeader> ParseNpyHeader(const std::vector<uint8_t>& b, const std::strin
     pos = end;
   }
   if (out.shape.size() != 2 && out.shape.size() != 3)
-    return Status(ErrorCode::kInvalidArgument, source + ": .npy of shape " + *shape +
-                                                   "; depth must be [height, width] or [frames, height, width]");
+    return Status(
+        ErrorCode::kInvalidArgument,
+        source + ": .npy of shape " + *shape + "; depth must be [height, width] or [frames, height, width]");
   for (int64_t v : out.shape)
-    if (v == 0) return Status(ErrorCode::kInvalidArgument, source + ": .npy of shape " + *shape + " is empty");
+    if (v == 0)
+      return Status(ErrorCode::kInvalidArgument, source + ": .npy of shape " + *shape + " is empty");
   out.data_offset = start + header_len;
   return out;
 }
@@ -441,10 +464,12 @@ core::Status WriteDepthNpy(const std::string& path, const std::vector<core::Dept
   header += std::to_string(h) + ", " + std::to_string(w) + "), }";
   while ((10 + header.size() + 1) % 64 != 0) header += ' ';
   header += '\n';
-  std::vector<uint8_t> bytes = {0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0, uint8_t(header.size() & 0xFF), uint8_t(header.size() >> 8)};
+  std::vector<uint8_t> bytes = {
+      0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0, uint8_t(header.size() & 0xFF), uint8_t(header.size() >> 8)};
   bytes.insert(bytes.end(), header.begin(), header.end());
   for (const auto& f : frames) {
-    if (f.width != w || f.height != h) return {ErrorCode::kInvalidArgument, path + ": frames of different sizes"};
+    if (f.width != w || f.height != h)
+      return {ErrorCode::kInvalidArgument, path + ": frames of different sizes"};
     for (uint16_t d : f.pixels) {
       bytes.push_back(uint8_t(d & 0xFF));
       bytes.push_back(uint8_t(d >> 8));
@@ -486,31 +511,42 @@ Result<core::DepthImage> ReadPcdDepth(const std::string& path) {
     auto ints = [&](std::vector<int>* out) {
       for (size_t i = 1; i < tok.size(); ++i) out->push_back(std::atoi(tok[i].c_str()));
     };
-    if (key == "FIELDS") fields.assign(tok.begin() + 1, tok.end());
-    else if (key == "SIZE") ints(&sizes);
-    else if (key == "COUNT") ints(&counts);
-    else if (key == "TYPE") for (size_t i = 1; i < tok.size(); ++i) types.push_back(tok[i].empty() ? '?' : tok[i][0]);
-    else if (key == "WIDTH" && tok.size() > 1) width = std::atoll(tok[1].c_str());
-    else if (key == "HEIGHT" && tok.size() > 1) height = std::atoll(tok[1].c_str());
-    else if (key == "POINTS" && tok.size() > 1) points = std::atoll(tok[1].c_str());
-    else if (key == "DATA" && tok.size() > 1) data = tok[1];
+    if (key == "FIELDS")
+      fields.assign(tok.begin() + 1, tok.end());
+    else if (key == "SIZE")
+      ints(&sizes);
+    else if (key == "COUNT")
+      ints(&counts);
+    else if (key == "TYPE")
+      for (size_t i = 1; i < tok.size(); ++i) types.push_back(tok[i].empty() ? '?' : tok[i][0]);
+    else if (key == "WIDTH" && tok.size() > 1)
+      width = std::atoll(tok[1].c_str());
+    else if (key == "HEIGHT" && tok.size() > 1)
+      height = std::atoll(tok[1].c_str());
+    else if (key == "POINTS" && tok.size() > 1)
+      points = std::atoll(tok[1].c_str());
+    else if (key == "DATA" && tok.size() > 1)
+      data = tok[1];
   }
   if (data.empty()) return bad("PCD header has no DATA line");
   if (counts.empty()) counts.assign(fields.size(), 1);
-  if (fields.empty() || sizes.size() != fields.size() || types.size() != fields.size() || counts.size() != fields.size())
+  if (fields.empty() || sizes.size() != fields.size() || types.size() != fields.size() ||
+      counts.size() != fields.size())
     return bad("PCD header's FIELDS, SIZE, TYPE and COUNT disagree");
   if (width <= 0 || height <= 1 || width > 16384 || height > 16384)
     return Status(ErrorCode::kInvalidArgument,
                   path + ": PCD cloud is " + std::to_string(width) + "x" + std::to_string(height) +
                       "; only organized clouds (HEIGHT > 1, one point per pixel) are depth frames");
-  if (points >= 0 && points != width * height) return bad("PCD POINTS " + std::to_string(points) + " != WIDTH x HEIGHT");
+  if (points >= 0 && points != width * height)
+    return bad("PCD POINTS " + std::to_string(points) + " != WIDTH x HEIGHT");
   int zi = -1, point_size = 0, z_offset = 0;
   for (size_t i = 0; i < fields.size(); ++i) {
     if (fields[i] == "z") zi = int(i), z_offset = point_size;
     point_size += sizes[i] * counts[i];
   }
   if (zi < 0 || sizes[size_t(zi)] != 4 || types[size_t(zi)] != 'F' || counts[size_t(zi)] != 1)
-    return Status(ErrorCode::kInvalidArgument, path + ": PCD has no float32 'z' field (metres) to read depth from");
+    return Status(ErrorCode::kInvalidArgument,
+                  path + ": PCD has no float32 'z' field (metres) to read depth from");
   const size_t n = size_t(width) * size_t(height);
   core::DepthImage depth{int(width), int(height)};
   auto to_mm = [](float z) -> uint16_t {
@@ -524,7 +560,8 @@ Result<core::DepthImage> ReadPcdDepth(const std::string& path) {
       for (size_t f = 0; f < fields.size(); ++f) {
         for (int c = 0; c < counts[f]; ++c) {
           while (p < text.size() && (text[p] == ' ' || text[p] == '\n' || text[p] == '\r')) ++p;
-          if (p >= text.size()) return bad("PCD ascii data ends at point " + std::to_string(i) + " of " + std::to_string(n));
+          if (p >= text.size())
+            return bad("PCD ascii data ends at point " + std::to_string(i) + " of " + std::to_string(n));
           char* e = nullptr;
           const float v = std::strtof(text.c_str() + p, &e);
           if (e == text.c_str() + p) {
@@ -555,10 +592,12 @@ Result<core::DepthImage> ReadPcdDepth(const std::string& path) {
     uint32_t csize, usize;
     std::memcpy(&csize, b.data() + pos, 4);
     std::memcpy(&usize, b.data() + pos + 4, 4);
-    if (usize != n * size_t(point_size)) return bad("PCD uncompressed size " + std::to_string(usize) + " != points x point size");
+    if (usize != n * size_t(point_size))
+      return bad("PCD uncompressed size " + std::to_string(usize) + " != points x point size");
     if (b.size() - pos - 8 < csize) return bad("PCD compressed data truncated");
     std::vector<uint8_t> raw(usize);
-    if (!LzfDecompress(b.data() + pos + 8, csize, raw.data(), raw.size())) return bad("PCD LZF data is corrupt");
+    if (!LzfDecompress(b.data() + pos + 8, csize, raw.data(), raw.size()))
+      return bad("PCD LZF data is corrupt");
     // binary_compressed stores the fields one after the other (all x, then all y, ...).
     size_t field_start = 0;
     for (int f = 0; f < zi; ++f) field_start += size_t(sizes[size_t(f)]) * size_t(counts[size_t(f)]) * n;
@@ -590,9 +629,10 @@ Result<core::DepthImage> ReadDepthFile(const std::string& path, const FrameSourc
     auto png = DecodePng(*bytes, path);
     if (!png.ok()) return png.status();
     if (png->channels != 1 || png->bit_depth != 16)
-      return Status(ErrorCode::kInvalidArgument, path + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
-                                                     std::to_string(png->channels) + " channel(s) of " +
-                                                     std::to_string(png->bit_depth) + "-bit samples");
+      return Status(ErrorCode::kInvalidArgument,
+                    path + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
+                        std::to_string(png->channels) + " channel(s) of " + std::to_string(png->bit_depth) +
+                        "-bit samples");
     depth.width = png->width;
     depth.height = png->height;
     depth.pixels = std::move(png->samples16);
@@ -601,9 +641,10 @@ Result<core::DepthImage> ReadDepthFile(const std::string& path, const FrameSourc
     const uint64_t expected = uint64_t(w) * uint64_t(h) * 2;
     if (bytes->size() != expected)
       return Status(bytes->size() < expected ? ErrorCode::kDataLoss : ErrorCode::kInvalidArgument,
-                    path + ": not a PNG, .npy or .pcd, and as a raw " + std::to_string(w) + "x" + std::to_string(h) +
-                        " uint16 depth frame it should be " + std::to_string(expected) + " bytes, but it is " +
-                        std::to_string(bytes->size()) + " bytes" + (bytes->size() < expected ? " (truncated?)" : ""));
+                    path + ": not a PNG, .npy or .pcd, and as a raw " + std::to_string(w) + "x" +
+                        std::to_string(h) + " uint16 depth frame it should be " + std::to_string(expected) +
+                        " bytes, but it is " + std::to_string(bytes->size()) + " bytes" +
+                        (bytes->size() < expected ? " (truncated?)" : ""));
     depth = core::DepthImage(w, h);
     const auto& b = *bytes;
     for (size_t i = 0; i < depth.pixels.size(); ++i) depth.pixels[i] = uint16_t(b[2 * i] | b[2 * i + 1] << 8);
@@ -640,14 +681,15 @@ Result<std::vector<std::string>> ExpandFrameFiles(const std::string& spec) {
   return files;
 }
 
-Result<std::unique_ptr<FrameSource>> OpenFrameSource(const std::string& spec, const FrameSourceOptions& options) {
+Result<std::unique_ptr<FrameSource>> OpenFrameSource(const std::string& spec,
+                                                     const FrameSourceOptions& options) {
   if (options.fps < 0 || !std::isfinite(options.fps))
     return Status(ErrorCode::kInvalidArgument, "--fps must be a positive number");
   std::unique_ptr<FrameSource> src;
   if (spec == "-") {
     src = std::make_unique<RawStreamSource>(STDIN_FILENO, "stdin", options);
-  } else if (const size_t colon = spec.find(':'); colon != std::string::npos && colon > 1 &&
-                                                  spec.find('/') > colon && !fs::exists(spec)) {
+  } else if (const size_t colon = spec.find(':');
+             colon != std::string::npos && colon > 1 && spec.find('/') > colon && !fs::exists(spec)) {
     // scheme:rest (a one-letter "scheme" would be a Windows drive; a path with ':' that exists is a file).
     const std::string scheme = spec.substr(0, colon), rest = spec.substr(colon + 1);
     FrameSourceFactory factory;
@@ -671,7 +713,8 @@ Result<std::unique_ptr<FrameSource>> OpenFrameSource(const std::string& spec, co
   } else {
     auto files = ExpandFrameFiles(spec);
     if (!files.ok()) return files.status();
-    const std::string what = files->size() == 1 ? spec : spec + " (" + std::to_string(files->size()) + " files)";
+    const std::string what =
+        files->size() == 1 ? spec : spec + " (" + std::to_string(files->size()) + " files)";
     src = std::make_unique<FileListSource>(std::move(*files), what, options);
   }
   if (options.fps > 0) src = std::make_unique<PacedSource>(std::move(src), options.fps);

@@ -61,7 +61,8 @@ struct FrameSourceOptions {
 ///   freenect:N        Kinect v1 number N through libfreenect (if built in)
 ///   openni2:URI       an OpenNI2 device or .oni file (if built in); openni2: the first device
 /// Errors (no such file, empty folder, a back end not built in) name the spec.
-core::Result<std::unique_ptr<FrameSource>> OpenFrameSource(const std::string& spec, const FrameSourceOptions& options);
+core::Result<std::unique_ptr<FrameSource>> OpenFrameSource(const std::string& spec,
+                                                           const FrameSourceOptions& options);
 
 /// Several specs one after the other (infer's positional arguments).
 core::Result<std::unique_ptr<FrameSource>> OpenFrameSources(const std::vector<std::string>& specs,
@@ -69,8 +70,8 @@ core::Result<std::unique_ptr<FrameSource>> OpenFrameSources(const std::vector<st
 
 /// A device back end registers a URI scheme ("freenect", "openni2") at static-init time; the
 /// optional targets do this, so the runtime library itself needs none of their headers.
-using FrameSourceFactory =
-    std::function<core::Result<std::unique_ptr<FrameSource>>(const std::string& rest, const FrameSourceOptions&)>;
+using FrameSourceFactory = std::function<core::Result<std::unique_ptr<FrameSource>>(
+    const std::string& rest, const FrameSourceOptions&)>;
 struct BackEndInfo {
   std::string scheme;    ///< "freenect"
   std::string describe;  ///< "libfreenect 0.5 (Kinect v1)"

@@ -1,11 +1,10 @@
 #include "runtime/segmentation.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <numbers>
-
-#include <Eigen/Dense>
 
 #include "runtime/core/rng.h"
 
@@ -136,8 +135,8 @@ std::optional<Eigen::Vector4d> FitFloor(const core::DepthImage& depth, const cor
 
 }  // namespace
 
-void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& cam, const SegmentationOptions& o,
-                   SegmentationResult* out) {
+void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& cam,
+                   const SegmentationOptions& o, SegmentationResult* out) {
   const int w = depth.width, h = depth.height;
   out->people.clear();
   out->floor.reset();
@@ -150,10 +149,13 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
   const size_t zeros = size_t(std::count(depth.pixels.begin(), depth.pixels.end(), uint16_t(0)));
 
   // Floor first: with a floor in view the frame is raw whatever its zeros.
-  if (o.floor_plane) out->floor = o.floor_plane;
-  else if (o.find_floor && o.presegmented != std::optional<bool>(true)) out->floor = FitFloor(depth, cam, o);
+  if (o.floor_plane)
+    out->floor = o.floor_plane;
+  else if (o.find_floor && o.presegmented != std::optional<bool>(true))
+    out->floor = FitFloor(depth, cam, o);
 
-  bool pass = o.presegmented.value_or(!out->floor && double(zeros) >= o.presegmented_zero_fraction * double(w) * h);
+  bool pass =
+      o.presegmented.value_or(!out->floor && double(zeros) >= o.presegmented_zero_fraction * double(w) * h);
   if (pass) {
     out->presegmented = true;
     out->depth.pixels = depth.pixels;
@@ -165,7 +167,8 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
         if (depth.at(x, y)) {
           out->labels.at(x, y) = 1;
           ++p.pixels;
-          p.x0 = std::min(p.x0, x), p.x1 = std::max(p.x1, x), p.y0 = std::min(p.y0, y), p.y1 = std::max(p.y1, y);
+          p.x0 = std::min(p.x0, x), p.x1 = std::max(p.x1, x), p.y0 = std::min(p.y0, y),
+          p.y1 = std::max(p.y1, y);
         }
     if (p.pixels) out->people.push_back(p);
     return;
@@ -263,11 +266,15 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
             joined = true;
             break;
           }
-        if (joined) Union(runs, i, j);
-        else jump_edges.emplace_back(i, j);
+        if (joined)
+          Union(runs, i, j);
+        else
+          jump_edges.emplace_back(i, j);
       }
-      if (a.x1 < b.x1) ++i;
-      else ++j;
+      if (a.x1 < b.x1)
+        ++i;
+      else
+        ++j;
     }
   }
 
@@ -322,7 +329,8 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     t.area += c.area, t.sum_d += c.sum_d, t.pixels += c.pixels;
     t.xmin = std::min(t.xmin, c.xmin), t.xmax = std::max(t.xmax, c.xmax);
     t.ymin = std::min(t.ymin, c.ymin), t.ymax = std::max(t.ymax, c.ymax);
-    t.x0 = std::min(t.x0, c.x0), t.x1 = std::max(t.x1, c.x1), t.y0 = std::min(t.y0, c.y0), t.y1 = std::max(t.y1, c.y1);
+    t.x0 = std::min(t.x0, c.x0), t.x1 = std::max(t.x1, c.x1), t.y0 = std::min(t.y0, c.y0),
+    t.y1 = std::max(t.y1, c.y1);
     t.dmin = std::min(t.dmin, c.dmin), t.dmax = std::max(t.dmax, c.dmax);
     c.merged_into = into;
   };
@@ -408,12 +416,14 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     const double height = k.ymax - k.ymin, width = k.xmax - k.xmin;
     const double fill = double(k.pixels) / (double(k.x1 - k.x0 + 1) * double(k.y1 - k.y0 + 1));
     if (k.area < o.min_area_m2 || k.area > o.max_area_m2) continue;
-    if (height < o.min_height_m || height > o.max_height_m || width < o.min_width_m || width > o.max_width_m) continue;
+    if (height < o.min_height_m || height > o.max_height_m || width < o.min_width_m || width > o.max_width_m)
+      continue;
     if (fill > o.max_fill) continue;
     if (has_nearer[c] && !has_farther[c] && at_background_depth(k)) continue;
     order.push_back(c);
   }
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return comps[a].pixels > comps[b].pixels; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return comps[a].pixels > comps[b].pixels; });
   if (order.size() > 254) order.resize(254);
   for (size_t i = 0; i < order.size(); ++i) {
     person_of[order[i]] = int32_t(i + 1);
@@ -435,7 +445,8 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     if (!label) continue;
     const Run& run = runs[r];
     const size_t base = size_t(run.y) * size_t(w);
-    std::copy(depth.pixels.begin() + ptrdiff_t(base + size_t(run.x0)), depth.pixels.begin() + ptrdiff_t(base + size_t(run.x1) + 1),
+    std::copy(depth.pixels.begin() + ptrdiff_t(base + size_t(run.x0)),
+              depth.pixels.begin() + ptrdiff_t(base + size_t(run.x1) + 1),
               out->depth.pixels.begin() + ptrdiff_t(base + size_t(run.x0)));
     std::fill(out->labels.pixels.begin() + ptrdiff_t(base + size_t(run.x0)),
               out->labels.pixels.begin() + ptrdiff_t(base + size_t(run.x1) + 1), uint8_t(label));

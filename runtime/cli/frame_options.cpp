@@ -6,27 +6,31 @@
 
 namespace poseforest::cli {
 
-core::Result<double> GetDouble(const Args& args, const std::string& name, double fallback, double lo, double hi) {
+core::Result<double> GetDouble(const Args& args, const std::string& name, double fallback, double lo,
+                               double hi) {
   const auto v = args.Get(name);
   if (!v) return fallback;
   char* end = nullptr;
   const double d = std::strtod(v->c_str(), &end);
   if (end == v->c_str() || *end != '\0' || !(d >= lo && d <= hi))
-    return core::Status(core::ErrorCode::kInvalidArgument, "--" + name + " must be a number in [" + std::to_string(lo) +
-                                                               ", " + std::to_string(hi) + "] (got '" + *v + "')");
+    return core::Status(core::ErrorCode::kInvalidArgument, "--" + name + " must be a number in [" +
+                                                               std::to_string(lo) + ", " +
+                                                               std::to_string(hi) + "] (got '" + *v + "')");
   return d;
 }
 
 core::Status ParseFrameSourceOptions(const Args& args, runtime::FrameSourceOptions* out) {
   runtime::FrameSourceOptions& o = *out;
   // Camera model: a preset, then explicit intrinsics on top.
-  const bool camera_flags = args.Has("camera") || args.Has("fx") || args.Has("fy") || args.Has("cx") || args.Has("cy");
+  const bool camera_flags =
+      args.Has("camera") || args.Has("fx") || args.Has("fy") || args.Has("cx") || args.Has("cy");
   auto preset = runtime::CameraPreset(args.GetOr("camera", "kinect-v1"));
   if (!preset.ok()) return {preset.status().code(), "--camera: " + preset.status().message()};
   o.camera = *preset;
   auto& k = o.camera.intrinsics;
   bool custom = false;
-  for (const auto& [name, field] : {std::pair<const char*, double*>{"fx", &k.fx}, {"fy", &k.fy}, {"cx", &k.cx}, {"cy", &k.cy}}) {
+  for (const auto& [name, field] :
+       {std::pair<const char*, double*>{"fx", &k.fx}, {"fy", &k.fy}, {"cx", &k.cx}, {"cy", &k.cy}}) {
     auto v = GetDouble(args, name, *field, 1e-3, 1e6);
     if (!v.ok()) return v.status();
     custom |= args.Has(name);

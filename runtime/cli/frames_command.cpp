@@ -54,8 +54,10 @@ int FramesMain(int argc, char** argv) {
   }
   if (args.Has("list-devices")) {
     const auto back_ends = runtime::FrameBackEnds();
-    if (back_ends.empty()) std::printf("no device back ends in this build (libfreenect, OpenNI2: found at configure time)\n");
-    for (const auto& b : back_ends) std::printf("%s: %s: %s\n", b.scheme.c_str(), b.describe.c_str(), b.list_devices().c_str());
+    if (back_ends.empty())
+      std::printf("no device back ends in this build (libfreenect, OpenNI2: found at configure time)\n");
+    for (const auto& b : back_ends)
+      std::printf("%s: %s: %s\n", b.scheme.c_str(), b.describe.c_str(), b.list_devices().c_str());
     return 0;
   }
   if (args.positional().empty()) {
@@ -83,7 +85,8 @@ int FramesMain(int argc, char** argv) {
     std::error_code ec;
     fs::create_directories(*out_dir, ec);
     if (ec) {
-      std::fprintf(stderr, "poseforest frames: %s: cannot create folder: %s\n", out_dir->c_str(), ec.message().c_str());
+      std::fprintf(stderr, "poseforest frames: %s: cannot create folder: %s\n", out_dir->c_str(),
+                   ec.message().c_str());
       return 1;
     }
   }
@@ -102,8 +105,8 @@ int FramesMain(int argc, char** argv) {
       std::fprintf(stderr, "poseforest frames: %s\n", r.status().ToString().c_str());
       ++bad;
       if (++bad_in_a_row >= runtime::kMaxConsecutiveBadFrames) {
-        std::fprintf(stderr, "poseforest frames: %s: giving up after %d bad frames in a row\n", (*source)->Describe().c_str(),
-                     bad_in_a_row);
+        std::fprintf(stderr, "poseforest frames: %s: giving up after %d bad frames in a row\n",
+                     (*source)->Describe().c_str(), bad_in_a_row);
         break;
       }
       continue;
@@ -115,8 +118,9 @@ int FramesMain(int argc, char** argv) {
     for (uint16_t d : f.depth.pixels)
       if (d) ++valid, lo = std::min<int>(lo, d), hi = std::max<int>(hi, d);
     if (!quiet)
-      std::printf("%s: %dx%d, %d valid pixels, %d..%d mm, t %.3f s, camera %s\n", f.Name().c_str(), f.depth.width,
-                  f.depth.height, valid, valid ? lo : 0, hi, f.timestamp_s, f.camera.Describe().c_str());
+      std::printf("%s: %dx%d, %d valid pixels, %d..%d mm, t %.3f s, camera %s\n", f.Name().c_str(),
+                  f.depth.width, f.depth.height, valid, valid ? lo : 0, hi, f.timestamp_s,
+                  f.camera.Describe().c_str());
     if (out_dir) {
       char stem[32];
       std::snprintf(stem, sizeof stem, "frame-%06lld.png", static_cast<long long>(f.index));
@@ -131,8 +135,10 @@ int FramesMain(int argc, char** argv) {
   }
   if (auto dir = args.Get("fakenect"); dir && !kept.empty()) {
     const auto st = runtime::WriteFakenectRecording(*dir, kept, *record_fps);
-    if (!st.ok()) std::fprintf(stderr, "poseforest frames: %s\n", st.ToString().c_str()), ++write_errors;
-    else if (!quiet) std::printf("wrote a fakenect recording of %zu frames to %s\n", kept.size(), dir->c_str());
+    if (!st.ok())
+      std::fprintf(stderr, "poseforest frames: %s\n", st.ToString().c_str()), ++write_errors;
+    else if (!quiet)
+      std::printf("wrote a fakenect recording of %zu frames to %s\n", kept.size(), dir->c_str());
   }
   std::printf("%s: %d frame(s), %d bad frame(s) skipped\n", (*source)->Describe().c_str(), good, bad);
   return bad == 0 && write_errors == 0 ? 0 : 1;

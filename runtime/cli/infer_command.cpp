@@ -153,6 +153,8 @@ std::string FrameStem(const runtime::Frame& f) {
   }
   std::string base = f.source.substr(0, f.source.find('['));
   base = fs::path(base).filename().string();
+  for (const char* ext : {".npy", ".pcd", ".oni"})
+    if (fs::path(base).extension() == ext) base = fs::path(base).stem().string();
   for (char& c : base)
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_' && c != '.') c = '_';
   char idx[32];

@@ -46,7 +46,8 @@ class FreenectSource : public FrameSource {
  public:
   ~FreenectSource() override { Close(); }
 
-  static Result<std::unique_ptr<FrameSource>> Open(const std::string& rest, const FrameSourceOptions& options) {
+  static Result<std::unique_ptr<FrameSource>> Open(const std::string& rest,
+                                                   const FrameSourceOptions& options) {
     auto src = std::unique_ptr<FreenectSource>(new FreenectSource());
     POSEFOREST_RETURN_IF_ERROR(src->Init(rest, options));
     return std::unique_ptr<FrameSource>(std::move(src));
@@ -64,7 +65,8 @@ class FreenectSource : public FrameSource {
         ++plan_pos_;
         const int64_t k = index_++;
         return Status(ErrorCode::kDataLoss, name_ + " frame " + std::to_string(k) + " (fakenect recording " +
-                                                recording_ + ", file " + e.file + "): " + e.problem + "; skipped");
+                                                recording_ + ", file " + e.file + "): " + e.problem +
+                                                "; skipped");
       }
     }
     std::unique_lock lock(mu_);
@@ -87,12 +89,14 @@ class FreenectSource : public FrameSource {
     ended_ = true;
     if (pump_error_ != 0)
       return Status(ErrorCode::kIo, name_ + ": device lost after frame " + std::to_string(index_ - 1) +
-                                        " (libfreenect's event loop returned " + std::to_string(pump_error_) + ")");
+                                        " (libfreenect's event loop returned " + std::to_string(pump_error_) +
+                                        ")");
     (void)got;
     char buf[64];
     std::snprintf(buf, sizeof buf, "%.1f", timeout_s_);
     return Status(ErrorCode::kIo, name_ + ": device lost: no frame for " + buf + " s after frame " +
-                                      std::to_string(index_ - 1) + " (timeout=S in the source sets the wait)");
+                                      std::to_string(index_ - 1) +
+                                      " (timeout=S in the source sets the wait)");
   }
 
   std::string Describe() const override {
@@ -141,7 +145,8 @@ class FreenectSource : public FrameSource {
         for (const auto& e : *plan_) {
           if (!e.ok) continue;
           std::error_code ec;
-          fs::create_symlink(fs::absolute(fs::path(recording_) / e.file), fs::path(filtered_dir_) / e.file, ec);
+          fs::create_symlink(fs::absolute(fs::path(recording_) / e.file), fs::path(filtered_dir_) / e.file,
+                             ec);
           if (ec) return {ErrorCode::kIo, name_ + ": cannot link " + e.file + ": " + ec.message()};
           index << e.file << '\n';
         }
@@ -149,13 +154,14 @@ class FreenectSource : public FrameSource {
       }
     }
 
-    if (freenect_init(&ctx_, nullptr) < 0) return {ErrorCode::kIo, name_ + ": libfreenect could not start (freenect_init)"};
+    if (freenect_init(&ctx_, nullptr) < 0)
+      return {ErrorCode::kIo, name_ + ": libfreenect could not start (freenect_init)"};
     freenect_set_log_level(ctx_, FREENECT_LOG_FATAL);
     freenect_select_subdevices(ctx_, FREENECT_DEVICE_CAMERA);
     const int n = freenect_num_devices(ctx_);
     if (n <= device)
-      return {ErrorCode::kNotFound, name_ + ": no Kinect v1 found (libfreenect sees " + std::to_string(std::max(n, 0)) +
-                                        " device(s))"};
+      return {ErrorCode::kNotFound, name_ + ": no Kinect v1 found (libfreenect sees " +
+                                        std::to_string(std::max(n, 0)) + " device(s))"};
     if (freenect_open_device(ctx_, &dev_, device) < 0) {
       dev_ = nullptr;
       return {ErrorCode::kIo, name_ + ": cannot open the device (in use, or no permission on its USB node)"};
@@ -170,8 +176,10 @@ class FreenectSource : public FrameSource {
       if (m.depth_format == FREENECT_DEPTH_MM) mode = m, mm_mode_ = true;
       if (m.depth_format == FREENECT_DEPTH_11BIT && !mm_mode_) mode = m;
     }
-    if (!mode.is_valid) return {ErrorCode::kUnimplemented, name_ + ": the device offers no 640x480 depth mode in mm or 11-bit"};
-    if (freenect_set_depth_mode(dev_, mode) < 0) return {ErrorCode::kIo, name_ + ": cannot set the depth mode"};
+    if (!mode.is_valid)
+      return {ErrorCode::kUnimplemented, name_ + ": the device offers no 640x480 depth mode in mm or 11-bit"};
+    if (freenect_set_depth_mode(dev_, mode) < 0)
+      return {ErrorCode::kIo, name_ + ": cannot set the depth mode"};
     freenect_set_user(dev_, this);
     freenect_set_depth_callback(dev_, &FreenectSource::DepthCallback);
     if (freenect_start_depth(dev_) < 0) return {ErrorCode::kIo, name_ + ": cannot start the depth stream"};
@@ -187,7 +195,8 @@ class FreenectSource : public FrameSource {
 
   void OnDepth(const uint16_t* data) {
     Queued q{core::DepthImage(kW, kH), std::chrono::duration<double>(Clock::now() - opened_).count()};
-    if (mm_mode_) std::memcpy(q.depth.pixels.data(), data, size_t(kW) * kH * 2);
+    if (mm_mode_)
+      std::memcpy(q.depth.pixels.data(), data, size_t(kW) * kH * 2);
     else
       for (size_t i = 0; i < q.depth.pixels.size(); ++i) q.depth.pixels[i] = KinectDisparityToMm(data[i]);
     std::unique_lock lock(mu_);
@@ -266,7 +275,8 @@ std::string ListFreenectDevices() {
   const int n = freenect_num_devices(ctx);
   freenect_shutdown(ctx);
   if (n <= 0) return "no Kinect v1 connected";
-  return std::to_string(n) + " Kinect v1 device(s): freenect:0" + (n > 1 ? " .. freenect:" + std::to_string(n - 1) : "");
+  return std::to_string(n) + " Kinect v1 device(s): freenect:0" +
+         (n > 1 ? " .. freenect:" + std::to_string(n - 1) : "");
 }
 
 void RegisterFreenectBackEnd() {

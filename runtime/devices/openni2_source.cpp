@@ -38,7 +38,8 @@ class OpenNi2Source : public FrameSource {
     if (device_.isValid()) device_.close();
   }
 
-  static Result<std::unique_ptr<FrameSource>> Open(const std::string& rest, const FrameSourceOptions& options) {
+  static Result<std::unique_ptr<FrameSource>> Open(const std::string& rest,
+                                                   const FrameSourceOptions& options) {
     auto src = std::unique_ptr<OpenNi2Source>(new OpenNi2Source());
     POSEFOREST_RETURN_IF_ERROR(src->Init(rest, options));
     return std::unique_ptr<FrameSource>(std::move(src));
@@ -56,14 +57,15 @@ class OpenNi2Source : public FrameSource {
     if (openni::OpenNI::waitForAnyStream(streams, 1, &which, timeout_ms) != openni::STATUS_OK) {
       ended_ = true;
       if (frames_in_file_ > 0) return false;  // a recording that has nothing more
-      return Status(ErrorCode::kIo, name_ + ": device lost: no frame for " + std::to_string(timeout_s_) + " s after frame " +
-                                        std::to_string(index_ - 1) + " (" + openni::OpenNI::getExtendedError() + ")");
+      return Status(ErrorCode::kIo, name_ + ": device lost: no frame for " + std::to_string(timeout_s_) +
+                                        " s after frame " + std::to_string(index_ - 1) + " (" +
+                                        openni::OpenNI::getExtendedError() + ")");
     }
     openni::VideoFrameRef ref;
     if (stream_.readFrame(&ref) != openni::STATUS_OK || !ref.isValid()) {
       ended_ = true;
-      return Status(ErrorCode::kIo, name_ + ": device lost at frame " + std::to_string(index_) + " (readFrame: " +
-                                        openni::OpenNI::getExtendedError() + ")");
+      return Status(ErrorCode::kIo, name_ + ": device lost at frame " + std::to_string(index_) +
+                                        " (readFrame: " + openni::OpenNI::getExtendedError() + ")");
     }
     Frame& f = *frame;
     f.source = name_;
@@ -72,18 +74,22 @@ class OpenNi2Source : public FrameSource {
     f.timestamp_s = double(ref.getTimestamp()) * 1e-6;
     const int w = ref.getWidth(), h = ref.getHeight();
     if (ref.getDataSize() < w * h * 2)
-      return Status(ErrorCode::kDataLoss, f.Name() + ": frame of " + std::to_string(ref.getDataSize()) + " bytes for " +
-                                              std::to_string(w) + "x" + std::to_string(h) + " (truncated)");
+      return Status(ErrorCode::kDataLoss, f.Name() + ": frame of " + std::to_string(ref.getDataSize()) +
+                                              " bytes for " + std::to_string(w) + "x" + std::to_string(h) +
+                                              " (truncated)");
     f.depth = core::DepthImage(w, h);
     const auto* src = static_cast<const uint16_t*>(ref.getData());
-    for (int y = 0; y < h; ++y) std::memcpy(&f.depth.at(0, y), src + size_t(y) * size_t(ref.getStrideInBytes() / 2), size_t(w) * 2);
+    for (int y = 0; y < h; ++y)
+      std::memcpy(&f.depth.at(0, y), src + size_t(y) * size_t(ref.getStrideInBytes() / 2), size_t(w) * 2);
     if (scale_ != 1.0)
       for (uint16_t& d : f.depth.pixels) d = uint16_t(std::min(65535.0, std::round(d * scale_)));
     POSEFOREST_RETURN_IF_ERROR(CheckFrameSize(f.camera, w, h, f.Name()));
     return true;
   }
 
-  std::string Describe() const override { return name_ + " (OpenNI2" + (frames_in_file_ > 0 ? ", recording)" : ")"); }
+  std::string Describe() const override {
+    return name_ + " (OpenNI2" + (frames_in_file_ > 0 ? ", recording)" : ")");
+  }
 
  private:
   Status Init(const std::string& rest, const FrameSourceOptions& options) {
@@ -94,7 +100,8 @@ class OpenNi2Source : public FrameSource {
     if (rest.empty()) {
       openni::Array<openni::DeviceInfo> list;
       openni::OpenNI::enumerateDevices(&list);
-      if (list.getSize() == 0) return {ErrorCode::kNotFound, name_ + ": no OpenNI2 device found (" + ListOpenNi2Devices() + ")"};
+      if (list.getSize() == 0)
+        return {ErrorCode::kNotFound, name_ + ": no OpenNI2 device found (" + ListOpenNi2Devices() + ")"};
     }
     if (device_.open(uri) != openni::STATUS_OK)
       return {ErrorCode::kNotFound, name_ + ": cannot open: " + openni::OpenNI::getExtendedError()};
@@ -107,9 +114,11 @@ class OpenNi2Source : public FrameSource {
     if (stream_.create(device_, openni::SENSOR_DEPTH) != openni::STATUS_OK)
       return {ErrorCode::kIo, name_ + ": no depth stream: " + openni::OpenNI::getExtendedError()};
     const openni::VideoMode mode = stream_.getVideoMode();
-    if (mode.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM) scale_ = 0.1;
+    if (mode.getPixelFormat() == openni::PIXEL_FORMAT_DEPTH_100_UM)
+      scale_ = 0.1;
     else if (mode.getPixelFormat() != openni::PIXEL_FORMAT_DEPTH_1_MM)
-      return {ErrorCode::kUnimplemented, name_ + ": depth pixel format " + std::to_string(int(mode.getPixelFormat())) +
+      return {ErrorCode::kUnimplemented, name_ + ": depth pixel format " +
+                                             std::to_string(int(mode.getPixelFormat())) +
                                              " is not millimetres or 100 um"};
     if (device_.isFile())
       if (auto* pc = device_.getPlaybackControl()) frames_in_file_ = pc->getNumberOfFrames(stream_);
@@ -120,12 +129,15 @@ class OpenNi2Source : public FrameSource {
       auto& k = camera_.intrinsics;
       k.width = w, k.height = h, k.cx = (w - 1) / 2.0, k.cy = (h - 1) / 2.0;
       const float hfov = stream_.getHorizontalFieldOfView(), vfov = stream_.getVerticalFieldOfView();
-      if (hfov > 0.1f && vfov > 0.1f) k.fx = w / 2.0 / std::tan(hfov / 2.0), k.fy = h / 2.0 / std::tan(vfov / 2.0);
+      if (hfov > 0.1f && vfov > 0.1f)
+        k.fx = w / 2.0 / std::tan(hfov / 2.0), k.fy = h / 2.0 / std::tan(vfov / 2.0);
       camera_.name = "openni2";
     }
     // A device whose frames contradict the camera model never fixes itself: refuse it up front.
-    POSEFOREST_RETURN_IF_ERROR(CheckFrameSize(camera_, mode.getResolutionX(), mode.getResolutionY(), name_ + "'s depth stream"));
-    if (stream_.start() != openni::STATUS_OK) return {ErrorCode::kIo, name_ + ": cannot start the depth stream"};
+    POSEFOREST_RETURN_IF_ERROR(
+        CheckFrameSize(camera_, mode.getResolutionX(), mode.getResolutionY(), name_ + "'s depth stream"));
+    if (stream_.start() != openni::STATUS_OK)
+      return {ErrorCode::kIo, name_ + ": cannot start the depth stream"};
     return Status::Ok();
   }
 
@@ -147,12 +159,14 @@ std::string ListOpenNi2Devices() {
   if (list.getSize() == 0) return "no OpenNI2 device connected";
   std::string out = std::to_string(list.getSize()) + " device(s):";
   for (int i = 0; i < list.getSize(); ++i)
-    out += std::string(" openni2:") + list[i].getUri() + " (" + list[i].getVendor() + " " + list[i].getName() + ")";
+    out += std::string(" openni2:") + list[i].getUri() + " (" + list[i].getVendor() + " " +
+           list[i].getName() + ")";
   return out;
 }
 
 void RegisterOpenNi2BackEnd() {
-  RegisterFrameBackEnd({"openni2", "OpenNI2 (openni2:[URI], openni2:FILE.oni)", &ListOpenNi2Devices}, &OpenNi2Source::Open);
+  RegisterFrameBackEnd({"openni2", "OpenNI2 (openni2:[URI], openni2:FILE.oni)", &ListOpenNi2Devices},
+                       &OpenNi2Source::Open);
 }
 
 }  // namespace poseforest::runtime

@@ -2,7 +2,6 @@
 // frame sources (files, folders, globs, .npy, stdin through a real pipe, pacing) and
 // `poseforest infer` on them, with bad frames named, skipped and counted.
 #include <catch2/catch.hpp>
-
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -26,7 +25,8 @@ namespace {
 
 // Frame B of camera `b` that sees exactly what frame A of camera `a` sees (same rays, depth along
 // the optical axis unchanged), by nearest-neighbour resampling.
-core::DepthImage Resample(const core::DepthImage& a_img, const core::CameraIntrinsics& a, const core::CameraIntrinsics& b) {
+core::DepthImage Resample(const core::DepthImage& a_img, const core::CameraIntrinsics& a,
+                          const core::CameraIntrinsics& b) {
   core::DepthImage out(b.width, b.height, 0);
   for (int v = 0; v < b.height; ++v)
     for (int u = 0; u < b.width; ++u) {
@@ -70,8 +70,8 @@ TEST_CASE("camera presets: sizes, nominal focal lengths, unknown names", "[frame
 
   const auto st = runtime::CheckFrameSize(v2, 640, 480, "a.png");
   REQUIRE_FALSE(st.ok());
-  CHECK_THAT(st.message(), Catch::Contains("a.png") && Catch::Contains("640x480") && Catch::Contains("kinect-v2") &&
-                               Catch::Contains("512x424"));
+  CHECK_THAT(st.message(), Catch::Contains("a.png") && Catch::Contains("640x480") &&
+                               Catch::Contains("kinect-v2") && Catch::Contains("512x424"));
   CHECK(runtime::CheckFrameSize(v2, 512, 424, "a.png").ok());
 }
 
@@ -104,7 +104,8 @@ TEST_CASE("another focal length: rescaled offsets probe the same metres on the b
   for (int trial = 0; trial < 200000; ++trial) {
     const int u = int(rng.UniformInt(uint32_t(b.width))), v = int(rng.UniformInt(uint32_t(b.height)));
     if (!img_b.at(u, v)) continue;
-    const int ua = int(std::lround(a.cx + a.fx * (u - b.cx) / b.fx)), va = int(std::lround(a.cy + a.fy * (v - b.cy) / b.fy));
+    const int ua = int(std::lround(a.cx + a.fx * (u - b.cx) / b.fx)),
+              va = int(std::lround(a.cy + a.fy * (v - b.cy) / b.fy));
     if (img_a.at(ua, va) != img_b.at(u, v)) continue;
     const auto& tree = forest.trees[rng.UniformInt(uint32_t(forest.trees.size()))];
     const size_t k = rng.UniformInt(uint32_t(tree.nodes.size()));
@@ -134,7 +135,8 @@ TEST_CASE("another focal length: rescaled offsets probe the same metres on the b
   for (int v = 0; v < b.height; ++v)
     for (int u = 0; u < b.width; ++u) {
       if (!img_b.at(u, v)) continue;
-      const int ua = int(std::lround(a.cx + a.fx * (u - b.cx) / b.fx)), va = int(std::lround(a.cy + a.fy * (v - b.cy) / b.fy));
+      const int ua = int(std::lround(a.cx + a.fx * (u - b.cx) / b.fx)),
+                va = int(std::lround(a.cy + a.fy * (v - b.cy) / b.fy));
       ++total;
       agree += la.labels.at(ua, va) == lb.labels.at(u, v);
       agree_plain += la.labels.at(ua, va) == lp.labels.at(u, v);
@@ -144,7 +146,8 @@ TEST_CASE("another focal length: rescaled offsets probe the same metres on the b
   CHECK(agree > agree_plain + total / 10);
 }
 
-TEST_CASE("files, folders and globs in name order; bad frames named, skipped and counted", "[frames][source]") {
+TEST_CASE("files, folders and globs in name order; bad frames named, skipped and counted",
+          "[frames][source]") {
   const auto dir = testing::ScratchDir("frames-folder");
   const core::DepthImage person = testing::MakePersonDepth(2.5);
   // Written out of order: the folder reads them by name.
@@ -157,7 +160,8 @@ TEST_CASE("files, folders and globs in name order; bad frames named, skipped and
   {
     // A truncated raw frame (half of it).
     std::ofstream raw((dir / "f1b.raw").string(), std::ios::binary);
-    for (size_t i = 0; i < person.pixels.size() / 2; ++i) raw.put(char(person.pixels[i] & 0xFF)).put(char(person.pixels[i] >> 8));
+    for (size_t i = 0; i < person.pixels.size() / 2; ++i)
+      raw.put(char(person.pixels[i] & 0xFF)).put(char(person.pixels[i] >> 8));
   }
   REQUIRE(runtime::WriteDepthPng((dir / "small.png").string(), core::DepthImage(320, 240, 1000)).ok());
   runtime::FrameSourceOptions o;
@@ -179,8 +183,8 @@ TEST_CASE("files, folders and globs in name order; bad frames named, skipped and
   CHECK(names == std::vector<std::string>{"f0.png", "f1.raw", "f2.png"});
   REQUIRE(errors.size() == 2);
   CHECK_THAT(errors[0], Catch::Contains("f1b.raw") && Catch::Contains("truncated"));
-  CHECK_THAT(errors[1], Catch::Contains("small.png") && Catch::Contains("320x240") && Catch::Contains("kinect-v1") &&
-                            Catch::Contains("640x480"));
+  CHECK_THAT(errors[1], Catch::Contains("small.png") && Catch::Contains("320x240") &&
+                            Catch::Contains("kinect-v1") && Catch::Contains("640x480"));
 
   // A glob: only the PNGs, sorted.
   auto glob = runtime::ExpandFrameFiles((dir / "f*.png").string());
@@ -216,7 +220,8 @@ TEST_CASE(".npy: uint16 mm and float32 m, one frame or many; other dtypes refuse
     while ((10 + header.size() + 1) % 64 != 0) header += ' ';
     header += '\n';
     std::ofstream out((dir / name).string(), std::ios::binary);
-    out << "\x93NUMPY" << char(1) << char(0) << char(header.size() & 0xFF) << char(header.size() >> 8) << header;
+    out << "\x93NUMPY" << char(1) << char(0) << char(header.size() & 0xFF) << char(header.size() >> 8)
+        << header;
     out.write(reinterpret_cast<const char*>(data.data()), std::streamsize(data.size()));
   };
   std::vector<uint8_t> metres(a.pixels.size() * 4);
@@ -232,7 +237,8 @@ TEST_CASE(".npy: uint16 mm and float32 m, one frame or many; other dtypes refuse
   write_npy("f8.npy", "<f8", "(480, 640)", std::vector<uint8_t>(480 * 640 * 8));
   auto f8 = runtime::ReadDepthFile((dir / "f8.npy").string(), o);
   REQUIRE_FALSE(f8.ok());
-  CHECK_THAT(f8.status().message(), Catch::Contains("f8.npy") && Catch::Contains("<f8") && Catch::Contains("uint16"));
+  CHECK_THAT(f8.status().message(),
+             Catch::Contains("f8.npy") && Catch::Contains("<f8") && Catch::Contains("uint16"));
   write_npy("big.npy", ">u2", "(480, 640)", std::vector<uint8_t>(480 * 640 * 2));
   CHECK_FALSE(runtime::ReadDepthFile((dir / "big.npy").string(), o).ok());
   write_npy("rgb.npy", "<u2", "(480, 640, 3)", std::vector<uint8_t>(480 * 640 * 6));
@@ -272,7 +278,8 @@ TEST_CASE("--fps paces a folder; timestamps are index / fps", "[frames][source]"
   fs::remove_all(dir);
 }
 
-TEST_CASE("infer reads raw frames from a pipe, names and counts a truncated one, refuses a wrong size", "[frames][cli]") {
+TEST_CASE("infer reads raw frames from a pipe, names and counts a truncated one, refuses a wrong size",
+          "[frames][cli]") {
   const auto dir = testing::ScratchDir("frames-cli");
   const core::Forest forest = testing::MakeRandomForest({.max_depth = 8, .nodes_per_tree = 500});
   REQUIRE(core::SaveForest(forest, (dir / "f.pff").string()).ok());
@@ -291,7 +298,8 @@ TEST_CASE("infer reads raw frames from a pipe, names and counts a truncated one,
   CHECK(run.exit_code == 1);  // one bad frame
   CHECK_THAT(run.output, Catch::Contains("stdin frame 2") && Catch::Contains("truncated") &&
                              Catch::Contains("2 frame(s) classified, 1 bad frame(s) skipped"));
-  CHECK(ListFiles(dir / "out") == std::vector<std::string>{"stdin-000000.parts.png", "stdin-000001.parts.png"});
+  CHECK(ListFiles(dir / "out") ==
+        std::vector<std::string>{"stdin-000000.parts.png", "stdin-000001.parts.png"});
   // The part pictures equal the library's on the same frame.
   runtime::Classifier classifier(forest);
   runtime::Classification expected;
@@ -303,11 +311,11 @@ TEST_CASE("infer reads raw frames from a pipe, names and counts a truncated one,
 
   // A size that contradicts the camera: refused naming both; --camera and --source.
   REQUIRE(runtime::WriteDepthPng((dir / "a.png").string(), person).ok());
-  auto wrong = testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --camera kinect-v2 --source " +
-                                      (dir / "a.png").string());
+  auto wrong = testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() +
+                                      " --camera kinect-v2 --source " + (dir / "a.png").string());
   CHECK(wrong.exit_code == 1);
-  CHECK_THAT(wrong.output, Catch::Contains("a.png") && Catch::Contains("640x480") && Catch::Contains("kinect-v2") &&
-                               Catch::Contains("512x424"));
+  CHECK_THAT(wrong.output, Catch::Contains("a.png") && Catch::Contains("640x480") &&
+                               Catch::Contains("kinect-v2") && Catch::Contains("512x424"));
   // Another focal length: the forest is rescaled, and says so.
   auto custom = testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --fx 500 --out-dir " +
                                        (dir / "o2").string() + " " + (dir / "a.png").string());
@@ -315,7 +323,8 @@ TEST_CASE("infer reads raw frames from a pipe, names and counts a truncated one,
   CHECK(custom.exit_code == 0);
   CHECK_THAT(custom.output, Catch::Contains("rescaled by 0.868"));
   // A source that does not exist, and a back end not built in.
-  auto missing = testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() + " " + (dir / "nope").string());
+  auto missing =
+      testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() + " " + (dir / "nope").string());
   CHECK(missing.exit_code == 1);
   CHECK_THAT(missing.output, Catch::Contains("nope"));
   auto scheme = testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() + " nosuch:0");
@@ -324,7 +333,8 @@ TEST_CASE("infer reads raw frames from a pipe, names and counts a truncated one,
   fs::remove_all(dir);
 }
 
-TEST_CASE("infer segments a raw cluttered frame, passes a pre-segmented one unchanged", "[frames][cli][segmentation]") {
+TEST_CASE("infer segments a raw cluttered frame, passes a pre-segmented one unchanged",
+          "[frames][cli][segmentation]") {
   const auto dir = testing::ScratchDir("frames-seg");
   const core::Forest forest = testing::MakeRandomForest({.max_depth = 8, .nodes_per_tree = 500});
   REQUIRE(core::SaveForest(forest, (dir / "f.pff").string()).ok());
@@ -355,8 +365,9 @@ TEST_CASE("infer segments a raw cluttered frame, passes a pre-segmented one unch
   }
   CHECK(coloured_off_person == 0);
   // --segment off: the walls get body parts, as before this issue.
-  auto off = testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --segment off --out-dir " +
-                                    (dir / "off").string() + " " + pcd.string());
+  auto off =
+      testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() + " --segment off --out-dir " +
+                             (dir / "off").string() + " " + pcd.string());
   CHECK(off.exit_code == 0);
   CHECK_THAT(off.output, Catch::Contains("24") || Catch::Contains("foreground pixels"));
   fs::remove_all(dir);
@@ -368,9 +379,11 @@ namespace {
 // written as LZF literal runs (valid LZF, as liblzf decodes it), fields one after the other.
 std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encoding) {
   const auto cam = core::CameraIntrinsics::KinectV1();
-  std::string header = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
-                       "COUNT 1 1 1\nWIDTH " + std::to_string(d.width) + "\nHEIGHT " + std::to_string(d.height) +
-                       "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(d.width * d.height) + "\nDATA " + encoding + "\n";
+  std::string header =
+      "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+      "COUNT 1 1 1\nWIDTH " +
+      std::to_string(d.width) + "\nHEIGHT " + std::to_string(d.height) +
+      "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(d.width * d.height) + "\nDATA " + encoding + "\n";
   std::vector<float> xyz;  // point-major
   for (int y = 0; y < d.height; ++y)
     for (int x = 0; x < d.width; ++x) {
@@ -387,7 +400,8 @@ std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encod
     std::string text;
     for (size_t i = 0; i < xyz.size(); i += 3) {
       char line[96];
-      std::snprintf(line, sizeof line, "%.6f %.6f %.6f\n", double(xyz[i]), double(xyz[i + 1]), double(xyz[i + 2]));
+      std::snprintf(line, sizeof line, "%.6f %.6f %.6f\n", double(xyz[i]), double(xyz[i + 1]),
+                    double(xyz[i + 2]));
       text += line;
     }
     out.insert(out.end(), text.begin(), text.end());
@@ -416,7 +430,8 @@ std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encod
 
 }  // namespace
 
-TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors, never crash", "[frames][pcd][hostile]") {
+TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors, never crash",
+          "[frames][pcd][hostile]") {
   const auto dir = testing::ScratchDir("frames-pcd");
   core::DepthImage d(16, 12, 0);
   for (int y = 2; y < 10; ++y)
@@ -451,7 +466,8 @@ TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors
   fs::remove_all(dir);
 }
 
-TEST_CASE(".npy truncated or corrupted at every byte: an error or a frame, never a crash", "[frames][npy][hostile]") {
+TEST_CASE(".npy truncated or corrupted at every byte: an error or a frame, never a crash",
+          "[frames][npy][hostile]") {
   const auto dir = testing::ScratchDir("frames-npy-hostile");
   const std::string path = (dir / "a.npy").string();
   REQUIRE(runtime::WriteDepthNpy(path, {core::DepthImage(8, 6, 1234), core::DepthImage(8, 6, 2345)}).ok());

@@ -4,7 +4,6 @@
 // (LD_LIBRARY_PATH + FAKENECT_PATH, as Debian's `fakenect` wrapper does). Also: a truncated frame
 // file, the end of a recording, a device that stops sending, and no device at all.
 #include <catch2/catch.hpp>
-
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -23,7 +22,8 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string Fakenect(const fs::path& recording) {
-  return "LD_LIBRARY_PATH=" + std::string(POSEFOREST_FAKENECT_LIB_DIR) + " FAKENECT_PATH=" + recording.string() + " ";
+  return "LD_LIBRARY_PATH=" + std::string(POSEFOREST_FAKENECT_LIB_DIR) +
+         " FAKENECT_PATH=" + recording.string() + " ";
 }
 
 std::string Bin() { return (testing::BinDir() / "poseforest").string(); }
@@ -63,23 +63,27 @@ TEST_CASE("Kinect disparity <-> mm: nearest value, within the Kinect's quantizat
   }
 }
 
-TEST_CASE("the 9 real Kinect frames through a fakenect recording and libfreenect's API come back as written", "[freenect][data]") {
+TEST_CASE("the 9 real Kinect frames through a fakenect recording and libfreenect's API come back as written",
+          "[freenect][data]") {
   const auto dir = testing::ScratchDir("freenect-real");
   const auto frames = RealFrames();
   REQUIRE(frames.size() == 9);
   std::string list;
   for (const auto& f : frames) list += " " + f;
-  auto rec = testing::RunCommand(Bin() + " frames --quiet --fakenect " + (dir / "rec").string() + " --record-fps 200" + list);
+  auto rec = testing::RunCommand(Bin() + " frames --quiet --fakenect " + (dir / "rec").string() +
+                                 " --record-fps 200" + list);
   INFO(rec.output);
   REQUIRE(rec.exit_code == 0);
   REQUIRE(fs::exists(dir / "rec" / "INDEX.txt"));
 
   const auto t0 = std::chrono::steady_clock::now();
-  auto play = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " frames freenect:0 --out-dir " + (dir / "out").string());
+  auto play = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " frames freenect:0 --out-dir " +
+                                  (dir / "out").string());
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   INFO(play.output);
   REQUIRE(play.exit_code == 0);  // the recording's end is a clean end of stream
-  CHECK_THAT(play.output, Catch::Contains("fakenect recording") && Catch::Contains("9 frame(s), 0 bad frame(s)"));
+  CHECK_THAT(play.output,
+             Catch::Contains("fakenect recording") && Catch::Contains("9 frame(s), 0 bad frame(s)"));
   CHECK(s < 10);
   for (size_t k = 0; k < frames.size(); ++k) {
     runtime::FrameSourceOptions o;
@@ -103,11 +107,13 @@ TEST_CASE("the 9 real Kinect frames through a fakenect recording and libfreenect
 TEST_CASE("synthetic frames replayed through fakenect; infer runs on the stream", "[freenect]") {
   const auto dir = testing::ScratchDir("freenect-synth");
   std::vector<core::DepthImage> frames;
-  for (double z : {1.5, 2.0, 2.5, 3.0, 3.5}) frames.push_back(testing::MakePersonDepth(z, 640, 480, 0.1 * z - 0.25));
+  for (double z : {1.5, 2.0, 2.5, 3.0, 3.5})
+    frames.push_back(testing::MakePersonDepth(z, 640, 480, 0.1 * z - 0.25));
   REQUIRE(runtime::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
   // A second write into the same folder is refused, like fakenect-record.
   CHECK_FALSE(runtime::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
-  auto play = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " frames freenect:0 --npy " + (dir / "read.npy").string());
+  auto play = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " frames freenect:0 --npy " +
+                                  (dir / "read.npy").string());
   INFO(play.output);
   REQUIRE(play.exit_code == 0);
   runtime::FrameSourceOptions o;
@@ -122,8 +128,9 @@ TEST_CASE("synthetic frames replayed through fakenect; infer runs on the stream"
 
   const core::Forest forest = testing::MakeRandomForest({.max_depth = 8, .nodes_per_tree = 500});
   REQUIRE(core::SaveForest(forest, (dir / "f.pff").string()).ok());
-  auto infer = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " infer --forest " + (dir / "f.pff").string() +
-                                   " --out-dir " + (dir / "parts").string() + " --source freenect:0");
+  auto infer =
+      testing::RunCommand(Fakenect(dir / "rec") + Bin() + " infer --forest " + (dir / "f.pff").string() +
+                          " --out-dir " + (dir / "parts").string() + " --source freenect:0");
   INFO(infer.output);
   CHECK(infer.exit_code == 0);
   CHECK_THAT(infer.output, Catch::Contains("5 frame(s) classified, 0 bad frame(s) skipped"));
@@ -131,7 +138,8 @@ TEST_CASE("synthetic frames replayed through fakenect; infer runs on the stream"
   fs::remove_all(dir);
 }
 
-TEST_CASE("a truncated frame file in a recording is named, skipped and counted; the rest replays", "[freenect]") {
+TEST_CASE("a truncated frame file in a recording is named, skipped and counted; the rest replays",
+          "[freenect]") {
   const auto dir = testing::ScratchDir("freenect-cut");
   std::vector<core::DepthImage> frames;
   for (double z : {1.5, 2.0, 2.5, 3.0}) frames.push_back(testing::MakePersonDepth(z));
@@ -143,7 +151,8 @@ TEST_CASE("a truncated frame file in a recording is named, skipped and counted; 
   }
   REQUIRE(index.size() == 4);
   fs::resize_file(dir / "rec" / index[2], 100000);  // frame 2 cut short
-  auto play = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " frames freenect:0 --npy " + (dir / "read.npy").string());
+  auto play = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " frames freenect:0 --npy " +
+                                  (dir / "read.npy").string());
   INFO(play.output);
   CHECK(play.exit_code == 1);
   CHECK_THAT(play.output, Catch::Contains("freenect:0 frame 2") && Catch::Contains(index[2]) &&

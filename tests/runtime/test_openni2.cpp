@@ -1,7 +1,6 @@
 // The OpenNI2 back end: it builds, enumerates devices and says clearly that there is none, and
 // reads depth through OpenNI2's API from OpenNI2's own Dummy driver.
 #include <catch2/catch.hpp>
-
 #include <filesystem>
 
 #include "runtime/frame_source.h"
@@ -34,10 +33,12 @@ TEST_CASE("OpenNI2's Dummy driver streams through the back end; a stream stops w
   // crashes), see docs/runtime/frames.md.
   const std::string bin = (testing::BinDir() / "poseforest").string();
   const auto dir = testing::ScratchDir("openni2-dummy");
-  auto run = testing::RunCommand(bin + " frames openni2:Dummy --max-frames 6 --npy " + (dir / "d.npy").string());
+  auto run =
+      testing::RunCommand(bin + " frames openni2:Dummy --max-frames 6 --npy " + (dir / "d.npy").string());
   INFO(run.output);
   REQUIRE(run.exit_code == 0);
-  CHECK_THAT(run.output, Catch::Contains("openni2:Dummy frame 5: 320x240") && Catch::Contains("6 frame(s), 0 bad"));
+  CHECK_THAT(run.output,
+             Catch::Contains("openni2:Dummy frame 5: 320x240") && Catch::Contains("6 frame(s), 0 bad"));
   runtime::FrameSourceOptions o;
   o.camera.intrinsics.width = 320, o.camera.intrinsics.height = 240;
   auto src = runtime::OpenFrameSource((dir / "d.npy").string(), o);
@@ -50,6 +51,7 @@ TEST_CASE("OpenNI2's Dummy driver streams through the back end; a stream stops w
   // A camera model that contradicts the device's size is refused naming both.
   auto wrong = testing::RunCommand(bin + " frames openni2:Dummy --camera kinect-v1 --max-frames 1");
   CHECK(wrong.exit_code == 1);
-  CHECK_THAT(wrong.output, Catch::Contains("openni2:Dummy's depth stream is 320x240") && Catch::Contains("kinect-v1 is 640x480"));
+  CHECK_THAT(wrong.output, Catch::Contains("openni2:Dummy's depth stream is 320x240") &&
+                               Catch::Contains("kinect-v1 is 640x480"));
   fs::remove_all(dir);
 }

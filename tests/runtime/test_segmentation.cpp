@@ -2,7 +2,6 @@
 // the real pre-segmented frames pass unchanged, and synthetic cluttered scenes (floor, walls,
 // boxes, people touching at different depths) come out as their people with high IoU.
 #include <catch2/catch.hpp>
-
 #include <filesystem>
 
 #include "runtime/frame_source.h"
@@ -28,7 +27,8 @@ std::vector<std::string> RealFrames() {
 
 }  // namespace
 
-TEST_CASE("person.pcd (a real Kinect cloud of a person in a room) comes out as exactly one person", "[segmentation][data]") {
+TEST_CASE("person.pcd (a real Kinect cloud of a person in a room) comes out as exactly one person",
+          "[segmentation][data]") {
   const fs::path pcd = testing::DataDir() / "real/pcl_person_pcd/person.pcd";
   REQUIRE(fs::exists(pcd));
   auto depth = runtime::ReadPcdDepth(pcd.string());
@@ -42,8 +42,9 @@ TEST_CASE("person.pcd (a real Kinect cloud of a person in a room) comes out as e
   CHECK_FALSE(seg.presegmented);
   INFO("components " << seg.components << ", people " << seg.people.size());
   for (const auto& p : seg.people)
-    INFO("person " << p.label << ": " << p.pixels << " px, box " << p.x0 << "," << p.y0 << "-" << p.x1 << "," << p.y1
-                   << ", height " << p.height_m << " m, width " << p.width_m << " m, depth " << p.mean_depth_m);
+    INFO("person " << p.label << ": " << p.pixels << " px, box " << p.x0 << "," << p.y0 << "-" << p.x1 << ","
+                   << p.y1 << ", height " << p.height_m << " m, width " << p.width_m << " m, depth "
+                   << p.mean_depth_m);
   REQUIRE(seg.people.size() == 1);
   const auto& p = seg.people[0];
   // The person: head and shoulders in the lower middle of the frame, nearest thing in view
@@ -78,7 +79,8 @@ TEST_CASE("the 9 real Kinect frames (already segmented) come out unchanged", "[s
   }
 }
 
-TEST_CASE("a cluttered scene: floor, walls, a box and two people touching at different depths", "[segmentation]") {
+TEST_CASE("a cluttered scene: floor, walls, a box and two people touching at different depths",
+          "[segmentation]") {
   const auto cam = core::CameraIntrinsics::KinectV1();
   // Two standing figures (feet 0.98 m below the camera's height) that overlap in the image: the
   // near one at 2.0 m, the far one at 2.7 m, 0.55 m to its right.
@@ -116,7 +118,8 @@ TEST_CASE("a cluttered scene: floor, walls, a box and two people touching at dif
   CHECK(seg.people[0].mean_depth_m < seg.people[1].mean_depth_m);
   // Everything else is at the background value (0), so probes read the feature's background.
   int kept_outside = 0;
-  for (size_t i = 0; i < seg.depth.pixels.size(); ++i) kept_outside += seg.labels.pixels[i] == 0 && seg.depth.pixels[i] != 0;
+  for (size_t i = 0; i < seg.depth.pixels.size(); ++i)
+    kept_outside += seg.labels.pixels[i] == 0 && seg.depth.pixels[i] != 0;
   CHECK(kept_outside == 0);
 
   SECTION("a given floor plane gives the same people") {

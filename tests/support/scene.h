@@ -3,9 +3,8 @@
 // walls and boxes ray-cast with the camera's intrinsics, and people composited in from
 // pre-segmented person depth images (synthetic figures or real frames) by depth test.
 
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "runtime/core/camera.h"
 #include "runtime/core/depth_image.h"
@@ -17,9 +16,9 @@ struct Box {
 };
 
 struct ClutterSpec {
-  double floor_y_m = 1.0;        ///< floor plane y = this (camera frame, y down); <= 0: none
-  double back_wall_z_m = 4.0;    ///< wall z = this; <= 0: none
-  double side_wall_x_m = -1.8;   ///< wall x = this (either sign); 0: none
+  double floor_y_m = 1.0;       ///< floor plane y = this (camera frame, y down); <= 0: none
+  double back_wall_z_m = 4.0;   ///< wall z = this; <= 0: none
+  double side_wall_x_m = -1.8;  ///< wall x = this (either sign); 0: none
   std::vector<Box> boxes;
 };
 
@@ -31,6 +30,7 @@ struct ClutteredFrame {
 /// Ray-casts the clutter and composites `people` (depth images of the camera's size, 0 = not
 /// the person; `shift_mm[k]` is added to person k's depth) in front of it by depth.
 ClutteredFrame ComposeScene(const core::CameraIntrinsics& camera, const ClutterSpec& spec,
-                            const std::vector<core::DepthImage>& people, const std::vector<int>& shift_mm = {});
+                            const std::vector<core::DepthImage>& people,
+                            const std::vector<int>& shift_mm = {});
 
 }  // namespace poseforest::testing
