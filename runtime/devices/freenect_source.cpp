@@ -190,15 +190,16 @@ class FreenectSource : public FrameSource {
   }
 
   static void DepthCallback(freenect_device* dev, void* data, uint32_t /*timestamp*/) {
-    static_cast<FreenectSource*>(freenect_get_user(dev))->OnDepth(static_cast<const uint16_t*>(data));
+    static_cast<FreenectSource*>(freenect_get_user(dev))->OnDepth(data);
   }
 
-  void OnDepth(const uint16_t* data) {
+  void OnDepth(const void* data) {
     Queued q{core::DepthImage(kW, kH), std::chrono::duration<double>(Clock::now() - opened_).count()};
-    if (mm_mode_)
-      std::memcpy(q.depth.pixels.data(), data, size_t(kW) * kH * 2);
-    else
-      for (size_t i = 0; i < q.depth.pixels.size(); ++i) q.depth.pixels[i] = KinectDisparityToMm(data[i]);
+    // Copied bytewise first: the buffer need not be 2-byte aligned (fakenect 0.5.3 passes its
+    // file buffer just past the odd-length PGM header line; UBSan caught the unaligned loads).
+    std::memcpy(q.depth.pixels.data(), data, size_t(kW) * kH * 2);
+    if (!mm_mode_)
+      for (uint16_t& v : q.depth.pixels) v = KinectDisparityToMm(v);
     std::unique_lock lock(mu_);
     space_.wait(lock, [&] { return queue_.size() < kMaxQueued || stop_; });
     if (stop_) return;
