@@ -481,7 +481,10 @@ core::Status WriteDepthNpy(const std::string& path, const std::vector<core::Dept
 Result<core::DepthImage> ReadPcdDepth(const std::string& path) {
   auto bytes = ReadAll(path);
   if (!bytes.ok()) return bytes.status();
-  const std::vector<uint8_t>& b = *bytes;
+  return ParsePcdDepth(*bytes, path);
+}
+
+Result<core::DepthImage> ParsePcdDepth(std::span<const uint8_t> b, const std::string& path) {
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
   std::vector<std::string> fields;
   std::vector<int> sizes, counts;

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -106,6 +107,8 @@ core::Status WriteDepthNpy(const std::string& path, const std::vector<core::Dept
 /// Reads an organized PCD point cloud (ASCII, binary or binary_compressed; fields x y z float32
 /// metres, NaN = invalid) into a depth image in mm (z). Errors name the file.
 core::Result<core::DepthImage> ReadPcdDepth(const std::string& path);
+/// The same from bytes in memory; `source` names them in errors.
+core::Result<core::DepthImage> ParsePcdDepth(std::span<const uint8_t> bytes, const std::string& source);
 
 /// Expands a folder or glob into sorted file paths (the FOLDER / PATTERN rules above).
 core::Result<std::vector<std::string>> ExpandFrameFiles(const std::string& spec);
