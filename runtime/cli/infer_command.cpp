@@ -10,9 +10,17 @@
 #include <string>
 #include <vector>
 
+#include <cctype>
+#include <cmath>
+#include <optional>
+
+#include "runtime/camera_model.h"
 #include "runtime/classifier.h"
+#include "runtime/frame_source.h"
+#include "runtime/segmentation.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
+#include "runtime/cli/frame_options.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #include "runtime/joint_proposals.h"
@@ -21,14 +29,39 @@
 namespace poseforest::cli {
 namespace {
 
-constexpr const char* kUsage = R"(usage: poseforest infer --forest FOREST.pff [options] DEPTH [DEPTH...]
+namespace fs = std::filesystem;
 
-Classifies every foreground pixel (depth > 0) of each depth image into the forest's body parts
-(eq. 2 of Shotton et al.: leaf distributions averaged over trees) and writes the most likely part
-per pixel as a colour PNG.
+constexpr const char* kUsage = R"(usage: poseforest infer --forest FOREST.pff [options] SOURCE [SOURCE...]
 
-DEPTH is a 16-bit greyscale PNG in millimetres, or a raw little-endian uint16 frame (e.g. the
-640x480 Kinect frames in shared/data/real); 0 means no reading / background.
+Classifies every foreground pixel of each depth frame into the forest's body parts (eq. 2 of
+Shotton et al.: leaf distributions averaged over trees) and writes the most likely part per pixel
+as a colour PNG. Raw frames (a floor, walls, furniture) are segmented into people first; frames
+that are already segmented (most pixels 0, no floor) pass unchanged (--segment).
+
+SOURCE (also --source SOURCE; docs/runtime/frames.md):
+  FILE        a 16-bit greyscale PNG in millimetres, a raw little-endian uint16 frame (e.g. the
+              640x480 Kinect frames in shared/data/real), a .npy (uint16 mm or float32 metres,
+              [H,W] or [N,H,W]), or an organized .pcd point cloud (x y z, metres); 0 = no reading
+  FOLDER      every file in it, in name order;  'PATTERN'  a glob (quoted), in name order
+  -           raw uint16 frames on stdin, back to back (a pipe works)
+  freenect:N  Kinect v1 number N through libfreenect;  openni2:[URI]  an OpenNI2 device or .oni
+              (device back ends: those `poseforest --version` lists)
+A bad frame (truncated, wrong size) is reported naming the source and frame, skipped and counted.
+
+camera (the model frames are checked against; default kinect-v1):
+  --camera PRESET      kinect-v1 (640x480), kinect-v2 (512x424), azure-nfov (640x576),
+                       azure-nfov-binned (320x288), azure-wfov (512x512), azure-wfov-unbinned
+                       (1024x1024), realsense-d435 (848x480), realsense-d435-640 (640x480)
+  --fx F --fy F --cx C --cy C   intrinsics in pixels (override the preset's)
+  --depth-scale S      millimetres per raw depth unit (default 1; raw, PNG and uint16 .npy)
+  A forest records the focal length it was trained for; for another one its offsets are rescaled.
+
+segmentation:
+  --segment auto|on|off  auto (default): segment raw frames, pass pre-segmented ones unchanged;
+                       on: always segment; off: every pixel with depth > 0 is foreground
+  --floor A,B,C,D      a known floor plane A*x + B*y + C*z + D = 0 (camera frame, metres)
+  --near M --far M     depth band in metres (default 0.4, 4.5)
+  --masks              also write the person masks (<name>.mask.png: 0 background, k person k)
 
 options:
   --forest FILE        forest file (.pff), required
@@ -45,20 +78,12 @@ options:
                        paper's means
   --method M           joint proposals by `meanshift` (default) or `fast` (bottom-up clustering)
   --min-confidence C   joints drawn in the picture need this confidence (default 0.05)
-  --raw-size WxH       size of raw depth frames (default 640x480)
+  --raw-size WxH       size of raw depth frames (default: the camera's, 640x480)
+  --fps N              deliver at most N frames per second (a folder played at camera rate)
   --threads N          OpenMP threads (default: all cores)
   --quiet              print nothing but errors
   --help               this text
 )";
-
-std::string OutPath(const std::string& depth_path, const std::optional<std::string>& out_dir,
-                    const std::string& suffix) {
-  std::filesystem::path p(depth_path);
-  std::string stem = p.filename().string();
-  if (p.extension() == ".png" || p.extension() == ".raw") stem = p.stem().string();
-  if (out_dir) return (std::filesystem::path(*out_dir) / (stem + suffix)).string();
-  return (p.parent_path() / (stem + suffix)).string();
-}
 
 std::string JointsJson(const std::string& source, const core::DepthImage& depth, const runtime::FrameProposals& f,
                        const char* method) {
@@ -115,11 +140,35 @@ int Fail(const core::Status& st) {
   return 1;
 }
 
+
+// Output stem of a frame: a file's name without .png/.raw/.npy/.pcd, else "<source>-<index>".
+std::string FrameStem(const runtime::Frame& f) {
+  const bool file = f.source.find(':') == std::string::npos && f.source != "stdin" && f.source.find('[') == std::string::npos;
+  if (file) {
+    fs::path p(f.source);
+    std::string stem = p.filename().string();
+    for (const char* ext : {".png", ".raw", ".npy", ".pcd"})
+      if (p.extension() == ext) stem = p.stem().string();
+    return stem;
+  }
+  std::string base = f.source.substr(0, f.source.find('['));
+  base = fs::path(base).filename().string();
+  for (const char* ext : {".npy", ".pcd", ".oni"})
+    if (fs::path(base).extension() == ext) base = fs::path(base).stem().string();
+  for (char& c : base)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_' && c != '.') c = '_';
+  char idx[32];
+  std::snprintf(idx, sizeof idx, "-%06lld", static_cast<long long>(f.index));
+  return base + idx;
+}
+
 }  // namespace
 
 int InferMain(int argc, char** argv) {
-  Args args({"forest", "out", "out-dir", "raw-size", "threads", "method", "min-confidence"},
-            {"labels", "distributions", "joints", "quiet", "help"});
+  std::set<std::string> value_options = {"forest", "out", "out-dir", "threads", "method", "min-confidence",
+                                          "source", "segment", "floor", "near", "far"};
+  for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
+  Args args(value_options, {"labels", "distributions", "joints", "quiet", "help", "masks"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest infer: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -128,21 +177,42 @@ int InferMain(int argc, char** argv) {
     std::fputs(kUsage, stdout);
     return 0;
   }
+  std::vector<std::string> specs = args.positional();
+  if (auto src = args.Get("source")) specs.insert(specs.begin(), *src);
   const auto forest_path = args.Get("forest");
-  if (!forest_path || args.positional().empty()) {
+  if (!forest_path || specs.empty()) {
     std::fprintf(stderr, "poseforest infer: %s\n\n%s", !forest_path ? "--forest is required" : "no depth image given", kUsage);
     return 2;
   }
-  if (args.Get("out") && args.positional().size() != 1) {
+  if (args.Get("out") && specs.size() != 1) {
     std::fprintf(stderr, "poseforest infer: --out takes one input; use --out-dir for several\n");
     return 2;
   }
-  int raw_w = 640, raw_h = 480;
-  if (auto rs = args.Get("raw-size")) {
-    if (std::sscanf(rs->c_str(), "%dx%d", &raw_w, &raw_h) != 2 || raw_w <= 0 || raw_h <= 0 || raw_w > 32768 || raw_h > 32768) {
-      std::fprintf(stderr, "poseforest infer: --raw-size must be WxH, e.g. 640x480 (got '%s')\n", rs->c_str());
-      return 2;
-    }
+  auto usage_error = [](const std::string& msg) {
+    std::fprintf(stderr, "poseforest infer: %s\n", msg.c_str());
+    return 2;
+  };
+  runtime::FrameSourceOptions source_options;
+  if (auto st = ParseFrameSourceOptions(args, &source_options); !st.ok()) return usage_error(st.message());
+  const std::string segment_mode = args.GetOr("segment", "auto");
+  if (segment_mode != "auto" && segment_mode != "on" && segment_mode != "off")
+    return usage_error("--segment must be auto, on or off (got '" + segment_mode + "')");
+  runtime::SegmentationOptions seg_options;
+  if (segment_mode == "on") seg_options.presegmented = false;
+  if (auto fl = args.Get("floor")) {
+    double a, b, c, d;
+    if (std::sscanf(fl->c_str(), "%lf,%lf,%lf,%lf", &a, &b, &c, &d) != 4 || std::hypot(a, b, c) < 1e-9)
+      return usage_error("--floor must be A,B,C,D with (A,B,C) != 0 (got '" + *fl + "')");
+    const double n = std::hypot(a, b, c);
+    seg_options.floor_plane = Eigen::Vector4d(a / n, b / n, c / n, d / n);
+  }
+  {
+    auto near = GetDouble(args, "near", seg_options.near_m, 0.0, 60.0);
+    auto far = GetDouble(args, "far", seg_options.far_m, 0.0, 65.0);
+    if (!near.ok()) return usage_error(near.status().message());
+    if (!far.ok()) return usage_error(far.status().message());
+    if (*near >= *far) return usage_error("--near must be less than --far");
+    seg_options.near_m = *near, seg_options.far_m = *far;
   }
   auto threads = args.GetInt("threads", 0, 0, 1024);
   if (!threads.ok()) {
@@ -189,42 +259,103 @@ int InferMain(int argc, char** argv) {
   proposal_options.params = params.params;
   proposal_options.num_threads = int(*threads);
 
-  runtime::Classifier classifier(*forest);
+  auto source = runtime::OpenFrameSources(specs, source_options);
+  if (!source.ok()) return Fail(source.status());
+
+  // The forest for the frames' camera: rescaled once per focal length met.
+  std::optional<core::Forest> rescaled;
+  double rescaled_fx = 0, rescaled_fy = 0;
   runtime::ClassifyOptions options;
   options.num_threads = int(*threads);
   // The compact per-foreground-pixel sums serve both the proposals and the .npy (no dense
   // W*H*stride array is cleared or written).
   options.want_foreground_distributions = args.Has("distributions") || joints;
   runtime::Classification result;
-  int failures = 0;
-  for (const std::string& depth_path : args.positional()) {
-    auto depth = runtime::ReadDepthImage(depth_path, raw_w, raw_h);
-    if (!depth.ok()) {
-      std::fprintf(stderr, "poseforest infer: %s\n", depth.status().ToString().c_str());
-      ++failures;
+  runtime::SegmentationResult seg;
+  int failures = 0, bad_frames = 0, frames_done = 0, segmented_frames = 0, bad_in_a_row = 0;
+  runtime::Frame frame;
+  while (true) {
+    auto next = (*source)->Next(&frame);
+    if (!next.ok()) {
+      std::fprintf(stderr, "poseforest infer: %s\n", next.status().ToString().c_str());
+      ++bad_frames;
+      if (++bad_in_a_row >= runtime::kMaxConsecutiveBadFrames) {
+        std::fprintf(stderr, "poseforest infer: %s: giving up after %d bad frames in a row\n", (*source)->Describe().c_str(),
+                     bad_in_a_row);
+        break;
+      }
       continue;
     }
+    bad_in_a_row = 0;
+    if (!*next) break;
+    if (args.Get("out") && frames_done > 0) {
+      std::fprintf(stderr, "poseforest infer: %s: --out takes one frame but the source holds more; use --out-dir\n",
+                   frame.Name().c_str());
+      ++failures;
+      break;
+    }
+    const auto& cam = frame.camera.intrinsics;
+    const core::Forest* run_forest = &*forest;
+    if (!runtime::SameFocalLength(*forest, cam.fx, cam.fy)) {
+      if (!rescaled || rescaled_fx != cam.fx || rescaled_fy != cam.fy) {
+        rescaled = runtime::ForestForFocalLength(*forest, cam.fx, cam.fy);
+        rescaled_fx = cam.fx, rescaled_fy = cam.fy;
+        if (!quiet)
+          std::printf("camera %s: the forest was trained for fx %.1f fy %.1f; offsets rescaled by %.4f x %.4f\n",
+                      frame.camera.Describe().c_str(), double(forest->training_fx), double(forest->training_fy),
+                      cam.fx / forest->training_fx, cam.fy / forest->training_fy);
+      }
+      run_forest = &*rescaled;
+    }
+    const core::DepthImage* depth = &frame.depth;
+    const auto t_seg = std::chrono::steady_clock::now();
+    double seg_ms = 0;
+    if (segment_mode != "off") {
+      runtime::SegmentPeople(frame.depth, cam, seg_options, &seg);
+      seg_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_seg).count();
+      if (!seg.presegmented) {
+        depth = &seg.depth;
+        ++segmented_frames;
+      }
+    }
+    runtime::Classifier classifier(*run_forest);
     const auto t0 = std::chrono::steady_clock::now();
     classifier.Classify(*depth, options, &result);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    ++frames_done;
 
-    const std::string parts_png = args.Get("out") ? *args.Get("out") : OutPath(depth_path, out_dir, ".parts.png");
+    const std::string stem = FrameStem(frame);
+    auto out_path = [&](const std::string& suffix) {
+      if (out_dir) return (fs::path(*out_dir) / (stem + suffix)).string();
+      const bool file = frame.source.find(':') == std::string::npos && frame.source != "stdin";
+      fs::path parent = file ? fs::path(frame.source.substr(0, frame.source.find('['))).parent_path() : fs::path(".");
+      return (parent / (stem + suffix)).string();
+    };
+    const std::string parts_png = args.Get("out") ? *args.Get("out") : out_path(".parts.png");
     core::Status st = runtime::WriteLabelColourPng(parts_png, result.labels);
-    if (st.ok() && args.Has("labels")) st = runtime::WriteLabelPng(OutPath(depth_path, out_dir, ".labels.png"), result.labels);
-    if (st.ok() && args.Has("distributions"))
-      st = WriteProbabilitiesNpy(OutPath(depth_path, out_dir, ".probs.npy"), result);
+    if (st.ok() && args.Has("labels")) st = runtime::WriteLabelPng(out_path(".labels.png"), result.labels);
+    if (st.ok() && args.Has("masks")) {
+      core::LabelImage mask = seg.labels;
+      if (segment_mode == "off" || mask.empty()) {
+        mask = core::LabelImage(depth->width, depth->height, 0);
+        for (size_t i = 0; i < mask.pixels.size(); ++i) mask.pixels[i] = depth->pixels[i] ? 1 : 0;
+      }
+      st = runtime::WriteLabelPng(out_path(".mask.png"), mask);
+    }
+    if (st.ok() && args.Has("distributions")) st = WriteProbabilitiesNpy(out_path(".probs.npy"), result);
     runtime::FrameProposals proposals;
     double proposal_ms = 0;
     if (st.ok() && joints) {
+      proposal_options.camera = cam;
       const auto t1 = std::chrono::steady_clock::now();
       proposals = runtime::ProposeJointsFromClassification(*depth, result, proposal_options);
       proposal_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
-      const std::string json = JointsJson(depth_path, *depth, proposals, method.c_str());
-      st = core::WriteFileAtomic(OutPath(depth_path, out_dir, ".joints.json"),
+      const std::string json = JointsJson(frame.source, *depth, proposals, method.c_str());
+      st = core::WriteFileAtomic(out_path(".joints.json"),
                                  std::span(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
       if (st.ok()) {
         const auto fig = runtime::PoseFigure(*depth, result.labels, proposals, proposal_options.camera, min_confidence);
-        st = runtime::WriteRgbPng(OutPath(depth_path, out_dir, ".pose.png"), fig.width, fig.height, fig.rgb);
+        st = runtime::WriteRgbPng(out_path(".pose.png"), fig.width, fig.height, fig.rgb);
       }
     }
     if (!st.ok()) {
@@ -237,8 +368,15 @@ int InferMain(int argc, char** argv) {
       int fg = 0;
       for (uint8_t l : result.labels.pixels)
         if (l != core::kBackgroundLabel) ++counts[l], ++fg;
-      std::printf("%s: %dx%d, %d foreground pixels, classified in %.2f ms -> %s\n", depth_path.c_str(),
+      std::printf("%s: %dx%d, %d foreground pixels, classified in %.2f ms -> %s\n", frame.Name().c_str(),
                   depth->width, depth->height, fg, ms, parts_png.c_str());
+      if (segment_mode != "off") {
+        if (seg.presegmented)
+          std::printf("  segmentation: pre-segmented, passed unchanged\n");
+        else
+          std::printf("  segmentation: %zu person(s), floor %s, %d components, %.2f ms\n", seg.people.size(),
+                      seg.floor ? "found" : "none", seg.components, seg_ms);
+      }
       std::vector<int> order(counts.size());
       for (size_t i = 0; i < order.size(); ++i) order[i] = int(i);
       std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return counts[size_t(a)] > counts[size_t(b)]; });
@@ -269,7 +407,10 @@ int InferMain(int argc, char** argv) {
       }
     }
   }
-  return failures == 0 ? 0 : 1;
+  if (!quiet || bad_frames > 0)
+    std::printf("%s: %d frame(s) classified, %d bad frame(s) skipped, %d segmented\n", (*source)->Describe().c_str(),
+                frames_done, bad_frames, segmented_frames);
+  return failures == 0 && bad_frames == 0 ? 0 : 1;
 }
 
 }  // namespace poseforest::cli

@@ -5,6 +5,13 @@
 
 #include "runtime/cli/commands.h"
 #include "runtime/core/malloc_tuning.h"
+#include "runtime/frame_source.h"
+#ifdef POSEFOREST_HAS_FREENECT
+#include "runtime/devices/freenect_source.h"
+#endif
+#ifdef POSEFOREST_HAS_OPENNI2
+#include "runtime/devices/openni2_source.h"
+#endif
 
 namespace {
 
@@ -18,6 +25,7 @@ const Command kCommands[] = {
     {"infer", poseforest::cli::InferMain, "classify depth images into body parts with a forest"},
     {"inspect", poseforest::cli::InspectMain, "print and validate a forest file"},
     {"import-pcl", poseforest::cli::ImportPclMain, "convert PCL's trained people trees into a forest file"},
+    {"frames", poseforest::cli::FramesMain, "read depth frames from files, stdin or a camera; check and convert them"},
 #ifdef POSEFOREST_HAS_RENDER
     {"render", poseforest::cli::RenderMain, "render a synthetic labelled depth dataset and a preview montage"},
 #endif
@@ -50,6 +58,13 @@ void Usage(FILE* out) {
 
 int main(int argc, char** argv) {
   poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
+  // Device back ends built in (optional targets found at configure time).
+#ifdef POSEFOREST_HAS_FREENECT
+  poseforest::runtime::RegisterFreenectBackEnd();
+#endif
+#ifdef POSEFOREST_HAS_OPENNI2
+  poseforest::runtime::RegisterOpenNi2BackEnd();
+#endif
   if (argc < 2) {
     Usage(stderr);
     return 2;
@@ -61,6 +76,11 @@ int main(int argc, char** argv) {
   }
   if (cmd == "--version" || cmd == "version") {
     std::printf("poseforest %s\n", POSEFOREST_VERSION);
+    const auto back_ends = poseforest::runtime::FrameBackEnds();
+    std::printf("frame sources: files (PNG, raw, .npy, .pcd), folders, globs, stdin\n");
+    if (back_ends.empty())
+      std::printf("device back ends: none (libfreenect and OpenNI2 are found at configure time)\n");
+    for (const auto& b : back_ends) std::printf("device back end: %s - %s\n", b.scheme.c_str(), b.describe.c_str());
     return 0;
   }
 #ifdef POSEFOREST_HAS_DISTRIBUTED

@@ -2,6 +2,8 @@
 // Pinhole camera intrinsics and pixel <-> 3D reprojection. Camera frame: x right, y down,
 // z forward (depth), metres. Defaults approximate the Kinect v1 depth camera at 640x480.
 
+#include <cstdint>
+
 #include <Eigen/Core>
 
 namespace poseforest::core {

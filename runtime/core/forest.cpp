@@ -63,6 +63,9 @@ Status ValidateForest(const Forest& forest, const std::string& source) {
   if (!std::isfinite(forest.constants.offset_unit) || forest.constants.offset_unit <= 0 ||
       forest.constants.offset_unit > 64)
     return fail("offset unit " + std::to_string(forest.constants.offset_unit) + " is not in (0, 64] pixel*m");
+  for (const float f : {forest.training_fx, forest.training_fy})
+    if (!std::isfinite(f) || f < 1 || f > 100000)
+      return fail("training focal length " + std::to_string(f) + " px is not in [1, 100000] (FOCL)");
   for (const bool fast : {false, true}) {
     const auto& params = fast ? forest.fast_proposal_params : forest.proposal_params;
     if (!params) continue;

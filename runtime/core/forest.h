@@ -18,6 +18,10 @@
 
 namespace poseforest::core {
 
+/// Focal length of the Kinect v1 depth camera in pixels at 640x480 (CameraIntrinsics::KinectV1),
+/// the camera every forest before format 1.3 was trained for.
+inline constexpr double kKinectV1FocalPx = 575.8;
+
 /// Minimal allocator giving cache-line-aligned storage for the hot arrays.
 template <typename T, size_t kAlign = 64>
 struct AlignedAllocator {
@@ -91,6 +95,12 @@ struct Forest {
   std::optional<ProposalParams> proposal_params;
   /// ... and for the fast clustering (format >= 1.2, section JPFC).
   std::optional<ProposalParams> fast_proposal_params;
+  /// Focal lengths (pixels) of the camera the forest was trained for (format >= 1.3, section
+  /// FOCL). Offsets are pixel*metres at this focal length: a camera with focal length f sees the
+  /// same metres at f / training_fx times the pixels (runtime/camera_model.h rescales). Files
+  /// older than 1.3 were all trained for the Kinect v1, which is the default.
+  float training_fx = float(kKinectV1FocalPx);
+  float training_fy = float(kKinectV1FocalPx);
 
   int leaf_stride() const { return LeafStride(num_parts); }
   /// Maximum depth over trees.

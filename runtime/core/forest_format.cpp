@@ -36,6 +36,7 @@ constexpr uint32_t kTagMeta = Tag("META");
 constexpr uint32_t kTagTree = Tag("TREE");
 constexpr uint32_t kTagJointParams = Tag("JPAR");      // mean shift (1.1: both methods)
 constexpr uint32_t kTagFastJointParams = Tag("JPFC");  // the fast clustering (1.2)
+constexpr uint32_t kTagFocal = Tag("FOCL");            // training camera's focal lengths (1.3)
 
 std::string TagName(uint32_t tag) {
   std::string s;
@@ -133,7 +134,7 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   w.U64(0);  // file size, patched below
   w.U32(kHeaderSize);
   const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
-                                 (forest.fast_proposal_params ? 1 : 0);
+                                 (forest.fast_proposal_params ? 1 : 0) + 1;
   w.U32(section_count);
   while (w.size() < kHeaderSize) w.U8(0);
 
@@ -187,6 +188,12 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
     EndSection(w, at);
   }
 
+  // FOCL (1.3): always written, so a file says which camera it was trained for.
+  at = BeginSection(w, kTagFocal, 0);
+  w.F32(forest.training_fx);
+  w.F32(forest.training_fy);
+  EndSection(w, at);
+
   const uint64_t file_size = w.size() + kTrailerSize;
   w.PatchU64(16, file_size);
   const uint32_t crc = Crc32(w.bytes().data(), w.size());
@@ -233,7 +240,7 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
 
   Forest forest;
   forest.part_names.clear();
-  bool have_meta = false;
+  bool have_meta = false, have_focal = false;
   uint32_t tree_count = 0, stride = 0;
   const auto body = bytes.subspan(header_size, bytes.size() - kTrailerSize - header_size);
   Reader r(body);
@@ -327,6 +334,13 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
         jp.z_offset_m = p.F32();
       }
       slot = params;
+    } else if (tag == kTagFocal) {
+      if (have_focal) return loss(where + "second FOCL section");
+      if (p.remaining() != 8)
+        return loss(where + "FOCL holds " + std::to_string(p.remaining()) + " bytes, expected 8 (fx, fy)");
+      forest.training_fx = p.F32();
+      forest.training_fy = p.F32();
+      have_focal = true;
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");

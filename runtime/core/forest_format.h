@@ -1,5 +1,5 @@
 #pragma once
-// Forest file format v1 (.pff, "poseforest forest"): reading and writing. The layout is
+// Forest file format v1 (.pff, "poseforest forest"), minor version 3: reading and writing. The layout is
 // documented in runtime/FORMAT.md; keep the two in step.
 
 #include <cstdint>
@@ -16,7 +16,9 @@ inline constexpr uint16_t kFormatMajor = 1;
 /// 1.1 added the optional JPAR section (joint-proposal parameters); 1.0 readers skip it.
 /// 1.2 added the optional JPFC section (the fast clustering's own parameters; JPAR is then mean
 /// shift's); 1.1 readers skip it and run both methods with JPAR, as they did.
-inline constexpr uint16_t kFormatMinor = 2;
+/// 1.3 added the optional FOCL section (the training camera's focal lengths, pixels); older files
+/// mean the Kinect v1 (575.8 px), older readers skip it.
+inline constexpr uint16_t kFormatMinor = 3;
 
 /// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
 std::vector<uint8_t> SerializeForest(const Forest& forest);

@@ -268,7 +268,7 @@ TEST_CASE("one parameter set per proposal method (format 1.2) round trips; the r
   forest.fast_proposal_params = fast;
   const auto bytes = core::SerializeForest(forest);
   CHECK(bytes[10] == core::kFormatMinor);
-  CHECK(core::kFormatMinor == 2);
+  CHECK(core::kFormatMinor >= 2);
   auto parsed = core::ParseForest(bytes, "both.pff");
   REQUIRE(parsed.ok());
   REQUIRE(parsed->proposal_params.has_value());
@@ -465,4 +465,42 @@ TEST_CASE("QuantizeDistribution sums to 255 and tracks the probabilities", "[for
   sum = 0;
   for (uint8_t v : out) sum += v;
   CHECK(sum == 255);
+}
+
+TEST_CASE("the training focal length (format 1.3, FOCL) round trips; older files mean the Kinect v1", "[format]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(21));
+  CHECK(forest.training_fx == float(core::kKinectV1FocalPx));  // what the trainer writes today
+  forest.training_fx = 365.5f;
+  forest.training_fy = 367.25f;
+  const auto bytes = core::SerializeForest(forest);
+  CHECK(bytes[10] == 3);
+  auto parsed = core::ParseForest(bytes, "focal.pff");
+  REQUIRE(parsed.ok());
+  CHECK(parsed->training_fx == 365.5f);
+  CHECK(parsed->training_fy == 367.25f);
+  CHECK(SameForest(forest, *parsed));
+
+  // The 1.1 file from before FOCL: trained for the Kinect v1.
+  const auto old_path = std::filesystem::path(POSEFOREST_SOURCE_DIR) / "tests/runtime/data/forest_v1_1_jpar.pff";
+  auto old = core::LoadForest(old_path.string());
+  REQUIRE(old.ok());
+  CHECK(old->training_fx == float(core::kKinectV1FocalPx));
+  CHECK(old->training_fy == float(core::kKinectV1FocalPx));
+
+  // A bad focal length behind a valid checksum is refused naming the section.
+  auto bad = bytes;
+  const std::string text(bad.begin(), bad.end());
+  const size_t at = text.rfind("FOCL");
+  REQUIRE(at != std::string::npos);
+  const float zero = 0.0f;
+  std::memcpy(bad.data() + at + 16, &zero, 4);
+  RepairChecksum(bad);
+  auto refused = core::ParseForest(bad, "focal.pff");
+  REQUIRE_FALSE(refused.ok());
+  CHECK_THAT(refused.status().message(), Catch::Contains("focal.pff") && Catch::Contains("FOCL"));
+  // A FOCL of the wrong size is refused too.
+  auto longer = bytes;
+  longer[at + 8] = 12;
+  RepairChecksum(longer);
+  CHECK_FALSE(core::ParseForest(longer, "focal.pff").ok());
 }

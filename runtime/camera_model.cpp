@@ -1,0 +1,115 @@
+#include "runtime/camera_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+namespace poseforest::runtime {
+namespace {
+
+// f = (size / 2) / tan(fov / 2): the nominal focal length of a documented field of view.
+double FocalFromFov(int size_px, double fov_deg) {
+  return 0.5 * size_px / std::tan(0.5 * fov_deg * std::numbers::pi / 180.0);
+}
+
+CameraModel Nominal(const std::string& name, int w, int h, double hfov_deg, double vfov_deg,
+                    double scale = 1.0) {
+  CameraModel m;
+  m.name = name;
+  m.intrinsics.width = w;
+  m.intrinsics.height = h;
+  m.intrinsics.fx = FocalFromFov(w, hfov_deg) * scale;
+  m.intrinsics.fy = FocalFromFov(h, vfov_deg) * scale;
+  m.intrinsics.cx = 0.5 * w - 0.5;
+  m.intrinsics.cy = 0.5 * h - 0.5;
+  return m;
+}
+
+}  // namespace
+
+std::string CameraModel::Describe() const {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s %dx%d fx %.1f fy %.1f cx %.1f cy %.1f", name.c_str(), intrinsics.width,
+                intrinsics.height, intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy);
+  std::string s = buf;
+  if (depth_scale_mm != 1.0) {
+    std::snprintf(buf, sizeof buf, " depth-scale %g mm", depth_scale_mm);
+    s += buf;
+  }
+  return s;
+}
+
+std::vector<std::string> CameraPresetNames() {
+  return {"kinect-v1",  "kinect-v2",           "azure-nfov",     "azure-nfov-binned",
+          "azure-wfov", "azure-wfov-unbinned", "realsense-d435", "realsense-d435-640"};
+}
+
+core::Result<CameraModel> CameraPreset(const std::string& name) {
+  if (name == "kinect-v1") {
+    CameraModel m;  // PCL / OpenNI's Kinect v1 depth calibration (runtime/core/camera.h)
+    m.name = name;
+    return m;
+  }
+  // Documented depth fields of view (manufacturers' hardware specifications):
+  // Kinect v2 70.6 x 60 deg; Azure Kinect NFOV 75 x 65, WFOV 120 x 120 (a fisheye: the pinhole
+  // model is rough near the edges); RealSense D435 87 x 58 at 848x480 (1280x720 scaled by 0.6625).
+  if (name == "kinect-v2") return Nominal(name, 512, 424, 70.6, 60.0);
+  if (name == "azure-nfov") return Nominal(name, 640, 576, 75.0, 65.0);
+  if (name == "azure-nfov-binned") return Nominal(name, 320, 288, 75.0, 65.0);
+  if (name == "azure-wfov") return Nominal(name, 512, 512, 120.0, 120.0);
+  if (name == "azure-wfov-unbinned") return Nominal(name, 1024, 1024, 120.0, 120.0);
+  if (name == "realsense-d435") return Nominal(name, 848, 480, 87.0, 58.0);
+  if (name == "realsense-d435-640") {
+    // 640x480 is the 1280x800 sensor scaled by 0.6 and cropped, where 848x480 is 1280x720
+    // scaled by 0.6625: the same optics at 0.6 / 0.6625 of the 848x480 focal lengths.
+    CameraModel m = Nominal(name, 848, 480, 87.0, 58.0, 0.6 / 0.6625);
+    m.intrinsics.width = 640;
+    m.intrinsics.cx = 319.5;
+    return m;
+  }
+  std::string list;
+  for (const auto& n : CameraPresetNames()) list += (list.empty() ? "" : ", ") + n;
+  return core::Status(core::ErrorCode::kInvalidArgument,
+                      "unknown camera preset '" + name + "' (presets: " + list + ")");
+}
+
+core::Status CheckFrameSize(const CameraModel& camera, int width, int height, const std::string& what) {
+  if (width == camera.intrinsics.width && height == camera.intrinsics.height) return core::Status::Ok();
+  return {core::ErrorCode::kInvalidArgument,
+          what + " is " + std::to_string(width) + "x" + std::to_string(height) + " but the camera model " +
+              camera.name + " is " + std::to_string(camera.intrinsics.width) + "x" +
+              std::to_string(camera.intrinsics.height) +
+              " (choose --camera or --fx/--fy/--cx/--cy for this size)"};
+}
+
+bool SameFocalLength(const core::Forest& forest, double fx, double fy) {
+  return std::abs(fx / forest.training_fx - 1.0) < 1e-4 && std::abs(fy / forest.training_fy - 1.0) < 1e-4;
+}
+
+core::Forest ForestForFocalLength(const core::Forest& forest, double fx, double fy) {
+  core::Forest out = forest;
+  if (SameFocalLength(forest, fx, fy)) return out;
+  const double sx = fx / forest.training_fx, sy = fy / forest.training_fy;
+  // x: exact, through the offset unit (pixels = stored * unit * 1000 / d).
+  out.constants.offset_unit = float(double(forest.constants.offset_unit) * sx);
+  // y: whatever the x scale did not already do.
+  const double ry = sy / sx;
+  if (std::abs(ry - 1.0) > 1e-4) {
+    auto scale = [ry](int16_t v) {
+      const double s = std::round(double(v) * ry);
+      return int16_t(std::clamp(s, -32768.0, 32767.0));
+    };
+    for (core::Tree& tree : out.trees)
+      for (core::Node& n : tree.nodes) {
+        if (n.is_leaf()) continue;
+        n.offsets.uy = scale(n.offsets.uy);
+        n.offsets.vy = scale(n.offsets.vy);
+      }
+  }
+  out.training_fx = float(fx);
+  out.training_fy = float(fy);
+  return out;
+}
+
+}  // namespace poseforest::runtime

@@ -1,0 +1,22 @@
+#pragma once
+// The frame-source options shared by the commands that read depth frames (infer, frames):
+// --camera, --fx/--fy/--cx/--cy, --depth-scale, --raw-size, --fps.
+
+#include "runtime/cli/args.h"
+#include "runtime/core/result.h"
+#include "runtime/frame_source.h"
+
+namespace poseforest::cli {
+
+/// Value options ParseFrameSourceOptions reads.
+inline constexpr const char* kFrameSourceValueOptions[] = {"camera", "fx",          "fy",       "cx",
+                                                           "cy",     "depth-scale", "raw-size", "fps"};
+
+/// Fills `out` from the parsed arguments; errors name the option.
+core::Status ParseFrameSourceOptions(const Args& args, runtime::FrameSourceOptions* out);
+
+/// A number option within [lo, hi]; `fallback` when absent; the error names the option.
+core::Result<double> GetDouble(const Args& args, const std::string& name, double fallback, double lo,
+                               double hi);
+
+}  // namespace poseforest::cli
