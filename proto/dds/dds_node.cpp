@@ -545,9 +545,10 @@ Status DdsNode::Impl::CreateEndpoints() {
         // A reader history far larger than any writer's: it stores (and acknowledges) what
         // arrives however long the application takes to read it. Fast DDS 2.9 never asks again
         // for a sample its full keep-all reader history rejected, so a full reader history
-        // stalled the writer for good (tests/dds/test_dds_transport.cpp shows it); the writer's
-        // own history (KeepAllMax) is the flow control on the wire. Memory grows only with what
-        // is actually queued (PREALLOCATED_WITH_REALLOC).
+        // stalled the writer for good (seen here with histories of 2: the reader emptied its
+        // history and the writer stayed blocked); the writer's own history (KeepAllMax) is the
+        // flow control on the wire. Memory grows only with what is actually queued
+        // (PREALLOCATED_WITH_REALLOC).
         q.resource_limits().max_samples = kKeepAllReaderMaxSamples;
         q.resource_limits().max_samples_per_instance = kKeepAllReaderMaxSamples;
       }
