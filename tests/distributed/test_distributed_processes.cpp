@@ -263,6 +263,8 @@ TEST_CASE("SIGKILL of the coordinator, restart with --resume: same forest",
   REQUIRE(second.Start(resume, &error));
   auto rc = second.Wait(120s);
   INFO(second.output());
+  // The workers' side, for a failure (one CI run saw "0 of 2 workers after 60000 ms" here).
+  INFO("worker rw-0:\n" << w[0].output() << "\nworker rw-1:\n" << w[1].output());
   REQUIRE(rc.has_value());
   REQUIRE(*rc == 0);
   CHECK(second.output().find("tree 0 level 0:") == std::string::npos);  // resumed, not restarted

@@ -102,7 +102,12 @@ cmake)
   "$build/classify_cpp_static" "$inputs/forest.pff" "$inputs/person.raw" "$build/static.labels"
   same "$build/static.labels" "$inputs/person.labels" "C++ program (CMake, static) labels = runtime's"
   ! ldd "$build/classify_cpp_static" | grep -q libposeforest || fail "classify_cpp_static loads libposeforest.so"
-  ldd "$build/classify_c" | grep -q "libposeforest.so.$PF_SOVERSION => $lib/" || fail "classify_c: not linked to $lib"
+  # Compare real paths: CMake may record the prefix through a resolved symlink (CI's /check/work).
+  resolved=$(ldd "$build/classify_c" | awk -v so="libposeforest.so.$PF_SOVERSION" '$1 == so { print $3 }')
+  [[ -n $resolved && $(realpath "$resolved") == "$(realpath "$lib")"/* ]] ||
+    fail "classify_c: not linked to $lib: ldd says '$(ldd "$build/classify_c" | grep poseforest)'," \
+      "RUNPATH '$(readelf -d "$build/classify_c" | grep -E 'R(UN)?PATH')'"
+  echo "ok: classify_c loads $resolved"
   # find_package's version rule: same major.minor (0.x), any patch; not another minor.
   probe=$PF_WORK/version-probe
   mkdir -p "$probe"
