@@ -62,6 +62,10 @@ struct WorkerInfo {
   std::vector<std::pair<uint32_t, uint32_t>> frames;  ///< tree-local [begin, end) ranges
   uint64_t seen_epoch = 0;                            ///< newest shard epoch its heartbeats report
   uint64_t assign_epoch = 0;                          ///< epoch of its current ShardAssignment
+  /// Epoch of the first ShardAssignment with its current frames (a resend repeats them): a
+  /// worker whose heartbeats report it or later has them.
+  uint64_t frames_epoch = 0;
+  int resends = 0;  ///< of the current frames' assignment
   double assign_time = 0;
 };
 
@@ -357,7 +361,8 @@ struct DistCoordinator::Impl {
   }
 
   /// Sends `w` its ShardAssignment, then the tree's decisions so far (the worker replays them).
-  Status SendAssignment(WorkerInfo& w, uint32_t index, uint32_t count) {
+  /// `again`: the same frames once more (the worker's heartbeats do not show it got them).
+  Status SendAssignment(WorkerInfo& w, uint32_t index, uint32_t count, bool again = false) {
     v1::Envelope env;
     env.set_recipient_id(w.id);
     auto* s = env.mutable_shard();
@@ -384,6 +389,12 @@ struct DistCoordinator::Impl {
     w.assigned = true;
     w.assign_epoch = s->epoch();
     w.assign_time = NowSeconds();
+    if (again) {
+      ++w.resends;
+    } else {
+      w.frames_epoch = s->epoch();
+      w.resends = 0;
+    }
     if (opt.observer) {
       uint64_t frames = 0;
       for (auto [b, e] : w.frames) frames += e - b;
@@ -468,14 +479,18 @@ struct DistCoordinator::Impl {
           for (auto& [id, w] : workers)
             if (w.assigned && w.alive && !replies.count(id)) MarkLost(id, "no reply");
         if (!orphan_frames.empty()) break;  // someone was lost: redistribute and ask again
-        // A worker whose heartbeats still do not show its assignment missed it (its control
-        // reader matched after we wrote): send it again and ask the round again.
+        // A worker whose heartbeats show none of the assignments of its current frames missed
+        // them (its control reader matched after we wrote): send it again, after 3 s, then 6,
+        // 12, .. at most 30 s apart, and ask the round again. One that got any of them has its
+        // frames: it is loading them or busy, and is waited for (resending to a busy worker
+        // every 3 s, each with a new epoch, made it load each in turn: the livelock of issue
+        // 13's run of record; the worker also skips to the newest one queued).
         bool resent = false;
         for (auto& [id, w] : workers)
-          if (w.assigned && w.alive && !replies.count(id) && w.seen_epoch < w.assign_epoch &&
-              NowSeconds() - w.assign_time > 3.0) {
+          if (w.assigned && w.alive && !replies.count(id) && w.seen_epoch < w.frames_epoch &&
+              NowSeconds() - w.assign_time > std::min(30.0, 3.0 * double(1 << std::min(w.resends, 4)))) {
             Log("worker " + id + " has not seen its assignment: sending it again");
-            POSEFOREST_RETURN_IF_ERROR(SendAssignment(w, 0, 1));
+            POSEFOREST_RETURN_IF_ERROR(SendAssignment(w, 0, 1, /*again=*/true));
             resent = true;
           }
         if (resent) break;

@@ -136,6 +136,9 @@ struct DistWorker::Impl {
   dds::EnvelopeStamper stamper;
   std::atomic<bool> has_job{false}, assigned_any{false}, busy{false};
   std::atomic<uint64_t> newest_epoch{0}, frames_rendered{0}, shard_epoch{0}, received_shard_epoch{0};
+  /// Decisions and level requests below this epoch belong to a skipped assignment (Dispatch).
+  uint64_t skip_below_epoch = 0;
+  std::string control_writer;  ///< the coordinator's control writer (GUID), once heard
   std::atomic<v1::RendererKind> renderer{v1::RENDERER_KIND_PROCEDURAL};
   std::atomic<uint64_t> evaluations{0};  ///< sample x candidate evaluations binned (heartbeats)
 
@@ -333,6 +336,8 @@ struct DistWorker::Impl {
     assigned_any = false;
     shard_epoch = 0;
     received_shard_epoch = 0;
+    skip_below_epoch = 0;
+    control_writer.clear();
     has_job = true;
     Log("joined job " + job_id + " of " + coordinator_id + ": " + worker::DescribeParams(params));
   }
@@ -357,6 +362,8 @@ struct DistWorker::Impl {
     }
     std::sort(wanted.begin(), wanted.end());
     wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+    ++cpu.shard_loads;
+    if (opt.hold_in_shard_load) opt.hold_in_shard_load();
     if (int(s.tree()) != tree) cache.clear();
     tree = int(s.tree());
     have_shard = false;
@@ -1046,7 +1053,26 @@ struct DistWorker::Impl {
     auto out = gate->Check(s.topic, s.bytes, s.writer_guid);
     gate_timer.reset();
     if (out.verdict != dds::MessageGate::Verdict::kAccepted) return;
+    if (s.topic == Topic::kControl && out.sender == coordinator_id) control_writer = s.writer_guid;
     Dispatch(out.envelope, out.sender);
+  }
+
+  /// The newest epoch above `epoch` of a ShardAssignment for this worker waiting in the inbox,
+  /// written by the coordinator's control writer (the gate checked that writer's earlier
+  /// messages; these are only looked at, and pass the gate when their turn comes); 0: none.
+  uint64_t NewerQueuedShard(uint64_t epoch) {
+    if (control_writer.empty()) return 0;
+    uint64_t newest = 0;
+    std::lock_guard<std::mutex> lock(inbox_mu);
+    for (const dds::ReceivedSample& q : inbox) {
+      // Assignments are small (a few ranges); big samples are replies, tasks or decisions.
+      if (q.topic != Topic::kControl || q.writer_guid != control_writer || q.bytes.size() > (64u << 10)) continue;
+      v1::Envelope peek;
+      if (!peek.ParseFromArray(q.bytes.data(), int(q.bytes.size())) || !peek.has_shard()) continue;
+      if (peek.recipient_id() == opt.worker_id && peek.job_id() == job_id && peek.shard().epoch() > epoch)
+        newest = std::max<uint64_t>(newest, peek.shard().epoch());
+    }
+    return newest;
   }
 
   /// Messages taken off DDS while collecting a batch of SubtreeTasks, handled next (in order).
@@ -1103,18 +1129,34 @@ struct DistWorker::Impl {
   void Dispatch(const v1::Envelope& env, const std::string& sender) {
     Status st;
     switch (env.body_case()) {
-      case v1::Envelope::kShard:
-        newest_epoch = std::max<uint64_t>(newest_epoch, env.shard().epoch());
-        received_shard_epoch = std::max<uint64_t>(received_shard_epoch, env.shard().epoch());
+      case v1::Envelope::kShard: {
+        if (opt.hold_before_shard) opt.hold_before_shard();
+        const uint64_t e = env.shard().epoch();
+        newest_epoch = std::max<uint64_t>(newest_epoch, e);
+        received_shard_epoch = std::max<uint64_t>(received_shard_epoch, e);
         assigned_any = true;  // heartbeats (with the epochs) from now on, also while it loads
+        // A newer assignment for us already queued (the coordinator sent it again while we were
+        // busy): load that one only. Loading each in turn, slower than the coordinator re-sent
+        // them, was the livelock of issue 13's run of record. The decisions replayed and the
+        // level requests between the two are obsolete: the newer one is followed by its own.
+        if (const uint64_t newer = NewerQueuedShard(e); newer > 0) {
+          skip_below_epoch = std::max(skip_below_epoch, newer);
+          ++cpu.shards_skipped;
+          Log("assignment of epoch " + std::to_string(e) + " skipped: epoch " + std::to_string(newer) +
+              " is queued");
+          break;
+        }
         st = LoadShard(env.shard());
-        if (st.ok()) shard_epoch = env.shard().epoch();
+        if (st.ok()) shard_epoch = e;
         break;
+      }
       case v1::Envelope::kDecisions:
+        if (env.decisions().epoch() < skip_below_epoch) break;  // replayed for a skipped assignment
         if (have_shard && int(env.decisions().tree()) == tree) st = ApplyDecisions(env.decisions());
         break;
       case v1::Envelope::kLevelRequest:
         newest_epoch = std::max<uint64_t>(newest_epoch, env.level_request().epoch());
+        if (env.level_request().epoch() < skip_below_epoch) break;  // asked again after the newer one
         if (have_shard && int(env.level_request().tree()) == tree) st = Answer(env.level_request());
         break;
       case v1::Envelope::kSubtreeTask:

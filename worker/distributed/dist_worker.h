@@ -55,6 +55,12 @@ struct WorkerOptions {
   /// Tests: called on the training thread when subtree tasks arrive, before they are trained
   /// (a test sleeps in it: a worker busy in a long batch while the coordinator goes on sending).
   std::function<void()> hold_on_subtree_task;
+  /// Tests: called on the training thread when a ShardAssignment is taken off the queue, before
+  /// it counts as received (a test sleeps in it: a worker busy elsewhere while assignments queue).
+  std::function<void()> hold_before_shard;
+  /// Tests: called when a ShardAssignment is loaded, before its frames are rendered (a test
+  /// sleeps in it: a slow load, as at 2,000 images per tree).
+  std::function<void()> hold_in_shard_load;
   /// Tests: the next this many SubtreeResults are tampered with after they are built (a root
   /// at the wrong position, then part counts that do not add up), still well-formed for the
   /// gate: a hostile worker.
@@ -79,6 +85,8 @@ struct WorkerCpu {
   double publish = 0;           ///< serializing envelopes and writing them (DDS), waits for a match
   double run_total = 0;         ///< process CPU spent from Run()'s start to its end (all threads)
   uint64_t shard_frames = 0;    ///< frames rendered/loaded for shards
+  uint64_t shard_loads = 0;     ///< ShardAssignments loaded
+  uint64_t shards_skipped = 0;  ///< ShardAssignments skipped: a newer one for this worker was queued
   uint64_t task_frames = 0;     ///< frames rendered for SubtreeTasks
   uint64_t task_frames_cached = 0;  ///< task frames found in the shard or the task cache
   uint64_t subtree_tasks = 0;
