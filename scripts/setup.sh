@@ -18,6 +18,7 @@ training_pkgs=(
   libssl-dev curl                           # HTTPS of the coordinator's status server; test_https's second client
   python3-yaml                              # test_deploy: reads deploy/k8s manifests
   chromium                                  # the coordinator dashboard's headless-browser test
+  prometheus                                # promtool: test_monitoring checks /metrics (its server is not started)
   python3-sklearn python3-matplotlib        # bench/train's side-by-side learner, docs plots (/usr/bin/python3)
   libfreenect-dev libfreenect-bin           # optional Kinect v1 back end + fakenect (its replay library) for test_freenect
   libopenni2-dev                            # optional OpenNI2 back end (test_openni2 uses its Dummy driver)

@@ -441,8 +441,14 @@ std::string StatusModel::Json() const {
 std::string StatusModel::Prometheus() const {
   std::lock_guard<std::mutex> lock(mu_);
   const double now = SteadySeconds();
-  const std::string job = "job=\"" + Label(info_.job_id) + "\"";
-  std::string m;
+  // Prometheus attaches its own `job` label (the scrape job) to every sample; a target's own
+  // `job` label would clash with it (renamed exported_job, or overriding it with honor_labels), so
+  // ours is exported_job from the start.
+  const std::string job = "exported_job=\"" + Label(info_.job_id) + "\"";
+  std::string m =
+      "# HELP poseforest_build_info The poseforest build serving these metrics (always 1).\n"
+      "# TYPE poseforest_build_info gauge\n"
+      "poseforest_build_info{version=\"" POSEFOREST_BUILD_VERSION "\"} 1\n";
   auto metric = [&](const std::string& name, const std::string& type, const std::string& help,
                     const std::vector<std::pair<std::string, double>>& samples) {
     m += "# HELP " + name + " " + help + "\n# TYPE " + name + " " + type + "\n";
@@ -474,10 +480,11 @@ std::string StatusModel::Prometheus() const {
          "Sample x candidate evaluations per second over the last levels.", {{"", evaluations_per_s_}});
   const double gain = levels_.empty() ? 0 : levels_.back().mean_gain;
   const double entropy = levels_.empty() ? 0 : levels_.back().mean_entropy;
-  metric("poseforest_level_mean_gain_bits", "gauge", "Mean information gain of the last level's splits.",
+  metric("poseforest_level_mean_information_gain", "gauge",
+         "Mean information gain of the last level's splits (bits; not in the name: promtool's lint reads bits as data).",
          {{"", gain}});
-  metric("poseforest_level_mean_entropy_bits", "gauge",
-         "Sample-weighted part entropy of the last level's frontier.", {{"", entropy}});
+  metric("poseforest_level_mean_part_entropy", "gauge",
+         "Sample-weighted part entropy of the last level's frontier (bits).", {{"", entropy}});
   metric("poseforest_levels_total", "counter", "Levels finished.", {{"", double(total_levels_)}});
   metric("poseforest_samples_total", "counter", "Frontier samples over all finished levels.",
          {{"", double(total_samples_)}});

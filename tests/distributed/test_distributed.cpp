@@ -98,7 +98,7 @@ TEST_CASE("a garbage writer on the replies and presence topics does not break th
   auto garbage = dds::DdsNode::Create(gc);
   REQUIRE(garbage.ok());
   std::atomic<bool> done{false};
-  std::atomic<int> sent{0};
+  std::atomic<int> sent{0}, sent_matched{0};  // sent_matched: while a reader was matched
   std::thread writer([&] {
     std::mt19937 rng(3);
     dds::EnvelopeStamper stamper(job_id, "evil", v1::SENDER_KIND_WORKER);
@@ -125,20 +125,34 @@ TEST_CASE("a garbage writer on the replies and presence topics does not break th
           bytes = stamper.Seal(dds::Topic::kPresence, env);
         }
       }
-      (void)(*garbage)->Publish(i % 3 == 0 ? dds::Topic::kPresence : dds::Topic::kReplies, bytes);
+      const dds::Topic topic = i % 3 == 0 ? dds::Topic::kPresence : dds::Topic::kReplies;
+      const bool matched = (*garbage)->MatchedReaders(topic) > 0;
+      (void)(*garbage)->Publish(topic, bytes);
       ++sent;
+      if (matched) ++sent_matched;
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     }
   });
   CoordinatorOptions o = Options(domain, 2);
   o.job_id = job_id;
+  // A volatile writer's samples before the match are lost, and matching can take seconds on a
+  // loaded machine (once the whole job was over first: 0 rejected). After the first level, wait
+  // until the garbage has been flowing to a matched reader for a while.
+  bool waited = false;
+  o.progress = [&](const DistLevelStats&) {
+    if (waited) return;
+    waited = true;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (sent_matched < 60 && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  };
   DistCoordinator coordinator(job.config, job.params, o);
   auto forest = coordinator.Train();
   done = true;
   writer.join();
   REQUIRE(forest.ok());
   CHECK(core::SerializeForest(*forest) == reference);
-  CHECK(sent > 0);
+  CHECK(sent_matched >= 60);
   CHECK(coordinator.rejected_messages() > 0);
 }
 

@@ -115,6 +115,21 @@ void CheckPrometheusSyntax(const std::string& text) {
     }
   }
   CHECK(samples > 20);
+  // Prometheus sets `job` itself: none of ours (issue 17); the build's own series.
+  CHECK(text.find("{job=") == std::string::npos);
+  CHECK(text.find(",job=") == std::string::npos);
+  CHECK(text.find("poseforest_build_info{version=\"") != std::string::npos);
+}
+
+/// `promtool check metrics` (Debian's prometheus package): the text parses, and its lint (names,
+/// units, counter suffixes, HELP) finds nothing.
+void CheckWithPromtool(const std::string& text, const fs::path& dir) {
+  const fs::path file = dir / "metrics.txt";
+  std::ofstream(file) << text;
+  auto r = poseforest::testing::RunCommand("promtool check metrics < " + file.string());
+  INFO("promtool check metrics:\n" << r.output);
+  CHECK(r.exit_code == 0);
+  CHECK(r.output.find_first_not_of(" \n") == std::string::npos);  // no lint findings
 }
 
 std::vector<pb::Struct> EventLines(const fs::path& p) {
@@ -354,11 +369,12 @@ TEST_CASE(
   auto metrics = HttpGet(url + "/metrics", 5s);
   REQUIRE(metrics.ok());
   CheckPrometheusSyntax(*metrics);
-  CHECK(metrics->find("poseforest_job_state{job=\"" + job_id + "\",state=\"training\"} 1") !=
+  CheckWithPromtool(*metrics, dir.path);
+  CHECK(metrics->find("poseforest_job_state{exported_job=\"" + job_id + "\",state=\"training\"} 1") !=
         std::string::npos);
   CHECK(metrics->find("# TYPE poseforest_evaluations_total counter") != std::string::npos);
   CHECK(CountLines(*metrics, "poseforest_worker_up{") == 2);
-  CHECK(metrics->find("poseforest_workers{job=\"" + job_id + "\",state=\"training\"} 2") !=
+  CHECK(metrics->find("poseforest_workers{exported_job=\"" + job_id + "\",state=\"training\"} 2") !=
         std::string::npos);
   // `poseforest monitor --once`.
   auto mon = poseforest::testing::RunPoseforest("monitor --once --url " + url);
@@ -401,9 +417,9 @@ TEST_CASE(
   for (const auto& w : List(done, "workers").values()) CHECK(Str(w.struct_value(), "state") == "done");
   auto final_metrics = HttpGet(url + "/metrics", 5s);
   REQUIRE(final_metrics.ok());
-  CHECK(final_metrics->find("poseforest_job_state{job=\"" + job_id + "\",state=\"done\"} 1") !=
+  CHECK(final_metrics->find("poseforest_job_state{exported_job=\"" + job_id + "\",state=\"done\"} 1") !=
         std::string::npos);
-  CHECK(final_metrics->find("poseforest_job_progress_ratio{job=\"" + job_id + "\"} 1") != std::string::npos);
+  CHECK(final_metrics->find("poseforest_job_progress_ratio{exported_job=\"" + job_id + "\"} 1") != std::string::npos);
   auto mon_done = poseforest::testing::RunPoseforest("monitor --url " + url);  // exits on "done"
   CHECK(mon_done.exit_code == 0);
   CHECK(mon_done.output.find("state done") != std::string::npos);
@@ -1099,7 +1115,7 @@ TEST_CASE("/metrics shows each worker's subtree-task frames of the current tree"
   model.OnWorkerHeartbeat("w-a", beat);
   const std::string m = model.Prometheus();
   CHECK(m.find("# TYPE poseforest_worker_task_frames_rendered gauge") != std::string::npos);
-  CHECK(m.find("poseforest_worker_task_frames_rendered{job=\"job-1\",worker=\"w-a\",tree=\"2\"} 1234") != std::string::npos);
-  CHECK(m.find("poseforest_worker_task_frames_cached{job=\"job-1\",worker=\"w-a\",tree=\"2\"} 5678") != std::string::npos);
-  CHECK(m.find("poseforest_worker_task_cache_evictions{job=\"job-1\",worker=\"w-a\",tree=\"2\"} 91") != std::string::npos);
+  CHECK(m.find("poseforest_worker_task_frames_rendered{exported_job=\"job-1\",worker=\"w-a\",tree=\"2\"} 1234") != std::string::npos);
+  CHECK(m.find("poseforest_worker_task_frames_cached{exported_job=\"job-1\",worker=\"w-a\",tree=\"2\"} 5678") != std::string::npos);
+  CHECK(m.find("poseforest_worker_task_cache_evictions{exported_job=\"job-1\",worker=\"w-a\",tree=\"2\"} 91") != std::string::npos);
 }
