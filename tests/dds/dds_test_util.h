@@ -21,13 +21,15 @@
 #include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
 #include "runtime/core/crc32.h"
+#include "tests/support/dds_domain.h"
 
 extern char** environ;
 
 namespace poseforest::dds::testing {
 
-/// A domain id unlikely to collide with parallel test processes (pid based, 1..200) plus `offset`.
-inline uint32_t TestDomain(uint32_t offset = 0) { return 1 + (uint32_t(::getpid()) * 7 + offset) % 200; }
+/// A domain no parallel test process uses (tests/support/dds_domain.h); the same `offset` gives
+/// the same domain within a process. (Keys 1000+: apart from the distributed tests' Domain().)
+inline uint32_t TestDomain(uint32_t offset = 0) { return poseforest::testing::UniqueDomain(1000 + offset); }
 
 /// The folder of the built test programs and helpers.
 inline std::filesystem::path HelperDir() {

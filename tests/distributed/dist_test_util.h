@@ -18,6 +18,7 @@
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/forest_format.h"
 #include "worker/distributed/dist_worker.h"
+#include "tests/support/dds_domain.h"
 #include "worker/job_spec.h"
 
 namespace poseforest::dist::testing {
@@ -82,7 +83,9 @@ inline std::vector<uint8_t> ReferenceBytes(const Job& job) {
 }
 
 /// A domain id unlikely to collide with parallel test processes.
-inline uint32_t Domain(uint32_t offset) { return 1 + (uint32_t(::getpid()) * 13 + offset * 31) % 200; }
+/// A domain no parallel test process uses (tests/support/dds_domain.h); the same `offset` gives
+/// the same domain within a process.
+inline uint32_t Domain(uint32_t offset) { return poseforest::testing::UniqueDomain(offset); }
 
 /// N DistWorkers on threads; stopped and joined on destruction.
 class ThreadWorkers {
