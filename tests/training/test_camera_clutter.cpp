@@ -28,9 +28,9 @@ const std::string& TrainedForest() {
   static const std::string path = [] {
     const fs::path dir = testing::ScratchDir("camera-clutter-forest");
     const std::string job = (dir / "job.textproto").string(), forest = (dir / "forest.pff").string();
-    std::ofstream(job) << "seed: 4 num_trees: 1 max_depth: 14 images_per_tree: 40 pixels_per_image: 500\n"
-                          "candidate_features: 60 thresholds_per_feature: 12\n"
-                          "source { rendered { seed: 1 kinect_noise: false } }\n";
+    std::ofstream(job) << "seed: 4 num_trees: 1 max_depth: 20 images_per_tree: 200 pixels_per_image: 1000\n"
+                          "candidate_features: 150 thresholds_per_feature: 20\n"
+                          "source { rendered { seed: 1 kinect_noise: false rotation_range_deg: 20 } }\n";
     auto train = RunPoseforest("train " + job + " --out " + forest + " --quiet");
     INFO(train.output);
     REQUIRE(train.exit_code == 0);
@@ -79,6 +79,7 @@ TEST_CASE("frames of another focal length classify like the training camera's af
   REQUIRE(forest->training_fx == float(core::kKinectV1FocalPx));
   renderer::SceneConfig kinect;
   kinect.noise.enabled = false;
+  kinect.rotation_range_deg = 20;  // as trained: a narrower problem, so a tiny forest learns it
   auto v1 = renderer::SyntheticRenderer::Create(kinect);
   REQUIRE(v1.ok());
   const double acc_v1 = PixelAccuracy(*forest, **v1, 77, 8);
@@ -102,11 +103,13 @@ TEST_CASE("frames of another focal length classify like the training camera's af
               << ", not rescaled " << acc_plain);
     std::printf("%s: per-pixel accuracy kinect-v1 frames %.3f; %s frames rescaled %.3f, not rescaled %.3f\n",
                 name.c_str(), acc_v1, name.c_str(), acc_rescaled, acc_plain);
-    CHECK(acc_v1 > 0.3);  // the forest learned something
-    // Within 15% (relative) of the training camera's accuracy ...
-    CHECK(acc_rescaled > 0.85 * acc_v1);
-    // ... and clearly better than the same forest without rescaling.
-    CHECK(acc_rescaled > acc_plain + 0.08);
+    CHECK(acc_v1 > 0.3);  // the forest learned something (31 parts: chance is about 0.03)
+    // Within 10% (relative) of the training camera's accuracy (measured: 5%) ...
+    CHECK(acc_rescaled > 0.9 * acc_v1);
+    // ... and clearly better than the same forest without rescaling: at least 5 points, and at
+    // least 3/4 of what the other focal length costs is won back.
+    CHECK(acc_rescaled > acc_plain + 0.05);
+    CHECK(acc_rescaled - acc_plain > 0.75 * (acc_v1 - acc_plain));
   }
 }
 
