@@ -404,7 +404,7 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
   e.segmented = options.segment != Segment::kOff && (*src)->has_masks();
   // Frames of another focal length: the forest's offsets rescaled (runtime/camera_model.h).
   e.camera = (*src)->camera();
-  e.rescaled = !runtime::SameFocalLength(forest, e.camera.fx, e.camera.fy);
+  e.rescaled = options.rescale && !runtime::SameFocalLength(forest, e.camera.fx, e.camera.fy);
   const core::Forest scaled = e.rescaled ? runtime::ForestForFocalLength(forest, e.camera.fx, e.camera.fy)
                                          : core::Forest();
   const core::Forest& model = e.rescaled ? scaled : forest;

@@ -103,6 +103,9 @@ struct JointEvalOptions {
   /// Segmentation: kAuto scores it when the frames have person masks (a render folder with
   /// mask_%06d.png), kOn requires masks, kOff never.
   enum class Segment { kAuto, kOn, kOff } segment = Segment::kAuto;
+  /// Rescale the forest's offsets to the frames' focal length when it differs from the forest's
+  /// training focal length (runtime::ForestForFocalLength); false only to measure what that buys.
+  bool rescale = true;
   std::function<void(int done, int total)> progress;
 };
 

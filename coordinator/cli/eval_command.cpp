@@ -5,6 +5,7 @@
 #include <string>
 
 #include "coordinator/evaluation.h"
+#include "runtime/camera_model.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
 #include "runtime/core/forest_format.h"
@@ -53,6 +54,8 @@ options:
                     accuracy after segmentation next to those on the frames masked by the
                     ground truth (clean); on: require masks; off: never
   --per-person      list each person's segmentation IoU
+  --no-rescale      keep the forest's offsets as trained even when the frames' camera (camera.txt)
+                    has another focal length (to measure what the rescaling buys)
   --quiet           no progress lines
   --help            this text
 )";
@@ -60,7 +63,7 @@ options:
 
 int EvalMain(int argc, char** argv) {
   Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png", "segment"},
-            {"help", "quiet", "per-person"});
+            {"help", "quiet", "per-person", "no-rescale"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -112,6 +115,7 @@ int EvalMain(int argc, char** argv) {
   eo.threads = int(*threads);
   eo.people = int(*people);
   eo.fast = method == "both";
+  eo.rescale = !args.Has("no-rescale");
   eo.segment = segment == "on"    ? coordinator::JointEvalOptions::Segment::kOn
                : segment == "off" ? coordinator::JointEvalOptions::Segment::kOff
                                   : coordinator::JointEvalOptions::Segment::kAuto;
@@ -156,6 +160,9 @@ int EvalMain(int argc, char** argv) {
       }
     }
   }
+  if (!e->rescaled && !runtime::SameFocalLength(*forest, e->camera.fx, e->camera.fy))
+    std::printf("\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) was NOT rescaled (--no-rescale)\n",
+                e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
   if (e->rescaled)
     std::printf("\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) had its offsets rescaled\n",
                 e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
