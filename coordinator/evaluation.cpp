@@ -64,9 +64,10 @@ class DatasetEvalSource final : public EvalFrameSource {
     EvalFrame out{std::move(f->depth), std::move(f->labels), {}, {}};
     if (out.depth.width != camera_.width || out.depth.height != camera_.height)
       return Status(ErrorCode::kInvalidArgument,
-                    IndexedPath(spec_.folder, "depth", file, "png") + " is " + std::to_string(out.depth.width) +
-                        "x" + std::to_string(out.depth.height) + " but the folder's camera is " +
-                        std::to_string(camera_.width) + "x" + std::to_string(camera_.height));
+                    IndexedPath(spec_.folder, "depth", file, "png") + " is " +
+                        std::to_string(out.depth.width) + "x" + std::to_string(out.depth.height) +
+                        " but the folder's camera is " + std::to_string(camera_.width) + "x" +
+                        std::to_string(camera_.height));
     if (joints_) {
       auto people = ReadJointsJson(IndexedPath(spec_.folder, "joints", file, "json"));
       if (!people.ok()) return people.status();
@@ -80,7 +81,8 @@ class DatasetEvalSource final : public EvalFrameSource {
       if (!png.ok()) return png.status();
       if (png->bit_depth != 8 || png->channels != 1 || png->width != out.depth.width ||
           png->height != out.depth.height)
-        return Status(ErrorCode::kDataLoss, path + ": a person mask must be 8-bit greyscale of the depth's size");
+        return Status(ErrorCode::kDataLoss,
+                      path + ": a person mask must be 8-bit greyscale of the depth's size");
       out.person_masks = core::LabelImage(png->width, png->height);
       out.person_masks.pixels = std::move(png->samples8);
     }
@@ -399,14 +401,15 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
   using Segment = JointEvalOptions::Segment;
   if (options.segment == Segment::kOn && !(*src)->has_masks())
     return Status(ErrorCode::kInvalidArgument,
-                  (*src)->Describe() + ": has no ground-truth person masks (render with --clutter, "
-                                       "--occluders or --masks)");
+                  (*src)->Describe() +
+                      ": has no ground-truth person masks (render with --clutter, "
+                      "--occluders or --masks)");
   e.segmented = options.segment != Segment::kOff && (*src)->has_masks();
   // Frames of another focal length: the forest's offsets rescaled (runtime/camera_model.h).
   e.camera = (*src)->camera();
   e.rescaled = options.rescale && !runtime::SameFocalLength(forest, e.camera.fx, e.camera.fy);
-  const core::Forest scaled = e.rescaled ? runtime::ForestForFocalLength(forest, e.camera.fx, e.camera.fy)
-                                         : core::Forest();
+  const core::Forest scaled =
+      e.rescaled ? runtime::ForestForFocalLength(forest, e.camera.fx, e.camera.fy) : core::Forest();
   const core::Forest& model = e.rescaled ? scaled : forest;
   e.distance_m = options.distance_m;
   e.ran_fast = options.fast;

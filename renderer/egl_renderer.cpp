@@ -51,8 +51,8 @@ void main() {
 }
 )";
 
-// Depth (mm, 16 bits) in R and G, the label in B, the person id in A: exact through an RGBA8 attachment because
-// k / 255 converts back to k, and one glReadPixels of 4 bytes per pixel returns everything.
+// Depth (mm, 16 bits) in R and G, the label in B, the person id in A: exact through an RGBA8 attachment
+// because k / 255 converts back to k, and one glReadPixels of 4 bytes per pixel returns everything.
 constexpr const char* kFragmentShader = R"(#version 300 es
 precision highp float;
 precision highp int;

@@ -64,7 +64,8 @@ class EglRenderer {
   /// Reads the frame back: depth in mm (rounded linear camera z; 0 = nothing) and labels, and
   /// when `people` is given the `person` of the nearest draw per pixel (0 = none).
   /// A GL error (e.g. out of memory) is returned as a Status.
-  core::Status ReadFrame(core::DepthImage* depth, core::LabelImage* labels, core::LabelImage* people = nullptr);
+  core::Status ReadFrame(core::DepthImage* depth, core::LabelImage* labels,
+                         core::LabelImage* people = nullptr);
 
   const core::CameraIntrinsics& camera() const { return camera_; }
 

@@ -40,10 +40,10 @@ struct NoiseConfig {
 /// Clutter around the people, for test frames of segmentation (docs/renderer/clutter.md). Off by
 /// default; drawn from its own random stream, so turning it on changes nothing else in a scene.
 struct ClutterConfig {
-  bool floor = false;  ///< the ground plane the people stand on
-  bool walls = false;  ///< a back wall 0.5-1.5 m behind the furthest person, and a side wall
-  bool boxes = false;  ///< 1-3 boxes (0.3-0.9 m wide, 0.3-1.2 m tall) on the floor, away from people
-  int occluders = 0;   ///< boxes standing between the camera and a person, hiding part of them
+  bool floor = false;         ///< the ground plane the people stand on
+  bool walls = false;         ///< a back wall 0.5-1.5 m behind the furthest person, and a side wall
+  bool boxes = false;         ///< 1-3 boxes (0.3-0.9 m wide, 0.3-1.2 m tall) on the floor, away from people
+  int occluders = 0;          ///< boxes standing between the camera and a person, hiding part of them
   double max_depth_m = 10.0;  ///< clutter further than this gives no reading (depth 0), metres
 
   bool enabled() const { return floor || walls || boxes || occluders > 0; }

@@ -268,7 +268,8 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
   camera_from_world.translate(Eigen::Vector3d(0, -cam_h, 0));
   for (auto& person : scene.people) person.camera_from_body = camera_from_world * person.camera_from_body;
   scene.camera_from_world = camera_from_world;
-  if (c.clutter.enabled()) scene.clutter = SampleClutter(c.clutter, seed, index, half_fov_tan, floor_positions);
+  if (c.clutter.enabled())
+    scene.clutter = SampleClutter(c.clutter, seed, index, half_fov_tan, floor_positions);
   return scene;
 }
 

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <sstream>
 #include <numbers>
+#include <sstream>
 
 namespace poseforest::runtime {
 namespace {
@@ -88,10 +88,11 @@ core::Status CheckFrameSize(const CameraModel& camera, int width, int height, co
 core::Status WriteCameraModelFile(const std::string& path, const CameraModel& camera) {
   const core::CameraIntrinsics& k = camera.intrinsics;
   char buf[320];
-  std::snprintf(buf, sizeof buf,
-                "# poseforest camera model: name width height fx fy cx cy (pixels)\n%s %d %d %.17g %.17g %.17g "
-                "%.17g\n",
-                camera.name.c_str(), k.width, k.height, k.fx, k.fy, k.cx, k.cy);
+  std::snprintf(
+      buf, sizeof buf,
+      "# poseforest camera model: name width height fx fy cx cy (pixels)\n%s %d %d %.17g %.17g %.17g "
+      "%.17g\n",
+      camera.name.c_str(), k.width, k.height, k.fx, k.fy, k.cx, k.cy);
   std::ofstream out(path, std::ios::binary);
   out << buf;
   if (!out) return {core::ErrorCode::kIo, path + ": write failed"};
@@ -112,8 +113,10 @@ core::Result<CameraModel> ReadCameraModelFile(const std::string& path) {
         k.width <= 0 || k.height <= 0 || k.width > 32768 || k.height > 32768 || !(k.fx > 0) || !(k.fy > 0) ||
         !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) || !std::isfinite(k.cy))
       return core::Status(core::ErrorCode::kDataLoss,
-                          path + ": expected \"NAME WIDTH HEIGHT FX FY CX CY\" with a positive size and focal "
-                                 "lengths, got '" + line + "'");
+                          path +
+                              ": expected \"NAME WIDTH HEIGHT FX FY CX CY\" with a positive size and focal "
+                              "lengths, got '" +
+                              line + "'");
     return m;
   }
   return core::Status(core::ErrorCode::kDataLoss, path + ": no camera line");

@@ -62,8 +62,9 @@ options:
 }  // namespace
 
 int EvalMain(int argc, char** argv) {
-  Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png", "segment"},
-            {"help", "quiet", "per-person", "no-rescale"});
+  Args args(
+      {"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png", "segment"},
+      {"help", "quiet", "per-person", "no-rescale"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -161,11 +162,14 @@ int EvalMain(int argc, char** argv) {
     }
   }
   if (!e->rescaled && !runtime::SameFocalLength(*forest, e->camera.fx, e->camera.fy))
-    std::printf("\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) was NOT rescaled (--no-rescale)\n",
-                e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
+    std::printf(
+        "\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) was NOT rescaled "
+        "(--no-rescale)\n",
+        e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
   if (e->rescaled)
-    std::printf("\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) had its offsets rescaled\n",
-                e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
+    std::printf(
+        "\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) had its offsets rescaled\n",
+        e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
   if (e->segmented) {
     std::printf("\nsegmentation (runtime people segmentation vs the ground-truth person masks):\n");
     if (args.Has("per-person"))
@@ -173,10 +177,11 @@ int EvalMain(int argc, char** argv) {
         std::printf("  frame %d person %d: %d px, IoU %.3f\n", p.frame, p.person, p.pixels, p.iou);
     int good = 0;
     for (const auto& p : e->segmentation) good += p.iou >= 0.5;
-    std::printf("segmentation: %zu people, mean IoU %.3f, %d with IoU >= 0.5; right person count in %d/%d "
-                "frames; %.1f ms/frame\n",
-                e->segmentation.size(), e->MeanIoU(), good, e->frames_right_count, e->frames,
-                e->segment_ms / std::max(1, e->frames));
+    std::printf(
+        "segmentation: %zu people, mean IoU %.3f, %d with IoU >= 0.5; right person count in %d/%d "
+        "frames; %.1f ms/frame\n",
+        e->segmentation.size(), e->MeanIoU(), good, e->frames_right_count, e->frames,
+        e->segment_ms / std::max(1, e->frames));
     const bool ap = e->has_joints && method != "none";
     auto line = [&](const char* what, const coordinator::ConfusionMatrix& m,
                     const runtime::JointApEvaluator& j) {

@@ -107,10 +107,11 @@ std::string JointsJson(const renderer::RenderedFrame& f, const core::CameraIntri
 }  // namespace
 
 int RenderMain(int argc, char** argv) {
-  Args args({"out", "count", "seed", "threads", "rotation", "people", "montage", "poses", "clips",
-             "test-fraction", "split-seed", "bodies", "data", "camera", "fx", "fy", "cx", "cy", "clutter",
-             "occluders"},
-            {"no-noise", "masks", "help"});
+  Args args(
+      {"out",           "count",      "seed",   "threads", "rotation", "people", "montage", "poses", "clips",
+       "test-fraction", "split-seed", "bodies", "data",    "camera",   "fx",     "fy",      "cx",    "cy",
+       "clutter",       "occluders"},
+      {"no-noise", "masks", "help"});
   if (core::Status st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest render: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -210,8 +211,9 @@ int RenderMain(int argc, char** argv) {
       } else if (item == "boxes") {
         config.clutter.boxes = true;
       } else {
-        std::fprintf(stderr, "poseforest render: --clutter takes floor, walls and boxes (comma-separated), not '%s'\n",
-                     item.c_str());
+        std::fprintf(
+            stderr, "poseforest render: --clutter takes floor, walls and boxes (comma-separated), not '%s'\n",
+            item.c_str());
         return 2;
       }
       start = comma + 1;
@@ -326,7 +328,8 @@ int RenderMain(int argc, char** argv) {
       }
     }
   };
-  if (core::Status st = runtime::WriteCameraModelFile((std::filesystem::path(*out) / "camera.txt").string(), camera);
+  if (core::Status st =
+          runtime::WriteCameraModelFile((std::filesystem::path(*out) / "camera.txt").string(), camera);
       !st.ok()) {
     std::fprintf(stderr, "poseforest render: %s\n", st.ToString().c_str());
     return 1;

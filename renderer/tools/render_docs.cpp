@@ -207,8 +207,9 @@ int main(int argc, char** argv) {
       Blit(IdsOverDepth(f->depth, f->people, ds), &grid, w, row * h);
       Blit(IdsOverDepth(f->depth, seg.labels, ds), &grid, 2 * w, row * h);
       Blit(DepthToGrey(seg.depth, ds), &grid, 3 * w, row * h);
-      std::printf("clutter frame %llu: floor %s, %zu segmented people;", static_cast<unsigned long long>(frames[row]),
-                  seg.floor ? "found" : "not found", seg.people.size());
+      std::printf("clutter frame %llu: floor %s, %zu segmented people;",
+                  static_cast<unsigned long long>(frames[row]), seg.floor ? "found" : "not found",
+                  seg.people.size());
       for (int k = 1; k <= int(f->joints.size()); ++k) {
         double best = 0;
         for (int j = 1; j <= int(seg.people.size()); ++j)

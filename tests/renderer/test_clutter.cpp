@@ -1,8 +1,8 @@
 // The renderer's camera model and clutter (issue 14): frames rendered with another camera's
 // intrinsics, and a floor, walls, boxes and occluders with ground-truth person masks, through
 // SyntheticRenderer (real EGL rendering) and `poseforest render`, run in-process.
-#include <catch2/catch.hpp>
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -98,7 +98,8 @@ TEST_CASE("the renderer takes a camera model: the same scene through another foc
     const int ha = LabelledRows(fa->labels), hb = LabelledRows(fb->labels);
     INFO("frame " << i << ": " << ha << " rows at fy 575.8, " << hb << " at fy " << azure.camera.fy);
     REQUIRE(ha > 50);
-    if (!TouchesEdge(fa->labels) && !TouchesEdge(fb->labels)) CHECK(std::abs(double(hb) / ha - azure.camera.fy / kinect.camera.fy) < 0.04);
+    if (!TouchesEdge(fa->labels) && !TouchesEdge(fb->labels))
+      CHECK(std::abs(double(hb) / ha - azure.camera.fy / kinect.camera.fy) < 0.04);
     // Joints project through the camera model: the pelvis-ish joints' pixels lie on the body.
     int on_body = 0, visible = 0;
     for (int j = 0; j < core::kNumJoints; ++j) {
@@ -185,7 +186,8 @@ TEST_CASE("clutter: floor, walls, boxes and occluders with per-person ground-tru
         const Eigen::Vector3d w = world_from_camera * Eigen::Vector3d(X, Y, d * 1e-3);
         const double tol = 0.005 + 0.002 * d * 1e-3;
         bool on = std::abs(w.y()) < tol, on_floor = on;
-        on |= std::abs(w.x() - scene.clutter.side_wall_x) < tol || std::abs(w.z() - scene.clutter.back_wall_z) < tol;
+        on |= std::abs(w.x() - scene.clutter.side_wall_x) < tol ||
+              std::abs(w.z() - scene.clutter.back_wall_z) < tol;
         for (const auto& b : scene.clutter.boxes)
           on |= (w.array() >= b.min.array() - tol).all() && (w.array() <= b.max.array() + tol).all();
         off_surface += !on;
@@ -219,7 +221,8 @@ TEST_CASE("runtime segmentation finds the rendered people in cluttered frames", 
       ++people;
     }
   }
-  INFO(people << " people, mean IoU " << iou_sum / std::max(1, people) << ", floor found in " << floors << "/6");
+  INFO(people << " people, mean IoU " << iou_sum / std::max(1, people) << ", floor found in " << floors
+              << "/6");
   CHECK(floors >= 3);
   REQUIRE(people >= 6);
   CHECK(iou_sum / people > 0.7);
@@ -254,7 +257,8 @@ TEST_CASE("poseforest render: --camera, --clutter, --occluders, --masks; determi
   CHECK(depth->width == 512);
   CHECK(depth->height == 424);
   const std::string mask_bytes = Slurp(a / "mask_000001.png");
-  auto mask = runtime::DecodePng({reinterpret_cast<const uint8_t*>(mask_bytes.data()), mask_bytes.size()}, "m");
+  auto mask =
+      runtime::DecodePng({reinterpret_cast<const uint8_t*>(mask_bytes.data()), mask_bytes.size()}, "m");
   REQUIRE(mask.ok());
   CHECK(mask->channels == 1);
   CHECK(mask->width == 512);

@@ -118,27 +118,31 @@ TEST_CASE("eval on a cluttered render folder reports segmentation IoU and mAP cl
   const std::string forest = TrainedForest();
   const fs::path dir = testing::ScratchDir("eval-clutter");
   const fs::path set = dir / "set";
-  auto render = RunPoseforest("render --out " + set.string() +
-                              " --count 6 --seed 9 --people 2 --clutter floor,walls,boxes --occluders 1 --fx 500");
+  auto render =
+      RunPoseforest("render --out " + set.string() +
+                    " --count 6 --seed 9 --people 2 --clutter floor,walls,boxes --occluders 1 --fx 500");
   INFO(render.output);
   REQUIRE(render.exit_code == 0);
   auto eval = RunPoseforest("eval --forest " + forest + " --test-set " + set.string() +
                             " --per-person --method meanshift --threads 2");
   INFO(eval.output);
   REQUIRE(eval.exit_code == 0);
-  CHECK_THAT(eval.output, Catch::Contains("camera fx 500.0 fy 500.0: the forest (trained for fx 575.8 fy 575.8) "
-                                          "had its offsets rescaled") &&
-                              Catch::Contains("frame 0 person 1: ") && Catch::Contains("clean (ground-truth masks):") &&
-                              Catch::Contains("after segmentation:"));
+  CHECK_THAT(eval.output,
+             Catch::Contains("camera fx 500.0 fy 500.0: the forest (trained for fx 575.8 fy 575.8) "
+                             "had its offsets rescaled") &&
+                 Catch::Contains("frame 0 person 1: ") && Catch::Contains("clean (ground-truth masks):") &&
+                 Catch::Contains("after segmentation:"));
   const double iou = NumberAfter(eval.output, "segmentation mean IoU ");
-  const double clean = NumberAfter(eval.output, "mAP clean "), segmented = NumberAfter(eval.output, "after segmentation ");
+  const double clean = NumberAfter(eval.output, "mAP clean "),
+               segmented = NumberAfter(eval.output, "after segmentation ");
   CHECK(iou > 0.6);
   CHECK(iou <= 1.0);
   CHECK(clean > 0.0);
   CHECK(segmented > 0.0);
   CHECK(segmented <= 1.0);
   // The clean frames (the truth's masks) classify better than the frames as they are, clutter and all.
-  const size_t as_is = eval.output.find("frames as they are"), masked = eval.output.find("clean (ground-truth");
+  const size_t as_is = eval.output.find("frames as they are"),
+               masked = eval.output.find("clean (ground-truth");
   REQUIRE(as_is != std::string::npos);
   REQUIRE(masked != std::string::npos);
   CHECK(FirstNumberAfter(eval.output.substr(masked), "accuracy ") >
@@ -146,10 +150,12 @@ TEST_CASE("eval on a cluttered render folder reports segmentation IoU and mAP cl
 
   // eval rescales for the folder's camera by itself; --no-rescale shows what that buys.
   const fs::path wide = dir / "wide";
-  REQUIRE(RunPoseforest("render --out " + wide.string() + " --count 4 --seed 21 --no-noise --fx 365").exit_code == 0);
+  REQUIRE(
+      RunPoseforest("render --out " + wide.string() + " --count 4 --seed 21 --no-noise --fx 365").exit_code ==
+      0);
   auto scaled = RunPoseforest("eval --forest " + forest + " --test-set " + wide.string() + " --method none");
-  auto unscaled =
-      RunPoseforest("eval --forest " + forest + " --test-set " + wide.string() + " --method none --no-rescale");
+  auto unscaled = RunPoseforest("eval --forest " + forest + " --test-set " + wide.string() +
+                                " --method none --no-rescale");
   REQUIRE(scaled.exit_code == 0);
   REQUIRE(unscaled.exit_code == 0);
   CHECK_THAT(scaled.output, Catch::Contains("had its offsets rescaled"));
