@@ -601,7 +601,8 @@ Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSource whic
 
 Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
     const core::Forest& forest, const worker::SourceSpec& source, int num_images, uint64_t first_index,
-    int threads, int people, const std::function<void(int done, int total)>& progress) {
+    int threads, int people, const std::function<void(int done, int total)>& progress,
+    core::CameraIntrinsics* camera) {
   if (!HasJointTaxonomy(forest))
     return Status(ErrorCode::kInvalidArgument,
                   "the forest has " + std::to_string(forest.num_parts) +
@@ -612,7 +613,12 @@ Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
     return Status(ErrorCode::kInvalidArgument,
                   (*src)->Describe() +
                       ": has no ground-truth joints (use rendered frames or a `poseforest render` folder)");
-  runtime::Classifier classifier(forest);
+  // Frames of another focal length (a render folder's camera.txt): the forest rescaled, as eval does.
+  const core::CameraIntrinsics cam = (*src)->camera();
+  if (camera) *camera = cam;
+  const bool rescale = !runtime::SameFocalLength(forest, cam.fx, cam.fy);
+  const core::Forest scaled = rescale ? runtime::ForestForFocalLength(forest, cam.fx, cam.fy) : core::Forest();
+  runtime::Classifier classifier(rescale ? scaled : forest);
   runtime::ClassifyOptions copt;
   copt.num_threads = threads;
   copt.want_foreground_distributions = true;  // compact sums: ProbabilitiesFromClassification reads them

@@ -176,8 +176,11 @@ core::Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSourc
 
 /// Renders `num_images` validation frames (from `first_index`), classifies them and keeps the
 /// inferred joint probabilities and the ground truth: the input of runtime::TuneProposalParams.
+/// Frames of another focal length than the forest's (a render folder's camera.txt) are classified
+/// with its offsets rescaled; `camera`, when given, receives the frames' camera (for the proposals).
 core::Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
     const core::Forest& forest, const worker::SourceSpec& source, int num_images, uint64_t first_index,
-    int threads, int people, const std::function<void(int done, int total)>& progress = {});
+    int threads, int people, const std::function<void(int done, int total)>& progress = {},
+    core::CameraIntrinsics* camera = nullptr);
 
 }  // namespace poseforest::coordinator
