@@ -10,10 +10,12 @@
 #include <limits>
 #include <memory>
 
+#include "runtime/camera_model.h"
 #include "runtime/classifier.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #include "runtime/joint_proposals.h"
+#include "runtime/segmentation.h"
 #include "runtime/visualize.h"
 #if POSEFOREST_HAS_RENDERER
 #include "renderer/synthetic_source.h"
@@ -38,7 +40,7 @@ class ProceduralEvalSource final : public EvalFrameSource {
   explicit ProceduralEvalSource(worker::SourceSpec spec) : spec_(std::move(spec)) {}
   Result<EvalFrame> Frame(uint64_t index) override {
     worker::LabelledFrame f = worker::MakeProceduralFrame(spec_, index);
-    return EvalFrame{std::move(f.depth), std::move(f.labels), {}};
+    return EvalFrame{std::move(f.depth), std::move(f.labels), {}, {}};
   }
   bool has_joints() const override { return false; }
   uint64_t size() const override { return 0; }
@@ -52,31 +54,54 @@ class ProceduralEvalSource final : public EvalFrameSource {
 
 class DatasetEvalSource final : public EvalFrameSource {
  public:
-  DatasetEvalSource(worker::SourceSpec spec, uint64_t count, bool joints)
-      : spec_(std::move(spec)), count_(count), joints_(joints) {}
+  DatasetEvalSource(worker::SourceSpec spec, uint64_t count, bool joints, bool masks,
+                    core::CameraIntrinsics camera)
+      : spec_(std::move(spec)), count_(count), joints_(joints), masks_(masks), camera_(camera) {}
   Result<EvalFrame> Frame(uint64_t index) override {
     const uint64_t file = spec_.first_index + index;
     auto f = worker::ReadDatasetFrame(spec_.folder, file);
     if (!f.ok()) return f.status();
-    EvalFrame out{std::move(f->depth), std::move(f->labels), {}};
+    EvalFrame out{std::move(f->depth), std::move(f->labels), {}, {}};
+    if (out.depth.width != camera_.width || out.depth.height != camera_.height)
+      return Status(ErrorCode::kInvalidArgument,
+                    IndexedPath(spec_.folder, "depth", file, "png") + " is " +
+                        std::to_string(out.depth.width) + "x" + std::to_string(out.depth.height) +
+                        " but the folder's camera is " + std::to_string(camera_.width) + "x" +
+                        std::to_string(camera_.height));
     if (joints_) {
       auto people = ReadJointsJson(IndexedPath(spec_.folder, "joints", file, "json"));
       if (!people.ok()) return people.status();
       out.people = std::move(*people);
     }
+    if (masks_) {
+      const std::string path = IndexedPath(spec_.folder, "mask", file, "png");
+      auto bytes = core::ReadFileBytes(path);
+      if (!bytes.ok()) return bytes.status();
+      auto png = runtime::DecodePng(*bytes, path);
+      if (!png.ok()) return png.status();
+      if (png->bit_depth != 8 || png->channels != 1 || png->width != out.depth.width ||
+          png->height != out.depth.height)
+        return Status(ErrorCode::kDataLoss,
+                      path + ": a person mask must be 8-bit greyscale of the depth's size");
+      out.person_masks = core::LabelImage(png->width, png->height);
+      out.person_masks.pixels = std::move(png->samples8);
+    }
     return out;
   }
   bool has_joints() const override { return joints_; }
+  bool has_masks() const override { return masks_; }
+  core::CameraIntrinsics camera() const override { return camera_; }
   uint64_t size() const override { return count_; }
   std::string Describe() const override {
     return "dataset " + spec_.folder + " (" + std::to_string(count_) + " frames" +
-           (joints_ ? ", with joints)" : ", no joints_*.json)");
+           (joints_ ? ", with joints" : ", no joints_*.json") + (masks_ ? ", person masks)" : ")");
   }
 
  private:
   worker::SourceSpec spec_;
   uint64_t count_;
-  bool joints_;
+  bool joints_, masks_;
+  core::CameraIntrinsics camera_;
 };
 
 #if POSEFOREST_HAS_RENDERER
@@ -87,7 +112,7 @@ class RenderedEvalSource final : public EvalFrameSource {
   Result<EvalFrame> Frame(uint64_t index) override {
     auto frame = renderer_->Render(spec_.seed, index);
     if (!frame.ok()) return frame.status();
-    EvalFrame out{std::move(frame->depth), std::move(frame->labels), {}};
+    EvalFrame out{std::move(frame->depth), std::move(frame->labels), {}, std::move(frame->people)};
     out.people.resize(frame->joints.size());
     for (size_t k = 0; k < frame->joints.size(); ++k) {
       out.people[k].position = frame->joints[k];
@@ -96,6 +121,8 @@ class RenderedEvalSource final : public EvalFrameSource {
     return out;
   }
   bool has_joints() const override { return true; }
+  bool has_masks() const override { return renderer_->config().clutter.enabled(); }
+  core::CameraIntrinsics camera() const override { return renderer_->config().camera; }
   uint64_t size() const override { return 0; }
   std::string Describe() const override {
     const int people = renderer_->config().max_people;
@@ -260,7 +287,17 @@ Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const worker::Sourc
       std::error_code ec;
       const bool joints =
           std::filesystem::exists(IndexedPath(source.folder, "joints", source.first_index, "json"), ec);
-      return std::unique_ptr<EvalFrameSource>(new DatasetEvalSource(source, (*probe)->size(), joints));
+      const bool masks =
+          std::filesystem::exists(IndexedPath(source.folder, "mask", source.first_index, "png"), ec);
+      core::CameraIntrinsics camera = core::CameraIntrinsics::KinectV1();
+      const std::string camera_file = (std::filesystem::path(source.folder) / "camera.txt").string();
+      if (std::filesystem::exists(camera_file, ec)) {
+        auto model = runtime::ReadCameraModelFile(camera_file);
+        if (!model.ok()) return model.status();
+        camera = model->intrinsics;
+      }
+      return std::unique_ptr<EvalFrameSource>(
+          new DatasetEvalSource(source, (*probe)->size(), joints, masks, camera));
     }
     case worker::SourceKind::kRendered: {
 #if POSEFOREST_HAS_RENDERER
@@ -296,7 +333,58 @@ void AddConfusion(const EvalFrame& frame, const core::LabelImage& predicted, Con
 double MsSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
 }
+
+// The frame with every pixel outside `keep` (nonzero) set to 0: what a segmentation hands the
+// forest.
+EvalFrame Masked(const EvalFrame& frame, const core::LabelImage& keep) {
+  EvalFrame m;
+  m.depth = frame.depth;
+  m.labels = frame.labels;
+  for (size_t p = 0; p < m.depth.pixels.size(); ++p)
+    if (keep.pixels[p] == 0) m.depth.pixels[p] = 0;
+  return m;
+}
+
+// Segmentation of one frame against its ground-truth masks (IoU per person), and the forest on
+// the frame masked by the truth ("clean") and by the segmentation.
+void ScoreSegmentation(const runtime::Classifier& classifier, const runtime::ClassifyOptions& copt,
+                       const runtime::ProposalOptions& ms, bool joints, int index, const EvalFrame& frame,
+                       runtime::SegmentationResult* seg, Evaluation* e) {
+  const auto t = std::chrono::steady_clock::now();
+  runtime::SegmentationOptions so;
+  so.presegmented = false;  // a frame of one person alone would pass unchanged anyway
+  runtime::SegmentPeople(frame.depth, e->camera, so, seg);
+  e->segment_ms += MsSince(t);
+  int truth_people = 0;
+  std::vector<int> pixels(256, 0);
+  for (uint8_t k : frame.person_masks.pixels) ++pixels[k];
+  for (int k = 1; k < 256; ++k) {
+    if (pixels[size_t(k)] == 0) continue;
+    ++truth_people;
+    PersonSegmentation p{index, k, pixels[size_t(k)], 0.0};
+    for (int j = 1; j <= int(seg->people.size()); ++j)
+      p.iou = std::max(p.iou, runtime::MaskIoU(frame.person_masks, k, seg->labels, j));
+    e->segmentation.push_back(p);
+  }
+  e->frames_right_count += truth_people == int(seg->people.size());
+  runtime::Classification out;
+  for (int pass = 0; pass < 2; ++pass) {
+    const EvalFrame m = Masked(frame, pass == 0 ? frame.person_masks : seg->labels);
+    classifier.Classify(m.depth, copt, &out);
+    AddConfusion(m, out.labels, pass == 0 ? &e->clean_confusion : &e->segmented_confusion);
+    if (joints)
+      (pass == 0 ? e->clean_mean_shift : e->segmented_mean_shift)
+          .AddFrame(runtime::ProposeJointsFromClassification(m.depth, out, ms), frame.people);
+  }
+}
 }  // namespace
+
+double Evaluation::MeanIoU() const {
+  if (segmentation.empty()) return 0;
+  double sum = 0;
+  for (const PersonSegmentation& p : segmentation) sum += p.iou;
+  return sum / double(segmentation.size());
+}
 
 Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker::SourceSpec& source,
                                         const JointEvalOptions& options) {
@@ -307,7 +395,22 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
   if (!src.ok()) return src.status();
   Evaluation e{.mean_shift = runtime::JointApEvaluator(options.distance_m),
                .fast = runtime::JointApEvaluator(options.distance_m),
-               .upper_bound = runtime::JointApEvaluator(options.distance_m)};
+               .upper_bound = runtime::JointApEvaluator(options.distance_m),
+               .clean_mean_shift = runtime::JointApEvaluator(options.distance_m),
+               .segmented_mean_shift = runtime::JointApEvaluator(options.distance_m)};
+  using Segment = JointEvalOptions::Segment;
+  if (options.segment == Segment::kOn && !(*src)->has_masks())
+    return Status(ErrorCode::kInvalidArgument,
+                  (*src)->Describe() +
+                      ": has no ground-truth person masks (render with --clutter, "
+                      "--occluders or --masks)");
+  e.segmented = options.segment != Segment::kOff && (*src)->has_masks();
+  // Frames of another focal length: the forest's offsets rescaled (runtime/camera_model.h).
+  e.camera = (*src)->camera();
+  e.rescaled = options.rescale && !runtime::SameFocalLength(forest, e.camera.fx, e.camera.fy);
+  const core::Forest scaled =
+      e.rescaled ? runtime::ForestForFocalLength(forest, e.camera.fx, e.camera.fy) : core::Forest();
+  const core::Forest& model = e.rescaled ? scaled : forest;
   e.distance_m = options.distance_m;
   e.ran_fast = options.fast;
   e.ran_upper_bound = options.upper_bound;
@@ -321,7 +424,7 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
   e.fast_params_given = options.fast_params.has_value();
   e.fast_params = e.fast_params_given ? *options.fast_params : fast_choice.params;
   e.fast_params_source = fast_choice.source;
-  runtime::Classifier classifier(forest);
+  runtime::Classifier classifier(model);
   runtime::ClassifyOptions copt;
   copt.num_threads = options.threads;
   // The compact per-foreground-pixel sums (what the proposals read; the confusion matrix uses
@@ -330,13 +433,20 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
   runtime::ProposalOptions ms;
   ms.params = e.params;
   ms.num_threads = options.threads;
+  ms.camera = e.camera;
   runtime::ProposalOptions fast = ms;
   fast.method = runtime::ProposalMethod::kFastClustering;
   fast.params = e.fast_params;
   runtime::Classification out;
+  runtime::SegmentationResult seg;
   for (int i = 0; i < options.num_images; ++i) {
     auto frame = (*src)->Frame(options.first_index + uint64_t(i));
     if (!frame.ok()) return frame.status();
+    if (e.segmented && (frame->person_masks.width != frame->depth.width ||
+                        frame->person_masks.height != frame->depth.height))
+      return Status(ErrorCode::kDataLoss, (*src)->Describe() + ": frame " +
+                                              std::to_string(options.first_index + uint64_t(i)) +
+                                              " has no person mask of the depth's size");
     auto t = std::chrono::steady_clock::now();
     classifier.Classify(frame->depth, copt, &out);
     e.classify_ms += MsSince(t);
@@ -358,6 +468,7 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
                                    runtime::ProbabilitiesFromLabels(frame->depth, frame->labels), ms),
             frame->people);
     }
+    if (e.segmented) ScoreSegmentation(classifier, copt, ms, e.has_joints, i, *frame, &seg, &e);
     if (options.progress) options.progress(i + 1, options.num_images);
   }
   return e;
@@ -490,7 +601,8 @@ Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSource whic
 
 Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
     const core::Forest& forest, const worker::SourceSpec& source, int num_images, uint64_t first_index,
-    int threads, int people, const std::function<void(int done, int total)>& progress) {
+    int threads, int people, const std::function<void(int done, int total)>& progress,
+    core::CameraIntrinsics* camera) {
   if (!HasJointTaxonomy(forest))
     return Status(ErrorCode::kInvalidArgument,
                   "the forest has " + std::to_string(forest.num_parts) +
@@ -501,7 +613,12 @@ Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
     return Status(ErrorCode::kInvalidArgument,
                   (*src)->Describe() +
                       ": has no ground-truth joints (use rendered frames or a `poseforest render` folder)");
-  runtime::Classifier classifier(forest);
+  // Frames of another focal length (a render folder's camera.txt): the forest rescaled, as eval does.
+  const core::CameraIntrinsics cam = (*src)->camera();
+  if (camera) *camera = cam;
+  const bool rescale = !runtime::SameFocalLength(forest, cam.fx, cam.fy);
+  const core::Forest scaled = rescale ? runtime::ForestForFocalLength(forest, cam.fx, cam.fy) : core::Forest();
+  runtime::Classifier classifier(rescale ? scaled : forest);
   runtime::ClassifyOptions copt;
   copt.num_threads = threads;
   copt.want_foreground_distributions = true;  // compact sums: ProbabilitiesFromClassification reads them

@@ -59,6 +59,8 @@ struct EvalFrame {
   core::DepthImage depth;
   core::LabelImage labels;
   std::vector<runtime::PersonJoints> people;  ///< empty when the source has no joints
+  /// Ground-truth person masks (0 = none, k = people[k-1]); empty when the source has none.
+  core::LabelImage person_masks;
 };
 
 /// Labelled frames with joints: rendered (the renderer's joints), a `poseforest render` folder
@@ -72,6 +74,10 @@ class EvalFrameSource {
   /// Distinct frames, or 0 when unbounded.
   virtual uint64_t size() const = 0;
   virtual std::string Describe() const = 0;
+  /// Whether frames carry ground-truth person masks (segmentation can be scored).
+  virtual bool has_masks() const { return false; }
+  /// The camera the frames were taken with (a render folder's camera.txt; Kinect v1 otherwise).
+  virtual core::CameraIntrinsics camera() const { return core::CameraIntrinsics::KinectV1(); }
 };
 
 /// `people` > 0 renders exactly that many people per frame (rendered sources only; others
@@ -94,7 +100,21 @@ struct JointEvalOptions {
   std::optional<core::ProposalParams> params;
   std::optional<core::ProposalParams> fast_params;
   float distance_m = 0.1f;  ///< the AP's D
+  /// Segmentation: kAuto scores it when the frames have person masks (a render folder with
+  /// mask_%06d.png), kOn requires masks, kOff never.
+  enum class Segment { kAuto, kOn, kOff } segment = Segment::kAuto;
+  /// Rescale the forest's offsets to the frames' focal length when it differs from the forest's
+  /// training focal length (runtime::ForestForFocalLength); false only to measure what that buys.
+  bool rescale = true;
   std::function<void(int done, int total)> progress;
+};
+
+/// How runtime::SegmentPeople did on one ground-truth person.
+struct PersonSegmentation {
+  int frame = 0;   ///< frame index
+  int person = 0;  ///< 1-based, the order of the frame's joints
+  int pixels = 0;  ///< ground-truth visible pixels
+  double iou = 0;  ///< best IoU over the segmented people (0 when none overlaps)
 };
 
 struct Evaluation {
@@ -114,6 +134,21 @@ struct Evaluation {
   bool params_given = false, fast_params_given = false;
   runtime::JointApEvaluator mean_shift, fast, upper_bound;
   double classify_ms = 0, mean_shift_ms = 0, fast_ms = 0;  ///< summed over frames
+  /// The frames' camera; the forest's offsets were rescaled when its focal length differs.
+  core::CameraIntrinsics camera = core::CameraIntrinsics::KinectV1();
+  bool rescaled = false;
+
+  /// Segmentation (JointEvalOptions::segment): each ground-truth person's IoU, and the forest on
+  /// the frames masked by the ground truth ("clean": perfect segmentation) and by
+  /// runtime::SegmentPeople with its default options. `confusion`, `mean_shift` above are on the
+  /// frames as they are (clutter classified too).
+  bool segmented = false;
+  std::vector<PersonSegmentation> segmentation;
+  int frames_right_count = 0;  ///< frames where segmentation found as many people as are visible
+  ConfusionMatrix clean_confusion, segmented_confusion;
+  runtime::JointApEvaluator clean_mean_shift, segmented_mean_shift;
+  double segment_ms = 0;
+  double MeanIoU() const;
 };
 
 /// Classifies every frame (confusion matrix over body pixels) and, when the source has joints
@@ -141,8 +176,11 @@ core::Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSourc
 
 /// Renders `num_images` validation frames (from `first_index`), classifies them and keeps the
 /// inferred joint probabilities and the ground truth: the input of runtime::TuneProposalParams.
+/// Frames of another focal length than the forest's (a render folder's camera.txt) are classified
+/// with its offsets rescaled; `camera`, when given, receives the frames' camera (for the proposals).
 core::Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
     const core::Forest& forest, const worker::SourceSpec& source, int num_images, uint64_t first_index,
-    int threads, int people, const std::function<void(int done, int total)>& progress = {});
+    int threads, int people, const std::function<void(int done, int total)>& progress = {},
+    core::CameraIntrinsics* camera = nullptr);
 
 }  // namespace poseforest::coordinator

@@ -51,17 +51,18 @@ void main() {
 }
 )";
 
-// Depth (mm, 16 bits) in R and G, the label in B: exact through an RGBA8 attachment because
-// k / 255 converts back to k, and one glReadPixels of 4 bytes per pixel returns everything.
+// Depth (mm, 16 bits) in R and G, the label in B, the person id in A: exact through an RGBA8 attachment
+// because k / 255 converts back to k, and one glReadPixels of 4 bytes per pixel returns everything.
 constexpr const char* kFragmentShader = R"(#version 300 es
 precision highp float;
 precision highp int;
 flat in uint v_part;
 in float v_z;
+uniform float u_person;  // 1-based person id of the draw (A channel), 0 = cleared
 layout(location = 0) out vec4 o_colour;
 void main() {
   uint d = uint(clamp(floor(v_z * 1000.0 + 0.5), 0.0, 65535.0));
-  o_colour = vec4(float(d & 255u), float(d >> 8u), float(v_part), 255.0) / 255.0;
+  o_colour = vec4(float(d & 255u), float(d >> 8u), float(v_part), u_person) / 255.0;
 }
 )";
 
@@ -144,7 +145,7 @@ struct EglRenderer::Impl {
   EGLSurface surface = EGL_NO_SURFACE;  // a 1x1 pbuffer when surfaceless contexts are missing
   std::string platform;
   GLuint program = 0, fbo = 0, colour_rb = 0, depth_rb = 0;
-  GLint u_joint = -1, u_proj = -1, u_part_map = -1;
+  GLint u_joint = -1, u_proj = -1, u_part_map = -1, u_person = -1;
   struct Mesh {
     GLuint vao = 0, vbo = 0, ibo = 0;
     GLsizei index_count = 0;
@@ -320,6 +321,7 @@ core::Result<std::unique_ptr<EglRenderer>> EglRenderer::Create(const core::Camer
   im.u_joint = glGetUniformLocation(im.program, "u_joint");
   im.u_proj = glGetUniformLocation(im.program, "u_proj");
   im.u_part_map = glGetUniformLocation(im.program, "u_part_map");
+  im.u_person = glGetUniformLocation(im.program, "u_person");
   glUseProgram(im.program);
   const Eigen::Matrix4f proj = ProjectionMatrix(camera, near_m, far_m);
   glUniformMatrix4fv(im.u_proj, 1, GL_FALSE, proj.data());  // Eigen is column-major, like GL
@@ -351,7 +353,7 @@ core::Result<std::unique_ptr<EglRenderer>> EglRenderer::Create(const core::Camer
   glDisable(GL_DITHER);  // dithering would perturb the encoded bytes
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
-  glClearColor(0.0f, 0.0f, 1.0f, 1.0f);  // depth 0, label 255
+  glClearColor(0.0f, 0.0f, 1.0f, 0.0f);  // depth 0, label 255, person 0
   glClearDepthf(1.0f);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
   if (glGetError() != GL_NO_ERROR) {
@@ -486,8 +488,10 @@ Status EglRenderer::BeginFrame() {
   return Status::Ok();
 }
 
-void EglRenderer::Draw(int handle, const JointMatrices& m, bool mirror_labels) {
+void EglRenderer::Draw(int handle, const JointMatrices& m, bool mirror_labels, int person) {
   POSEFOREST_CHECK(handle >= 0 && size_t(handle) < impl_->meshes.size());
+  POSEFOREST_CHECK(person >= 0 && person <= 255);
+  glUniform1f(impl_->u_person, float(person));
   std::array<float, 72 * 4> rows;
   for (int j = 0; j < kNumSkelJoints; ++j) {
     for (int r = 0; r < 3; ++r) {
@@ -516,7 +520,7 @@ void EglRenderer::Draw(int handle, const JointMatrices& m, bool mirror_labels) {
 
 void EglRenderer::Finish() { glFinish(); }
 
-Status EglRenderer::ReadFrame(core::DepthImage* depth, core::LabelImage* labels) {
+Status EglRenderer::ReadFrame(core::DepthImage* depth, core::LabelImage* labels, core::LabelImage* people) {
   const int w = camera_.width, h = camera_.height;
   glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, readback_.data());
   if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
@@ -532,6 +536,11 @@ Status EglRenderer::ReadFrame(core::DepthImage* depth, core::LabelImage* labels)
   for (size_t i = 0; i < n; ++i) {
     d[i] = uint16_t(src[4 * i] | (src[4 * i + 1] << 8));
     l[i] = src[4 * i + 2];
+  }
+  if (people) {
+    if (people->width != w || people->height != h) *people = core::LabelImage(w, h);
+    uint8_t* q = people->data();
+    for (size_t i = 0; i < n; ++i) q[i] = src[4 * i + 3];
   }
   return Status::Ok();
 }

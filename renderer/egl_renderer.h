@@ -51,8 +51,9 @@ class EglRenderer {
   /// Starts a frame: depth 0 / background label everywhere.
   core::Status BeginFrame();
   /// Draws mesh `handle` with per-joint camera_from_rest matrices. mirror_labels swaps every
-  /// part through core::MirrorPart (use with mirrored geometry).
-  void Draw(int handle, const JointMatrices& camera_from_rest, bool mirror_labels);
+  /// part through core::MirrorPart (use with mirrored geometry). `person` (0..255) is written to
+  /// the person image ReadFrame can return (0 = no person: use 1-based ids).
+  void Draw(int handle, const JointMatrices& camera_from_rest, bool mirror_labels, int person = 0);
   /// Makes this renderer's context current on the calling thread (done by every call that needs
   /// it). Fails if the context is still current on another thread.
   core::Status MakeCurrent();
@@ -60,9 +61,11 @@ class EglRenderer {
   void ReleaseCurrent();
   /// Waits for the GPU (only for profiling: ReadFrame synchronizes anyway).
   void Finish();
-  /// Reads the frame back: depth in mm (rounded linear camera z; 0 = nothing) and labels.
+  /// Reads the frame back: depth in mm (rounded linear camera z; 0 = nothing) and labels, and
+  /// when `people` is given the `person` of the nearest draw per pixel (0 = none).
   /// A GL error (e.g. out of memory) is returned as a Status.
-  core::Status ReadFrame(core::DepthImage* depth, core::LabelImage* labels);
+  core::Status ReadFrame(core::DepthImage* depth, core::LabelImage* labels,
+                         core::LabelImage* people = nullptr);
 
   const core::CameraIntrinsics& camera() const { return camera_; }
 

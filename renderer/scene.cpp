@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 #include "runtime/core/rng.h"
@@ -102,6 +103,46 @@ void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* 
       const double disparity = fb_steps_mm / double(d) + sigma_steps * gauss;  // in steps
       const double level = std::max(1.0, std::floor(disparity + 0.5));
       out_d[x] = uint16_t(std::min(65535.0, std::floor(fb_steps_mm / level + 0.5)));
+    }
+  }
+}
+
+void RayCastClutter(const SceneClutter& clutter, const Eigen::Isometry3d& camera_from_world, bool mirrored,
+                    const core::CameraIntrinsics& cam, core::DepthImage* depth) {
+  const int w = cam.width, h = cam.height;
+  if (depth->width != w || depth->height != h) *depth = core::DepthImage(w, h);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  // Rendered camera coordinates are flip * camera_from_world * world, so the ray of pixel (x, y)
+  // at depth t is world_from_camera * flip * t (dx, dy, 1): t is the depth z.
+  const Eigen::Isometry3d world_from_camera = camera_from_world.inverse();
+  Eigen::Matrix3d m = world_from_camera.linear();
+  if (mirrored) m.col(0) = -m.col(0);
+  const Eigen::Vector3d o = world_from_camera.translation();
+  for (int y = 0; y < h; ++y) {
+    uint16_t* row = depth->data() + size_t(y) * size_t(w);
+    for (int x = 0; x < w; ++x) {
+      const Eigen::Vector3d r = m * Eigen::Vector3d((x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy, 1.0);
+      double t = kInf;
+      if (clutter.floor && r.y() < -1e-12 && o.y() > 0) t = std::min(t, -o.y() / r.y());
+      if (clutter.back_wall_z < 0 && r.z() < -1e-12) t = std::min(t, (clutter.back_wall_z - o.z()) / r.z());
+      if (clutter.side_wall_x != 0 && (clutter.side_wall_x - o.x()) * r.x() > 1e-12)
+        t = std::min(t, (clutter.side_wall_x - o.x()) / r.x());
+      for (const ClutterBox& b : clutter.boxes) {
+        double t0 = 0, t1 = kInf;  // slab test
+        bool hit = true;
+        for (int a = 0; a < 3 && hit; ++a) {
+          if (std::abs(r[a]) < 1e-12) {
+            hit = o[a] >= b.min[a] && o[a] <= b.max[a];
+            continue;
+          }
+          double ta = (b.min[a] - o[a]) / r[a], tb = (b.max[a] - o[a]) / r[a];
+          if (ta > tb) std::swap(ta, tb);
+          t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+          hit = t0 <= t1;
+        }
+        if (hit && t0 > 0) t = std::min(t, t0);
+      }
+      row[x] = t <= clutter.max_depth_m ? uint16_t(std::lround(t * 1000.0)) : uint16_t(0);
     }
   }
 }

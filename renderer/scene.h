@@ -37,6 +37,18 @@ struct NoiseConfig {
   double speckle_dropout = 0.002;
 };
 
+/// Clutter around the people, for test frames of segmentation (docs/renderer/clutter.md). Off by
+/// default; drawn from its own random stream, so turning it on changes nothing else in a scene.
+struct ClutterConfig {
+  bool floor = false;         ///< the ground plane the people stand on
+  bool walls = false;         ///< a back wall 0.5-1.5 m behind the furthest person, and a side wall
+  bool boxes = false;         ///< 1-3 boxes (0.3-0.9 m wide, 0.3-1.2 m tall) on the floor, away from people
+  int occluders = 0;          ///< boxes standing between the camera and a person, hiding part of them
+  double max_depth_m = 10.0;  ///< clutter further than this gives no reading (depth 0), metres
+
+  bool enabled() const { return floor || walls || boxes || occluders > 0; }
+};
+
 /// The distributions a scene is drawn from. Defaults follow section 2.3 of the paper.
 struct SceneConfig {
   core::CameraIntrinsics camera = core::CameraIntrinsics::KinectV1();
@@ -77,6 +89,7 @@ struct SceneConfig {
   int max_people = 1;
 
   NoiseConfig noise;
+  ClutterConfig clutter;
 };
 
 /// One rendered training frame.
@@ -88,6 +101,9 @@ struct RenderedFrame {
   /// Per person: joint projects inside the image and is not hidden more than 10 cm (head: 15 cm,
   /// its joint is the centre of the head) behind the rendered surface at its pixel.
   std::vector<std::array<bool, core::kNumJoints>> visible;
+  /// Ground-truth person masks: 0 = no person, k = person k-1 (the order of `joints`) where
+  /// that person is the visible surface (after clutter, occluders and noise).
+  core::LabelImage people;
 };
 
 /// Where one person is and how they stand; everything needed to draw them.
@@ -98,12 +114,36 @@ struct PersonPlacement {
   Eigen::Isometry3d camera_from_body = Eigen::Isometry3d::Identity();  ///< metres
 };
 
-/// A sampled scene: people + mirroring + the noise seed.
+/// An axis-aligned box in the world frame (metres; y up, the floor at y = 0).
+struct ClutterBox {
+  Eigen::Vector3d min = Eigen::Vector3d::Zero(), max = Eigen::Vector3d::Zero();
+  bool occluder = false;  ///< placed between the camera and a person
+};
+
+/// The clutter of one scene, in the world frame: X right, Y up (floor y = 0), the camera at
+/// (0, camera height, 0) looking along -Z.
+struct SceneClutter {
+  bool floor = false;
+  double back_wall_z = 0;  ///< the back wall's plane z = this (< 0), 0 = none
+  double side_wall_x = 0;  ///< a side wall's plane x = this, 0 = none
+  std::vector<ClutterBox> boxes;
+  double max_depth_m = 10.0;
+};
+
+/// A sampled scene: people + mirroring + the noise seed (+ clutter).
 struct SceneSample {
   std::vector<PersonPlacement> people;
   bool mirrored = false;
   uint64_t noise_key = 0;
+  /// The camera's pose (before mirroring); camera_from_body = camera_from_world * world_from_body.
+  Eigen::Isometry3d camera_from_world = Eigen::Isometry3d::Identity();
+  SceneClutter clutter;
 };
+
+/// Ray-casts `clutter` for every pixel of `camera` (mirrored as the scene is) into `depth`
+/// (mm, 0 = nothing within clutter.max_depth_m); `depth` is resized to the camera's size.
+void RayCastClutter(const SceneClutter& clutter, const Eigen::Isometry3d& camera_from_world, bool mirrored,
+                    const core::CameraIntrinsics& camera, core::DepthImage* depth);
 
 /// The 16 evaluation joints (core::Joint order) from posed canonical joints (any frame):
 /// head = centre of the head, neck = middle of the neck, hand = centre of the hand, foot =

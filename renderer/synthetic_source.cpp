@@ -54,6 +54,9 @@ Status ValidateConfig(const SceneConfig& c) {
     return bad("mirror_probability must be in [0, 1]");
   if (!(c.height_jitter >= 0 && c.height_jitter < 0.5)) return bad("height_jitter must be in [0, 0.5)");
   if (!(c.min_camera_height_m <= c.max_camera_height_m)) return bad("camera height range is empty");
+  if (c.clutter.occluders < 0 || c.clutter.occluders > 16) return bad("clutter.occluders must be in 0..16");
+  if (!(c.clutter.max_depth_m > 0.5 && c.clutter.max_depth_m <= 60))
+    return bad("clutter.max_depth_m must be in (0.5, 60]");
   if (c.noise.enabled &&
       (!(c.noise.focal_px > 0) || !(c.noise.baseline_m > 0) || c.noise.subpixel_steps < 1)) {
     return bad("noise: focal_px, baseline_m and subpixel_steps must be positive");
@@ -68,6 +71,63 @@ Status ValidateConfig(const SceneConfig& c) {
     }
   }
   return Status::Ok();
+}
+
+/// The clutter of scene (seed, index), from its own random stream (the scene's other draws do
+/// not change when clutter is turned on). `people` are the people's (lateral x, distance) on the
+/// floor; world frame as in SceneClutter.
+SceneClutter SampleClutter(const ClutterConfig& c, uint64_t seed, uint64_t index, double half_fov_tan,
+                           const std::vector<Eigen::Vector2d>& people) {
+  SceneClutter out;
+  out.max_depth_m = c.max_depth_m;
+  out.floor = c.floor;
+  core::RngStream rng(core::CounterRng(seed, 0xC1077E, index, 0));
+  double far = 0, left = 0, right = 0;  // furthest person; extent of people left and right
+  for (const Eigen::Vector2d& p : people) {
+    far = std::max(far, p.y());
+    left = std::min(left, p.x()), right = std::max(right, p.x());
+  }
+  const double wall_gap = rng.UniformIn(0.5, 1.5), side_gap = rng.UniformIn(0.6, 1.6);
+  const bool side_right = rng.Uniform01() < 0.5;
+  if (c.walls) {
+    out.back_wall_z = -(far + wall_gap);
+    out.side_wall_x = side_right ? right + side_gap : left - side_gap;
+  }
+  // Boxes stand on the floor; each keeps clear of every person by 0.45 m plus its half size.
+  auto clear_of_people = [&](double x, double dist, double half) {
+    for (const Eigen::Vector2d& p : people)
+      if (std::abs(p.x() - x) < half + 0.45 && std::abs(p.y() - dist) < half + 0.45) return false;
+    return true;
+  };
+  auto box_at = [](double x, double dist, double w, double d, double h, bool occluder) {
+    ClutterBox b;
+    b.min = Eigen::Vector3d(x - 0.5 * w, 0.0, -dist - 0.5 * d);
+    b.max = Eigen::Vector3d(x + 0.5 * w, h, -dist + 0.5 * d);
+    b.occluder = occluder;
+    return b;
+  };
+  const int boxes = c.boxes ? rng.UniformIntIn(1, 3) : 0;
+  for (int k = 0; k < boxes; ++k) {
+    const double w = rng.UniformIn(0.3, 0.9), d = rng.UniformIn(0.3, 0.9), h = rng.UniformIn(0.3, 1.2);
+    for (int attempt = 0; attempt < 8; ++attempt) {
+      const double dist = rng.UniformIn(1.2, std::max(1.3, far + wall_gap - 0.5 * d - 0.05));
+      const double x = rng.UniformIn(-1.0, 1.0) * dist * half_fov_tan;
+      if (!clear_of_people(x, dist, 0.5 * std::max(w, d))) continue;
+      out.boxes.push_back(box_at(x, dist, w, d, h, false));
+      break;
+    }
+  }
+  // Occluders: on the line from the camera to a person, 35-70% of the way, shifted sideways by
+  // up to 0.35 m, so they hide part of the person (legs, or more when tall).
+  for (int k = 0; k < c.occluders && !people.empty(); ++k) {
+    const Eigen::Vector2d& p = people[size_t(k) % people.size()];
+    const double frac = rng.UniformIn(0.35, 0.7), shift = rng.UniformIn(-0.35, 0.35);
+    const double w = rng.UniformIn(0.4, 0.8), d = rng.UniformIn(0.3, 0.6), h = rng.UniformIn(0.5, 1.1);
+    const Eigen::Vector2d dir = p.normalized(), side(dir.y(), -dir.x());
+    const Eigen::Vector2d at = frac * p + shift * side;
+    out.boxes.push_back(box_at(at.x(), std::max(0.6, at.y()), w, d, h, true));
+  }
+  return out;
 }
 
 }  // namespace
@@ -207,6 +267,9 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
   camera_from_world.rotate(Eigen::Matrix3d(Eigen::Vector3d(1, -1, -1).asDiagonal()));
   camera_from_world.translate(Eigen::Vector3d(0, -cam_h, 0));
   for (auto& person : scene.people) person.camera_from_body = camera_from_world * person.camera_from_body;
+  scene.camera_from_world = camera_from_world;
+  if (c.clutter.enabled())
+    scene.clutter = SampleClutter(c.clutter, seed, index, half_fov_tan, floor_positions);
   return scene;
 }
 
@@ -248,12 +311,26 @@ core::Result<RenderedFrame> SyntheticRenderer::RenderScene(const SceneSample& sc
   const double t1 = ThreadCpuMs();
   POSEFOREST_RETURN_IF_ERROR(gl_->BeginFrame());
   for (size_t p = 0; p < scene.people.size(); ++p) {
-    gl_->Draw(gpu_mesh_[size_t(scene.people[p].body)], matrices[p], scene.mirrored);
+    gl_->Draw(gpu_mesh_[size_t(scene.people[p].body)], matrices[p], scene.mirrored, int(p) + 1);
   }
   if (profile_stages_) gl_->Finish();
   const double t2 = ThreadCpuMs();
-  POSEFOREST_RETURN_IF_ERROR(gl_->ReadFrame(&frame.depth, &frame.labels));
+  POSEFOREST_RETURN_IF_ERROR(gl_->ReadFrame(&frame.depth, &frame.labels, &frame.people));
   const double t3 = ThreadCpuMs();
+  const SceneClutter& clutter = scene.clutter;
+  if (clutter.floor || clutter.back_wall_z < 0 || clutter.side_wall_x != 0 || !clutter.boxes.empty()) {
+    // Composite by depth: clutter nearer than the person (or where there is none) wins.
+    RayCastClutter(clutter, scene.camera_from_world, scene.mirrored, config_.camera, &clutter_depth_);
+    const size_t n = frame.depth.pixels.size();
+    for (size_t i = 0; i < n; ++i) {
+      const uint16_t c = clutter_depth_.pixels[i];
+      if (c != 0 && (frame.depth.pixels[i] == 0 || c < frame.depth.pixels[i])) {
+        frame.depth.pixels[i] = c;
+        frame.labels.pixels[i] = core::kBackgroundLabel;
+        frame.people.pixels[i] = 0;
+      }
+    }
+  }
 
   // Visibility from the clean depth, before noise.
   const core::CameraIntrinsics& cam = config_.camera;
@@ -273,6 +350,9 @@ core::Result<RenderedFrame> SyntheticRenderer::RenderScene(const SceneSample& sc
     frame.visible.push_back(vis);
   }
   ApplyKinectNoise(config_.noise, scene.noise_key, &frame.depth, &frame.labels);
+  if (config_.noise.enabled)
+    for (size_t i = 0; i < frame.depth.pixels.size(); ++i)
+      if (frame.depth.pixels[i] == 0) frame.people.pixels[i] = 0;
   const double t4 = ThreadCpuMs();
   times_.pose_ms += t1 - t0;
   times_.draw_ms += t2 - t1;

@@ -74,6 +74,7 @@ class SyntheticRenderer {
   std::unique_ptr<EglRenderer> gl_;
   StageTimes times_;
   bool profile_stages_ = false;
+  core::DepthImage clutter_depth_;  ///< RayCastClutter's output, reused across frames
 };
 
 }  // namespace poseforest::renderer

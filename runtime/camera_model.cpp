@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <numbers>
+#include <sstream>
 
 namespace poseforest::runtime {
 namespace {
@@ -81,6 +83,43 @@ core::Status CheckFrameSize(const CameraModel& camera, int width, int height, co
               camera.name + " is " + std::to_string(camera.intrinsics.width) + "x" +
               std::to_string(camera.intrinsics.height) +
               " (choose --camera or --fx/--fy/--cx/--cy for this size)"};
+}
+
+core::Status WriteCameraModelFile(const std::string& path, const CameraModel& camera) {
+  const core::CameraIntrinsics& k = camera.intrinsics;
+  char buf[320];
+  std::snprintf(
+      buf, sizeof buf,
+      "# poseforest camera model: name width height fx fy cx cy (pixels)\n%s %d %d %.17g %.17g %.17g "
+      "%.17g\n",
+      camera.name.c_str(), k.width, k.height, k.fx, k.fy, k.cx, k.cy);
+  std::ofstream out(path, std::ios::binary);
+  out << buf;
+  if (!out) return {core::ErrorCode::kIo, path + ": write failed"};
+  return core::Status::Ok();
+}
+
+core::Result<CameraModel> ReadCameraModelFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return core::Status(core::ErrorCode::kIo, path + ": cannot open");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    CameraModel m;
+    core::CameraIntrinsics& k = m.intrinsics;
+    std::string rest;
+    if (!(fields >> m.name >> k.width >> k.height >> k.fx >> k.fy >> k.cx >> k.cy) || (fields >> rest) ||
+        k.width <= 0 || k.height <= 0 || k.width > 32768 || k.height > 32768 || !(k.fx > 0) || !(k.fy > 0) ||
+        !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) || !std::isfinite(k.cy))
+      return core::Status(core::ErrorCode::kDataLoss,
+                          path +
+                              ": expected \"NAME WIDTH HEIGHT FX FY CX CY\" with a positive size and focal "
+                              "lengths, got '" +
+                              line + "'");
+    return m;
+  }
+  return core::Status(core::ErrorCode::kDataLoss, path + ": no camera line");
 }
 
 bool SameFocalLength(const core::Forest& forest, double fx, double fy) {

@@ -48,6 +48,12 @@ core::Status CheckFrameSize(const CameraModel& camera, int width, int height, co
 /// records (fx, fy) as its training focal length, so rescaling twice is harmless.
 core::Forest ForestForFocalLength(const core::Forest& forest, double fx, double fy);
 
+/// Writes `camera` as `poseforest render` records it next to a data set (camera.txt): a comment
+/// line, then "NAME WIDTH HEIGHT FX FY CX CY" (pixels, full precision).
+core::Status WriteCameraModelFile(const std::string& path, const CameraModel& camera);
+/// Reads a file WriteCameraModelFile wrote; errors (kIo, kDataLoss) name the file.
+core::Result<CameraModel> ReadCameraModelFile(const std::string& path);
+
 /// True when the forest needs no rescaling for (fx, fy) (within 1e-4 relative).
 bool SameFocalLength(const core::Forest& forest, double fx, double fy);
 

@@ -1,9 +1,11 @@
 // poseforest eval: per-class accuracy and joint average precision of a forest on held-out
 // labelled frames.
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
 #include "coordinator/evaluation.h"
+#include "runtime/camera_model.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
 #include "runtime/core/forest_format.h"
@@ -27,7 +29,9 @@ Reports the paper's two metrics (section 4) on held-out labelled frames:
     confusion matrix as text (and as a picture with --png).
 
 SET is one of:
-  DIR                a folder written by `poseforest render` (depth/labels/joints_%06d.*)
+  DIR                a folder written by `poseforest render` (depth/labels/joints_%06d.*; its
+                     camera.txt says the camera, and a forest trained at another focal length
+                     has its offsets rescaled)
   JOB.textproto      a training job config: its test_set { } is used (held-out mocap clips)
   procedural:SEED    procedural frames (no joints: accuracy only)
 
@@ -44,14 +48,23 @@ options:
                     fast, ground-truth parts) and DIR/pr_mean.png (mean over joints)
   --threads N       threads (0 = all cores, default)
   --png PATH        also write the confusion matrix as an RGB PNG
+  --segment M       auto (default): on frames with ground-truth person masks (a folder rendered
+                    with --clutter/--occluders/--masks), also score the runtime's people
+                    segmentation: IoU per person against the masks, and the forest's mAP and
+                    accuracy after segmentation next to those on the frames masked by the
+                    ground truth (clean); on: require masks; off: never
+  --per-person      list each person's segmentation IoU
+  --no-rescale      keep the forest's offsets as trained even when the frames' camera (camera.txt)
+                    has another focal length (to measure what the rescaling buys)
   --quiet           no progress lines
   --help            this text
 )";
 }  // namespace
 
 int EvalMain(int argc, char** argv) {
-  Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png"},
-            {"help", "quiet"});
+  Args args(
+      {"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png", "segment"},
+      {"help", "quiet", "per-person", "no-rescale"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -80,6 +93,11 @@ int EvalMain(int argc, char** argv) {
                  method.c_str());
     return 2;
   }
+  const std::string segment = args.GetOr("segment", "auto");
+  if (segment != "auto" && segment != "on" && segment != "off") {
+    std::fprintf(stderr, "poseforest eval: --segment must be auto, on or off (got '%s')\n", segment.c_str());
+    return 2;
+  }
   const std::string set = *args.Get("test-set");
   auto named = coordinator::ResolveSourceArgument(set, coordinator::JobSource::kTestSet);
   if (!named.ok()) {
@@ -98,6 +116,10 @@ int EvalMain(int argc, char** argv) {
   eo.threads = int(*threads);
   eo.people = int(*people);
   eo.fast = method == "both";
+  eo.rescale = !args.Has("no-rescale");
+  eo.segment = segment == "on"    ? coordinator::JointEvalOptions::Segment::kOn
+               : segment == "off" ? coordinator::JointEvalOptions::Segment::kOff
+                                  : coordinator::JointEvalOptions::Segment::kAuto;
   const bool quiet = args.Has("quiet");
   if (!quiet)
     eo.progress = [](int done, int total) {
@@ -138,6 +160,41 @@ int EvalMain(int argc, char** argv) {
                     dir->c_str());
       }
     }
+  }
+  if (!e->rescaled && !runtime::SameFocalLength(*forest, e->camera.fx, e->camera.fy))
+    std::printf(
+        "\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) was NOT rescaled "
+        "(--no-rescale)\n",
+        e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
+  if (e->rescaled)
+    std::printf(
+        "\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) had its offsets rescaled\n",
+        e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
+  if (e->segmented) {
+    std::printf("\nsegmentation (runtime people segmentation vs the ground-truth person masks):\n");
+    if (args.Has("per-person"))
+      for (const auto& p : e->segmentation)
+        std::printf("  frame %d person %d: %d px, IoU %.3f\n", p.frame, p.person, p.pixels, p.iou);
+    int good = 0;
+    for (const auto& p : e->segmentation) good += p.iou >= 0.5;
+    std::printf(
+        "segmentation: %zu people, mean IoU %.3f, %d with IoU >= 0.5; right person count in %d/%d "
+        "frames; %.1f ms/frame\n",
+        e->segmentation.size(), e->MeanIoU(), good, e->frames_right_count, e->frames,
+        e->segment_ms / std::max(1, e->frames));
+    const bool ap = e->has_joints && method != "none";
+    auto line = [&](const char* what, const coordinator::ConfusionMatrix& m,
+                    const runtime::JointApEvaluator& j) {
+      std::printf("  %-44s average per-class accuracy %6.2f%%", what, 100.0 * m.AveragePerClassAccuracy());
+      if (ap) std::printf(", mAP %.3f", j.MeanAveragePrecision());
+      std::printf("\n");
+    };
+    line("frames as they are (everything classified):", e->confusion, e->mean_shift);
+    line("clean (ground-truth masks):", e->clean_confusion, e->clean_mean_shift);
+    line("after segmentation:", e->segmented_confusion, e->segmented_mean_shift);
+    if (ap)
+      std::printf("eval: segmentation mean IoU %.3f, mAP clean %.3f, after segmentation %.3f\n", e->MeanIoU(),
+                  e->clean_mean_shift.MeanAveragePrecision(), e->segmented_mean_shift.MeanAveragePrecision());
   }
   // The headline figures on the last line.
   if (e->has_joints && method != "none")

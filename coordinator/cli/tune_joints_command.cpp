@@ -122,12 +122,15 @@ int TuneJointsMain(int argc, char** argv) {
   const int n = int(*frames);
   if (!quiet) std::printf("validation: %d frames, %s\n", n, what.c_str());
   std::fflush(stdout);
+  core::CameraIntrinsics camera;
   auto valid = coordinator::MakeValidationFrames(
-      *forest, source, n, 0, int(*threads), int(*people), [&](int d, int t) {
+      *forest, source, n, 0, int(*threads), int(*people),
+      [&](int d, int t) {
         if (!quiet && (d % 20 == 0 || d == t))
           std::fprintf(stderr, "tune-joints: rendered + classified %d / %d frames (%.0f s)\n", d, t,
                        seconds());
-      });
+      },
+      &camera);
   if (!valid.ok()) {
     std::fprintf(stderr, "poseforest tune-joints: %s\n", valid.status().ToString().c_str());
     return valid.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
@@ -149,6 +152,7 @@ int TuneJointsMain(int argc, char** argv) {
     runtime::ProposalOptions base;
     base.params = before[fast].params;  // the starting point, kept for joints never visible
     base.num_threads = int(*threads);
+    base.camera = camera;  // the validation frames' (a render folder's camera.txt)
     if (fast) base.method = runtime::ProposalMethod::kFastClustering;
     const auto result = runtime::TuneProposalParams(*valid, base, grid, 0.1f, [&](int d, int t) {
       if (!quiet && (d % 5 == 0 || d == t))

@@ -15,8 +15,10 @@
 #include "renderer/montage.h"
 #include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
+#include "runtime/camera_model.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
+#include "runtime/cli/frame_options.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/image_io.h"
 
@@ -36,6 +38,9 @@ constexpr const char* kUsage =
     "  depth_%06d.png   16-bit depth, millimetres (0 = background)\n"
     "  labels_%06d.png  8-bit part id 0..30 (255 = background)\n"
     "  joints_%06d.json 16 joints per person, camera frame (metres) + pixel + visibility\n"
+    "  mask_%06d.png    8-bit person id (0 = none, k = person k of the joints file), with\n"
+    "                   --clutter, --occluders or --masks\n"
+    "  camera.txt       the camera model (name, size, fx fy cx cy in pixels)\n"
     "\n"
     "options:\n"
     "  --out DIR          output folder (created)\n"
@@ -45,6 +50,15 @@ constexpr const char* kUsage =
     "  --rotation 120|360 person rotation about the vertical: +-120 deg or any (default 120)\n"
     "  --people N         people per frame (default 1)\n"
     "  --no-noise         no Kinect noise model (clean rendered depth)\n"
+    "  --camera PRESET    camera model (default kinect-v1): kinect-v1, kinect-v2, azure-nfov,\n"
+    "                     azure-nfov-binned, azure-wfov, azure-wfov-unbinned, realsense-d435,\n"
+    "                     realsense-d435-640 (docs/runtime/frames.md)\n"
+    "  --fx F --fy F --cx C --cy C  intrinsics on top of the preset, pixels (--fx alone sets both);\n"
+    "                     the noise model's disparity follows fx\n"
+    "  --clutter LIST     comma-separated: floor, walls (a back and a side wall), boxes (1-3\n"
+    "                     boxes on the floor); a pure function of (seed, frame) like the rest\n"
+    "  --occluders N      N boxes per frame between the camera and the people (default 0)\n"
+    "  --masks            write mask_%06d.png also without clutter\n"
     "  --montage FILE.png preview of the first 8 frames: depth grey | part colours, 4x2 grid\n"
     "  --poses FILE.pfposes  draw poses from this mocap pose library (poseforest-poselib build)\n"
     "                     instead of the procedural pose sampler\n"
@@ -93,9 +107,11 @@ std::string JointsJson(const renderer::RenderedFrame& f, const core::CameraIntri
 }  // namespace
 
 int RenderMain(int argc, char** argv) {
-  Args args({"out", "count", "seed", "threads", "rotation", "people", "montage", "poses", "clips",
-             "test-fraction", "split-seed", "bodies", "data"},
-            {"no-noise", "help"});
+  Args args(
+      {"out",           "count",      "seed",   "threads", "rotation", "people", "montage", "poses", "clips",
+       "test-fraction", "split-seed", "bodies", "data",    "camera",   "fx",     "fy",      "cx",    "cy",
+       "clutter",       "occluders"},
+      {"no-noise", "masks", "help"});
   if (core::Status st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest render: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -113,7 +129,8 @@ int RenderMain(int argc, char** argv) {
   auto threads = args.GetInt("threads", 1, 1, 256);
   auto rotation = args.GetInt("rotation", 120, 0, 360);
   auto people = args.GetInt("people", 1, 1, 8);
-  for (const auto* r : {&count, &threads, &rotation, &people}) {
+  auto occluders = args.GetInt("occluders", 0, 0, 16);
+  for (const auto* r : {&count, &threads, &rotation, &people, &occluders}) {
     if (!r->ok()) {
       std::fprintf(stderr, "poseforest render: %s\n", r->status().message().c_str());
       return 2;
@@ -174,6 +191,36 @@ int RenderMain(int argc, char** argv) {
   }
 
   renderer::SceneConfig config;
+  runtime::CameraModel camera;
+  bool camera_given = false;
+  if (core::Status st = ParseCameraOptions(args, &camera, &camera_given); !st.ok()) {
+    std::fprintf(stderr, "poseforest render: %s\n", st.message().c_str());
+    return 2;
+  }
+  config.camera = camera.intrinsics;
+  if (camera_given) config.noise.focal_px = camera.intrinsics.fx;  // disparity at this focal length
+  if (auto list = args.Get("clutter")) {
+    size_t start = 0;
+    while (start <= list->size()) {
+      const size_t comma = std::min(list->find(',', start), list->size());
+      const std::string item = list->substr(start, comma - start);
+      if (item == "floor") {
+        config.clutter.floor = true;
+      } else if (item == "walls") {
+        config.clutter.walls = true;
+      } else if (item == "boxes") {
+        config.clutter.boxes = true;
+      } else {
+        std::fprintf(
+            stderr, "poseforest render: --clutter takes floor, walls and boxes (comma-separated), not '%s'\n",
+            item.c_str());
+        return 2;
+      }
+      start = comma + 1;
+    }
+  }
+  config.clutter.occluders = int(*occluders);
+  const bool write_masks = config.clutter.enabled() || args.Has("masks");
   if (auto poses = args.Get("poses")) {
     renderer::PoseSelection sel;
     sel.library = *poses;
@@ -257,6 +304,7 @@ int RenderMain(int argc, char** argv) {
       core::Status st = f.ok() ? core::Status::Ok() : f.status();
       if (st.ok()) st = runtime::WriteDepthPng(FrameName(*out, "depth", i, "png"), f->depth);
       if (st.ok()) st = runtime::WriteLabelPng(FrameName(*out, "labels", i, "png"), f->labels);
+      if (st.ok() && write_masks) st = runtime::WriteLabelPng(FrameName(*out, "mask", i, "png"), f->people);
       if (st.ok()) {
         const std::string path = FrameName(*out, "joints", i, "json");
         std::ofstream js(path);
@@ -280,6 +328,12 @@ int RenderMain(int argc, char** argv) {
       }
     }
   };
+  if (core::Status st =
+          runtime::WriteCameraModelFile((std::filesystem::path(*out) / "camera.txt").string(), camera);
+      !st.ok()) {
+    std::fprintf(stderr, "poseforest render: %s\n", st.ToString().c_str());
+    return 1;
+  }
   std::vector<std::thread> pool;
   for (int t = 0; t < n_threads; ++t) pool.emplace_back(worker);
   for (auto& t : pool) t.join();
@@ -291,6 +345,7 @@ int RenderMain(int argc, char** argv) {
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("rendered %llu frames to %s in %.2f s with %d thread(s) on %s\n",
               static_cast<unsigned long long>(n), out->c_str(), secs, n_threads, gl_name.c_str());
+  std::printf("camera: %s\n", camera.Describe().c_str());
   if (auto montage = args.Get("montage"); montage && n_montage > 0) {
     const renderer::RgbImage m = renderer::MakeMontage(montage_frames, 4, 2, 2);
     if (core::Status st = runtime::WriteRgbPng(*montage, m.width, m.height, m.rgb); !st.ok()) {

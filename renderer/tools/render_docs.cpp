@@ -1,6 +1,8 @@
 // Writes the pictures of docs/renderer/: the procedural family in a labelled front T-pose, front
-// and back views, and a Fig. 2-style montage of sampled training frames.
+// and back views, a Fig. 2-style montage of sampled training frames, and cluttered frames before
+// and after the runtime's people segmentation (clutter_segmentation.png).
 //   render_docs OUT_DIR
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -9,6 +11,7 @@
 #include "renderer/procedural_body.h"
 #include "renderer/synthetic_source.h"
 #include "runtime/image_io.h"
+#include "runtime/segmentation.h"
 
 #ifdef POSEFOREST_DOCS_WITH_ASSETS
 #include "renderer/assets/makehuman.h"
@@ -63,6 +66,20 @@ RgbImage CropX(const RgbImage& src, int x0, int w) {
     }
   }
   return out;
+}
+
+// Person ids as colours over the dimmed depth (0 = the depth, dimmed).
+RgbImage IdsOverDepth(const core::DepthImage& depth, const core::LabelImage& ids, int downsample) {
+  static const uint8_t kColours[6][3] = {{230, 60, 50},  {50, 140, 230}, {60, 200, 80},
+                                         {240, 200, 40}, {200, 80, 220}, {40, 220, 220}};
+  RgbImage img = DepthToGrey(depth, downsample);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      uint8_t* px = &img.rgb[(size_t(y) * size_t(img.width) + size_t(x)) * 3];
+      const int id = ids.at(x * downsample, y * downsample);
+      for (int k = 0; k < 3; ++k) px[k] = id ? kColours[(id - 1) % 6][k] : uint8_t(px[k] / 3);
+    }
+  return img;
 }
 
 int Fail(const core::Status& st) {
@@ -166,6 +183,46 @@ int main(int argc, char** argv) {
         !st.ok())
       return Fail(st);
   }
+  // 6. Cluttered frames (floor, walls, boxes, one occluder; two people; Kinect noise): depth |
+  //    ground-truth person masks | the runtime's segmentation | the depth the forest then sees.
+  {
+    SceneConfig c6;
+    c6.min_people = c6.max_people = 2;
+    c6.clutter.floor = c6.clutter.walls = c6.clutter.boxes = true;
+    c6.clutter.occluders = 1;
+    auto r6 = SyntheticRenderer::Create(c6);
+    if (!r6.ok()) return Fail(r6.status());
+    const int ds = 2, w = c6.camera.width / ds, h = c6.camera.height / ds;
+    const uint64_t frames[] = {1, 3, 4};
+    RgbImage grid;
+    grid.width = 4 * w;
+    grid.height = 3 * h;
+    grid.rgb.assign(size_t(grid.width) * size_t(grid.height) * 3, 0);
+    runtime::SegmentationResult seg;
+    for (int row = 0; row < 3; ++row) {
+      auto f = (*r6)->Render(14, frames[row]);
+      if (!f.ok()) return Fail(f.status());
+      runtime::SegmentPeople(f->depth, c6.camera, runtime::SegmentationOptions{}, &seg);
+      Blit(DepthToGrey(f->depth, ds), &grid, 0, row * h);
+      Blit(IdsOverDepth(f->depth, f->people, ds), &grid, w, row * h);
+      Blit(IdsOverDepth(f->depth, seg.labels, ds), &grid, 2 * w, row * h);
+      Blit(DepthToGrey(seg.depth, ds), &grid, 3 * w, row * h);
+      std::printf("clutter frame %llu: floor %s, %zu segmented people;",
+                  static_cast<unsigned long long>(frames[row]), seg.floor ? "found" : "not found",
+                  seg.people.size());
+      for (int k = 1; k <= int(f->joints.size()); ++k) {
+        double best = 0;
+        for (int j = 1; j <= int(seg.people.size()); ++j)
+          best = std::max(best, runtime::MaskIoU(f->people, k, seg.labels, j));
+        std::printf(" person %d IoU %.3f", k, best);
+      }
+      std::printf("\n");
+    }
+    if (auto st = runtime::WriteRgbPng((out / "clutter_segmentation.png").string(), grid.width, grid.height,
+                                       grid.rgb);
+        !st.ok())
+      return Fail(st);
+  }
 #ifdef POSEFOREST_DOCS_WITH_ASSETS
   // 5. The asset bodies (MakeHuman kit presets, Assimp rigged meshes), labelled by
   //    LabelBodyParts, in their rest pose, front and back.
@@ -211,6 +268,7 @@ int main(int argc, char** argv) {
     std::printf("wrote %s/asset_bodies.png\n", out.c_str());
   }
 #endif
-  std::printf("wrote %s/{procedural_family,front_back,montage,closeup_noise}.png\n", out.c_str());
+  std::printf("wrote %s/{procedural_family,front_back,montage,closeup_noise,clutter_segmentation}.png\n",
+              out.c_str());
   return 0;
 }

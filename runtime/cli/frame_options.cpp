@@ -19,15 +19,15 @@ core::Result<double> GetDouble(const Args& args, const std::string& name, double
   return d;
 }
 
-core::Status ParseFrameSourceOptions(const Args& args, runtime::FrameSourceOptions* out) {
-  runtime::FrameSourceOptions& o = *out;
+core::Status ParseCameraOptions(const Args& args, runtime::CameraModel* out, bool* given) {
   // Camera model: a preset, then explicit intrinsics on top.
   const bool camera_flags =
       args.Has("camera") || args.Has("fx") || args.Has("fy") || args.Has("cx") || args.Has("cy");
+  if (given) *given = camera_flags;
   auto preset = runtime::CameraPreset(args.GetOr("camera", "kinect-v1"));
   if (!preset.ok()) return {preset.status().code(), "--camera: " + preset.status().message()};
-  o.camera = *preset;
-  auto& k = o.camera.intrinsics;
+  *out = *preset;
+  auto& k = out->intrinsics;
   bool custom = false;
   for (const auto& [name, field] :
        {std::pair<const char*, double*>{"fx", &k.fx}, {"fy", &k.fy}, {"cx", &k.cx}, {"cy", &k.cy}}) {
@@ -37,7 +37,15 @@ core::Status ParseFrameSourceOptions(const Args& args, runtime::FrameSourceOptio
     *field = *v;
   }
   if (args.Has("fx") && !args.Has("fy")) k.fy = k.fx;  // square pixels unless told
-  if (custom) o.camera.name += "+custom";
+  if (custom) out->name += "+custom";
+  return core::Status::Ok();
+}
+
+core::Status ParseFrameSourceOptions(const Args& args, runtime::FrameSourceOptions* out) {
+  runtime::FrameSourceOptions& o = *out;
+  bool camera_flags = false;
+  if (auto st = ParseCameraOptions(args, &o.camera, &camera_flags); !st.ok()) return st;
+  auto& k = o.camera.intrinsics;
   auto scale = GetDouble(args, "depth-scale", 1.0, 1e-6, 1e6);
   if (!scale.ok()) return scale.status();
   o.camera.depth_scale_mm = *scale;

@@ -12,6 +12,11 @@ namespace poseforest::cli {
 inline constexpr const char* kFrameSourceValueOptions[] = {"camera", "fx",          "fy",       "cx",
                                                            "cy",     "depth-scale", "raw-size", "fps"};
 
+/// The camera model of --camera PRESET and --fx/--fy/--cx/--cy on top (--fx alone sets both
+/// focal lengths; a preset with explicit values is named "PRESET+custom"); `given` says whether
+/// any of these options was present. Errors name the option.
+core::Status ParseCameraOptions(const Args& args, runtime::CameraModel* out, bool* given = nullptr);
+
 /// Fills `out` from the parsed arguments; errors name the option.
 core::Status ParseFrameSourceOptions(const Args& args, runtime::FrameSourceOptions* out);
 
