@@ -135,7 +135,8 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   w.U64(0);  // file size, patched below
   w.U32(kHeaderSize);
   const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
-                                 (forest.fast_proposal_params ? 1 : 0) + 1;
+                                 (forest.fast_proposal_params ? 1 : 0) + 1 +
+                                 (forest.confidence_calibration ? 1 : 0);
   w.U32(section_count);
   while (w.size() < kHeaderSize) w.U8(0);
 
