@@ -17,13 +17,28 @@ const std::vector<std::pair<int, int>>& SkeletonBones() {
   using J = core::Joint;
   auto b = [](J a, J c) { return std::pair<int, int>(int(a), int(c)); };
   static const std::vector<std::pair<int, int>> bones = {
-      b(J::kHead, J::kNeck),          b(J::kNeck, J::kLShoulder),    b(J::kNeck, J::kRShoulder),
+      b(J::kNeck, J::kHead),          b(J::kNeck, J::kLShoulder),    b(J::kNeck, J::kRShoulder),
       b(J::kLShoulder, J::kLElbow),   b(J::kLElbow, J::kLWrist),     b(J::kLWrist, J::kLHand),
       b(J::kRShoulder, J::kRElbow),   b(J::kRElbow, J::kRWrist),     b(J::kRWrist, J::kRHand),
       b(J::kLShoulder, J::kLKnee),    b(J::kLKnee, J::kLAnkle),      b(J::kLAnkle, J::kLFoot),
       b(J::kRShoulder, J::kRKnee),    b(J::kRKnee, J::kRAnkle),      b(J::kRAnkle, J::kRFoot),
   };
   return bones;
+}
+
+std::pair<float, float> BoneLengthRange(int parent, int child) {
+  using J = core::Joint;
+  const auto p = J(parent), c = J(child);
+  auto is = [&](J a, J b) { return (p == a && c == b); };
+  if (is(J::kNeck, J::kHead)) return {0.08f, 0.45f};
+  if (is(J::kNeck, J::kLShoulder) || is(J::kNeck, J::kRShoulder)) return {0.06f, 0.35f};
+  if (is(J::kLShoulder, J::kLElbow) || is(J::kRShoulder, J::kRElbow)) return {0.12f, 0.5f};
+  if (is(J::kLElbow, J::kLWrist) || is(J::kRElbow, J::kRWrist)) return {0.1f, 0.45f};
+  if (is(J::kLWrist, J::kLHand) || is(J::kRWrist, J::kRHand)) return {0.0f, 0.25f};
+  if (is(J::kLShoulder, J::kLKnee) || is(J::kRShoulder, J::kRKnee)) return {0.45f, 1.3f};
+  if (is(J::kLKnee, J::kLAnkle) || is(J::kRKnee, J::kRAnkle)) return {0.2f, 0.65f};
+  if (is(J::kLAnkle, J::kLFoot) || is(J::kRAnkle, J::kRFoot)) return {0.0f, 0.3f};
+  return {0.0f, 1e9f};
 }
 
 std::string DescribeConfidence(const core::ConfidenceCalibration* calibration) {
@@ -87,6 +102,41 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
         break;
       }
     }
+    // Cut by the image border: which sides the mask touches.
+    if (options.edge_margin_m > 0) {
+      bool left = false, right = false, top = false, bottom = false;
+      for (int y = 0; y < masks.height; ++y) {
+        left |= masks.at(0, y) == label;
+        right |= masks.at(masks.width - 1, y) == label;
+      }
+      for (int x = 0; x < masks.width; ++x) {
+        top |= masks.at(x, 0) == label;
+        bottom |= masks.at(x, masks.height - 1) == label;
+      }
+      for (SkeletonJoint& joint : s.joints) {
+        if (!joint.tracked || !(joint.position_m.z() > 0)) continue;
+        const float margin = float(camera.fx) * options.edge_margin_m / joint.position_m.z();
+        const float x = joint.pixel.x(), y = joint.pixel.y();
+        if ((left && x < margin) || (right && x > float(masks.width - 1) - margin) || (top && y < margin) ||
+            (bottom && y > float(masks.height - 1) - margin))
+          joint.tracked = false;
+      }
+    }
+    // Bones from the neck outwards (SkeletonBones lists parents before children).
+    if (options.check_bone_lengths || options.require_tracked_parent)
+      for (const auto& [a, b] : SkeletonBones()) {
+        const SkeletonJoint& parent = s.joints[size_t(a)];
+        SkeletonJoint& child = s.joints[size_t(b)];
+        if (!child.tracked) continue;
+        if (!parent.tracked) {
+          // The neck is the root; its own children (head, shoulders) stand alone.
+          if (options.require_tracked_parent && a != int(core::Joint::kNeck)) child.tracked = false;
+          continue;
+        }
+        const auto [lo, hi] = BoneLengthRange(a, b);
+        const float len = (parent.position_m - child.position_m).norm();
+        if (options.check_bone_lengths && (len < lo || len > hi)) child.tracked = false;
+      }
     out.push_back(std::move(s));
   }
   return out;

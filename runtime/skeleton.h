@@ -8,7 +8,8 @@
 // confidence is the forest's calibration (core::ConfidenceCalibration: the precision proposals of
 // that support had on validation renders) or, for forests without one, FallbackConfidence. A
 // joint is *tracked* only if it has such a proposal, the proposal's support and calibrated
-// confidence reach their minimums, and its depth agrees with the mask's depth there: an
+// confidence reach their minimums, its depth agrees with the mask's depth there, it is not at an
+// image border that cuts the person, and its bone to its parent joint has a possible length: an
 // upper-body frame whose legs are out of view gets no invented knees.
 
 #include <array>
@@ -33,6 +34,16 @@ struct SkeletonOptions {
   /// The proposal lies at most this far behind or in front of the mask's depth at its pixel
   /// (the z offset zeta pushes it behind the surface; 0.25 m leaves room for it).
   float max_depth_gap_m = 0.25f;
+  /// Where a person's mask is cut by the image border, joints within this distance of that
+  /// border are not tracked: on an upper-body frame the thighs at the bottom edge are read as
+  /// knees, and the real knees lie below the picture. 0 disables.
+  float edge_margin_m = 0.15f;
+  /// A joint whose bone to its tracked parent (SkeletonBones: towards the head) is outside the
+  /// lengths an adult or child can have (BoneLengthRange) is not tracked.
+  bool check_bone_lengths = true;
+  /// A joint below the shoulders (elbow, wrist, hand, knee, ankle, foot) is tracked only if its
+  /// parent is: a foot found below knees that are not tracked is a guess.
+  bool require_tracked_parent = true;
   // Identity over a sequence: nearest centroid, greedy by distance.
   float max_match_distance_m = 0.5f;  ///< a person moving farther between frames gets a new id
   int max_missed_frames = 10;         ///< a person unseen this many frames is forgotten
@@ -61,9 +72,14 @@ struct Skeleton {
   int tracked_joints() const;
 };
 
-/// The lines of a skeleton picture / marker, pairs of core::Joint indices. The paper's 16 joints
-/// have no hips, so the legs hang from the shoulders (the torso's sides).
+/// The lines of a skeleton picture / marker, (parent, child) pairs of core::Joint indices, a tree
+/// rooted at the neck, parents listed before their children. The paper's 16 joints have no hips,
+/// so the legs hang from the shoulders (the torso's sides).
 const std::vector<std::pair<int, int>>& SkeletonBones();
+
+/// Plausible length range of bone (parent, child) in metres (generous: children to tall adults,
+/// joint positions being proposals, not anatomy).
+std::pair<float, float> BoneLengthRange(int parent, int child);
 
 /// Which confidence a table gives: "calibrated (tune-joints, N validation proposals)" or the
 /// fallback's name, for messages.

@@ -165,6 +165,7 @@ TEST_CASE("skeletons: per person the best proposal on its mask; no invented join
   proposals[kLHand] = {At(cam, 120, 250, 2.04f, 1e-6f * float(cam.fx * cam.fy)), At(cam, 500, 200, 4.0f, big)};
   const auto cal = RampCalibration();
   runtime::SkeletonOptions opt;
+  opt.require_tracked_parent = false;  // the knee has no tracked shoulder here; see the next test
   auto skeletons = runtime::BuildSkeletons(proposals, scene.masks, 2, scene.depth, cam, &cal, opt);
   REQUIRE(skeletons.size() == 2);
   const auto& p1 = skeletons[0];
@@ -194,10 +195,57 @@ TEST_CASE("skeletons: per person the best proposal on its mask; no invented join
   skeletons = runtime::BuildSkeletons(proposals, scene.masks, 2, scene.depth, cam, &cal, opt);
   CHECK_FALSE(skeletons[0].joints[kHead].tracked);
   // Without a table: the fallback.
-  skeletons = runtime::BuildSkeletons(proposals, scene.masks, 2, scene.depth, cam, nullptr, {});
+  skeletons = runtime::BuildSkeletons(proposals, scene.masks, 2, scene.depth, cam, nullptr, opt);
   CHECK(skeletons[0].joints[kHead].confidence == Approx(core::FallbackConfidence(0.01f)));
   // No people, no skeletons.
   CHECK(runtime::BuildSkeletons(proposals, scene.masks, 0, scene.depth, cam, &cal, {}).empty());
+}
+
+TEST_CASE("skeletons: no knees at the border that cuts an upper body, bone lengths, unbroken chains", "[skeleton]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 200, 100, 440, 479, 1500);  // an upper body at 1.5 m, cut by the bottom edge
+  runtime::FrameProposals proposals{};
+  const float big = 0.01f * float(cam.fx * cam.fy);
+  using J = core::Joint;
+  auto put = [&](J j, int x, int y) { proposals[size_t(j)] = {At(cam, x, y, 1.54f, big)}; };
+  put(J::kNeck, 320, 180);
+  put(J::kHead, 320, 120);        // 0.16 m above the neck
+  put(J::kLShoulder, 380, 200);   // 0.2 m from the neck
+  put(J::kRShoulder, 260, 200);
+  put(J::kLElbow, 420, 300);      // 0.28 m from the shoulder
+  put(J::kRElbow, 262, 205);      // 1.3 cm from its shoulder: no such arm
+  put(J::kRWrist, 262, 320);      // would be fine, but its elbow is not tracked
+  put(J::kLKnee, 380, 460);       // 19 px from the bottom edge (0.15 m = 56 px at 1.54 m)
+  put(J::kRKnee, 262, 400);       // far from the edge but 0.53 m below its shoulder: allowed
+  put(J::kLAnkle, 380, 470);      // below a knee that is not tracked
+  const auto cal = RampCalibration();
+  runtime::SkeletonOptions opt;
+  auto s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
+  REQUIRE(s.size() == 1);
+  const auto& j = s[0].joints;
+  for (J ok : {J::kNeck, J::kHead, J::kLShoulder, J::kRShoulder, J::kLElbow, J::kRKnee}) {
+    INFO(core::JointName(int(ok)));
+    CHECK(j[size_t(ok)].tracked);
+  }
+  for (J no : {J::kRElbow, J::kRWrist, J::kLKnee, J::kLAnkle}) {
+    INFO(core::JointName(int(no)));
+    CHECK(j[size_t(no)].found);
+    CHECK_FALSE(j[size_t(no)].tracked);
+  }
+  // Each rule can be turned off.
+  opt.edge_margin_m = 0;
+  opt.check_bone_lengths = false;
+  opt.require_tracked_parent = false;
+  s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
+  for (J all : {J::kRElbow, J::kRWrist, J::kLKnee, J::kLAnkle}) CHECK(s[0].joints[size_t(all)].tracked);
+  // The same knee on a whole body (the mask ends above the edge) is tracked.
+  Scene whole;
+  whole.Person(1, 200, 100, 440, 470, 1500);
+  opt = {};
+  put(J::kLKnee, 380, 430);
+  s = runtime::BuildSkeletons(proposals, whole.masks, 1, whole.depth, cam, &cal, opt);
+  CHECK(s[0].joints[size_t(J::kLKnee)].tracked);
 }
 
 TEST_CASE("person ids stay with the nearest centroid over a sequence", "[skeleton]") {
