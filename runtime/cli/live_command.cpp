@@ -46,7 +46,8 @@ over the sequence. Outputs (any together; docs/runtime/live.md has the schema):
   --jsonl FILE|-       JSON Lines, one object per frame (- = stdout)
   --png-dir DIR        DIR/frame-NNNNNN.png per frame: depth | parts | skeletons (bones drawn)
   --http ADDR          a live page at http://ADDR/ (HOST:PORT, or PORT for 127.0.0.1): depth | parts
-                       | skeletons at the camera's rate (server-sent events); /skeletons.json, /frame.png
+                       | skeletons at the camera's rate (server-sent events: /events, one JSON Lines
+                       record per frame); /skeletons.json (the latest), /frame.png (its picture)
 Progress (frames/s, latency, people) goes to stderr on one line; SIGINT / SIGTERM (Ctrl-C) stop
 cleanly after the current frame with a summary.
 
@@ -102,7 +103,7 @@ img{width:100%;max-width:1920px;image-rendering:pixelated}td{padding:0 8px}</sty
 <p>frame <span id="frame">-</span>, <span id="count">0</span> people, <span id="fps">-</span> frames/s</p>
 <table id="people"></table>
 <script>
-const es = new EventSource('/events');
+const es = new EventSource('/events' + location.search);  // ?frames=N: the stream ends after N
 let last = 0, n = 0, t0 = performance.now();
 es.onmessage = (e) => {
   const f = JSON.parse(e.data);
@@ -279,13 +280,20 @@ int LiveMain(int argc, char** argv) {
       res.set_header("Cache-Control", "no-store");
     });
     // Server-sent events: one "data:" line per frame, the frame's JSON Lines record.
-    server.Get("/events", [&live](const httplib::Request&, httplib::Response& res) {
+    server.Get("/events", [&live](const httplib::Request& req, httplib::Response& res) {
       res.set_header("Cache-Control", "no-store");
       auto last = std::make_shared<uint64_t>(0);
+      // ?frames=N ends the stream after N frames (scripts, and the browser test: a page whose
+      // stream has ended lets headless Chromium's virtual time run out and dump it).
+      auto left = std::make_shared<long>(req.has_param("frames") ? std::atol(req.get_param_value("frames").c_str()) : -1);
       ++live.clients;
       res.set_chunked_content_provider(
           "text/event-stream",
-          [&live, last](size_t, httplib::DataSink& sink) {
+          [&live, last, left](size_t, httplib::DataSink& sink) {
+            if (*left == 0) {
+              sink.done();
+              return true;
+            }
             std::string msg;
             {
               std::unique_lock lock(live.mu);
@@ -295,7 +303,9 @@ int LiveMain(int argc, char** argv) {
                 msg = ": keep-alive\n\n";
               } else {
                 *last = live.seq;
-                msg = "data: " + live.json + "\n\n";
+                // retry: a client whose stream ended (?frames=N) waits 10 minutes before asking again.
+                msg = "retry: 600000\ndata: " + live.json + "\n\n";
+                if (*left > 0) --*left;
               }
             }
             return sink.write(msg.data(), msg.size());
