@@ -26,6 +26,9 @@
 #include "runtime/image_io.h"
 #include "runtime/skeleton_pipeline.h"
 #include "runtime/visualize.h"
+#ifdef POSEFOREST_HAS_SKELETON_DDS
+#include "runtime/dds/skeleton_publisher.h"
+#endif
 
 // After Eigen: httplib.h pulls in <resolv.h>, whose `_res` macro breaks Eigen's headers.
 #ifdef POSEFOREST_HAS_HTTPLIB
@@ -48,6 +51,14 @@ over the sequence. Outputs (any together; docs/runtime/live.md has the schema):
   --http ADDR          a live page at http://ADDR/ (HOST:PORT, or PORT for 127.0.0.1): depth | parts
                        | skeletons at the camera's rate (server-sent events: /events, one JSON Lines
                        record per frame); /skeletons.json (the latest), /frame.png (its picture)
+  --dds                ROS 2-readable DDS topics (Fast DDS, rmw_fastrtps naming; builds with Fast DDS):
+                       rt/PREFIX/skeletons (poseforest_msgs/msg/Skeletons, msg/*.msg in the source)
+                       and rt/PREFIX/markers (visualization_msgs/msg/MarkerArray: joints and bones
+                       per person, for RViz); reliable, transient-local, keep-last 100
+  --dds-domain N       DDS domain (ROS_DOMAIN_ID; default 0)
+  --dds-topic PREFIX   ROS topics /PREFIX/skeletons and /PREFIX/markers (default poseforest)
+  --dds-frame-id ID    header.frame_id (default camera_depth_optical_frame)
+  --dds-wait N         before the first frame, wait up to 10 s for N subscribers (default 0)
 Progress (frames/s, latency, people) goes to stderr on one line; SIGINT / SIGTERM (Ctrl-C) stop
 cleanly after the current frame with a summary.
 
@@ -140,9 +151,10 @@ int LiveMain(int argc, char** argv) {
   std::set<std::string> value_options = {"forest",       "source",      "jsonl",  "png-dir",         "http",
                                           "method",       "min-confidence", "min-support", "max-match",
                                           "smooth-min-cutoff", "smooth-beta", "smooth-d-cutoff", "max-frames",
-                                          "threads",      "segment",     "floor",  "near",            "far"};
+                                          "threads",      "segment",     "floor",  "near",            "far",
+                                          "dds-domain",   "dds-topic",   "dds-frame-id", "dds-wait"};
   for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
-  Args args(value_options, {"help", "quiet", "smooth", "loop"});
+  Args args(value_options, {"help", "quiet", "smooth", "loop", "dds"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest live: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -342,6 +354,38 @@ int LiveMain(int argc, char** argv) {
   auto stop_server = [] {};
 #endif
 
+#ifdef POSEFOREST_HAS_SKELETON_DDS
+  std::unique_ptr<runtime::ros2::SkeletonPublisher> dds;
+  if (args.Has("dds")) {
+    runtime::ros2::DdsOptions o;
+    auto domain = args.GetInt("dds-domain", 0, 0, 232);
+    auto wait = args.GetInt("dds-wait", 0, 0, 1000);
+    if (!domain.ok()) return UsageError(domain.status().message());
+    if (!wait.ok()) return UsageError(wait.status().message());
+    o.domain = int(*domain);
+    o.topic_prefix = args.GetOr("dds-topic", o.topic_prefix);
+    o.frame_id = args.GetOr("dds-frame-id", o.frame_id);
+    auto p = runtime::ros2::SkeletonPublisher::Create(o);
+    if (!p.ok()) {
+      std::fprintf(stderr, "poseforest live: %s\n", p.status().ToString().c_str());
+      return p.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
+    }
+    dds = std::move(*p);
+    std::fprintf(stderr, "poseforest live: publishing on %s\n", dds->Describe().c_str());
+    if (*wait > 0 && !dds->WaitForSubscribers(int(*wait), 10.0))
+      std::fprintf(stderr, "poseforest live: DDS: fewer than %ld subscribers after 10 s; publishing anyway\n", *wait);
+  } else {
+    for (const char* o : {"dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
+      if (args.Has(o)) return UsageError(std::string("--") + o + " needs --dds");
+  }
+#else
+  for (const char* o : {"dds", "dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
+    if (args.Has(o))
+      return UsageError(std::string("--") + o +
+                        ": this program was built without Fast DDS (the DDS output is built with the training side, "
+                        "-DPOSEFOREST_TRAINING=ON)");
+#endif
+
   struct sigaction sa {};
   sa.sa_handler = OnStopSignal;
   sigemptyset(&sa.sa_mask);
@@ -413,6 +457,12 @@ int LiveMain(int argc, char** argv) {
       std::fputc('\n', jsonl);
       std::fflush(jsonl);
     }
+#ifdef POSEFOREST_HAS_SKELETON_DDS
+    if (dds && !dds->Publish(frame.index, frame.timestamp_s, frame.source, result.skeletons)) {
+      std::fprintf(stderr, "poseforest live: DDS: a write failed at frame %lld\n", static_cast<long long>(frame.index));
+      ++write_errors;
+    }
+#endif
     const double latency_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_in).count();
     bool want_png = png_dir.has_value();
@@ -463,6 +513,11 @@ int LiveMain(int argc, char** argv) {
     }
   }
   stop_server();
+#ifdef POSEFOREST_HAS_SKELETON_DDS
+  // Let matched subscribers receive what was published before the writers go away.
+  if (dds && !dds->Flush(3.0)) std::fprintf(stderr, "poseforest live: DDS: not every subscriber acknowledged within 3 s\n");
+  dds.reset();
+#endif
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (tty && !quiet) std::fputc('\n', stderr);
   std::fprintf(stderr, "poseforest live: %s: %lld frames in %.2f s (%.1f frames/s%s), %lld bad frames skipped%s\n",
@@ -472,7 +527,7 @@ int LiveMain(int argc, char** argv) {
   if (frames > 0) {
     const double n = double(frames);
     std::fprintf(stderr,
-                 "poseforest live: latency p50 %.2f ms, p99 %.2f ms (frame in to JSON line out); per frame: segment "
+                 "poseforest live: latency p50 %.2f ms, p99 %.2f ms (frame in to JSON line out and published); per frame: segment "
                  "%.2f ms, classify %.2f ms, proposals %.2f ms, skeletons %.2f ms, pictures/page %.2f ms\n",
                  Percentile(latencies, 0.5), Percentile(latencies, 0.99), stage_sum.segment_ms / n,
                  stage_sum.classify_ms / n, stage_sum.proposals_ms / n, stage_sum.skeletons_ms / n, output_ms_sum / n);
