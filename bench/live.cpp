@@ -72,9 +72,10 @@ int main(int argc, char** argv) {
       }
   }
   if (forest_path.empty()) {
-    std::fprintf(stderr,
-                 "bench/live: no forest: run scripts/accuracy-recipe.sh (out/accuracy-4000/forest_tuned.pff) or "
-                 "give --forest F (e.g. the main job's)\n");
+    std::fprintf(
+        stderr,
+        "bench/live: no forest: run scripts/accuracy-recipe.sh (out/accuracy-4000/forest_tuned.pff) or "
+        "give --forest F (e.g. the main job's)\n");
     return 2;
   }
   auto forest = core::LoadForest(forest_path);
@@ -82,8 +83,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench/live: %s\n", forest.status().ToString().c_str());
     return 1;
   }
-  std::printf("forest: %s (%s): %zu trees, depth %u\n", forest_path.c_str(), which.c_str(), forest->trees.size(),
-              forest->max_depth());
+  std::printf("forest: %s (%s): %zu trees, depth %u\n", forest_path.c_str(), which.c_str(),
+              forest->trees.size(), forest->max_depth());
 
   const auto cam = core::CameraIntrinsics::KinectV1();
   std::vector<core::DepthImage> real_people;
@@ -107,8 +108,8 @@ int main(int argc, char** argv) {
     std::vector<core::DepthImage> people;
     const double t = double(k) / num_frames;
     if (!real_people.empty())
-      people.push_back(testing::MovePerson(real_people[size_t(k) % real_people.size()], cam, 900 + int(300 * t),
-                                           -0.5 + 0.3 * t));
+      people.push_back(testing::MovePerson(real_people[size_t(k) % real_people.size()], cam,
+                                           900 + int(300 * t), -0.5 + 0.3 * t));
     people.push_back(testing::MakePersonDepth(2.9 - 0.4 * t, 640, 480, 0.7 - 0.2 * t, spec.floor_y_m - 0.98));
     auto& f = frames[size_t(k)];
     f.depth = testing::ComposeScene(cam, spec, people).depth;
@@ -117,7 +118,8 @@ int main(int argc, char** argv) {
     f.source = "bench";
   }
   std::printf("sequence: %d cluttered 640x480 frames played back and forth, %s, %d threads\n", num_frames,
-              real_people.empty() ? "one synthetic person (no real frames found)" : "a real Kinect person and a synthetic one",
+              real_people.empty() ? "one synthetic person (no real frames found)"
+                                  : "a real Kinect person and a synthetic one",
               threads);
 
   runtime::SkeletonPipelineOptions options;
@@ -183,8 +185,9 @@ int main(int argc, char** argv) {
   std::printf("%lld frames in %.2f s; %.2f people per frame (%d ids), %.1f joints tracked per person\n",
               static_cast<long long>(done), elapsed, double(people) / n, (*pipeline)->tracker().people_seen(),
               people ? double(tracked) / double(people) : 0.0);
-  std::printf("latency (frame in to skeletons published): p50 %.2f ms, p99 %.2f ms, max %.2f ms\n", Percentile(latency, 0.5),
-              Percentile(latency, 0.99), *std::max_element(latency.begin(), latency.end()));
+  std::printf("latency (frame in to skeletons published): p50 %.2f ms, p99 %.2f ms, max %.2f ms\n",
+              Percentile(latency, 0.5), Percentile(latency, 0.99),
+              *std::max_element(latency.begin(), latency.end()));
   std::printf("%-14s %10s %8s\n", "stage", "ms/frame", "share");
   json_ms -= dds_ms;  // the JSON Lines span above included the publish
   const double total = sum.total() + json_ms + dds_ms;

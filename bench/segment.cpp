@@ -112,7 +112,8 @@ int main(int argc, char** argv) {
       const bool real = !real_people.empty() && rng.UniformInt(3) == 0;
       if (real) {
         const auto& src = real_people[rng.UniformInt(uint32_t(real_people.size()))];
-        people.push_back(testing::MovePerson(src, cam, int(rng.UniformIn(300, 1200)), rng.UniformIn(-0.4, 0.4)));
+        people.push_back(
+            testing::MovePerson(src, cam, int(rng.UniformIn(300, 1200)), rng.UniformIn(-0.4, 0.4)));
       } else {
         // Standing on the floor: the figure's feet are 0.98 m below its pelvis.
         const double z = rng.UniformIn(1.8, 3.3);

@@ -1,7 +1,5 @@
 #include "coordinator/evaluation.h"
 
-#include "runtime/skeleton.h"
-
 #include <omp.h>
 
 #include <chrono>
@@ -16,6 +14,7 @@
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #include "runtime/joint_proposals.h"
+#include "runtime/skeleton.h"
 #include "runtime/visualize.h"
 #if POSEFOREST_HAS_RENDERER
 #include "renderer/synthetic_source.h"
@@ -361,8 +360,8 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
         // The skeleton as `live` builds it: the person's mask is every pixel with depth.
         core::LabelImage mask(frame->depth.width, frame->depth.height, 0);
         for (size_t k = 0; k < mask.pixels.size(); ++k) mask.pixels[k] = frame->depth.pixels[k] ? 1 : 0;
-        const auto skeletons = runtime::BuildSkeletons(proposals, mask, 1, frame->depth, ms.camera, calibration,
-                                                       runtime::SkeletonOptions{});
+        const auto skeletons = runtime::BuildSkeletons(proposals, mask, 1, frame->depth, ms.camera,
+                                                       calibration, runtime::SkeletonOptions{});
         if (!skeletons.empty()) {
           auto& acc = e.skeleton;
           ++acc.frames;
@@ -401,10 +400,11 @@ std::string FormatSkeletonTable(const Evaluation& e) {
   const auto& a = e.skeleton;
   std::string out;
   char buf[256];
-  std::snprintf(buf, sizeof buf,
-                "skeleton accuracy (what `live` reports: per joint one position, tracked or not; %d one-person "
-                "frames, D = %.2f m, confidence %s):\n",
-                a.frames, double(e.distance_m), e.calibrated ? "calibrated (JCAL)" : "the uncalibrated fallback");
+  std::snprintf(
+      buf, sizeof buf,
+      "skeleton accuracy (what `live` reports: per joint one position, tracked or not; %d one-person "
+      "frames, D = %.2f m, confidence %s):\n",
+      a.frames, double(e.distance_m), e.calibrated ? "calibrated (JCAL)" : "the uncalibrated fallback");
   out += buf;
   std::snprintf(buf, sizeof buf, "%-11s %8s %16s %16s %18s\n", "joint", "visible", "tracked within D",
                 "tracked & right", "not tracked right");
@@ -422,19 +422,21 @@ std::string FormatSkeletonTable(const Evaluation& e) {
         std::snprintf(c, sizeof c, "- (0)");
       return std::string(c);
     };
-    std::snprintf(buf, sizeof buf, "%-11s %8d %16s %16s %18s\n", std::string(core::JointName(j)).c_str(), a.visible[k],
-                  cell(a.tracked_within[k], a.visible[k]).c_str(), cell(a.tracked_right[k], a.tracked[k]).c_str(),
+    std::snprintf(buf, sizeof buf, "%-11s %8d %16s %16s %18s\n", std::string(core::JointName(j)).c_str(),
+                  a.visible[k], cell(a.tracked_within[k], a.visible[k]).c_str(),
+                  cell(a.tracked_right[k], a.tracked[k]).c_str(),
                   cell(a.untracked_invisible[k], a.untracked[k]).c_str());
     out += buf;
     if (a.visible[k]) within += ratio(a.tracked_within[k], a.visible[k]), ++joints;
     if (a.tracked[k]) right += ratio(a.tracked_right[k], a.tracked[k]), ++tracked_joints;
     if (a.untracked[k]) untracked += ratio(a.untracked_invisible[k], a.untracked[k]), ++untracked_joints;
   }
-  std::snprintf(buf, sizeof buf,
-                "mean over joints: tracked within %.2f m when visible %.3f, tracked & right %.3f, not tracked right "
-                "%.3f\n(columns: fraction (count): of the frames where the joint is visible / tracked / not tracked)\n",
-                double(e.distance_m), joints ? within / joints : 0.0, tracked_joints ? right / tracked_joints : 0.0,
-                untracked_joints ? untracked / untracked_joints : 0.0);
+  std::snprintf(
+      buf, sizeof buf,
+      "mean over joints: tracked within %.2f m when visible %.3f, tracked & right %.3f, not tracked right "
+      "%.3f\n(columns: fraction (count): of the frames where the joint is visible / tracked / not tracked)\n",
+      double(e.distance_m), joints ? within / joints : 0.0, tracked_joints ? right / tracked_joints : 0.0,
+      untracked_joints ? untracked / untracked_joints : 0.0);
   out += buf;
   return out;
 }

@@ -124,7 +124,8 @@ std::vector<float> IsotonicFit(const std::vector<double>& values, const std::vec
     if (!(weights[i] > 0)) continue;
     weighted.push_back(i);
     blocks.push_back({weights[i], weights[i] * values[i], 1});
-    while (blocks.size() > 1 && blocks[blocks.size() - 2].wy / blocks[blocks.size() - 2].w > blocks.back().wy / blocks.back().w) {
+    while (blocks.size() > 1 &&
+           blocks[blocks.size() - 2].wy / blocks[blocks.size() - 2].w > blocks.back().wy / blocks.back().w) {
       const Block b = blocks.back();
       blocks.pop_back();
       blocks.back().w += b.w, blocks.back().wy += b.wy, blocks.back().n += b.n;
@@ -148,8 +149,9 @@ core::ConfidenceCalibration CalibrateConfidence(const std::vector<ValidationFram
   const int threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
   const auto proposals = ProposeAll(frames, options, threads);
   core::ConfidenceCalibration cal;
-  cal.method = options.method == ProposalMethod::kFastClustering ? core::ConfidenceCalibration::Method::kFastClustering
-                                                                  : core::ConfidenceCalibration::Method::kMeanShift;
+  cal.method = options.method == ProposalMethod::kFastClustering
+                   ? core::ConfidenceCalibration::Method::kFastClustering
+                   : core::ConfidenceCalibration::Method::kMeanShift;
   cal.support_edges_m2 = core::DefaultSupportEdges();
   const size_t bins = cal.support_edges_m2.size();
   const double area = options.camera.fx * options.camera.fy;
@@ -159,9 +161,9 @@ core::ConfidenceCalibration CalibrateConfidence(const std::vector<ValidationFram
     for (int j = 0; j < core::kNumJoints; ++j)
       for (const JointProposal& p : proposals[k][size_t(j)]) {
         const float support = float(double(p.confidence) / area);
-        const size_t bin = size_t(
-            std::max<std::ptrdiff_t>(0, std::upper_bound(cal.support_edges_m2.begin(), cal.support_edges_m2.end(), support) -
-                                            cal.support_edges_m2.begin() - 1));
+        const size_t bin = size_t(std::max<std::ptrdiff_t>(
+            0, std::upper_bound(cal.support_edges_m2.begin(), cal.support_edges_m2.end(), support) -
+                   cal.support_edges_m2.begin() - 1));
         bool right = false;
         for (const PersonJoints& person : frames[k].people)
           right |= (person.position[size_t(j)] - p.position).norm() <= distance_m;

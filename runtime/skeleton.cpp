@@ -17,11 +17,11 @@ const std::vector<std::pair<int, int>>& SkeletonBones() {
   using J = core::Joint;
   auto b = [](J a, J c) { return std::pair<int, int>(int(a), int(c)); };
   static const std::vector<std::pair<int, int>> bones = {
-      b(J::kNeck, J::kHead),          b(J::kNeck, J::kLShoulder),    b(J::kNeck, J::kRShoulder),
-      b(J::kLShoulder, J::kLElbow),   b(J::kLElbow, J::kLWrist),     b(J::kLWrist, J::kLHand),
-      b(J::kRShoulder, J::kRElbow),   b(J::kRElbow, J::kRWrist),     b(J::kRWrist, J::kRHand),
-      b(J::kLShoulder, J::kLKnee),    b(J::kLKnee, J::kLAnkle),      b(J::kLAnkle, J::kLFoot),
-      b(J::kRShoulder, J::kRKnee),    b(J::kRKnee, J::kRAnkle),      b(J::kRAnkle, J::kRFoot),
+      b(J::kNeck, J::kHead),        b(J::kNeck, J::kLShoulder), b(J::kNeck, J::kRShoulder),
+      b(J::kLShoulder, J::kLElbow), b(J::kLElbow, J::kLWrist),  b(J::kLWrist, J::kLHand),
+      b(J::kRShoulder, J::kRElbow), b(J::kRElbow, J::kRWrist),  b(J::kRWrist, J::kRHand),
+      b(J::kLShoulder, J::kLKnee),  b(J::kLKnee, J::kLAnkle),   b(J::kLAnkle, J::kLFoot),
+      b(J::kRShoulder, J::kRKnee),  b(J::kRKnee, J::kRAnkle),   b(J::kRAnkle, J::kRFoot),
   };
   return bones;
 }
@@ -47,16 +47,19 @@ std::string DescribeConfidence(const core::ConfidenceCalibration* calibration) {
            "tune-joints)";
   return "calibrated: precision on validation renders (tune-joints, " + std::to_string(calibration->samples) +
          " proposals, " +
-         (calibration->method == core::ConfidenceCalibration::Method::kMeanShift ? "mean shift" : "fast clustering") +
+         (calibration->method == core::ConfidenceCalibration::Method::kMeanShift ? "mean shift"
+                                                                                 : "fast clustering") +
          ")";
 }
 
-std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks, int num_people,
-                                     const core::DepthImage& depth, const core::CameraIntrinsics& camera,
+std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks,
+                                     int num_people, const core::DepthImage& depth,
+                                     const core::CameraIntrinsics& camera,
                                      const core::ConfidenceCalibration* calibration,
                                      const SkeletonOptions& options) {
   std::vector<Skeleton> out;
-  if (num_people <= 0 || masks.empty() || masks.width != depth.width || masks.height != depth.height) return out;
+  if (num_people <= 0 || masks.empty() || masks.width != depth.width || masks.height != depth.height)
+    return out;
   // Centroids and sizes in one pass.
   std::vector<Eigen::Vector3d> sum(size_t(num_people) + 1, Eigen::Vector3d::Zero());
   std::vector<int> count(size_t(num_people) + 1, 0);
@@ -97,7 +100,8 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
         joint.confidence = calibration ? calibration->Confidence(j, joint.support_m2)
                                        : core::FallbackConfidence(joint.support_m2);
         const float gap = p.position.z() - float(mask_depth) * 1e-3f;
-        joint.tracked = joint.support_m2 >= options.min_support_m2 && joint.confidence >= options.min_confidence &&
+        joint.tracked = joint.support_m2 >= options.min_support_m2 &&
+                        joint.confidence >= options.min_confidence &&
                         std::abs(gap) <= options.max_depth_gap_m;
         break;
       }
@@ -176,7 +180,8 @@ std::vector<Skeleton> SkeletonTracker::Update(std::vector<Skeleton> skeletons, d
   std::vector<int> track_of(skeletons.size(), -1);
   std::vector<bool> track_used(tracks_.size(), false);
   for (const Pair& p : pairs)
-    if (track_of[p.skel] < 0 && !track_used[p.track]) track_of[p.skel] = int(p.track), track_used[p.track] = true;
+    if (track_of[p.skel] < 0 && !track_used[p.track])
+      track_of[p.skel] = int(p.track), track_used[p.track] = true;
   for (size_t t = 0; t < tracks_.size(); ++t)
     if (!track_used[t]) ++tracks_[t].missed;
   for (size_t k = 0; k < skeletons.size(); ++k) {
@@ -201,13 +206,15 @@ std::vector<Skeleton> SkeletonTracker::Update(std::vector<Skeleton> skeletons, d
         for (auto& c : f) c.init = false;  // a joint that comes back starts afresh
         continue;
       }
-      for (int c = 0; c < 3; ++c) joint.position_m[c] = float(f[size_t(c)].Filter(joint.position_m[c], dt, options_));
+      for (int c = 0; c < 3; ++c)
+        joint.position_m[c] = float(f[size_t(c)].Filter(joint.position_m[c], dt, options_));
       if (joint.position_m.z() > 0)
         joint.pixel = camera.Project(joint.position_m.cast<double>()).cast<float>();
     }
   }
   std::erase_if(tracks_, [&](const Track& t) { return t.missed > options_.max_missed_frames; });
-  std::sort(skeletons.begin(), skeletons.end(), [](const Skeleton& a, const Skeleton& b) { return a.id < b.id; });
+  std::sort(skeletons.begin(), skeletons.end(),
+            [](const Skeleton& a, const Skeleton& b) { return a.id < b.id; });
   return skeletons;
 }
 

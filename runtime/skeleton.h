@@ -12,12 +12,11 @@
 // image border that cuts the person, and its bone to its parent joint has a possible length: an
 // upper-body frame whose legs are out of view gets no invented knees.
 
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "runtime/core/body_parts.h"
 #include "runtime/core/camera.h"
@@ -55,18 +54,18 @@ struct SkeletonOptions {
 };
 
 struct SkeletonJoint {
-  bool found = false;               ///< a proposal lies on the person (position and pixel valid)
-  bool tracked = false;             ///< found, supported, confident and on the person's depth
+  bool found = false;                   ///< a proposal lies on the person (position and pixel valid)
+  bool tracked = false;                 ///< found, supported, confident and on the person's depth
   Eigen::Vector3f position_m{0, 0, 0};  ///< camera frame, metres (smoothed when smoothing is on)
   Eigen::Vector2f pixel{0, 0};          ///< position_m projected, pixels
-  float confidence = 0;             ///< 0..1 (calibrated, or the fallback); 0 when not found
-  float support_m2 = 0;             ///< the proposal's raw confidence / (fx fy), m^2
+  float confidence = 0;                 ///< 0..1 (calibrated, or the fallback); 0 when not found
+  float support_m2 = 0;                 ///< the proposal's raw confidence / (fx fy), m^2
 };
 
 struct Skeleton {
-  int id = 0;          ///< stable over a sequence (SkeletonTracker); 0 before tracking
-  int mask_label = 0;  ///< the person's value in the segmentation's label image
-  int pixels = 0;      ///< mask pixels
+  int id = 0;                           ///< stable over a sequence (SkeletonTracker); 0 before tracking
+  int mask_label = 0;                   ///< the person's value in the segmentation's label image
+  int pixels = 0;                       ///< mask pixels
   Eigen::Vector3f centroid_m{0, 0, 0};  ///< mean of the mask's back-projected pixels, metres
   std::array<SkeletonJoint, core::kNumJoints> joints;
   int tracked_joints() const;
@@ -88,8 +87,9 @@ std::string DescribeConfidence(const core::ConfidenceCalibration* calibration);
 /// One skeleton per person label 1..num_people of `masks` (0 = background) with at least one
 /// pixel; `depth` (mm) is the frame the proposals were made on. `calibration` may be null (the
 /// fallback). Skeletons come in label order with id 0.
-std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks, int num_people,
-                                     const core::DepthImage& depth, const core::CameraIntrinsics& camera,
+std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks,
+                                     int num_people, const core::DepthImage& depth,
+                                     const core::CameraIntrinsics& camera,
                                      const core::ConfidenceCalibration* calibration,
                                      const SkeletonOptions& options);
 

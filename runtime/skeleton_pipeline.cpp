@@ -12,8 +12,8 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
 }
 }  // namespace
 
-core::Result<std::unique_ptr<SkeletonPipeline>> SkeletonPipeline::Create(const core::Forest& forest,
-                                                                        const SkeletonPipelineOptions& options) {
+core::Result<std::unique_ptr<SkeletonPipeline>> SkeletonPipeline::Create(
+    const core::Forest& forest, const SkeletonPipelineOptions& options) {
   if (forest.num_parts != core::kNumParts || forest.part_names != core::Forest::DefaultPartNames())
     return core::Status(core::ErrorCode::kInvalidArgument,
                         "skeletons need a forest with the paper's 31-part taxonomy (this one has " +
@@ -44,7 +44,8 @@ void SkeletonPipeline::Process(const Frame& frame, SkeletonFrame* out) {
       rescaled_ = ForestForFocalLength(forest_, cam.fx, cam.fy);
       rescaled_fx_ = cam.fx, rescaled_fy_ = cam.fy;
       char buf[160];
-      std::snprintf(buf, sizeof buf, "the forest was trained for fx %.1f fy %.1f; offsets rescaled by %.4f x %.4f",
+      std::snprintf(buf, sizeof buf,
+                    "the forest was trained for fx %.1f fy %.1f; offsets rescaled by %.4f x %.4f",
                     double(forest_.training_fx), double(forest_.training_fy), cam.fx / forest_.training_fx,
                     cam.fy / forest_.training_fy);
       rescale_note_ = buf;

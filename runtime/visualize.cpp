@@ -258,11 +258,10 @@ RgbImage PrCurvesFigure(const std::vector<PrPanel>& panels, int columns, int pan
 }
 
 core::Rgb PersonColour(int id) {
-  static constexpr core::Rgb kColours[] = {{255, 64, 64},  {64, 160, 255}, {64, 220, 64},  {255, 200, 0},
-                                           {220, 64, 255}, {0, 220, 220},  {255, 128, 0},  {255, 255, 255}};
+  static constexpr core::Rgb kColours[] = {{255, 64, 64},  {64, 160, 255}, {64, 220, 64}, {255, 200, 0},
+                                           {220, 64, 255}, {0, 220, 220},  {255, 128, 0}, {255, 255, 255}};
   return kColours[size_t((id % 8 + 8) % 8)];
 }
-
 
 void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, float scale, int ox, int oy) {
   const int thick = std::max(2, int(std::lround(4 * scale)));
@@ -302,7 +301,8 @@ RgbImage SkeletonFigure(const core::DepthImage& depth, const core::LabelImage& l
   RgbImage fig(3 * pw, ph, 0);
   const RgbImage grey = DepthPicture(depth);
   Blit(fig, grey, 0, 0, factor);
-  if (labels.width == depth.width && labels.height == depth.height) Blit(fig, PartsPicture(labels), pw, 0, factor);
+  if (labels.width == depth.width && labels.height == depth.height)
+    Blit(fig, PartsPicture(labels), pw, 0, factor);
   Blit(fig, grey, 2 * pw, 0, factor);
   DrawSkeletons(fig, skeletons, 1.0f / float(factor), 2 * pw, 0);
   for (int y = 0; y < ph; ++y)  // panel separators

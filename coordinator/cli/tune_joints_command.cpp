@@ -211,7 +211,8 @@ int TuneJointsMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest tune-joints: %s\n", st.ToString().c_str());
     return 1;
   }
-  std::printf("wrote %s with the learned parameters (%s) and the confidence calibration (%.0f s)\n", args.Get("out")->c_str(),
+  std::printf("wrote %s with the learned parameters (%s) and the confidence calibration (%.0f s)\n",
+              args.Get("out")->c_str(),
               tune_ms && tune_fast ? "mean shift and fast clustering"
               : tune_ms            ? "mean shift"
                                    : "fast clustering",

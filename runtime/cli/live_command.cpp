@@ -148,11 +148,17 @@ struct LiveState {
 }  // namespace
 
 int LiveMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"forest",       "source",      "jsonl",  "png-dir",         "http",
-                                          "method",       "min-confidence", "min-support", "max-match",
-                                          "smooth-min-cutoff", "smooth-beta", "smooth-d-cutoff", "max-frames",
-                                          "threads",      "segment",     "floor",  "near",            "far",
-                                          "dds-domain",   "dds-topic",   "dds-frame-id", "dds-wait"};
+  std::set<std::string> value_options = {"forest",         "source",
+                                         "jsonl",          "png-dir",
+                                         "http",           "method",
+                                         "min-confidence", "min-support",
+                                         "max-match",      "smooth-min-cutoff",
+                                         "smooth-beta",    "smooth-d-cutoff",
+                                         "max-frames",     "threads",
+                                         "segment",        "floor",
+                                         "near",           "far",
+                                         "dds-domain",     "dds-topic",
+                                         "dds-frame-id",   "dds-wait"};
   for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
   Args args(value_options, {"help", "quiet", "smooth", "loop", "dds"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
@@ -199,7 +205,8 @@ int LiveMain(int argc, char** argv) {
   const std::string method = args.GetOr("method", "meanshift");
   if (method != "meanshift" && method != "fast")
     return UsageError("--method must be meanshift or fast (got '" + method + "')");
-  options.method = method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
+  options.method =
+      method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
   auto& sk = options.skeleton;
   {
     auto min_conf = GetDouble(args, "min-confidence", sk.min_confidence, 0.0, 1.0);
@@ -214,7 +221,8 @@ int LiveMain(int argc, char** argv) {
     sk.max_match_distance_m = float(*max_match);
     sk.smooth = args.Has("smooth");
     sk.min_cutoff_hz = *min_cutoff, sk.beta = *beta, sk.d_cutoff_hz = *d_cutoff;
-    if (!sk.smooth && (args.Has("smooth-min-cutoff") || args.Has("smooth-beta") || args.Has("smooth-d-cutoff")))
+    if (!sk.smooth &&
+        (args.Has("smooth-min-cutoff") || args.Has("smooth-beta") || args.Has("smooth-d-cutoff")))
       return UsageError("--smooth-min-cutoff / --smooth-beta / --smooth-d-cutoff need --smooth");
   }
   auto threads = args.GetInt("threads", 0, 0, 1024);
@@ -244,7 +252,8 @@ int LiveMain(int argc, char** argv) {
     std::error_code ec;
     fs::create_directories(*png_dir, ec);
     if (ec) {
-      std::fprintf(stderr, "poseforest live: %s: cannot create folder: %s\n", png_dir->c_str(), ec.message().c_str());
+      std::fprintf(stderr, "poseforest live: %s: cannot create folder: %s\n", png_dir->c_str(),
+                   ec.message().c_str());
       return 1;
     }
   }
@@ -256,7 +265,8 @@ int LiveMain(int argc, char** argv) {
   }
   auto pipeline = runtime::SkeletonPipeline::Create(*forest, options);
   if (!pipeline.ok()) {
-    std::fprintf(stderr, "poseforest live: %s: %s\n", forest_path->c_str(), pipeline.status().message().c_str());
+    std::fprintf(stderr, "poseforest live: %s: %s\n", forest_path->c_str(),
+                 pipeline.status().message().c_str());
     return 1;
   }
   auto source = runtime::OpenFrameSources(specs, source_options);
@@ -277,7 +287,8 @@ int LiveMain(int argc, char** argv) {
     const long port = std::strtol(port_text.c_str(), &end, 10);
     if (port_text.empty() || *end != '\0' || port < 0 || port > 65535)
       return UsageError("--http must be HOST:PORT or PORT (got '" + *addr + "')");
-    server.Get("/", [](const httplib::Request&, httplib::Response& res) { res.set_content(kPage, "text/html"); });
+    server.Get("/",
+               [](const httplib::Request&, httplib::Response& res) { res.set_content(kPage, "text/html"); });
     server.Get("/skeletons.json", [&live](const httplib::Request&, httplib::Response& res) {
       std::lock_guard lock(live.mu);
       res.set_content(live.json.empty() ? std::string("null") : live.json, "application/json");
@@ -297,7 +308,8 @@ int LiveMain(int argc, char** argv) {
       auto last = std::make_shared<uint64_t>(0);
       // ?frames=N ends the stream after N frames (scripts, and the browser test: a page whose
       // stream has ended lets headless Chromium's virtual time run out and dump it).
-      auto left = std::make_shared<long>(req.has_param("frames") ? std::atol(req.get_param_value("frames").c_str()) : -1);
+      auto left = std::make_shared<long>(
+          req.has_param("frames") ? std::atol(req.get_param_value("frames").c_str()) : -1);
       ++live.clients;
       res.set_chunked_content_provider(
           "text/event-stream",
@@ -309,7 +321,8 @@ int LiveMain(int argc, char** argv) {
             std::string msg;
             {
               std::unique_lock lock(live.mu);
-              live.cv.wait_for(lock, std::chrono::seconds(1), [&] { return live.seq != *last || live.closing; });
+              live.cv.wait_for(lock, std::chrono::seconds(1),
+                               [&] { return live.seq != *last || live.closing; });
               if (live.closing) return false;
               if (live.seq == *last) {
                 msg = ": keep-alive\n\n";
@@ -350,7 +363,8 @@ int LiveMain(int argc, char** argv) {
 #else
   if (args.Has("http"))
     return UsageError(
-        "--http: this program was built without cpp-httplib (Debian libcpp-httplib-dev, found at configure time)");
+        "--http: this program was built without cpp-httplib (Debian libcpp-httplib-dev, found at configure "
+        "time)");
   auto stop_server = [] {};
 #endif
 
@@ -373,7 +387,8 @@ int LiveMain(int argc, char** argv) {
     dds = std::move(*p);
     std::fprintf(stderr, "poseforest live: publishing on %s\n", dds->Describe().c_str());
     if (*wait > 0 && !dds->WaitForSubscribers(int(*wait), 10.0))
-      std::fprintf(stderr, "poseforest live: DDS: fewer than %ld subscribers after 10 s; publishing anyway\n", *wait);
+      std::fprintf(stderr, "poseforest live: DDS: fewer than %ld subscribers after 10 s; publishing anyway\n",
+                   *wait);
   } else {
     for (const char* o : {"dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
       if (args.Has(o)) return UsageError(std::string("--") + o + " needs --dds");
@@ -381,9 +396,10 @@ int LiveMain(int argc, char** argv) {
 #else
   for (const char* o : {"dds", "dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
     if (args.Has(o))
-      return UsageError(std::string("--") + o +
-                        ": this program was built without Fast DDS (the DDS output is built with the training side, "
-                        "-DPOSEFOREST_TRAINING=ON)");
+      return UsageError(
+          std::string("--") + o +
+          ": this program was built without Fast DDS (the DDS output is built with the training side, "
+          "-DPOSEFOREST_TRAINING=ON)");
 #endif
 
   struct sigaction sa {};
@@ -394,8 +410,9 @@ int LiveMain(int argc, char** argv) {
   sigaction(SIGTERM, &sa, nullptr);
 
   const bool tty = isatty(STDERR_FILENO);
-  std::fprintf(stderr, "poseforest live: %s on %s; confidence: %s; proposal parameters: %s\n", forest_path->c_str(),
-               (*source)->Describe().c_str(), runtime::DescribeConfidence((*pipeline)->calibration()).c_str(),
+  std::fprintf(stderr, "poseforest live: %s on %s; confidence: %s; proposal parameters: %s\n",
+               forest_path->c_str(), (*source)->Describe().c_str(),
+               runtime::DescribeConfidence((*pipeline)->calibration()).c_str(),
                core::DescribeProposalParamsSource((*pipeline)->params_source()));
 
   runtime::Frame frame;
@@ -421,7 +438,8 @@ int LiveMain(int argc, char** argv) {
       break;
     }
     if (!next.ok()) {
-      std::fprintf(stderr, "%sposeforest live: %s\n", tty && !quiet ? "\n" : "", next.status().ToString().c_str());
+      std::fprintf(stderr, "%sposeforest live: %s\n", tty && !quiet ? "\n" : "",
+                   next.status().ToString().c_str());
       ++bad;
       if (++bad_in_a_row >= runtime::kMaxConsecutiveBadFrames) {
         std::fprintf(stderr, "poseforest live: %s: giving up after %d bad frames in a row\n",
@@ -448,10 +466,12 @@ int LiveMain(int argc, char** argv) {
     (*pipeline)->Process(frame, &result);
     if (!(*pipeline)->rescale_note().empty() && rescale_said != (*pipeline)->rescale_note()) {
       rescale_said = (*pipeline)->rescale_note();
-      std::fprintf(stderr, "poseforest live: camera %s: %s\n", frame.camera.Describe().c_str(), rescale_said.c_str());
+      std::fprintf(stderr, "poseforest live: camera %s: %s\n", frame.camera.Describe().c_str(),
+                   rescale_said.c_str());
     }
     const auto t_out = std::chrono::steady_clock::now();
-    const std::string line = runtime::SkeletonsJsonLine(frame.index, frame.timestamp_s, frame.source, result.skeletons);
+    const std::string line =
+        runtime::SkeletonsJsonLine(frame.index, frame.timestamp_s, frame.source, result.skeletons);
     if (jsonl) {
       std::fputs(line.c_str(), jsonl);
       std::fputc('\n', jsonl);
@@ -459,7 +479,8 @@ int LiveMain(int argc, char** argv) {
     }
 #ifdef POSEFOREST_HAS_SKELETON_DDS
     if (dds && !dds->Publish(frame.index, frame.timestamp_s, frame.source, result.skeletons)) {
-      std::fprintf(stderr, "poseforest live: DDS: a write failed at frame %lld\n", static_cast<long long>(frame.index));
+      std::fprintf(stderr, "poseforest live: DDS: a write failed at frame %lld\n",
+                   static_cast<long long>(frame.index));
       ++write_errors;
     }
 #endif
@@ -470,11 +491,13 @@ int LiveMain(int argc, char** argv) {
     want_png |= live.clients.load() > 0 || server_thread.joinable();
 #endif
     if (want_png) {
-      const auto fig = runtime::SkeletonFigure(*result.depth, result.classification.labels, result.skeletons, 1);
+      const auto fig =
+          runtime::SkeletonFigure(*result.depth, result.classification.labels, result.skeletons, 1);
       if (png_dir) {
         char name[40];
         std::snprintf(name, sizeof name, "frame-%06lld.png", static_cast<long long>(frame.index));
-        const auto st = runtime::WriteRgbPng((fs::path(*png_dir) / name).string(), fig.width, fig.height, fig.rgb);
+        const auto st =
+            runtime::WriteRgbPng((fs::path(*png_dir) / name).string(), fig.width, fig.height, fig.rgb);
         if (!st.ok()) std::fprintf(stderr, "poseforest live: %s\n", st.ToString().c_str()), ++write_errors;
       }
 #ifdef POSEFOREST_HAS_HTTPLIB
@@ -490,7 +513,8 @@ int LiveMain(int argc, char** argv) {
       }
 #endif
     }
-    output_ms_sum += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_out).count();
+    output_ms_sum +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_out).count();
     ++frames;
     latencies.push_back(latency_ms);
     stage_sum.segment_ms += result.times.segment_ms;
@@ -506,8 +530,8 @@ int LiveMain(int argc, char** argv) {
       int tracked = 0;
       for (const auto& s : result.skeletons) tracked += s.tracked_joints();
       std::fprintf(stderr, "%sframe %lld: %.1f frames/s, latency %.1f ms, %zu people (%d joints tracked)%s",
-                   tty ? "\r" : "", static_cast<long long>(frame.index), fps, latency_ms, result.skeletons.size(),
-                   tracked, tty ? "   " : "\n");
+                   tty ? "\r" : "", static_cast<long long>(frame.index), fps, latency_ms,
+                   result.skeletons.size(), tracked, tty ? "   " : "\n");
       last_progress = now;
       frames_at_progress = frames;
     }
@@ -515,24 +539,30 @@ int LiveMain(int argc, char** argv) {
   stop_server();
 #ifdef POSEFOREST_HAS_SKELETON_DDS
   // Let matched subscribers receive what was published before the writers go away.
-  if (dds && !dds->Flush(3.0)) std::fprintf(stderr, "poseforest live: DDS: not every subscriber acknowledged within 3 s\n");
+  if (dds && !dds->Flush(3.0))
+    std::fprintf(stderr, "poseforest live: DDS: not every subscriber acknowledged within 3 s\n");
   dds.reset();
 #endif
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (tty && !quiet) std::fputc('\n', stderr);
-  std::fprintf(stderr, "poseforest live: %s: %lld frames in %.2f s (%.1f frames/s%s), %lld bad frames skipped%s\n",
-               stopped_by_signal ? "stopped by signal" : "end of source", static_cast<long long>(frames), seconds,
-               seconds > 0 ? double(frames) / seconds : 0.0, loops ? (", " + std::to_string(loops) + " replays").c_str() : "",
-               static_cast<long long>(bad), write_errors ? (", " + std::to_string(write_errors) + " write errors").c_str() : "");
+  std::fprintf(stderr,
+               "poseforest live: %s: %lld frames in %.2f s (%.1f frames/s%s), %lld bad frames skipped%s\n",
+               stopped_by_signal ? "stopped by signal" : "end of source", static_cast<long long>(frames),
+               seconds, seconds > 0 ? double(frames) / seconds : 0.0,
+               loops ? (", " + std::to_string(loops) + " replays").c_str() : "", static_cast<long long>(bad),
+               write_errors ? (", " + std::to_string(write_errors) + " write errors").c_str() : "");
   if (frames > 0) {
     const double n = double(frames);
     std::fprintf(stderr,
-                 "poseforest live: latency p50 %.2f ms, p99 %.2f ms (frame in to JSON line out and published); per frame: segment "
+                 "poseforest live: latency p50 %.2f ms, p99 %.2f ms (frame in to JSON line out and "
+                 "published); per frame: segment "
                  "%.2f ms, classify %.2f ms, proposals %.2f ms, skeletons %.2f ms, pictures/page %.2f ms\n",
                  Percentile(latencies, 0.5), Percentile(latencies, 0.99), stage_sum.segment_ms / n,
-                 stage_sum.classify_ms / n, stage_sum.proposals_ms / n, stage_sum.skeletons_ms / n, output_ms_sum / n);
+                 stage_sum.classify_ms / n, stage_sum.proposals_ms / n, stage_sum.skeletons_ms / n,
+                 output_ms_sum / n);
     std::fprintf(stderr, "poseforest live: %d people seen (ids 1..%d), %.2f people per frame\n",
-                 (*pipeline)->tracker().people_seen(), (*pipeline)->tracker().people_seen(), double(people_frames) / n);
+                 (*pipeline)->tracker().people_seen(), (*pipeline)->tracker().people_seen(),
+                 double(people_frames) / n);
   }
   return bad == 0 && write_errors == 0 ? 0 : 1;
 }

@@ -358,7 +358,8 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       have_focal = true;
     } else if (tag == kTagCalibration) {
       if (have_calibration) return loss(where + "second JCAL section");
-      if (!p.Has(16)) return loss(where + "JCAL section too short (" + std::to_string(p.remaining()) + " bytes)");
+      if (!p.Has(16))
+        return loss(where + "JCAL section too short (" + std::to_string(p.remaining()) + " bytes)");
       ConfidenceCalibration cal;
       cal.method = ConfidenceCalibration::Method(p.U32());
       const uint32_t joints = p.U32();
@@ -366,9 +367,9 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       cal.samples = p.U32();
       if (joints != uint32_t(kNumJoints) || bins < 1 || bins > 256 ||
           p.remaining() != size_t(bins) * (1 + size_t(joints)) * 4)
-        return loss(where + "JCAL holds " + std::to_string(p.remaining()) + " bytes for " + std::to_string(joints) +
-                    " joints x " + std::to_string(bins) + " bins, expected " + std::to_string(kNumJoints) +
-                    " joints and (1 + joints) x bins x 4 bytes");
+        return loss(where + "JCAL holds " + std::to_string(p.remaining()) + " bytes for " +
+                    std::to_string(joints) + " joints x " + std::to_string(bins) + " bins, expected " +
+                    std::to_string(kNumJoints) + " joints and (1 + joints) x bins x 4 bytes");
       cal.support_edges_m2.resize(bins);
       for (float& e : cal.support_edges_m2) e = p.F32();
       for (auto& row : cal.precision) {

@@ -2,9 +2,6 @@
 
 #include <chrono>
 #include <condition_variable>
-#include <mutex>
-#include <thread>
-
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
@@ -18,6 +15,8 @@
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TopicDataType.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
+#include <mutex>
+#include <thread>
 
 namespace poseforest::runtime::ros2 {
 namespace fdds = eprosima::fastdds::dds;
@@ -93,14 +92,17 @@ core::Result<std::unique_ptr<SkeletonPublisher>> SkeletonPublisher::Create(const
     return core::Status(core::ErrorCode::kInvalidArgument,
                         "--dds-domain must be in 0..232 (got " + std::to_string(options.domain) + ")");
   if (options.topic_prefix.empty() || options.topic_prefix.find_first_of(" \t\"'") != std::string::npos)
-    return core::Status(core::ErrorCode::kInvalidArgument, "--dds-topic '" + options.topic_prefix + "' is not a topic name");
+    return core::Status(core::ErrorCode::kInvalidArgument,
+                        "--dds-topic '" + options.topic_prefix + "' is not a topic name");
   auto impl = std::make_unique<Impl>();
   impl->options = options;
   fdds::DomainParticipantQos pqos;
   pqos.name("poseforest_live");
-  impl->participant = fdds::DomainParticipantFactory::get_instance()->create_participant(options.domain, pqos);
+  impl->participant =
+      fdds::DomainParticipantFactory::get_instance()->create_participant(options.domain, pqos);
   if (!impl->participant)
-    return core::Status(core::ErrorCode::kInternal, "DDS: cannot create a participant on domain " + std::to_string(options.domain));
+    return core::Status(core::ErrorCode::kInternal,
+                        "DDS: cannot create a participant on domain " + std::to_string(options.domain));
   impl->publisher = impl->participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
   fdds::DataWriterQos wq = fdds::DATAWRITER_QOS_DEFAULT;
   wq.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
@@ -109,16 +111,17 @@ core::Result<std::unique_ptr<SkeletonPublisher>> SkeletonPublisher::Create(const
   wq.history().depth = 100;
   wq.endpoint().history_memory_policy = eprosima::fastrtps::rtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
   const std::string prefix = "rt/" + options.topic_prefix + "/";
-  for (const auto& [suffix, type_name, out] :
-       {std::tuple{"skeletons", kSkeletonsTypeName, &impl->skeletons},
-        std::tuple{"markers", kMarkerArrayTypeName, &impl->markers}}) {
+  for (const auto& [suffix, type_name, out] : {std::tuple{"skeletons", kSkeletonsTypeName, &impl->skeletons},
+                                               std::tuple{"markers", kMarkerArrayTypeName, &impl->markers}}) {
     fdds::TypeSupport type(new RawCdrType(type_name));
     if (type.register_type(impl->participant) != ReturnCode_t::RETCODE_OK)
       return core::Status(core::ErrorCode::kInternal, std::string("DDS: cannot register ") + type_name);
     auto* topic = impl->participant->create_topic(prefix + suffix, type_name, fdds::TOPIC_QOS_DEFAULT);
-    if (!topic) return core::Status(core::ErrorCode::kInternal, "DDS: cannot create topic " + prefix + suffix);
+    if (!topic)
+      return core::Status(core::ErrorCode::kInternal, "DDS: cannot create topic " + prefix + suffix);
     *out = impl->publisher->create_datawriter(topic, wq);
-    if (!*out) return core::Status(core::ErrorCode::kInternal, "DDS: cannot create a writer on " + prefix + suffix);
+    if (!*out)
+      return core::Status(core::ErrorCode::kInternal, "DDS: cannot create a writer on " + prefix + suffix);
   }
   return std::unique_ptr<SkeletonPublisher>(new SkeletonPublisher(std::move(impl)));
 }
@@ -154,8 +157,9 @@ bool SkeletonPublisher::Flush(double seconds) {
 
 std::string SkeletonPublisher::Describe() const {
   const std::string p = "rt/" + impl_->options.topic_prefix + "/";
-  return "DDS domain " + std::to_string(impl_->options.domain) + ": " + p + "skeletons (" + kSkeletonsTypeName +
-         "), " + p + "markers (" + kMarkerArrayTypeName + "), frame_id " + impl_->options.frame_id;
+  return "DDS domain " + std::to_string(impl_->options.domain) + ": " + p + "skeletons (" +
+         kSkeletonsTypeName + "), " + p + "markers (" + kMarkerArrayTypeName + "), frame_id " +
+         impl_->options.frame_id;
 }
 
 struct RawSampleCapture::Impl : public fdds::DataReaderListener {
@@ -186,10 +190,12 @@ struct RawSampleCapture::Impl : public fdds::DataReaderListener {
 RawSampleCapture::RawSampleCapture(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 RawSampleCapture::~RawSampleCapture() = default;
 
-core::Result<std::unique_ptr<RawSampleCapture>> RawSampleCapture::Create(int domain, const std::string& topic_name,
-                                                                        const std::string& type_name) {
+core::Result<std::unique_ptr<RawSampleCapture>> RawSampleCapture::Create(int domain,
+                                                                         const std::string& topic_name,
+                                                                         const std::string& type_name) {
   auto impl = std::make_unique<Impl>();
-  impl->participant = fdds::DomainParticipantFactory::get_instance()->create_participant(domain, fdds::PARTICIPANT_QOS_DEFAULT);
+  impl->participant = fdds::DomainParticipantFactory::get_instance()->create_participant(
+      domain, fdds::PARTICIPANT_QOS_DEFAULT);
   if (!impl->participant) return core::Status(core::ErrorCode::kInternal, "DDS: cannot create a participant");
   fdds::TypeSupport type(new RawCdrType(type_name));
   if (type.register_type(impl->participant) != ReturnCode_t::RETCODE_OK)
@@ -201,15 +207,18 @@ core::Result<std::unique_ptr<RawSampleCapture>> RawSampleCapture::Create(int dom
   rq.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
   rq.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
   rq.endpoint().history_memory_policy = eprosima::fastrtps::rtps::PREALLOCATED_WITH_REALLOC_MEMORY_MODE;
-  if (!topic || !sub) return core::Status(core::ErrorCode::kInternal, "DDS: cannot subscribe to " + topic_name);
+  if (!topic || !sub)
+    return core::Status(core::ErrorCode::kInternal, "DDS: cannot subscribe to " + topic_name);
   impl->reader = sub->create_datareader(topic, rq, impl.get());
-  if (!impl->reader) return core::Status(core::ErrorCode::kInternal, "DDS: cannot create a reader on " + topic_name);
+  if (!impl->reader)
+    return core::Status(core::ErrorCode::kInternal, "DDS: cannot create a reader on " + topic_name);
   return std::unique_ptr<RawSampleCapture>(new RawSampleCapture(std::move(impl)));
 }
 
 std::vector<std::vector<uint8_t>> RawSampleCapture::Wait(size_t count, double seconds) {
   std::unique_lock lock(impl_->mu);
-  impl_->cv.wait_for(lock, std::chrono::duration<double>(seconds), [&] { return impl_->samples.size() >= count; });
+  impl_->cv.wait_for(lock, std::chrono::duration<double>(seconds),
+                     [&] { return impl_->samples.size() >= count; });
   return impl_->samples;
 }
 

@@ -19,7 +19,7 @@
 namespace poseforest::runtime::ros2 {
 
 struct DdsOptions {
-  int domain = 0;                          ///< DDS domain (ROS_DOMAIN_ID)
+  int domain = 0;                           ///< DDS domain (ROS_DOMAIN_ID)
   std::string topic_prefix = "poseforest";  ///< ROS topics /<prefix>/skeletons and /<prefix>/markers
   std::string frame_id = "camera_depth_optical_frame";  ///< header.frame_id
 };
@@ -29,7 +29,8 @@ class SkeletonPublisher {
   static core::Result<std::unique_ptr<SkeletonPublisher>> Create(const DdsOptions& options);
   ~SkeletonPublisher();
   /// Publishes one frame on both topics; false if a write failed.
-  bool Publish(int64_t index, double time_s, const std::string& source, const std::vector<Skeleton>& skeletons);
+  bool Publish(int64_t index, double time_s, const std::string& source,
+               const std::vector<Skeleton>& skeletons);
   /// Waits up to `seconds` until at least `count` subscribers matched each topic.
   bool WaitForSubscribers(int count, double seconds);
   /// Waits up to `seconds` until every matched subscriber acknowledged what was published.

@@ -101,8 +101,9 @@ TEST_CASE("the 9 real Kinect frames through a fakenect recording and libfreenect
   REQUIRE(core::SaveForest(testing::MakeRandomForest({.max_depth = 8, .nodes_per_tree = 500}),
                            (dir / "f.pff").string())
               .ok());
-  auto live = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " live --forest " + (dir / "f.pff").string() +
-                                  " --source freenect:0 --threads 2 --jsonl " + (dir / "live.jsonl").string());
+  auto live =
+      testing::RunCommand(Fakenect(dir / "rec") + Bin() + " live --forest " + (dir / "f.pff").string() +
+                          " --source freenect:0 --threads 2 --jsonl " + (dir / "live.jsonl").string());
   INFO(live.output);
   REQUIRE(live.exit_code == 0);
   CHECK_THAT(live.output, Catch::Contains("end of source: 9 frames") && Catch::Contains("fakenect"));

@@ -4,7 +4,6 @@
 // live page in headless Chromium. The forest is a random one (the frames' skeletons are then
 // arbitrary but every rule of the output holds); docs/runtime/live.md shows a trained one's.
 #include <catch2/catch.hpp>
-
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -23,10 +22,13 @@ namespace {
 
 std::string Bin() { return (testing::BinDir() / "poseforest").string(); }
 
-std::string RealFrames() { return "'" + (testing::DataDir() / "real/skeltrack_kinect_depth").string() + "/depth-data-*'"; }
+std::string RealFrames() {
+  return "'" + (testing::DataDir() / "real/skeltrack_kinect_depth").string() + "/depth-data-*'";
+}
 
 fs::path Forest(const fs::path& dir, int parts = core::kNumParts) {
-  core::Forest forest = testing::MakeRandomForest({.seed = 5, .max_depth = 10, .nodes_per_tree = 2000, .num_parts = parts});
+  core::Forest forest =
+      testing::MakeRandomForest({.seed = 5, .max_depth = 10, .nodes_per_tree = 2000, .num_parts = parts});
   const fs::path path = dir / (parts == core::kNumParts ? "f.pff" : "other.pff");
   REQUIRE(core::SaveForest(forest, path.string()).ok());
   return path;
@@ -87,8 +89,9 @@ TEST_CASE("live --help, and usage errors that name the problem", "[live]") {
   const auto dir = testing::ScratchDir("live-usage");
   auto help = testing::RunPoseforest("live --help");
   CHECK(help.exit_code == 0);
-  CHECK_THAT(help.output, Catch::Contains("--jsonl") && Catch::Contains("--png-dir") && Catch::Contains("--http") &&
-                              Catch::Contains("--smooth") && Catch::Contains("SIGINT"));
+  CHECK_THAT(help.output, Catch::Contains("--jsonl") && Catch::Contains("--png-dir") &&
+                              Catch::Contains("--http") && Catch::Contains("--smooth") &&
+                              Catch::Contains("SIGINT"));
   CHECK_THAT(testing::RunPoseforest("help").output, Catch::Contains("live"));
   auto none = testing::RunPoseforest("live --source x");
   CHECK(none.exit_code == 2);
@@ -110,17 +113,20 @@ TEST_CASE("live --help, and usage errors that name the problem", "[live]") {
   CHECK(missing.exit_code == 1);
   CHECK_THAT(missing.output, Catch::Contains("nope"));
   // A forest without the paper's parts has no joints.
-  auto other = testing::RunPoseforest("live --forest " + Forest(dir, 3).string() + " --source " + RealFrames());
+  auto other =
+      testing::RunPoseforest("live --forest " + Forest(dir, 3).string() + " --source " + RealFrames());
   CHECK(other.exit_code == 1);
   CHECK_THAT(other.output, Catch::Contains("31-part") && Catch::Contains("3 parts"));
 }
 
-TEST_CASE("live on the 9 real Kinect frames: JSON Lines by the schema, the same on stdout, pictures with bones",
-          "[live][data]") {
+TEST_CASE(
+    "live on the 9 real Kinect frames: JSON Lines by the schema, the same on stdout, pictures with bones",
+    "[live][data]") {
   const auto dir = testing::ScratchDir("live-real");
   const auto forest = Forest(dir).string();
-  auto run = testing::RunPoseforest("live --forest " + forest + " --source " + RealFrames() + " --threads 2 --jsonl " +
-                                    (dir / "out.jsonl").string() + " --png-dir " + (dir / "png").string());
+  auto run = testing::RunPoseforest("live --forest " + forest + " --source " + RealFrames() +
+                                    " --threads 2 --jsonl " + (dir / "out.jsonl").string() + " --png-dir " +
+                                    (dir / "png").string());
   INFO(run.output);
   REQUIRE(run.exit_code == 0);
   CHECK_THAT(run.output, Catch::Contains("end of source: 9 frames") && Catch::Contains("latency p50") &&
@@ -141,15 +147,16 @@ TEST_CASE("live on the 9 real Kinect frames: JSON Lines by the schema, the same 
     char name[32];
     std::snprintf(name, sizeof name, "frame-%06d.png", k);
     const std::string bytes = Slurp(dir / "png" / name);
-    auto png = runtime::DecodePng(std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()), name);
+    auto png =
+        runtime::DecodePng(std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()), name);
     REQUIRE(png.ok());
     CHECK(png->width == 3 * 640);
     CHECK(png->height == 480);
   }
   // The PCL person cloud (.pcd) is a source too; and --max-frames / --loop.
-  auto pcd = testing::RunPoseforest("live --forest " + forest + " --threads 2 --loop --max-frames 3 --jsonl " +
-                                    (dir / "pcd.jsonl").string() + " " +
-                                    (testing::DataDir() / "real/pcl_person_pcd/person.pcd").string());
+  auto pcd = testing::RunPoseforest(
+      "live --forest " + forest + " --threads 2 --loop --max-frames 3 --jsonl " +
+      (dir / "pcd.jsonl").string() + " " + (testing::DataDir() / "real/pcl_person_pcd/person.pcd").string());
   INFO(pcd.output);
   REQUIRE(pcd.exit_code == 0);
   CHECK_THAT(pcd.output, Catch::Contains("3 frames") && Catch::Contains("2 replays"));
@@ -158,14 +165,16 @@ TEST_CASE("live on the 9 real Kinect frames: JSON Lines by the schema, the same 
   CHECK(Slurp(dir / "pcd.jsonl").find("\"id\":2") == std::string::npos);
 }
 
-TEST_CASE("live stops cleanly on SIGTERM and SIGINT with a summary; every line written is whole", "[live][data]") {
+TEST_CASE("live stops cleanly on SIGTERM and SIGINT with a summary; every line written is whole",
+          "[live][data]") {
   const auto dir = testing::ScratchDir("live-signal");
   const auto forest = Forest(dir).string();
   for (const char* sig : {"TERM", "INT"}) {
     const fs::path jsonl = dir / (std::string(sig) + ".jsonl");
-    auto run = testing::RunCommand(Bin() + " live --forest " + forest + " --source " + RealFrames() +
-                                   " --threads 2 --loop --fps 20 --jsonl " + jsonl.string() +
-                                   " 2>&1 & pid=$!; sleep 2; kill -" + sig + " $pid; wait $pid; echo exit=$?");
+    auto run =
+        testing::RunCommand(Bin() + " live --forest " + forest + " --source " + RealFrames() +
+                            " --threads 2 --loop --fps 20 --jsonl " + jsonl.string() +
+                            " 2>&1 & pid=$!; sleep 2; kill -" + sig + " $pid; wait $pid; echo exit=$?");
     INFO(run.output);
     CHECK_THAT(run.output, Catch::Contains("stopped by signal") && Catch::Contains("exit=0") &&
                                Catch::Contains("latency p50"));
@@ -177,29 +186,34 @@ TEST_CASE("live stops cleanly on SIGTERM and SIGINT with a summary; every line w
 }
 
 #ifdef POSEFOREST_TEST_HTTP
-TEST_CASE("the live page in headless Chromium: frames arrive by server-sent events with the people", "[live][http]") {
+TEST_CASE("the live page in headless Chromium: frames arrive by server-sent events with the people",
+          "[live][http]") {
   REQUIRE(fs::exists("/usr/bin/chromium"));  // scripts/setup.sh installs it
   const auto dir = testing::ScratchDir("live-http");
   const auto forest = Forest(dir).string();
   const fs::path log = dir / "live.log";
   // Port 0: the program picks one and prints the page's address.
-  const std::string start = Bin() + " live --forest " + forest + " --source " + RealFrames() +
-                            " --threads 2 --loop --fps 10 --http 127.0.0.1:0 2>" + log.string() +
-                            " & pid=$!; for i in $(seq 100); do grep -q 'live page is at' " + log.string() +
-                            " && break; sleep 0.1; done; url=$(grep -o 'http://[0-9.:]*/' " + log.string() +
-                            "); for i in $(seq 300); do curl -s \"${url}skeletons.json\" | grep -q index && break; "
-                            "sleep 0.1; done";
+  const std::string start =
+      Bin() + " live --forest " + forest + " --source " + RealFrames() +
+      " --threads 2 --loop --fps 10 --http 127.0.0.1:0 2>" + log.string() +
+      " & pid=$!; for i in $(seq 100); do grep -q 'live page is at' " + log.string() +
+      " && break; sleep 0.1; done; url=$(grep -o 'http://[0-9.:]*/' " + log.string() +
+      "); for i in $(seq 300); do curl -s \"${url}skeletons.json\" | grep -q index && break; "
+      "sleep 0.1; done";
   // ?frames=5: the page's event stream ends after 5 frames, so headless Chromium's virtual time
   // can run out and the DOM is dumped with what the events put there.
   const std::string dom_file = (dir / "dom.html").string();
   const std::string chromium =
       "timeout 90 /usr/bin/chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
       "--disable-background-networking --disable-component-update --disable-sync --disable-dev-shm-usage "
-      "--user-data-dir=" + (dir / "profile").string() + " --virtual-time-budget=5000 --dump-dom \"${url}?frames=5\" "
-      "2>/dev/null > " + dom_file;
-  auto run = testing::RunCommand(start + "; " + chromium +
-                                 "; curl -s \"${url}skeletons.json\" > " + (dir / "latest.json").string() +
-                                 "; curl -s -o " + (dir / "frame.png").string() + " \"${url}frame.png\"" +
+      "--user-data-dir=" +
+      (dir / "profile").string() +
+      " --virtual-time-budget=5000 --dump-dom \"${url}?frames=5\" "
+      "2>/dev/null > " +
+      dom_file;
+  auto run = testing::RunCommand(start + "; " + chromium + "; curl -s \"${url}skeletons.json\" > " +
+                                 (dir / "latest.json").string() + "; curl -s -o " +
+                                 (dir / "frame.png").string() + " \"${url}frame.png\"" +
                                  "; kill -INT $pid; wait $pid; echo exit=$?; cat " + log.string());
   INFO(run.output);
   CHECK_THAT(run.output, Catch::Contains("exit=0") && Catch::Contains("stopped by signal"));
@@ -214,7 +228,8 @@ TEST_CASE("the live page in headless Chromium: frames arrive by server-sent even
   CHECK(index >= 4);  // five frames came (indices count up from the first one the page saw)
   CHECK_THAT(Slurp(dir / "latest.json"), Catch::StartsWith("{\"index\":"));
   const std::string png = Slurp(dir / "frame.png");
-  auto decoded = runtime::DecodePng(std::span(reinterpret_cast<const uint8_t*>(png.data()), png.size()), "frame.png");
+  auto decoded =
+      runtime::DecodePng(std::span(reinterpret_cast<const uint8_t*>(png.data()), png.size()), "frame.png");
   REQUIRE(decoded.ok());
   CHECK(decoded->width == 3 * 640);
 }

@@ -4,10 +4,9 @@
 // its ROS 2 Humble definitions (@foxglove/rosmsg-msgs-common) and our shipped msg/*.msg parsed by
 // @foxglove/rosmsg, and every field must equal the JSON Lines of the same frames
 // (ros2_decode.js). The npm packages are installed into the build folder on first use.
-#include <catch2/catch.hpp>
-
 #include <unistd.h>
 
+#include <catch2/catch.hpp>
 #include <filesystem>
 #include <fstream>
 
@@ -38,8 +37,9 @@ TEST_CASE("live --dds: the samples off the wire, decoded by Foxglove's ROS 2 dec
   // forest's joints tracked, so the markers have points.
   auto run = testing::RunPoseforest(
       "live --forest " + forest.string() + " --source '" +
-      (testing::DataDir() / "real/skeltrack_kinect_depth").string() + "/depth-data-*' --threads 2 --dds --dds-domain " +
-      std::to_string(domain) + " --dds-topic pftest --dds-frame-id test_camera --dds-wait 1 --min-confidence 0 --jsonl " +
+      (testing::DataDir() / "real/skeltrack_kinect_depth").string() +
+      "/depth-data-*' --threads 2 --dds --dds-domain " + std::to_string(domain) +
+      " --dds-topic pftest --dds-frame-id test_camera --dds-wait 1 --min-confidence 0 --jsonl " +
       (dir / "frames.jsonl").string());
   INFO(run.output);
   REQUIRE(run.exit_code == 0);
@@ -59,16 +59,17 @@ TEST_CASE("live --dds: the samples off the wire, decoded by Foxglove's ROS 2 dec
   // Foxglove's decoders, installed into the build folder once (the npm registry must be reachable).
   const std::string modules = std::string(POSEFOREST_NPM_DIR);
   if (!fs::exists(fs::path(modules) / "node_modules/@foxglove/rosmsg2-serialization")) {
-    auto npm = testing::RunCommand("mkdir -p " + modules + " && cd " + modules +
-                                   " && npm install --no-audit --no-fund --loglevel=error "
-                                   "@foxglove/rosmsg2-serialization@3 @foxglove/rosmsg-msgs-common@3 @foxglove/rosmsg@5");
+    auto npm = testing::RunCommand(
+        "mkdir -p " + modules + " && cd " + modules +
+        " && npm install --no-audit --no-fund --loglevel=error "
+        "@foxglove/rosmsg2-serialization@3 @foxglove/rosmsg-msgs-common@3 @foxglove/rosmsg@5");
     INFO(npm.output);
     REQUIRE(npm.exit_code == 0);
   }
   auto decode = testing::RunCommand("NODE_PATH=" + modules + "/node_modules node " +
-                                    std::string(POSEFOREST_SOURCE_DIR) + "/tests/runtime/ros2_decode.js " + dir.string() +
-                                    " " + (dir / "frames.jsonl").string() + " " + std::string(POSEFOREST_SOURCE_DIR) +
-                                    "/msg test_camera");
+                                    std::string(POSEFOREST_SOURCE_DIR) + "/tests/runtime/ros2_decode.js " +
+                                    dir.string() + " " + (dir / "frames.jsonl").string() + " " +
+                                    std::string(POSEFOREST_SOURCE_DIR) + "/msg test_camera");
   INFO(decode.output);
   REQUIRE(decode.exit_code == 0);
   CHECK_THAT(decode.output, Catch::Contains("ok frames=9 people=9 joints=144"));

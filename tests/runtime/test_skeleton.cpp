@@ -2,7 +2,6 @@
 // per-person joints from masks with the tracked / not-tracked rules, person ids over a
 // sequence, One Euro smoothing and the JSON Lines record.
 #include <catch2/catch.hpp>
-
 #include <cmath>
 #include <random>
 
@@ -106,14 +105,15 @@ TEST_CASE("the isotonic fit is non-decreasing, weighted, and fills empty bins", 
   const auto f = runtime::IsotonicFit({0.2, 0.0, 0.6, 0.4, 0.9, 0.0}, {1, 0, 1, 3, 2, 0});
   REQUIRE(f.size() == 6);
   CHECK(f[0] == Approx(0.2));
-  CHECK(f[1] == Approx(0.2));               // empty: the left neighbour's
+  CHECK(f[1] == Approx(0.2));                  // empty: the left neighbour's
   CHECK(f[2] == Approx((0.6 + 3 * 0.4) / 4));  // pooled with its heavier right neighbour
   CHECK(f[3] == Approx(f[2]));
   CHECK(f[4] == Approx(0.9));
   CHECK(f[5] == Approx(0.9));
 }
 
-TEST_CASE("CalibrateConfidence: big supports on the joint are precise, small ones elsewhere are not", "[skeleton]") {
+TEST_CASE("CalibrateConfidence: big supports on the joint are precise, small ones elsewhere are not",
+          "[skeleton]") {
   // Each frame: a large head-probability patch at the true head, a small one 40 cm away.
   const auto cam = core::CameraIntrinsics::KinectV1();
   std::vector<runtime::ValidationFrame> frames;
@@ -162,7 +162,8 @@ TEST_CASE("skeletons: per person the best proposal on its mask; no invented join
   // A knee below person 2's mask (out of view: no legs there) and one on person 1.
   proposals[kLKnee] = {At(cam, 450, 420, 3.04f, big * 3), At(cam, 150, 380, 2.04f, big)};
   // Person 1's hand: tiny support; person 2's: its depth is 1 m off the mask's.
-  proposals[kLHand] = {At(cam, 120, 250, 2.04f, 1e-6f * float(cam.fx * cam.fy)), At(cam, 500, 200, 4.0f, big)};
+  proposals[kLHand] = {At(cam, 120, 250, 2.04f, 1e-6f * float(cam.fx * cam.fy)),
+                       At(cam, 500, 200, 4.0f, big)};
   const auto cal = RampCalibration();
   runtime::SkeletonOptions opt;
   opt.require_tracked_parent = false;  // the knee has no tracked shoulder here; see the next test
@@ -201,7 +202,8 @@ TEST_CASE("skeletons: per person the best proposal on its mask; no invented join
   CHECK(runtime::BuildSkeletons(proposals, scene.masks, 0, scene.depth, cam, &cal, {}).empty());
 }
 
-TEST_CASE("skeletons: no knees at the border that cuts an upper body, bone lengths, unbroken chains", "[skeleton]") {
+TEST_CASE("skeletons: no knees at the border that cuts an upper body, bone lengths, unbroken chains",
+          "[skeleton]") {
   const auto cam = core::CameraIntrinsics::KinectV1();
   Scene scene;
   scene.Person(1, 200, 100, 440, 479, 1500);  // an upper body at 1.5 m, cut by the bottom edge
@@ -210,15 +212,15 @@ TEST_CASE("skeletons: no knees at the border that cuts an upper body, bone lengt
   using J = core::Joint;
   auto put = [&](J j, int x, int y) { proposals[size_t(j)] = {At(cam, x, y, 1.54f, big)}; };
   put(J::kNeck, 320, 180);
-  put(J::kHead, 320, 120);        // 0.16 m above the neck
-  put(J::kLShoulder, 380, 200);   // 0.2 m from the neck
+  put(J::kHead, 320, 120);       // 0.16 m above the neck
+  put(J::kLShoulder, 380, 200);  // 0.2 m from the neck
   put(J::kRShoulder, 260, 200);
-  put(J::kLElbow, 420, 300);      // 0.28 m from the shoulder
-  put(J::kRElbow, 262, 205);      // 1.3 cm from its shoulder: no such arm
-  put(J::kRWrist, 262, 320);      // would be fine, but its elbow is not tracked
-  put(J::kLKnee, 380, 460);       // 19 px from the bottom edge (0.15 m = 56 px at 1.54 m)
-  put(J::kRKnee, 262, 400);       // far from the edge but 0.53 m below its shoulder: allowed
-  put(J::kLAnkle, 380, 470);      // below a knee that is not tracked
+  put(J::kLElbow, 420, 300);  // 0.28 m from the shoulder
+  put(J::kRElbow, 262, 205);  // 1.3 cm from its shoulder: no such arm
+  put(J::kRWrist, 262, 320);  // would be fine, but its elbow is not tracked
+  put(J::kLKnee, 380, 460);   // 19 px from the bottom edge (0.15 m = 56 px at 1.54 m)
+  put(J::kRKnee, 262, 400);   // far from the edge but 0.53 m below its shoulder: allowed
+  put(J::kLAnkle, 380, 470);  // below a knee that is not tracked
   const auto cal = RampCalibration();
   runtime::SkeletonOptions opt;
   auto s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
@@ -302,7 +304,9 @@ TEST_CASE("One Euro smoothing: less jitter at rest, follows a move", "[skeleton]
       head.position_m = Eigen::Vector3f(xs[k], 0, 2);
       auto r = tracker.Update({s}, double(k) / 30, cam);
       out.push_back(r[0].joints[kHead].position_m.x());
-      if (smooth) CHECK(r[0].joints[kHead].pixel.x() == Approx(cam.Project(Eigen::Vector3d(out.back(), 0, 2)).x()).margin(1e-3));
+      if (smooth)
+        CHECK(r[0].joints[kHead].pixel.x() ==
+              Approx(cam.Project(Eigen::Vector3d(out.back(), 0, 2)).x()).margin(1e-3));
     }
     return out;
   };
@@ -325,7 +329,8 @@ TEST_CASE("One Euro smoothing: less jitter at rest, follows a move", "[skeleton]
   CHECK(moved[30] == Approx(0.5f).margin(0.05f));
 }
 
-TEST_CASE("the JSON Lines record: one line, people, 16 named joints, null for joints not found", "[skeleton]") {
+TEST_CASE("the JSON Lines record: one line, people, 16 named joints, null for joints not found",
+          "[skeleton]") {
   runtime::Skeleton s;
   s.id = 3;
   s.pixels = 10;
@@ -336,10 +341,13 @@ TEST_CASE("the JSON Lines record: one line, people, 16 named joints, null for jo
   s.joints[kHead].confidence = 0.875f;
   const std::string line = runtime::SkeletonsJsonLine(7, 0.25, "a\"b\\c\n", {s});
   CHECK(line.find('\n') == std::string::npos);
-  CHECK(line.rfind("{\"index\":7,\"time_s\":0.250000,\"source\":\"a\\\"b\\\\c\\u000a\",\"people\":[{\"id\":3,", 0) == 0);
+  CHECK(line.rfind(
+            "{\"index\":7,\"time_s\":0.250000,\"source\":\"a\\\"b\\\\c\\u000a\",\"people\":[{\"id\":3,", 0) ==
+        0);
   CHECK(line.find("{\"name\":\"head\",\"position_m\":[0.1250,-0.5000,2.2500],\"pixel\":[330.5,100.2],"
                   "\"confidence\":0.8750,\"tracked\":true}") != std::string::npos);
-  CHECK(line.find("{\"name\":\"R_foot\",\"position_m\":null,\"pixel\":null,\"confidence\":0.0000,\"tracked\":false}]}]}") !=
-        std::string::npos);
-  CHECK(runtime::SkeletonsJsonLine(0, 0, "x", {}) == "{\"index\":0,\"time_s\":0.000000,\"source\":\"x\",\"people\":[]}");
+  CHECK(line.find("{\"name\":\"R_foot\",\"position_m\":null,\"pixel\":null,\"confidence\":0.0000,\"tracked\":"
+                  "false}]}]}") != std::string::npos);
+  CHECK(runtime::SkeletonsJsonLine(0, 0, "x", {}) ==
+        "{\"index\":0,\"time_s\":0.000000,\"source\":\"x\",\"people\":[]}");
 }

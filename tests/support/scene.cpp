@@ -53,7 +53,7 @@ ClutteredFrame ComposeScene(const core::CameraIntrinsics& cam, const ClutterSpec
 }
 
 core::DepthImage MovePerson(const core::DepthImage& person, const core::CameraIntrinsics& cam, int dz_mm,
-                       double dx_m) {
+                            double dx_m) {
   core::DepthImage out(person.width, person.height, 0);
   for (int y = 0; y < person.height; ++y)
     for (int x = 0; x < person.width; ++x) {

@@ -89,7 +89,8 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   // The skeleton's own accuracy, with the forest's calibration.
   CHECK_THAT(eval.output, Catch::Contains("skeleton accuracy") && Catch::Contains("3 one-person frames") &&
                               Catch::Contains("confidence calibrated (JCAL)") &&
-                              Catch::Contains("not tracked right") && Catch::Contains("mean over joints: tracked within"));
+                              Catch::Contains("not tracked right") &&
+                              Catch::Contains("mean over joints: tracked within"));
   // The ground-truth parts locate visible joints well even on three frames.
   CHECK(NumberAfter(eval.output, "upper bound ") > 0.6);
   for (const char* name : {"pr_joints.png", "pr_mean.png"}) {
@@ -106,7 +107,8 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   INFO(two.output);
   REQUIRE(two.exit_code == 0);
   CHECK_THAT(two.output, Catch::Contains("2 frames, 4 people"));
-  CHECK_THAT(two.output, Catch::Contains("0 one-person frames"));  // skeletons are scored on one-person frames only
+  CHECK_THAT(two.output,
+             Catch::Contains("0 one-person frames"));  // skeletons are scored on one-person frames only
   // The fast clustering did not run: no figures for it, not zeros.
   CHECK_THAT(two.output, !Catch::Contains("fast clustering") && Catch::Contains("mAP: mean shift"));
 
