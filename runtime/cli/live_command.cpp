@@ -50,7 +50,8 @@ over the sequence. Outputs (any together; docs/runtime/live.md has the schema):
   --png-dir DIR        DIR/frame-NNNNNN.png per frame: depth | parts | skeletons (bones drawn)
   --http ADDR          a live page at http://ADDR/ (HOST:PORT, or PORT for 127.0.0.1): depth | parts
                        | skeletons at the camera's rate (server-sent events: /events, one JSON Lines
-                       record per frame); /skeletons.json (the latest), /frame.png (its picture)
+                       record per frame); /skeletons.json (the latest), /frame.png (the
+                       latest picture, made while a page is open)
   --dds                ROS 2-readable DDS topics (Fast DDS, rmw_fastrtps naming; builds with Fast DDS):
                        rt/PREFIX/skeletons (poseforest_msgs/msg/Skeletons, msg/*.msg in the source)
                        and rt/PREFIX/markers (visualization_msgs/msg/MarkerArray: joints and bones
@@ -486,33 +487,34 @@ int LiveMain(int argc, char** argv) {
 #endif
     const double latency_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_in).count();
-    bool want_png = png_dir.has_value();
+    // The picture is made for --png-dir and while a page is open (its event stream connected):
+    // encoding it costs about as much as classifying.
+    bool page_open = false;
 #ifdef POSEFOREST_HAS_HTTPLIB
-    want_png |= live.clients.load() > 0 || server_thread.joinable();
+    page_open = server_thread.joinable() && live.clients.load() > 0;
 #endif
-    if (want_png) {
-      const auto fig =
-          runtime::SkeletonFigure(*result.depth, result.classification.labels, result.skeletons, 1);
-      if (png_dir) {
-        char name[40];
-        std::snprintf(name, sizeof name, "frame-%06lld.png", static_cast<long long>(frame.index));
-        const auto st =
-            runtime::WriteRgbPng((fs::path(*png_dir) / name).string(), fig.width, fig.height, fig.rgb);
-        if (!st.ok()) std::fprintf(stderr, "poseforest live: %s\n", st.ToString().c_str()), ++write_errors;
-      }
-#ifdef POSEFOREST_HAS_HTTPLIB
-      if (server_thread.joinable()) {
-        auto png = runtime::EncodePng8(fig.width, fig.height, 3, fig.rgb);
-        {
-          std::lock_guard lock(live.mu);
-          live.png = std::move(png);
-          live.json = line;
-          ++live.seq;
-        }
-        live.cv.notify_all();
-      }
-#endif
+    runtime::RgbImage fig;
+    if (png_dir || page_open)
+      fig = runtime::SkeletonFigure(*result.depth, result.classification.labels, result.skeletons, 1);
+    if (png_dir) {
+      char name[40];
+      std::snprintf(name, sizeof name, "frame-%06lld.png", static_cast<long long>(frame.index));
+      const auto st = runtime::WriteRgbPng((fs::path(*png_dir) / name).string(), fig.width, fig.height, fig.rgb);
+      if (!st.ok()) std::fprintf(stderr, "poseforest live: %s\n", st.ToString().c_str()), ++write_errors;
     }
+#ifdef POSEFOREST_HAS_HTTPLIB
+    if (server_thread.joinable()) {
+      std::vector<uint8_t> png;
+      if (page_open) png = runtime::EncodePng8(fig.width, fig.height, 3, fig.rgb);
+      {
+        std::lock_guard lock(live.mu);
+        if (page_open) live.png = std::move(png);
+        live.json = line;
+        ++live.seq;
+      }
+      live.cv.notify_all();
+    }
+#endif
     output_ms_sum +=
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_out).count();
     ++frames;

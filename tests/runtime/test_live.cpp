@@ -153,6 +153,16 @@ TEST_CASE(
     CHECK(png->width == 3 * 640);
     CHECK(png->height == 480);
   }
+  // Raw frames on a pipe (stdin) and a .npy are sources too.
+  const std::string real_dir = (testing::DataDir() / "real/skeltrack_kinect_depth").string();
+  auto pipe = testing::RunCommand("cat " + real_dir + "/depth-data-1028894671 " + real_dir +
+                                  "/depth-data-1038901490 | " + Bin() + " live --forest " + forest +
+                                  " --threads 2 --source - --jsonl " + (dir / "pipe.jsonl").string());
+  INFO(pipe.output);
+  REQUIRE(pipe.exit_code == 0);
+  CHECK_THAT(pipe.output, Catch::Contains("end of source: 2 frames"));
+  CHECK_THAT(CheckJsonl(dir, dir / "pipe.jsonl"), Catch::StartsWith("ok 2 2 "));
+  CHECK(Slurp(dir / "pipe.jsonl").find("\"source\":\"stdin\"") != std::string::npos);
   // The PCL person cloud (.pcd) is a source too; and --max-frames / --loop.
   auto pcd = testing::RunPoseforest(
       "live --forest " + forest + " --threads 2 --loop --max-frames 3 --jsonl " +
