@@ -423,6 +423,7 @@ int LiveMain(int argc, char** argv) {
   double output_ms_sum = 0;
   int64_t frames = 0, bad = 0, write_errors = 0, people_frames = 0;
   int bad_in_a_row = 0, loops = 0;
+  int64_t frames_at_replay = 0;
   std::string rescale_said;
   const auto start = std::chrono::steady_clock::now();
   auto last_progress = start;
@@ -451,7 +452,9 @@ int LiveMain(int argc, char** argv) {
     }
     bad_in_a_row = 0;
     if (!*next) {
-      if (!loop || frames == 0) break;
+      // A replay that gave nothing (stdin at its end, a device gone) ends the loop.
+      if (!loop || frames == frames_at_replay) break;
+      frames_at_replay = frames;
       auto again = runtime::OpenFrameSources(specs, source_options);
       if (!again.ok()) {
         std::fprintf(stderr, "poseforest live: %s\n", again.status().ToString().c_str());

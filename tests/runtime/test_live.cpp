@@ -163,6 +163,12 @@ TEST_CASE(
   CHECK_THAT(pipe.output, Catch::Contains("end of source: 2 frames"));
   CHECK_THAT(CheckJsonl(dir, dir / "pipe.jsonl"), Catch::StartsWith("ok 2 2 "));
   CHECK(Slurp(dir / "pipe.jsonl").find("\"source\":\"stdin\"") != std::string::npos);
+  // --loop on a pipe: the replay of an ended stdin gives nothing, and that ends it (no busy loop).
+  auto pipe_loop = testing::RunCommand("cat " + real_dir + "/depth-data-1028894671 | timeout 60 " + Bin() +
+                                       " live --forest " + forest + " --threads 2 --loop --source - --jsonl /dev/null");
+  INFO(pipe_loop.output);
+  CHECK(pipe_loop.exit_code == 0);
+  CHECK_THAT(pipe_loop.output, Catch::Contains("end of source: 1 frames"));
   // The PCL person cloud (.pcd) is a source too; and --max-frames / --loop.
   auto pcd = testing::RunPoseforest(
       "live --forest " + forest + " --threads 2 --loop --max-frames 3 --jsonl " +
