@@ -172,6 +172,16 @@ int LiveMain(int argc, char** argv) {
   }
   std::vector<std::string> specs = args.positional();
   if (auto src = args.Get("source")) specs.insert(specs.begin(), *src);
+#ifndef POSEFOREST_HAS_SKELETON_DDS
+  for (const char* o : {"dds", "dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
+    if (args.Has(o))
+      return UsageError(std::string("--") + o +
+                        ": this program was built without Fast DDS (the DDS output is built with the training side, "
+                        "-DPOSEFOREST_TRAINING=ON)");
+#endif
+  if (!args.Has("dds"))
+    for (const char* o : {"dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
+      if (args.Has(o)) return UsageError(std::string("--") + o + " needs --dds");
   const auto forest_path = args.Get("forest");
   if (!forest_path) return UsageError("--forest is required (see --help)");
   if (specs.empty()) return UsageError("no source given: --source SOURCE (see --help)");
@@ -390,17 +400,7 @@ int LiveMain(int argc, char** argv) {
     if (*wait > 0 && !dds->WaitForSubscribers(int(*wait), 10.0))
       std::fprintf(stderr, "poseforest live: DDS: fewer than %ld subscribers after 10 s; publishing anyway\n",
                    *wait);
-  } else {
-    for (const char* o : {"dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
-      if (args.Has(o)) return UsageError(std::string("--") + o + " needs --dds");
   }
-#else
-  for (const char* o : {"dds", "dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
-    if (args.Has(o))
-      return UsageError(
-          std::string("--") + o +
-          ": this program was built without Fast DDS (the DDS output is built with the training side, "
-          "-DPOSEFOREST_TRAINING=ON)");
 #endif
 
   struct sigaction sa {};

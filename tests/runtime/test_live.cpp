@@ -109,6 +109,15 @@ TEST_CASE("live --help, and usage errors that name the problem", "[live]") {
   auto conf = testing::RunPoseforest("live --forest " + forest + " --source x --min-confidence 2");
   CHECK(conf.exit_code == 2);
   CHECK_THAT(conf.output, Catch::Contains("--min-confidence"));
+#ifndef POSEFOREST_TEST_HAS_DDS
+  // Without Fast DDS (the runtime-only build), --dds is a usage error that says why.
+  auto dds = testing::RunPoseforest("live --forest " + forest + " --source x --dds");
+  CHECK(dds.exit_code == 2);
+  CHECK_THAT(dds.output, Catch::Contains("built without Fast DDS"));
+#endif
+  auto dds_flag = testing::RunPoseforest("live --forest " + forest + " --source x --dds-domain 3");
+  CHECK(dds_flag.exit_code == 2);
+  CHECK_THAT(dds_flag.output, Catch::Contains("--dds-domain"));
   auto missing = testing::RunPoseforest("live --forest " + forest + " --source " + (dir / "nope").string());
   CHECK(missing.exit_code == 1);
   CHECK_THAT(missing.output, Catch::Contains("nope"));
