@@ -35,37 +35,6 @@ fs::path DataDir() {
   return POSEFOREST_DATA_DIR_DEFAULT;
 }
 
-// Moves a person image `dz_mm` back and `dx_px` sideways (the silhouette shrinks with depth).
-core::DepthImage Place(const core::DepthImage& person, const core::CameraIntrinsics& cam, int dz_mm,
-                       double dx_m) {
-  core::DepthImage out(person.width, person.height, 0);
-  for (int y = 0; y < person.height; ++y)
-    for (int x = 0; x < person.width; ++x) {
-      const uint16_t d = person.at(x, y);
-      if (!d) continue;
-      const double z = d * 1e-3, z2 = z + dz_mm * 1e-3;
-      // Same 3D point shape, further away: project (X + dx, Y, Z + dz).
-      const double X = (x - cam.cx) * z / cam.fx + dx_m, Y = (y - cam.cy) * z / cam.fy;
-      const int u = int(std::lround(cam.cx + cam.fx * X / z2)),
-                v = int(std::lround(cam.cy + cam.fy * Y / z2));
-      if (!out.InBounds(u, v)) continue;
-      const uint16_t nd = uint16_t(std::lround(z2 * 1000));
-      if (!out.at(u, v) || nd < out.at(u, v)) out.at(u, v) = nd;
-    }
-  // Fill the pinholes that moving away leaves (a 3x3 closing on the silhouette).
-  core::DepthImage filled = out;
-  for (int y = 1; y + 1 < out.height; ++y)
-    for (int x = 1; x + 1 < out.width; ++x) {
-      if (out.at(x, y)) continue;
-      int n = 0, sum = 0;
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx)
-          if (const uint16_t d = out.at(x + dx, y + dy)) ++n, sum += d;
-      if (n >= 5) filled.at(x, y) = uint16_t(sum / n);
-    }
-  return filled;
-}
-
 // Depth as grey (near = bright), then person labels as colours over a dimmed depth.
 void DrawPanel(const core::DepthImage& depth, const core::LabelImage* labels, std::vector<uint8_t>& rgb,
                int panel, int panels) {
@@ -143,7 +112,8 @@ int main(int argc, char** argv) {
       const bool real = !real_people.empty() && rng.UniformInt(3) == 0;
       if (real) {
         const auto& src = real_people[rng.UniformInt(uint32_t(real_people.size()))];
-        people.push_back(Place(src, cam, int(rng.UniformIn(300, 1200)), rng.UniformIn(-0.4, 0.4)));
+        people.push_back(
+            testing::MovePerson(src, cam, int(rng.UniformIn(300, 1200)), rng.UniformIn(-0.4, 0.4)));
       } else {
         // Standing on the floor: the figure's feet are 0.98 m below its pelvis.
         const double z = rng.UniformIn(1.8, 3.3);

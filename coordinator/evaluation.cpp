@@ -16,6 +16,7 @@
 #include "runtime/image_io.h"
 #include "runtime/joint_proposals.h"
 #include "runtime/segmentation.h"
+#include "runtime/skeleton.h"
 #include "runtime/visualize.h"
 #if POSEFOREST_HAS_RENDERER
 #include "renderer/synthetic_source.h"
@@ -437,6 +438,13 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
   runtime::ProposalOptions fast = ms;
   fast.method = runtime::ProposalMethod::kFastClustering;
   fast.params = e.fast_params;
+  // The skeleton's confidence: the forest's calibration if measured for mean shift.
+  const core::ConfidenceCalibration* calibration =
+      forest.confidence_calibration &&
+              forest.confidence_calibration->method == core::ConfidenceCalibration::Method::kMeanShift
+          ? &*forest.confidence_calibration
+          : nullptr;
+  e.calibrated = calibration != nullptr;
   runtime::Classification out;
   runtime::SegmentationResult seg;
   for (int i = 0; i < options.num_images; ++i) {
@@ -455,8 +463,37 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
     if (e.has_joints) {
       e.people += int(frame->people.size());
       t = std::chrono::steady_clock::now();
-      e.mean_shift.AddFrame(runtime::ProposeJointsFromClassification(frame->depth, out, ms), frame->people);
+      const auto proposals = runtime::ProposeJointsFromClassification(frame->depth, out, ms);
+      e.mean_shift.AddFrame(proposals, frame->people);
       e.mean_shift_ms += MsSince(t);
+      if (frame->people.size() == 1) {
+        // The skeleton as `live` builds it: the person's mask is the ground-truth mask when the
+        // frames have one (clutter), else every pixel with depth.
+        const bool has_mask = frame->person_masks.width == frame->depth.width &&
+                              frame->person_masks.height == frame->depth.height;
+        core::LabelImage mask(frame->depth.width, frame->depth.height, 0);
+        for (size_t k = 0; k < mask.pixels.size(); ++k)
+          mask.pixels[k] = has_mask ? (frame->person_masks.pixels[k] == 1) : (frame->depth.pixels[k] ? 1 : 0);
+        const auto skeletons = runtime::BuildSkeletons(proposals, mask, 1, frame->depth, ms.camera,
+                                                       calibration, runtime::SkeletonOptions{});
+        if (!skeletons.empty()) {
+          auto& acc = e.skeleton;
+          ++acc.frames;
+          const auto& truth = frame->people[0];
+          for (int j = 0; j < core::kNumJoints; ++j) {
+            const auto& joint = skeletons[0].joints[size_t(j)];
+            const bool near =
+                joint.found && (joint.position_m - truth.position[size_t(j)]).norm() <= options.distance_m;
+            const bool visible = truth.visible[size_t(j)];
+            acc.visible[size_t(j)] += visible;
+            acc.tracked_within[size_t(j)] += visible && joint.tracked && near;
+            acc.tracked[size_t(j)] += joint.tracked;
+            acc.tracked_right[size_t(j)] += joint.tracked && near;
+            acc.untracked[size_t(j)] += !joint.tracked;
+            acc.untracked_invisible[size_t(j)] += !joint.tracked && !visible;
+          }
+        }
+      }
       if (options.fast) {
         t = std::chrono::steady_clock::now();
         e.fast.AddFrame(runtime::ProposeJointsFromClassification(frame->depth, out, fast), frame->people);
@@ -472,6 +509,51 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
     if (options.progress) options.progress(i + 1, options.num_images);
   }
   return e;
+}
+
+std::string FormatSkeletonTable(const Evaluation& e) {
+  const auto& a = e.skeleton;
+  std::string out;
+  char buf[256];
+  std::snprintf(
+      buf, sizeof buf,
+      "skeleton accuracy (what `live` reports: per joint one position, tracked or not; %d one-person "
+      "frames, D = %.2f m, confidence %s):\n",
+      a.frames, double(e.distance_m), e.calibrated ? "calibrated (JCAL)" : "the uncalibrated fallback");
+  out += buf;
+  std::snprintf(buf, sizeof buf, "%-11s %8s %16s %16s %18s\n", "joint", "visible", "tracked within D",
+                "tracked & right", "not tracked right");
+  out += buf;
+  auto ratio = [](int n, int d) { return d ? double(n) / d : 0.0; };
+  double within = 0, right = 0, untracked = 0;
+  int joints = 0, untracked_joints = 0, tracked_joints = 0;
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    const size_t k = size_t(j);
+    auto cell = [&](int n, int d) {
+      char c[32];
+      if (d)
+        std::snprintf(c, sizeof c, "%.3f (%d)", ratio(n, d), d);
+      else
+        std::snprintf(c, sizeof c, "- (0)");
+      return std::string(c);
+    };
+    std::snprintf(buf, sizeof buf, "%-11s %8d %16s %16s %18s\n", std::string(core::JointName(j)).c_str(),
+                  a.visible[k], cell(a.tracked_within[k], a.visible[k]).c_str(),
+                  cell(a.tracked_right[k], a.tracked[k]).c_str(),
+                  cell(a.untracked_invisible[k], a.untracked[k]).c_str());
+    out += buf;
+    if (a.visible[k]) within += ratio(a.tracked_within[k], a.visible[k]), ++joints;
+    if (a.tracked[k]) right += ratio(a.tracked_right[k], a.tracked[k]), ++tracked_joints;
+    if (a.untracked[k]) untracked += ratio(a.untracked_invisible[k], a.untracked[k]), ++untracked_joints;
+  }
+  std::snprintf(
+      buf, sizeof buf,
+      "mean over joints: tracked within %.2f m when visible %.3f, tracked & right %.3f, not tracked right "
+      "%.3f\n(columns: fraction (count): of the frames where the joint is visible / tracked / not tracked)\n",
+      double(e.distance_m), joints ? within / joints : 0.0, tracked_joints ? right / tracked_joints : 0.0,
+      untracked_joints ? untracked / untracked_joints : 0.0);
+  out += buf;
+  return out;
 }
 
 std::string FormatJointApTable(const Evaluation& e) {

@@ -5,6 +5,7 @@
 // proposals (mean shift, the fast clustering, and Fig. 7's upper bound: mean shift on the
 // ground-truth parts), counted against every person's joints.
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -117,6 +118,16 @@ struct PersonSegmentation {
   double iou = 0;  ///< best IoU over the segmented people (0 when none overlaps)
 };
 
+/// The skeleton's own accuracy (`live`'s output: one position per joint, tracked or not), on
+/// frames with exactly one person (the rendered person's mask is every pixel with depth). Per
+/// joint: how often it was tracked within D of the truth when visible, and how often "not
+/// tracked" was right (the joint was not visible: occluded or out of the picture).
+struct SkeletonAccuracy {
+  int frames = 0;  ///< one-person frames scored
+  std::array<int, core::kNumJoints> visible{}, tracked_within{}, tracked{}, tracked_right{}, untracked{},
+      untracked_invisible{};
+};
+
 struct Evaluation {
   ConfusionMatrix confusion;
   bool has_joints = false;
@@ -149,6 +160,8 @@ struct Evaluation {
   runtime::JointApEvaluator clean_mean_shift, segmented_mean_shift;
   double segment_ms = 0;
   double MeanIoU() const;
+  SkeletonAccuracy skeleton;
+  bool calibrated = false;  ///< the skeleton's confidence came from the forest's table (JCAL)
 };
 
 /// Classifies every frame (confusion matrix over body pixels) and, when the source has joints
@@ -159,6 +172,9 @@ core::Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const 
 /// Per-joint AP table (mean shift, fast, ground-truth parts), mAP of each, the ratio
 /// inferred / upper bound, and the parameters used.
 std::string FormatJointApTable(const Evaluation& e);
+/// The skeleton table: per joint, tracked within D when visible, precision of "tracked", how
+/// often "not tracked" was right; and the means.
+std::string FormatSkeletonTable(const Evaluation& e);
 /// Writes DIR/pr_joints.png (precision-recall curves of each joint, the three methods) and
 /// DIR/pr_mean.png (the mAP-level curve: mean interpolated precision over joints per recall).
 core::Status WritePrCurves(const Evaluation& e, const std::string& dir);

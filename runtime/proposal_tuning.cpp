@@ -2,6 +2,8 @@
 
 #include <omp.h>
 
+#include <algorithm>
+#include <cmath>
 #include <exception>
 
 namespace poseforest::runtime {
@@ -109,6 +111,84 @@ TuningResult TuneProposalParams(const std::vector<ValidationFrame>& frames, cons
   result.mean_ap = n ? sum / n : 0.0;
   result.base_mean_ap = n ? base_sum / n : 0.0;
   return result;
+}
+
+std::vector<float> IsotonicFit(const std::vector<double>& values, const std::vector<double>& weights) {
+  struct Block {
+    double w, wy;
+    size_t n;  // entries (with weight) pooled
+  };
+  std::vector<Block> blocks;
+  std::vector<size_t> weighted;
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (!(weights[i] > 0)) continue;
+    weighted.push_back(i);
+    blocks.push_back({weights[i], weights[i] * values[i], 1});
+    while (blocks.size() > 1 &&
+           blocks[blocks.size() - 2].wy / blocks[blocks.size() - 2].w > blocks.back().wy / blocks.back().w) {
+      const Block b = blocks.back();
+      blocks.pop_back();
+      blocks.back().w += b.w, blocks.back().wy += b.wy, blocks.back().n += b.n;
+    }
+  }
+  std::vector<float> out(values.size(), 0.0f);
+  if (weighted.empty()) return out;
+  std::vector<double> fitted;
+  for (const Block& b : blocks) fitted.insert(fitted.end(), b.n, b.wy / b.w);
+  size_t next = 0;
+  double current = fitted[0];
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (next < weighted.size() && weighted[next] == i) current = fitted[next++];
+    out[i] = float(current);
+  }
+  return out;
+}
+
+core::ConfidenceCalibration CalibrateConfidence(const std::vector<ValidationFrame>& frames,
+                                                const ProposalOptions& options, float distance_m) {
+  const int threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
+  const auto proposals = ProposeAll(frames, options, threads);
+  core::ConfidenceCalibration cal;
+  cal.method = options.method == ProposalMethod::kFastClustering
+                   ? core::ConfidenceCalibration::Method::kFastClustering
+                   : core::ConfidenceCalibration::Method::kMeanShift;
+  cal.support_edges_m2 = core::DefaultSupportEdges();
+  const size_t bins = cal.support_edges_m2.size();
+  const double area = options.camera.fx * options.camera.fy;
+  std::array<std::vector<double>, core::kNumJoints> n, tp;
+  for (int j = 0; j < core::kNumJoints; ++j) n[size_t(j)].assign(bins, 0), tp[size_t(j)].assign(bins, 0);
+  for (size_t k = 0; k < frames.size(); ++k)
+    for (int j = 0; j < core::kNumJoints; ++j)
+      for (const JointProposal& p : proposals[k][size_t(j)]) {
+        const float support = float(double(p.confidence) / area);
+        const size_t bin = size_t(std::max<std::ptrdiff_t>(
+            0, std::upper_bound(cal.support_edges_m2.begin(), cal.support_edges_m2.end(), support) -
+                   cal.support_edges_m2.begin() - 1));
+        bool right = false;
+        for (const PersonJoints& person : frames[k].people)
+          right |= (person.position[size_t(j)] - p.position).norm() <= distance_m;
+        n[size_t(j)][bin] += 1;
+        tp[size_t(j)][bin] += right;
+        ++cal.samples;
+      }
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    std::vector<double> precision(bins, 0);
+    bool any = false;
+    for (size_t b = 0; b < bins; ++b) {
+      if (n[size_t(j)][b] > 0) precision[b] = tp[size_t(j)][b] / n[size_t(j)][b], any = true;
+    }
+    if (!any) {
+      auto& row = cal.precision[size_t(j)];
+      row.resize(bins);
+      for (size_t b = 0; b < bins; ++b) {
+        const double hi = b + 1 < bins ? cal.support_edges_m2[b + 1] : cal.support_edges_m2[b] * 1.5;
+        row[b] = core::FallbackConfidence(float(std::sqrt(double(cal.support_edges_m2[b]) * hi)));
+      }
+      continue;
+    }
+    cal.precision[size_t(j)] = IsotonicFit(precision, n[size_t(j)]);
+  }
+  return cal;
 }
 
 }  // namespace poseforest::runtime

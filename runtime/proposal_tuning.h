@@ -8,6 +8,7 @@
 #include <functional>
 #include <vector>
 
+#include "runtime/core/confidence_calibration.h"
 #include "runtime/core/depth_image.h"
 #include "runtime/core/proposal_params.h"
 #include "runtime/joint_metrics.h"
@@ -55,5 +56,21 @@ struct TuningResult {
 TuningResult TuneProposalParams(const std::vector<ValidationFrame>& frames, const ProposalOptions& base,
                                 const TuningGrid& grid = {}, float distance_m = 0.1f,
                                 const std::function<void(int done, int total)>& progress = {});
+
+/// Measures the joint confidence calibration (format 1.4, JCAL) with `options` (method, camera,
+/// the parameters the forest will run with): every proposal of every frame is binned by its
+/// support (raw confidence / (fx fy) of options.camera, m^2, bins core::DefaultSupportEdges) and
+/// counted as right when it lies within `distance_m` of that joint of some person (visible or
+/// not: an occluded elbow found behind the body is found); each joint's precision per bin is
+/// then made non-decreasing in support by an isotonic (pool-adjacent-violators) fit weighted by
+/// the bins' counts. Bins below a joint's first sample take its first value; a joint never
+/// proposed gets the fallback's values at the bin centres.
+core::ConfidenceCalibration CalibrateConfidence(const std::vector<ValidationFrame>& frames,
+                                                const ProposalOptions& options, float distance_m = 0.1f);
+
+/// The isotonic fit used above (exposed for tests): the non-decreasing sequence closest to
+/// `values` in weighted least squares; entries with weight 0 take their left neighbour's value
+/// (or the first weighted one's).
+std::vector<float> IsotonicFit(const std::vector<double>& values, const std::vector<double>& weights);
 
 }  // namespace poseforest::runtime

@@ -257,4 +257,57 @@ RgbImage PrCurvesFigure(const std::vector<PrPanel>& panels, int columns, int pan
   return fig;
 }
 
+core::Rgb PersonColour(int id) {
+  static constexpr core::Rgb kColours[] = {{255, 64, 64},  {64, 160, 255}, {64, 220, 64}, {255, 200, 0},
+                                           {220, 64, 255}, {0, 220, 220},  {255, 128, 0}, {255, 255, 255}};
+  return kColours[size_t((id % 8 + 8) % 8)];
+}
+
+void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, float scale, int ox, int oy) {
+  const int thick = std::max(2, int(std::lround(4 * scale)));
+  for (const Skeleton& s : skeletons) {
+    auto at = [&](int j) {
+      const auto& p = s.joints[size_t(j)].pixel;
+      return Eigen::Vector2f(p.x() * scale + float(ox), p.y() * scale + float(oy));
+    };
+    for (const auto& [a, b] : SkeletonBones()) {
+      if (!s.joints[size_t(a)].tracked || !s.joints[size_t(b)].tracked) continue;
+      const auto pa = at(a), pb = at(b);
+      Line(picture, pa.x(), pa.y(), pb.x(), pb.y(), PersonColour(s.id), thick);
+    }
+    float top_y = 1e9f, top_x = 0;
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      const SkeletonJoint& joint = s.joints[size_t(j)];
+      if (!joint.found) continue;
+      const auto p = at(j);
+      if (joint.tracked) {
+        Ring(picture, p.x(), p.y(), std::max(2.5f, 5.0f * scale), JointColour(j));
+        if (p.y() < top_y) top_y = p.y(), top_x = p.x();
+      } else {
+        Ring(picture, p.x(), p.y(), std::max(1.5f, 3.0f * scale), {110, 110, 110});
+      }
+    }
+    if (top_y < 1e9f) {
+      const std::string label = "ID " + std::to_string(s.id);
+      DrawText(picture, int(top_x) - TextWidth(label, 2) / 2, int(top_y) - 28, label, PersonColour(s.id), 2);
+    }
+  }
+}
+
+RgbImage SkeletonFigure(const core::DepthImage& depth, const core::LabelImage& labels,
+                        const std::vector<Skeleton>& skeletons, int factor) {
+  factor = std::max(1, factor);
+  const int pw = depth.width / factor, ph = depth.height / factor;
+  RgbImage fig(3 * pw, ph, 0);
+  const RgbImage grey = DepthPicture(depth);
+  Blit(fig, grey, 0, 0, factor);
+  if (labels.width == depth.width && labels.height == depth.height)
+    Blit(fig, PartsPicture(labels), pw, 0, factor);
+  Blit(fig, grey, 2 * pw, 0, factor);
+  DrawSkeletons(fig, skeletons, 1.0f / float(factor), 2 * pw, 0);
+  for (int y = 0; y < ph; ++y)  // panel separators
+    for (int k = 1; k < 3; ++k) fig.Set(k * pw, y, {60, 60, 60});
+  return fig;
+}
+
 }  // namespace poseforest::runtime

@@ -13,6 +13,7 @@
 #include "runtime/core/depth_image.h"
 #include "runtime/joint_metrics.h"
 #include "runtime/joint_proposals.h"
+#include "runtime/skeleton.h"
 
 namespace poseforest::runtime {
 
@@ -44,6 +45,19 @@ void DrawProposals(RgbImage& picture, const FrameProposals& proposals, float min
 RgbImage PoseFigure(const core::DepthImage& depth, const core::LabelImage& labels,
                     const FrameProposals& proposals, const core::CameraIntrinsics& camera,
                     float min_confidence);
+
+/// A colour per person id (8 distinct ones, then repeating); the same in pictures and markers.
+core::Rgb PersonColour(int id);
+/// Skeletons drawn on a picture of the frame (pixel coordinates x `scale`, then + (ox, oy)):
+/// bones (SkeletonBones) between tracked joints as lines in the person's colour, tracked joints
+/// as discs in the joint's colour ringed white, joints found but not tracked as small grey
+/// rings, and "ID n" above the person's highest tracked joint.
+void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, float scale = 1.0f, int ox = 0,
+                   int oy = 0);
+/// `live`'s picture: depth | parts | depth with the skeletons, side by side, each panel the
+/// frame's size divided by `factor` (1 = full size).
+RgbImage SkeletonFigure(const core::DepthImage& depth, const core::LabelImage& labels,
+                        const std::vector<Skeleton>& skeletons, int factor = 1);
 
 /// Writes `text` with the built-in 5x7 font (6 x 8 pixels per character at scale 1), top-left
 /// corner at (x, y). Letters are drawn upper case; characters outside A-Z 0-9 . , - _ : / ( ) = %

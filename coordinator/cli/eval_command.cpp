@@ -147,6 +147,8 @@ int EvalMain(int argc, char** argv) {
       std::printf("no joint average precision: %s has no ground-truth joints\n", set.c_str());
     } else {
       std::fputs(coordinator::FormatJointApTable(*e).c_str(), stdout);
+      std::printf("\n");
+      std::fputs(coordinator::FormatSkeletonTable(*e).c_str(), stdout);
       std::printf("ms/frame: classify %.1f, mean shift %.1f", e->classify_ms / e->frames,
                   e->mean_shift_ms / e->frames);
       if (e->ran_fast) std::printf(", fast clustering %.1f", e->fast_ms / e->frames);

@@ -8,6 +8,7 @@ int InferMain(int argc, char** argv);    ///< runtime/cli/infer_command.cpp
 int InspectMain(int argc, char** argv);  ///< runtime/cli/inspect_command.cpp
 int ImportPclMain(int argc, char** argv);  ///< runtime/cli/import_pcl_command.cpp
 int FramesMain(int argc, char** argv);   ///< runtime/cli/frames_command.cpp
+int LiveMain(int argc, char** argv);     ///< runtime/cli/live_command.cpp
 
 // Training side (only in builds with POSEFOREST_TRAINING=ON; see main.cpp).
 int RenderMain(int argc, char** argv);   ///< renderer: write a synthetic dataset + montage

@@ -71,7 +71,8 @@ options:
   --distributions      also write P(part | pixel) as float32 NumPy array [height, width, parts]
                        (<name>.probs.npy); background pixels are all zero
   --joints             also propose 3D joints (section 3.4): <name>.joints.json (per joint, every
-                       proposal: position in metres, camera frame; pixel; confidence) and
+                       proposal: position in metres, camera frame; pixel; raw confidence; the
+                       calibrated confidence in 0..1, docs/runtime/live.md) and
                        <name>.pose.png (depth, parts, joints, front/side/top views); uses the
                        proposal parameters the forest stores for the method (`tune-joints`; the
                        fast clustering without a set of its own uses the mean-shift set), or the
@@ -85,8 +86,16 @@ options:
   --help               this text
 )";
 
+// Confidence in 0..1 of a proposal: the forest's calibration (format 1.4, JCAL: the precision of
+// proposals of this support on validation renders) or the documented fallback (docs/runtime/live.md).
+float CalibratedConfidence(const core::ConfidenceCalibration* cal, int joint, const runtime::JointProposal& p,
+                           const core::CameraIntrinsics& camera) {
+  const float support = float(double(p.confidence) / (camera.fx * camera.fy));
+  return cal ? cal->Confidence(joint, support) : core::FallbackConfidence(support);
+}
+
 std::string JointsJson(const std::string& source, const core::DepthImage& depth, const runtime::FrameProposals& f,
-                       const char* method) {
+                       const char* method, const core::ConfidenceCalibration* cal, const core::CameraIntrinsics& camera) {
   std::string out = "{\n  \"frame\": \"";
   for (char c : source) {
     if (c == '"' || c == '\\') out += '\\';
@@ -100,9 +109,11 @@ std::string JointsJson(const std::string& source, const core::DepthImage& depth,
     out += "    {\"joint\": \"" + std::string(core::JointName(j)) + "\", \"proposals\": [";
     for (size_t k = 0; k < f[size_t(j)].size(); ++k) {
       const auto& p = f[size_t(j)][k];
-      std::snprintf(buf, sizeof buf, "%s\n      {\"position_m\": [%.4f, %.4f, %.4f], \"pixel\": [%.1f, %.1f], \"confidence\": %.5g}",
+      std::snprintf(buf, sizeof buf,
+                    "%s\n      {\"position_m\": [%.4f, %.4f, %.4f], \"pixel\": [%.1f, %.1f], \"confidence\": %.5g, "
+                    "\"calibrated_confidence\": %.4f}",
                     k ? "," : "", p.position.x(), p.position.y(), p.position.z(), p.pixel.x(), p.pixel.y(),
-                    double(p.confidence));
+                    double(p.confidence), double(CalibratedConfidence(cal, j, p, camera)));
       out += buf;
     }
     out += f[size_t(j)].empty() ? "]}" : "\n    ]}";
@@ -252,6 +263,13 @@ int InferMain(int argc, char** argv) {
     return Fail({core::ErrorCode::kInvalidArgument,
                  *forest_path + ": --joints needs a forest with the paper's 31-part taxonomy (this one has " +
                      std::to_string(forest->num_parts) + " parts)"});
+  // The calibration applies to the method it was measured with.
+  const core::ConfidenceCalibration* calibration =
+      forest->confidence_calibration &&
+              (forest->confidence_calibration->method == core::ConfidenceCalibration::Method::kFastClustering) ==
+                  (method == "fast")
+          ? &*forest->confidence_calibration
+          : nullptr;
   runtime::ProposalOptions proposal_options;
   proposal_options.method = method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
   const auto params =
@@ -350,7 +368,8 @@ int InferMain(int argc, char** argv) {
       const auto t1 = std::chrono::steady_clock::now();
       proposals = runtime::ProposeJointsFromClassification(*depth, result, proposal_options);
       proposal_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
-      const std::string json = JointsJson(frame.source, *depth, proposals, method.c_str());
+      const std::string json =
+          JointsJson(frame.source, *depth, proposals, method.c_str(), calibration, proposal_options.camera);
       st = core::WriteFileAtomic(out_path(".joints.json"),
                                  std::span(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
       if (st.ok()) {
@@ -400,9 +419,10 @@ int InferMain(int argc, char** argv) {
             std::printf("    %-11s none\n", std::string(core::JointName(j)).c_str());
             continue;
           }
-          std::printf("    %-11s (%6.3f, %6.3f, %6.3f)  confidence %.4g  (%zu proposals)\n",
+          std::printf("    %-11s (%6.3f, %6.3f, %6.3f)  confidence %.4g, %s %.2f  (%zu proposals)\n",
                       std::string(core::JointName(j)).c_str(), list[0].position.x(), list[0].position.y(),
-                      list[0].position.z(), double(list[0].confidence), list.size());
+                      list[0].position.z(), double(list[0].confidence), calibration ? "calibrated" : "fallback",
+                      double(CalibratedConfidence(calibration, j, list[0], proposal_options.camera)), list.size());
         }
       }
     }

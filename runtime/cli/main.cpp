@@ -26,6 +26,7 @@ const Command kCommands[] = {
     {"inspect", poseforest::cli::InspectMain, "print and validate a forest file"},
     {"import-pcl", poseforest::cli::ImportPclMain, "convert PCL's trained people trees into a forest file"},
     {"frames", poseforest::cli::FramesMain, "read depth frames from files, stdin or a camera; check and convert them"},
+    {"live", poseforest::cli::LiveMain, "per-person skeletons from depth frames: JSON Lines, pictures, a live page"},
 #ifdef POSEFOREST_HAS_RENDER
     {"render", poseforest::cli::RenderMain, "render a synthetic labelled depth dataset and a preview montage"},
 #endif

@@ -66,6 +66,8 @@ Status ValidateForest(const Forest& forest, const std::string& source) {
   for (const float f : {forest.training_fx, forest.training_fy})
     if (!std::isfinite(f) || f < 1 || f > 100000)
       return fail("training focal length " + std::to_string(f) + " px is not in [1, 100000] (FOCL)");
+  if (forest.confidence_calibration)
+    POSEFOREST_RETURN_IF_ERROR(ValidateCalibration(*forest.confidence_calibration, source + ": JCAL"));
   for (const bool fast : {false, true}) {
     const auto& params = fast ? forest.fast_proposal_params : forest.proposal_params;
     if (!params) continue;

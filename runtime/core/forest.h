@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "runtime/core/body_parts.h"
+#include "runtime/core/confidence_calibration.h"
 #include "runtime/core/feature.h"
 #include "runtime/core/proposal_params.h"
 #include "runtime/core/result.h"
@@ -101,6 +102,9 @@ struct Forest {
   /// older than 1.3 were all trained for the Kinect v1, which is the default.
   float training_fx = float(kKinectV1FocalPx);
   float training_fy = float(kKinectV1FocalPx);
+  /// Joint confidence calibration measured by `tune-joints` (format >= 1.4, section JCAL):
+  /// proposal support (m^2) -> precision on validation renders. Absent: FallbackConfidence.
+  std::optional<ConfidenceCalibration> confidence_calibration;
 
   int leaf_stride() const { return LeafStride(num_parts); }
   /// Maximum depth over trees.

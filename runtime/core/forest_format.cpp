@@ -37,6 +37,7 @@ constexpr uint32_t kTagTree = Tag("TREE");
 constexpr uint32_t kTagJointParams = Tag("JPAR");      // mean shift (1.1: both methods)
 constexpr uint32_t kTagFastJointParams = Tag("JPFC");  // the fast clustering (1.2)
 constexpr uint32_t kTagFocal = Tag("FOCL");            // training camera's focal lengths (1.3)
+constexpr uint32_t kTagCalibration = Tag("JCAL");      // joint confidence calibration (1.4)
 
 std::string TagName(uint32_t tag) {
   std::string s;
@@ -134,7 +135,8 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   w.U64(0);  // file size, patched below
   w.U32(kHeaderSize);
   const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
-                                 (forest.fast_proposal_params ? 1 : 0) + 1;
+                                 (forest.fast_proposal_params ? 1 : 0) + 1 +
+                                 (forest.confidence_calibration ? 1 : 0);
   w.U32(section_count);
   while (w.size() < kHeaderSize) w.U8(0);
 
@@ -194,6 +196,19 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   w.F32(forest.training_fy);
   EndSection(w, at);
 
+  // JCAL (1.4): the confidence calibration tune-joints measured; older readers skip it.
+  if (const auto& cal = forest.confidence_calibration) {
+    at = BeginSection(w, kTagCalibration, 0);
+    w.U32(uint32_t(cal->method));
+    w.U32(uint32_t(kNumJoints));
+    w.U32(uint32_t(cal->support_edges_m2.size()));
+    w.U32(cal->samples);
+    for (float e : cal->support_edges_m2) w.F32(e);
+    for (const auto& row : cal->precision)
+      for (float v : row) w.F32(v);
+    EndSection(w, at);
+  }
+
   const uint64_t file_size = w.size() + kTrailerSize;
   w.PatchU64(16, file_size);
   const uint32_t crc = Crc32(w.bytes().data(), w.size());
@@ -240,7 +255,7 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
 
   Forest forest;
   forest.part_names.clear();
-  bool have_meta = false, have_focal = false;
+  bool have_meta = false, have_focal = false, have_calibration = false;
   uint32_t tree_count = 0, stride = 0;
   const auto body = bytes.subspan(header_size, bytes.size() - kTrailerSize - header_size);
   Reader r(body);
@@ -341,6 +356,28 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       forest.training_fx = p.F32();
       forest.training_fy = p.F32();
       have_focal = true;
+    } else if (tag == kTagCalibration) {
+      if (have_calibration) return loss(where + "second JCAL section");
+      if (!p.Has(16))
+        return loss(where + "JCAL section too short (" + std::to_string(p.remaining()) + " bytes)");
+      ConfidenceCalibration cal;
+      cal.method = ConfidenceCalibration::Method(p.U32());
+      const uint32_t joints = p.U32();
+      const uint32_t bins = p.U32();
+      cal.samples = p.U32();
+      if (joints != uint32_t(kNumJoints) || bins < 1 || bins > 256 ||
+          p.remaining() != size_t(bins) * (1 + size_t(joints)) * 4)
+        return loss(where + "JCAL holds " + std::to_string(p.remaining()) + " bytes for " +
+                    std::to_string(joints) + " joints x " + std::to_string(bins) + " bins, expected " +
+                    std::to_string(kNumJoints) + " joints and (1 + joints) x bins x 4 bytes");
+      cal.support_edges_m2.resize(bins);
+      for (float& e : cal.support_edges_m2) e = p.F32();
+      for (auto& row : cal.precision) {
+        row.resize(bins);
+        for (float& v : row) v = p.F32();
+      }
+      forest.confidence_calibration = std::move(cal);
+      have_calibration = true;
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");

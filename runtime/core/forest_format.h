@@ -18,7 +18,7 @@ inline constexpr uint16_t kFormatMajor = 1;
 /// shift's); 1.1 readers skip it and run both methods with JPAR, as they did.
 /// 1.3 added the optional FOCL section (the training camera's focal lengths, pixels); older files
 /// mean the Kinect v1 (575.8 px), older readers skip it.
-inline constexpr uint16_t kFormatMinor = 3;
+inline constexpr uint16_t kFormatMinor = 4;
 
 /// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
 std::vector<uint8_t> SerializeForest(const Forest& forest);

@@ -131,6 +131,11 @@ TEST_CASE("infer --joints writes proposals as JSON and the pose picture", "[cli]
         std::snprintf(pos, sizeof pos, "\"position_m\": [%.4f, %.4f, %.4f]", p.position.x(), p.position.y(),
                       p.position.z());
         CHECK_THAT(text, Catch::Contains(pos));
+        // The forest has no calibration table: the documented fallback of the support.
+        char conf[160];
+        std::snprintf(conf, sizeof conf, "\"confidence\": %.5g, \"calibrated_confidence\": %.4f}", double(p.confidence),
+                      double(core::FallbackConfidence(float(double(p.confidence) / (po.camera.fx * po.camera.fy)))));
+        CHECK_THAT(text, Catch::Contains(conf));
       }
     }
     for (size_t at = text.find("position_m"); at != std::string::npos; at = text.find("position_m", at + 1))

@@ -473,7 +473,7 @@ TEST_CASE("the training focal length (format 1.3, FOCL) round trips; older files
   forest.training_fx = 365.5f;
   forest.training_fy = 367.25f;
   const auto bytes = core::SerializeForest(forest);
-  CHECK(bytes[10] == 3);
+  CHECK(bytes[10] >= 3);  // FOCL since 1.3
   auto parsed = core::ParseForest(bytes, "focal.pff");
   REQUIRE(parsed.ok());
   CHECK(parsed->training_fx == 365.5f);
@@ -503,4 +503,45 @@ TEST_CASE("the training focal length (format 1.3, FOCL) round trips; older files
   longer[at + 8] = 12;
   RepairChecksum(longer);
   CHECK_FALSE(core::ParseForest(longer, "focal.pff").ok());
+}
+
+TEST_CASE("the confidence calibration (format 1.4, JCAL): every byte of it rewritten behind a valid checksum",
+          "[format][hostile]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(22));
+  const auto without = core::SerializeForest(forest);
+  core::ConfidenceCalibration cal;
+  cal.support_edges_m2 = {1e-4f, 1e-3f};
+  for (auto& row : cal.precision) row = {0.25f, 0.75f};
+  forest.confidence_calibration = cal;
+  const auto bytes = core::SerializeForest(forest);
+  REQUIRE(bytes.size() > without.size());
+  // The JCAL section sits between FOCL and the trailer.
+  const size_t start = without.size() - 8;
+  int rejected = 0;
+  for (size_t i = start; i < bytes.size() - 8; ++i) {
+    for (uint8_t value : {uint8_t(0x00), uint8_t(0x7F), uint8_t(0x80), uint8_t(0xFF)}) {
+      auto bad = bytes;
+      if (bad[i] == value) continue;
+      bad[i] = value;
+      RepairChecksum(bad);
+      auto r = core::ParseForest(bad, "jcal.pff");
+      if (r.ok()) {
+        REQUIRE(core::ValidateForest(*r, "jcal.pff").ok());
+      } else {
+        ++rejected;
+        CHECK_FALSE(r.status().message().empty());
+      }
+    }
+  }
+  CHECK(rejected > 0);
+  // A second JCAL is refused naming it.
+  auto twice = bytes;
+  std::vector<uint8_t> section(bytes.begin() + long(start), bytes.end() - 8);
+  twice.insert(twice.end() - 8, section.begin(), section.end());
+  twice[28] = uint8_t(twice[28] + 1);  // section count
+  for (int k = 0; k < 8; ++k) twice[16 + size_t(k)] = uint8_t(uint64_t(twice.size()) >> (8 * k));
+  RepairChecksum(twice);
+  auto r = core::ParseForest(twice, "twice.pff");
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().message().find("second JCAL") != std::string::npos);
 }

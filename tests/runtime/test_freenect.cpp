@@ -97,6 +97,24 @@ TEST_CASE("the 9 real Kinect frames through a fakenect recording and libfreenect
     CHECK(core::CountForeground(read) == core::CountForeground(*original));
   }
 
+  // `live` on the same stream (issue 15): one JSON Lines record per frame, each with the person.
+  REQUIRE(core::SaveForest(testing::MakeRandomForest({.max_depth = 8, .nodes_per_tree = 500}),
+                           (dir / "f.pff").string())
+              .ok());
+  auto live =
+      testing::RunCommand(Fakenect(dir / "rec") + Bin() + " live --forest " + (dir / "f.pff").string() +
+                          " --source freenect:0 --threads 2 --jsonl " + (dir / "live.jsonl").string());
+  INFO(live.output);
+  REQUIRE(live.exit_code == 0);
+  CHECK_THAT(live.output, Catch::Contains("end of source: 9 frames") && Catch::Contains("fakenect"));
+  std::ifstream jsonl(dir / "live.jsonl");
+  int lines = 0;
+  for (std::string line; std::getline(jsonl, line); ++lines) {
+    CHECK_THAT(line, Catch::StartsWith("{\"index\":" + std::to_string(lines) + ",") &&
+                         Catch::Contains("\"source\":\"freenect:0\"") && Catch::Contains("{\"id\":1,"));
+  }
+  CHECK(lines == 9);
+
   // The same command without fakenect's library runs the real libfreenect: no Kinect here.
   auto real = testing::RunCommand("FAKENECT_PATH= " + Bin() + " frames freenect:0");
   CHECK(real.exit_code == 1);

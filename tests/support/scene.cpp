@@ -52,4 +52,34 @@ ClutteredFrame ComposeScene(const core::CameraIntrinsics& cam, const ClutterSpec
   return out;
 }
 
+core::DepthImage MovePerson(const core::DepthImage& person, const core::CameraIntrinsics& cam, int dz_mm,
+                            double dx_m) {
+  core::DepthImage out(person.width, person.height, 0);
+  for (int y = 0; y < person.height; ++y)
+    for (int x = 0; x < person.width; ++x) {
+      const uint16_t d = person.at(x, y);
+      if (!d) continue;
+      const double z = d * 1e-3, z2 = z + dz_mm * 1e-3;
+      // Same 3D point shape, further away: project (X + dx, Y, Z + dz).
+      const double X = (x - cam.cx) * z / cam.fx + dx_m, Y = (y - cam.cy) * z / cam.fy;
+      const int u = int(std::lround(cam.cx + cam.fx * X / z2)),
+                v = int(std::lround(cam.cy + cam.fy * Y / z2));
+      if (!out.InBounds(u, v)) continue;
+      const uint16_t nd = uint16_t(std::lround(z2 * 1000));
+      if (!out.at(u, v) || nd < out.at(u, v)) out.at(u, v) = nd;
+    }
+  // Fill the pinholes that moving away leaves (a 3x3 closing on the silhouette).
+  core::DepthImage filled = out;
+  for (int y = 1; y + 1 < out.height; ++y)
+    for (int x = 1; x + 1 < out.width; ++x) {
+      if (out.at(x, y)) continue;
+      int n = 0, sum = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          if (const uint16_t d = out.at(x + dx, y + dy)) ++n, sum += d;
+      if (n >= 5) filled.at(x, y) = uint16_t(sum / n);
+    }
+  return filled;
+}
+
 }  // namespace poseforest::testing

@@ -33,4 +33,9 @@ ClutteredFrame ComposeScene(const core::CameraIntrinsics& camera, const ClutterS
                             const std::vector<core::DepthImage>& people,
                             const std::vector<int>& shift_mm = {});
 
+/// A pre-segmented person image moved `dz_mm` back and `dx_m` sideways (the silhouette shrinks
+/// with depth; pinholes closed), for scenes built from real frames' people.
+core::DepthImage MovePerson(const core::DepthImage& person, const core::CameraIntrinsics& camera, int dz_mm,
+                            double dx_m);
+
 }  // namespace poseforest::testing

@@ -57,6 +57,13 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   REQUIRE(after->proposal_params.has_value());
   REQUIRE(after->fast_proposal_params.has_value());
   CHECK(after->total_nodes() == before->total_nodes());  // the trees are untouched
+  // The skeleton's confidence calibration (format 1.4, JCAL) is measured on the same frames.
+  CHECK_FALSE(before->confidence_calibration.has_value());
+  REQUIRE(after->confidence_calibration.has_value());
+  CHECK(after->confidence_calibration->method == core::ConfidenceCalibration::Method::kMeanShift);
+  CHECK(after->confidence_calibration->samples > 0);
+  CHECK_THAT(tune.output, Catch::Contains("confidence calibration (mean shift, ") &&
+                              Catch::Contains("and the confidence calibration"));
   // The grid holds none of the means' triples.
   CHECK(*after->proposal_params != core::DefaultProposalParams());
   CHECK(*after->fast_proposal_params != core::DefaultProposalParams());
@@ -79,6 +86,11 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
           Catch::Contains("proposal parameters, fast clustering: learned (stored in the forest)") &&
           Catch::Contains("L_shoulder") && Catch::Contains("mAP: mean shift") &&
           Catch::Contains("average per-class accuracy:") && Catch::Contains("3 frames, 3 people"));
+  // The skeleton's own accuracy, with the forest's calibration.
+  CHECK_THAT(eval.output, Catch::Contains("skeleton accuracy") && Catch::Contains("3 one-person frames") &&
+                              Catch::Contains("confidence calibrated (JCAL)") &&
+                              Catch::Contains("not tracked right") &&
+                              Catch::Contains("mean over joints: tracked within"));
   // The ground-truth parts locate visible joints well even on three frames.
   CHECK(NumberAfter(eval.output, "upper bound ") > 0.6);
   for (const char* name : {"pr_joints.png", "pr_mean.png"}) {
@@ -95,6 +107,8 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   INFO(two.output);
   REQUIRE(two.exit_code == 0);
   CHECK_THAT(two.output, Catch::Contains("2 frames, 4 people"));
+  CHECK_THAT(two.output,
+             Catch::Contains("0 one-person frames"));  // skeletons are scored on one-person frames only
   // The fast clustering did not run: no figures for it, not zeros.
   CHECK_THAT(two.output, !Catch::Contains("fast clustering") && Catch::Contains("mAP: mean shift"));
 

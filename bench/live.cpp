@@ -1,0 +1,206 @@
+// bench/live: `poseforest live`'s pipeline on a replayed sequence of cluttered 640x480 frames
+// (a floor, walls and boxes; people: the real Kinect frames' people moved back in depth and
+// synthetic standing figures, composited by depth test, as bench/segment builds them): people
+// segmentation + classification + joint proposals + skeletons (ids, not-tracked rules) + the
+// JSON Lines record written to /dev/null + the DDS publish of `live --dds` (builds with Fast DDS),
+// one frame at a time with 2 OpenMP threads (--threads).
+// Prints frames/s, latency p50 / p99 from frame in to JSON line out, and a per-stage table.
+// Last line: `frames/s: N frames/s`.
+//
+// The forest: --forest F, else scripts/accuracy-recipe.sh's 4,000-image-per-tree forest
+// (out/accuracy-4000/forest_tuned.pff, then forest.pff); it says which it ran.
+//
+//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S]
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "runtime/core/forest_format.h"
+#include "runtime/core/rng.h"
+#include "runtime/frame_source.h"
+#include "runtime/skeleton_pipeline.h"
+#include "tests/support/scene.h"
+#include "tests/support/synthetic.h"
+#ifdef POSEFOREST_HAS_SKELETON_DDS
+#include "runtime/dds/skeleton_publisher.h"
+#endif
+
+using namespace poseforest;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path DataDir() {
+  if (const char* env = std::getenv("POSEFOREST_DATA_DIR"); env && *env) return env;
+  return POSEFOREST_DATA_DIR_DEFAULT;
+}
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, size_t(q * double(v.size())))];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int threads = 2, num_frames = 30;
+  double seconds = 5.0;
+  std::string forest_path;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--threads"))
+      threads = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--frames"))
+      num_frames = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--seconds"))
+      seconds = std::atof(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--forest"))
+      forest_path = argv[i + 1];
+  }
+  std::string which = "given with --forest";
+  if (forest_path.empty()) {
+    for (const char* p : {"out/accuracy-4000/forest_tuned.pff", "out/accuracy-4000/forest.pff"})
+      if (fs::exists(p)) {
+        forest_path = p;
+        which = "scripts/accuracy-recipe.sh's 4,000-image-per-tree forest";
+        break;
+      }
+  }
+  if (forest_path.empty()) {
+    std::fprintf(
+        stderr,
+        "bench/live: no forest: run scripts/accuracy-recipe.sh (out/accuracy-4000/forest_tuned.pff) or "
+        "give --forest F (e.g. the main job's)\n");
+    return 2;
+  }
+  auto forest = core::LoadForest(forest_path);
+  if (!forest.ok()) {
+    std::fprintf(stderr, "bench/live: %s\n", forest.status().ToString().c_str());
+    return 1;
+  }
+  std::printf("forest: %s (%s): %zu trees, depth %u\n", forest_path.c_str(), which.c_str(),
+              forest->trees.size(), forest->max_depth());
+
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  std::vector<core::DepthImage> real_people;
+  runtime::FrameSourceOptions fo;
+  std::error_code ec;
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(DataDir() / "real/skeltrack_kinect_depth", ec))
+    if (e.path().filename().string().rfind("depth-data-", 0) == 0) files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  for (const auto& f : files)
+    if (auto d = runtime::ReadDepthFile(f.string(), fo); d.ok()) real_people.push_back(*d);
+  // A sequence: one clutter, the people walking slowly (a real person and a synthetic one).
+  std::vector<runtime::Frame> frames(static_cast<size_t>(num_frames));
+  testing::ClutterSpec spec;
+  spec.floor_y_m = 1.1;
+  spec.back_wall_z_m = 4.6;
+  spec.side_wall_x_m = -2.1;
+  spec.boxes.push_back({{0.9, 0.85, 3.0}, {1.6, 1.1, 3.5}});
+  spec.boxes.push_back({{-1.5, 0.9, 2.6}, {-1.0, 1.1, 3.0}});
+  for (int k = 0; k < num_frames; ++k) {
+    std::vector<core::DepthImage> people;
+    const double t = double(k) / num_frames;
+    if (!real_people.empty())
+      people.push_back(testing::MovePerson(real_people[size_t(k) % real_people.size()], cam,
+                                           900 + int(300 * t), -0.5 + 0.3 * t));
+    people.push_back(testing::MakePersonDepth(2.9 - 0.4 * t, 640, 480, 0.7 - 0.2 * t, spec.floor_y_m - 0.98));
+    auto& f = frames[size_t(k)];
+    f.depth = testing::ComposeScene(cam, spec, people).depth;
+    f.timestamp_s = k / 30.0;
+    f.index = k;
+    f.source = "bench";
+  }
+  std::printf("sequence: %d cluttered 640x480 frames played back and forth, %s, %d threads\n", num_frames,
+              real_people.empty() ? "one synthetic person (no real frames found)"
+                                  : "a real Kinect person and a synthetic one",
+              threads);
+
+  runtime::SkeletonPipelineOptions options;
+  options.num_threads = threads;
+  auto pipeline = runtime::SkeletonPipeline::Create(*forest, options);
+  if (!pipeline.ok()) {
+    std::fprintf(stderr, "bench/live: %s\n", pipeline.status().ToString().c_str());
+    return 1;
+  }
+  FILE* sink = std::fopen("/dev/null", "w");
+#ifdef POSEFOREST_HAS_SKELETON_DDS
+  // Published as `live --dds` does, on a domain of its own (nobody subscribes: the cost is
+  // serializing and handing the samples to Fast DDS).
+  runtime::ros2::DdsOptions dds_options;
+  dds_options.domain = 231;
+  dds_options.topic_prefix = "poseforest_bench";
+  auto dds = runtime::ros2::SkeletonPublisher::Create(dds_options);
+  if (!dds.ok()) {
+    std::fprintf(stderr, "bench/live: %s\n", dds.status().ToString().c_str());
+    return 1;
+  }
+#endif
+  runtime::SkeletonFrame out;
+  // Warm-up: one pass over the sequence.
+  for (const auto& f : frames) (*pipeline)->Process(f, &out);
+  std::vector<double> latency;
+  runtime::StageTimes sum;
+  double json_ms = 0, dds_ms = 0;
+  int64_t done = 0, people = 0, tracked = 0;
+  const auto start = std::chrono::steady_clock::now();
+  double elapsed = 0;
+  while (elapsed < seconds || done < num_frames) {
+    // Played forwards then backwards, so the people never jump (ids stay).
+    const int64_t period = std::max<int64_t>(1, 2 * int64_t(num_frames) - 2);
+    const int64_t at = done % period;
+    runtime::Frame f = frames[size_t(at < num_frames ? at : period - at)];
+    f.index = done;
+    f.timestamp_s = double(done) / 30.0;
+    const auto t0 = std::chrono::steady_clock::now();
+    (*pipeline)->Process(f, &out);
+    const auto t1 = std::chrono::steady_clock::now();
+    const std::string line = runtime::SkeletonsJsonLine(f.index, f.timestamp_s, f.source, out.skeletons);
+    std::fputs(line.c_str(), sink);
+    std::fputc('\n', sink);
+    std::fflush(sink);
+#ifdef POSEFOREST_HAS_SKELETON_DDS
+    const auto t_dds = std::chrono::steady_clock::now();
+    (*dds)->Publish(f.index, f.timestamp_s, f.source, out.skeletons);
+    dds_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_dds).count();
+#endif
+    const auto t2 = std::chrono::steady_clock::now();
+    latency.push_back(std::chrono::duration<double, std::milli>(t2 - t0).count());
+    json_ms += std::chrono::duration<double, std::milli>(t2 - t1).count();
+    sum.segment_ms += out.times.segment_ms, sum.classify_ms += out.times.classify_ms;
+    sum.proposals_ms += out.times.proposals_ms, sum.skeletons_ms += out.times.skeletons_ms;
+    people += int64_t(out.skeletons.size());
+    for (const auto& s : out.skeletons) tracked += s.tracked_joints();
+    ++done;
+    elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  std::fclose(sink);
+  const double n = double(done);
+  std::printf("%lld frames in %.2f s; %.2f people per frame (%d ids), %.1f joints tracked per person\n",
+              static_cast<long long>(done), elapsed, double(people) / n, (*pipeline)->tracker().people_seen(),
+              people ? double(tracked) / double(people) : 0.0);
+  std::printf("latency (frame in to skeletons published): p50 %.2f ms, p99 %.2f ms, max %.2f ms\n",
+              Percentile(latency, 0.5), Percentile(latency, 0.99),
+              *std::max_element(latency.begin(), latency.end()));
+  std::printf("%-14s %10s %8s\n", "stage", "ms/frame", "share");
+  json_ms -= dds_ms;  // the JSON Lines span above included the publish
+  const double total = sum.total() + json_ms + dds_ms;
+  for (const auto& [name, ms] : {std::pair<const char*, double>{"segmentation", sum.segment_ms},
+                                 {"classify", sum.classify_ms},
+                                 {"proposals", sum.proposals_ms},
+                                 {"skeletons", sum.skeletons_ms},
+                                 {"json lines", json_ms},
+                                 {"dds publish", dds_ms}})
+    std::printf("%-14s %10.3f %7.1f%%\n", name, ms / n, 100.0 * ms / total);
+#ifndef POSEFOREST_HAS_SKELETON_DDS
+  std::printf("(DDS publish: not in this build; it comes with -DPOSEFOREST_TRAINING=ON)\n");
+#endif
+  std::printf("frames/s: %.1f frames/s\n", n / elapsed);
+  return 0;
+}

@@ -1,0 +1,37 @@
+#pragma once
+// The ROS 2 messages `poseforest live --dds` publishes, encoded as rmw_fastrtps writes them: CDR
+// (XCDR1, little endian) with its 4-byte encapsulation header, fields in .msg order, each aligned
+// to its size from the start of the data (after the header). Pure C++ (no DDS headers): the
+// encoding is ours, the transport is Fast DDS (skeleton_publisher.h).
+//   poseforest_msgs/msg/Skeletons     msg/Skeletons.msg (+ Skeleton.msg, SkeletonJoint.msg)
+//   visualization_msgs/msg/MarkerArray  ROS 2 Humble's definition: per person a SPHERE_LIST of the
+//                                     tracked joints and a LINE_LIST of the bones between them,
+//                                     in the person's colour, after one DELETEALL marker
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "runtime/skeleton.h"
+
+namespace poseforest::runtime::ros2 {
+
+inline constexpr const char* kSkeletonsTypeName = "poseforest_msgs::msg::dds_::Skeletons_";
+inline constexpr const char* kMarkerArrayTypeName = "visualization_msgs::msg::dds_::MarkerArray_";
+
+struct FrameStamp {
+  int64_t index = 0;
+  double time_s = 0;
+  std::string source;
+  std::string frame_id;  ///< header.frame_id (the camera's TF frame)
+};
+
+/// poseforest_msgs/msg/Skeletons, encapsulation header included.
+std::vector<uint8_t> EncodeSkeletons(const FrameStamp& stamp, const std::vector<Skeleton>& skeletons);
+
+/// visualization_msgs/msg/MarkerArray (Humble), encapsulation header included. Namespace
+/// "poseforest"; person id k has markers 2k (joints, SPHERE_LIST, 4 cm) and 2k+1 (bones,
+/// LINE_LIST, 1.5 cm wide), coloured with PersonColour(k).
+std::vector<uint8_t> EncodeMarkerArray(const FrameStamp& stamp, const std::vector<Skeleton>& skeletons);
+
+}  // namespace poseforest::runtime::ros2

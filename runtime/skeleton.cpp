@@ -1,0 +1,284 @@
+#include "runtime/skeleton.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+namespace poseforest::runtime {
+
+int Skeleton::tracked_joints() const {
+  int n = 0;
+  for (const auto& j : joints) n += j.tracked;
+  return n;
+}
+
+const std::vector<std::pair<int, int>>& SkeletonBones() {
+  using J = core::Joint;
+  auto b = [](J a, J c) { return std::pair<int, int>(int(a), int(c)); };
+  static const std::vector<std::pair<int, int>> bones = {
+      b(J::kNeck, J::kHead),        b(J::kNeck, J::kLShoulder), b(J::kNeck, J::kRShoulder),
+      b(J::kLShoulder, J::kLElbow), b(J::kLElbow, J::kLWrist),  b(J::kLWrist, J::kLHand),
+      b(J::kRShoulder, J::kRElbow), b(J::kRElbow, J::kRWrist),  b(J::kRWrist, J::kRHand),
+      b(J::kLShoulder, J::kLKnee),  b(J::kLKnee, J::kLAnkle),   b(J::kLAnkle, J::kLFoot),
+      b(J::kRShoulder, J::kRKnee),  b(J::kRKnee, J::kRAnkle),   b(J::kRAnkle, J::kRFoot),
+  };
+  return bones;
+}
+
+std::pair<float, float> BoneLengthRange(int parent, int child) {
+  using J = core::Joint;
+  const auto p = J(parent), c = J(child);
+  auto is = [&](J a, J b) { return (p == a && c == b); };
+  if (is(J::kNeck, J::kHead)) return {0.08f, 0.45f};
+  if (is(J::kNeck, J::kLShoulder) || is(J::kNeck, J::kRShoulder)) return {0.06f, 0.35f};
+  if (is(J::kLShoulder, J::kLElbow) || is(J::kRShoulder, J::kRElbow)) return {0.12f, 0.5f};
+  if (is(J::kLElbow, J::kLWrist) || is(J::kRElbow, J::kRWrist)) return {0.1f, 0.45f};
+  if (is(J::kLWrist, J::kLHand) || is(J::kRWrist, J::kRHand)) return {0.0f, 0.25f};
+  if (is(J::kLShoulder, J::kLKnee) || is(J::kRShoulder, J::kRKnee)) return {0.45f, 1.3f};
+  if (is(J::kLKnee, J::kLAnkle) || is(J::kRKnee, J::kRAnkle)) return {0.2f, 0.65f};
+  if (is(J::kLAnkle, J::kLFoot) || is(J::kRAnkle, J::kRFoot)) return {0.0f, 0.3f};
+  return {0.0f, 1e9f};
+}
+
+std::string DescribeConfidence(const core::ConfidenceCalibration* calibration) {
+  if (!calibration)
+    return "uncalibrated fallback 1 - exp(-support / 0.002 m^2) (the forest has no calibration table: run "
+           "tune-joints)";
+  return "calibrated: precision on validation renders (tune-joints, " + std::to_string(calibration->samples) +
+         " proposals, " +
+         (calibration->method == core::ConfidenceCalibration::Method::kMeanShift ? "mean shift"
+                                                                                 : "fast clustering") +
+         ")";
+}
+
+std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks,
+                                     int num_people, const core::DepthImage& depth,
+                                     const core::CameraIntrinsics& camera,
+                                     const core::ConfidenceCalibration* calibration,
+                                     const SkeletonOptions& options) {
+  std::vector<Skeleton> out;
+  if (num_people <= 0 || masks.empty() || masks.width != depth.width || masks.height != depth.height)
+    return out;
+  // Centroids and sizes in one pass.
+  std::vector<Eigen::Vector3d> sum(size_t(num_people) + 1, Eigen::Vector3d::Zero());
+  std::vector<int> count(size_t(num_people) + 1, 0);
+  for (int y = 0; y < masks.height; ++y)
+    for (int x = 0; x < masks.width; ++x) {
+      const int l = masks.at(x, y);
+      const uint16_t d = depth.at(x, y);
+      if (l <= 0 || l > num_people || d == 0) continue;
+      sum[size_t(l)] += camera.Unproject(x, y, d * 1e-3);
+      ++count[size_t(l)];
+    }
+  const double area = camera.fx * camera.fy;
+  const int m = std::max(0, options.mask_margin_px);
+  for (int label = 1; label <= num_people; ++label) {
+    if (count[size_t(label)] == 0) continue;
+    Skeleton s;
+    s.mask_label = label;
+    s.pixels = count[size_t(label)];
+    s.centroid_m = (sum[size_t(label)] / count[size_t(label)]).cast<float>();
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      SkeletonJoint& joint = s.joints[size_t(j)];
+      // Proposals come most confident first: the first one on this person's mask wins.
+      for (const JointProposal& p : proposals[size_t(j)]) {
+        const int px = int(std::lround(p.pixel.x())), py = int(std::lround(p.pixel.y()));
+        int mask_depth = 0, best = 1 << 30;
+        for (int dy = -m; dy <= m; ++dy)
+          for (int dx = -m; dx <= m; ++dx) {
+            const int x = px + dx, y = py + dy;
+            if (x < 0 || y < 0 || x >= masks.width || y >= masks.height || masks.at(x, y) != label) continue;
+            const int d2 = dx * dx + dy * dy;
+            if (d2 < best && depth.at(x, y)) best = d2, mask_depth = depth.at(x, y);
+          }
+        if (mask_depth == 0) continue;
+        joint.found = true;
+        joint.position_m = p.position;
+        joint.pixel = p.pixel;
+        joint.support_m2 = float(double(p.confidence) / area);
+        joint.confidence = calibration ? calibration->Confidence(j, joint.support_m2)
+                                       : core::FallbackConfidence(joint.support_m2);
+        const float gap = p.position.z() - float(mask_depth) * 1e-3f;
+        joint.tracked = joint.support_m2 >= options.min_support_m2 &&
+                        joint.confidence >= options.min_confidence &&
+                        std::abs(gap) <= options.max_depth_gap_m;
+        break;
+      }
+    }
+    // Cut by the image border: which sides the mask touches.
+    if (options.edge_margin_m > 0) {
+      bool left = false, right = false, top = false, bottom = false;
+      for (int y = 0; y < masks.height; ++y) {
+        left |= masks.at(0, y) == label;
+        right |= masks.at(masks.width - 1, y) == label;
+      }
+      for (int x = 0; x < masks.width; ++x) {
+        top |= masks.at(x, 0) == label;
+        bottom |= masks.at(x, masks.height - 1) == label;
+      }
+      for (SkeletonJoint& joint : s.joints) {
+        if (!joint.tracked || !(joint.position_m.z() > 0)) continue;
+        const float margin = float(camera.fx) * options.edge_margin_m / joint.position_m.z();
+        const float x = joint.pixel.x(), y = joint.pixel.y();
+        if ((left && x < margin) || (right && x > float(masks.width - 1) - margin) || (top && y < margin) ||
+            (bottom && y > float(masks.height - 1) - margin))
+          joint.tracked = false;
+      }
+    }
+    // Bones from the neck outwards (SkeletonBones lists parents before children).
+    if (options.check_bone_lengths || options.require_tracked_parent)
+      for (const auto& [a, b] : SkeletonBones()) {
+        const SkeletonJoint& parent = s.joints[size_t(a)];
+        SkeletonJoint& child = s.joints[size_t(b)];
+        if (!child.tracked) continue;
+        if (!parent.tracked) {
+          // The neck is the root; its own children (head, shoulders) stand alone.
+          if (options.require_tracked_parent && a != int(core::Joint::kNeck)) child.tracked = false;
+          continue;
+        }
+        const auto [lo, hi] = BoneLengthRange(a, b);
+        const float len = (parent.position_m - child.position_m).norm();
+        if (options.check_bone_lengths && (len < lo || len > hi)) child.tracked = false;
+      }
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+double SkeletonTracker::OneEuro::Filter(double value, double dt, const SkeletonOptions& o) {
+  auto alpha = [dt](double cutoff) {
+    const double tau = 1.0 / (2 * std::numbers::pi * cutoff);
+    return 1.0 / (1.0 + tau / dt);
+  };
+  if (!init || !(dt > 0)) {
+    init = true;
+    x = value, dx = 0;
+    return x;
+  }
+  const double raw_dx = (value - x) / dt;
+  dx += alpha(o.d_cutoff_hz) * (raw_dx - dx);
+  const double cutoff = o.min_cutoff_hz + o.beta * std::abs(dx);
+  x += alpha(cutoff) * (value - x);
+  return x;
+}
+
+std::vector<Skeleton> SkeletonTracker::Update(std::vector<Skeleton> skeletons, double timestamp_s,
+                                              const core::CameraIntrinsics& camera) {
+  // Greedy nearest-centroid matching: every (track, skeleton) pair within reach, closest first.
+  struct Pair {
+    float d;
+    size_t track, skel;
+  };
+  std::vector<Pair> pairs;
+  for (size_t t = 0; t < tracks_.size(); ++t)
+    for (size_t k = 0; k < skeletons.size(); ++k) {
+      const float d = (tracks_[t].centroid - skeletons[k].centroid_m).norm();
+      if (d <= options_.max_match_distance_m) pairs.push_back({d, t, k});
+    }
+  std::stable_sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) { return a.d < b.d; });
+  std::vector<int> track_of(skeletons.size(), -1);
+  std::vector<bool> track_used(tracks_.size(), false);
+  for (const Pair& p : pairs)
+    if (track_of[p.skel] < 0 && !track_used[p.track])
+      track_of[p.skel] = int(p.track), track_used[p.track] = true;
+  for (size_t t = 0; t < tracks_.size(); ++t)
+    if (!track_used[t]) ++tracks_[t].missed;
+  for (size_t k = 0; k < skeletons.size(); ++k) {
+    if (track_of[k] < 0) {
+      Track t;
+      t.id = next_id_++;
+      t.last_time = timestamp_s;
+      tracks_.push_back(t);
+      track_of[k] = int(tracks_.size()) - 1;
+    }
+    Track& t = tracks_[size_t(track_of[k])];
+    Skeleton& s = skeletons[k];
+    s.id = t.id;
+    t.centroid = s.centroid_m;
+    t.missed = 0;
+    const double dt = timestamp_s - t.last_time;
+    t.last_time = timestamp_s;
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      SkeletonJoint& joint = s.joints[size_t(j)];
+      auto& f = t.filters[size_t(j)];
+      if (!options_.smooth || !joint.tracked) {
+        for (auto& c : f) c.init = false;  // a joint that comes back starts afresh
+        continue;
+      }
+      for (int c = 0; c < 3; ++c)
+        joint.position_m[c] = float(f[size_t(c)].Filter(joint.position_m[c], dt, options_));
+      if (joint.position_m.z() > 0)
+        joint.pixel = camera.Project(joint.position_m.cast<double>()).cast<float>();
+    }
+  }
+  std::erase_if(tracks_, [&](const Track& t) { return t.missed > options_.max_missed_frames; });
+  std::sort(skeletons.begin(), skeletons.end(),
+            [](const Skeleton& a, const Skeleton& b) { return a.id < b.id; });
+  return skeletons;
+}
+
+namespace {
+void AppendF(std::string& out, const char* fmt, double a) {
+  char buf[64];
+  // JSON has no NaN / infinity; they never reach here (positions of found joints are finite).
+  std::snprintf(buf, sizeof buf, fmt, std::isfinite(a) ? a : 0.0);
+  out += buf;
+}
+void AppendVec(std::string& out, const float* v, int n, const char* fmt) {
+  out += '[';
+  for (int i = 0; i < n; ++i) {
+    if (i) out += ',';
+    AppendF(out, fmt, double(v[i]));
+  }
+  out += ']';
+}
+}  // namespace
+
+std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& source,
+                              const std::vector<Skeleton>& skeletons) {
+  std::string out = "{\"index\":" + std::to_string(index) + ",\"time_s\":";
+  AppendF(out, "%.6f", time_s);
+  out += ",\"source\":\"";
+  for (const char c : source) {
+    if (c == '"' || c == '\\') {
+      out += '\\', out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
+      out += buf;
+    } else {
+      out += c;
+    }
+  }
+  out += "\",\"people\":[";
+  for (size_t k = 0; k < skeletons.size(); ++k) {
+    const Skeleton& s = skeletons[k];
+    if (k) out += ',';
+    out += "{\"id\":" + std::to_string(s.id) + ",\"pixels\":" + std::to_string(s.pixels) + ",\"centroid_m\":";
+    AppendVec(out, s.centroid_m.data(), 3, "%.4f");
+    out += ",\"joints\":[";
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      const SkeletonJoint& joint = s.joints[size_t(j)];
+      if (j) out += ',';
+      out += "{\"name\":\"" + std::string(core::JointName(j)) + "\",\"position_m\":";
+      if (joint.found)
+        AppendVec(out, joint.position_m.data(), 3, "%.4f");
+      else
+        out += "null";
+      out += ",\"pixel\":";
+      if (joint.found)
+        AppendVec(out, joint.pixel.data(), 2, "%.1f");
+      else
+        out += "null";
+      out += ",\"confidence\":";
+      AppendF(out, "%.4f", double(joint.confidence));
+      out += joint.tracked ? ",\"tracked\":true}" : ",\"tracked\":false}";
+    }
+    out += "]}";
+  }
+  out += "]}";
+  return out;
+}
+
+}  // namespace poseforest::runtime

@@ -1,0 +1,131 @@
+#pragma once
+// Skeletons: one per person the segmentation found, one position per joint, a confidence in
+// 0..1 that means something, a tracked / not-tracked state, ids stable over a sequence and
+// optional One Euro smoothing - what Kinect's SDK, NiTE and Azure Kinect Body Tracking give.
+//
+// Per person (a mask label) and joint, the joint's position is its most confident proposal whose
+// pixel lies on that person's mask (section 3.4's proposals are made for the whole frame). Its
+// confidence is the forest's calibration (core::ConfidenceCalibration: the precision proposals of
+// that support had on validation renders) or, for forests without one, FallbackConfidence. A
+// joint is *tracked* only if it has such a proposal, the proposal's support and calibrated
+// confidence reach their minimums, its depth agrees with the mask's depth there, it is not at an
+// image border that cuts the person, and its bone to its parent joint has a possible length: an
+// upper-body frame whose legs are out of view gets no invented knees.
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "runtime/core/body_parts.h"
+#include "runtime/core/camera.h"
+#include "runtime/core/confidence_calibration.h"
+#include "runtime/core/depth_image.h"
+#include "runtime/joint_proposals.h"
+
+namespace poseforest::runtime {
+
+struct SkeletonOptions {
+  float min_confidence = 0.3f;   ///< calibrated confidence below this: not tracked
+  float min_support_m2 = 1e-4f;  ///< proposal support (raw confidence / (fx fy)) below this: not tracked
+  int mask_margin_px = 2;        ///< a proposal's pixel may miss the mask by this many pixels
+  /// The proposal lies at most this far behind or in front of the mask's depth at its pixel
+  /// (the z offset zeta pushes it behind the surface; 0.25 m leaves room for it).
+  float max_depth_gap_m = 0.25f;
+  /// Where a person's mask is cut by the image border, joints within this distance of that
+  /// border are not tracked: on an upper-body frame the thighs at the bottom edge are read as
+  /// knees, and the real knees lie below the picture. 0 disables.
+  float edge_margin_m = 0.15f;
+  /// A joint whose bone to its tracked parent (SkeletonBones: towards the head) is outside the
+  /// lengths an adult or child can have (BoneLengthRange) is not tracked.
+  bool check_bone_lengths = true;
+  /// A joint below the shoulders (elbow, wrist, hand, knee, ankle, foot) is tracked only if its
+  /// parent is: a foot found below knees that are not tracked is a guess.
+  bool require_tracked_parent = true;
+  // Identity over a sequence: nearest centroid, greedy by distance.
+  float max_match_distance_m = 0.5f;  ///< a person moving farther between frames gets a new id
+  int max_missed_frames = 10;         ///< a person unseen this many frames is forgotten
+  // One Euro filter (Casiez et al. 2012) on tracked joint positions, per coordinate.
+  bool smooth = false;
+  double min_cutoff_hz = 1.0;  ///< cutoff at rest: lower = smoother, more lag
+  double beta = 0.5;           ///< speed coefficient (per m/s): higher = less lag when moving
+  double d_cutoff_hz = 1.0;    ///< cutoff of the speed estimate
+};
+
+struct SkeletonJoint {
+  bool found = false;                   ///< a proposal lies on the person (position and pixel valid)
+  bool tracked = false;                 ///< found, supported, confident and on the person's depth
+  Eigen::Vector3f position_m{0, 0, 0};  ///< camera frame, metres (smoothed when smoothing is on)
+  Eigen::Vector2f pixel{0, 0};          ///< position_m projected, pixels
+  float confidence = 0;                 ///< 0..1 (calibrated, or the fallback); 0 when not found
+  float support_m2 = 0;                 ///< the proposal's raw confidence / (fx fy), m^2
+};
+
+struct Skeleton {
+  int id = 0;                           ///< stable over a sequence (SkeletonTracker); 0 before tracking
+  int mask_label = 0;                   ///< the person's value in the segmentation's label image
+  int pixels = 0;                       ///< mask pixels
+  Eigen::Vector3f centroid_m{0, 0, 0};  ///< mean of the mask's back-projected pixels, metres
+  std::array<SkeletonJoint, core::kNumJoints> joints;
+  int tracked_joints() const;
+};
+
+/// The lines of a skeleton picture / marker, (parent, child) pairs of core::Joint indices, a tree
+/// rooted at the neck, parents listed before their children. The paper's 16 joints have no hips,
+/// so the legs hang from the shoulders (the torso's sides).
+const std::vector<std::pair<int, int>>& SkeletonBones();
+
+/// Plausible length range of bone (parent, child) in metres (generous: children to tall adults,
+/// joint positions being proposals, not anatomy).
+std::pair<float, float> BoneLengthRange(int parent, int child);
+
+/// Which confidence a table gives: "calibrated (tune-joints, N validation proposals)" or the
+/// fallback's name, for messages.
+std::string DescribeConfidence(const core::ConfidenceCalibration* calibration);
+
+/// One skeleton per person label 1..num_people of `masks` (0 = background) with at least one
+/// pixel; `depth` (mm) is the frame the proposals were made on. `calibration` may be null (the
+/// fallback). Skeletons come in label order with id 0.
+std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks,
+                                     int num_people, const core::DepthImage& depth,
+                                     const core::CameraIntrinsics& camera,
+                                     const core::ConfidenceCalibration* calibration,
+                                     const SkeletonOptions& options);
+
+/// Person ids over a sequence and the optional smoothing. Not thread-safe; one per stream.
+class SkeletonTracker {
+ public:
+  explicit SkeletonTracker(const SkeletonOptions& options) : options_(options) {}
+  /// Gives each skeleton an id (the nearest previous person's, else a new one, from 1 up),
+  /// smooths its tracked joints if asked (time in seconds, increasing), and returns them
+  /// ordered by id. Joint pixels are re-projected with `camera` after smoothing.
+  std::vector<Skeleton> Update(std::vector<Skeleton> skeletons, double timestamp_s,
+                               const core::CameraIntrinsics& camera);
+  int people_seen() const { return next_id_ - 1; }
+
+ private:
+  struct OneEuro {
+    bool init = false;
+    double x = 0, dx = 0;
+    double Filter(double value, double dt, const SkeletonOptions& o);
+  };
+  struct Track {
+    int id = 0;
+    Eigen::Vector3f centroid{0, 0, 0};
+    int missed = 0;
+    double last_time = 0;
+    std::array<std::array<OneEuro, 3>, core::kNumJoints> filters;
+  };
+  SkeletonOptions options_;
+  std::vector<Track> tracks_;
+  int next_id_ = 1;
+};
+
+/// One JSON Lines record (no newline) for a frame: docs/runtime/live.md has the schema.
+/// Written by hand: the runtime library depends on a compiler, Eigen and OpenMP only, and the
+/// record is flat (numbers, names from the fixed joint table, and the escaped source string).
+std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& source,
+                              const std::vector<Skeleton>& skeletons);
+
+}  // namespace poseforest::runtime

@@ -1,0 +1,81 @@
+// `poseforest live --dds` read as a ROS 2 node would: a real DDS participant subscribes to both
+// topics with the ROS 2 type names and keeps the serialized samples as they came off the wire;
+// Node.js then decodes them with Foxglove's ROS 2 CDR reader (@foxglove/rosmsg2-serialization),
+// its ROS 2 Humble definitions (@foxglove/rosmsg-msgs-common) and our shipped msg/*.msg parsed by
+// @foxglove/rosmsg, and every field must equal the JSON Lines of the same frames
+// (ros2_decode.js). The npm packages are installed into the build folder on first use.
+#include <unistd.h>
+
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <fstream>
+
+#include "runtime/core/forest_format.h"
+#include "runtime/dds/skeleton_publisher.h"
+#include "tests/support/paths.h"
+#include "tests/support/process.h"
+#include "tests/support/synthetic.h"
+
+using namespace poseforest;
+namespace fs = std::filesystem;
+
+TEST_CASE("live --dds: the samples off the wire, decoded by Foxglove's ROS 2 decoders, equal the JSON Lines",
+          "[live][dds]") {
+  const auto dir = testing::ScratchDir("live-dds");
+  const fs::path forest = dir / "f.pff";
+  REQUIRE(core::SaveForest(testing::MakeRandomForest({.seed = 5, .max_depth = 10, .nodes_per_tree = 2000}),
+                           forest.string())
+              .ok());
+  const int domain = 100 + int(::getpid() % 100);
+  auto skeletons = runtime::ros2::RawSampleCapture::Create(domain, "rt/pftest/skeletons",
+                                                           runtime::ros2::kSkeletonsTypeName);
+  auto markers = runtime::ros2::RawSampleCapture::Create(domain, "rt/pftest/markers",
+                                                         runtime::ros2::kMarkerArrayTypeName);
+  REQUIRE(skeletons.ok());
+  REQUIRE(markers.ok());
+  // Every joint found is tracked-or-not by the rules; --min-confidence 0 keeps more of the random
+  // forest's joints tracked, so the markers have points.
+  auto run = testing::RunPoseforest(
+      "live --forest " + forest.string() + " --source '" +
+      (testing::DataDir() / "real/skeltrack_kinect_depth").string() +
+      "/depth-data-*' --threads 2 --dds --dds-domain " + std::to_string(domain) +
+      " --dds-topic pftest --dds-frame-id test_camera --dds-wait 1 --min-confidence 0 --jsonl " +
+      (dir / "frames.jsonl").string());
+  INFO(run.output);
+  REQUIRE(run.exit_code == 0);
+  CHECK_THAT(run.output, Catch::Contains("rt/pftest/skeletons (poseforest_msgs::msg::dds_::Skeletons_)"));
+  const auto s = (*skeletons)->Wait(9, 20);
+  const auto m = (*markers)->Wait(9, 20);
+  REQUIRE(s.size() == 9);
+  REQUIRE(m.size() == 9);
+  for (size_t k = 0; k < 9; ++k) {
+    CHECK(s[k][0] == 0x00);  // CDR_LE encapsulation, as rmw_fastrtps writes
+    CHECK(s[k][1] == 0x01);
+    std::ofstream(dir / ("skeletons-" + std::to_string(k) + ".bin"), std::ios::binary)
+        .write(reinterpret_cast<const char*>(s[k].data()), std::streamsize(s[k].size()));
+    std::ofstream(dir / ("markers-" + std::to_string(k) + ".bin"), std::ios::binary)
+        .write(reinterpret_cast<const char*>(m[k].data()), std::streamsize(m[k].size()));
+  }
+  // Foxglove's decoders, installed into the build folder once (the npm registry must be reachable).
+  const std::string modules = std::string(POSEFOREST_NPM_DIR);
+  if (!fs::exists(fs::path(modules) / "node_modules/@foxglove/rosmsg2-serialization")) {
+    auto npm = testing::RunCommand(
+        "mkdir -p " + modules + " && cd " + modules +
+        " && npm install --no-audit --no-fund --loglevel=error "
+        "@foxglove/rosmsg2-serialization@3 @foxglove/rosmsg-msgs-common@3 @foxglove/rosmsg@5");
+    INFO(npm.output);
+    REQUIRE(npm.exit_code == 0);
+  }
+  auto decode = testing::RunCommand("NODE_PATH=" + modules + "/node_modules node " +
+                                    std::string(POSEFOREST_SOURCE_DIR) + "/tests/runtime/ros2_decode.js " +
+                                    dir.string() + " " + (dir / "frames.jsonl").string() + " " +
+                                    std::string(POSEFOREST_SOURCE_DIR) + "/msg test_camera");
+  INFO(decode.output);
+  REQUIRE(decode.exit_code == 0);
+  CHECK_THAT(decode.output, Catch::Contains("ok frames=9 people=9 joints=144"));
+  int points = 0;
+  const auto at = decode.output.find("marker_points=");
+  REQUIRE(at != std::string::npos);
+  points = std::atoi(decode.output.c_str() + at + 14);
+  CHECK(points > 0);
+}

@@ -1,0 +1,353 @@
+// Skeletons (issue 15): the confidence calibration and its forest section (format 1.4, JCAL),
+// per-person joints from masks with the tracked / not-tracked rules, person ids over a
+// sequence, One Euro smoothing and the JSON Lines record.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <random>
+
+#include "runtime/core/forest_format.h"
+#include "runtime/proposal_tuning.h"
+#include "runtime/skeleton.h"
+#include "tests/support/synthetic.h"
+
+using namespace poseforest;
+
+namespace {
+
+constexpr int kHead = int(core::Joint::kHead);
+constexpr int kLKnee = int(core::Joint::kLKnee);
+constexpr int kLHand = int(core::Joint::kLHand);
+
+core::ConfidenceCalibration RampCalibration() {
+  core::ConfidenceCalibration cal;
+  cal.support_edges_m2 = {1e-4f, 1e-3f, 1e-2f};
+  for (auto& row : cal.precision) row = {0.1f, 0.5f, 0.9f};
+  cal.samples = 42;
+  return cal;
+}
+
+// A frame with people as rectangles of constant depth; returns depth and masks.
+struct Scene {
+  core::DepthImage depth{640, 480, 0};
+  core::LabelImage masks{640, 480, 0};
+  void Person(int label, int x0, int y0, int x1, int y1, uint16_t mm) {
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) depth.at(x, y) = mm, masks.at(x, y) = uint8_t(label);
+  }
+};
+
+runtime::JointProposal At(const core::CameraIntrinsics& cam, int x, int y, float z_m, float raw) {
+  runtime::JointProposal p;
+  p.position = cam.Unproject(x, y, z_m).cast<float>();
+  p.pixel = Eigen::Vector2f(float(x), float(y));
+  p.confidence = raw;
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("calibrated confidence interpolates the table in log support and stays in 0..1", "[skeleton]") {
+  const auto cal = RampCalibration();
+  REQUIRE(core::ValidateCalibration(cal, "t").ok());
+  CHECK(cal.Confidence(kHead, 1e-6f) == Approx(0.1f));  // below the first centre
+  CHECK(cal.Confidence(kHead, 1.0f) == Approx(0.9f));   // beyond the last
+  // The geometric centre of [1e-4, 1e-3) is ~3.16e-4: exactly the bin's value there.
+  CHECK(cal.Confidence(kHead, 3.1623e-4f) == Approx(0.1f).margin(1e-3));
+  CHECK(cal.Confidence(kHead, 1e-3f) == Approx(0.3f).margin(1e-3));  // half way in log
+  float last = -1;
+  for (double s = 1e-6; s < 10; s *= 1.3) {
+    const float c = cal.Confidence(kLHand, float(s));
+    CHECK(c >= last);
+    CHECK(c >= 0.0f);
+    CHECK(c <= 1.0f);
+    last = c;
+  }
+  CHECK(cal.Confidence(kHead, 0.0f) == 0.0f);
+  // The fallback is monotone, 0 at 0, 0.5 near 14 cm^2, below 1.
+  CHECK(core::FallbackConfidence(0) == 0.0f);
+  CHECK(core::FallbackConfidence(0.002f * std::log(2.0f)) == Approx(0.5f));
+  CHECK(core::FallbackConfidence(1.0f) <= 1.0f);
+  CHECK(core::FallbackConfidence(1e-4f) < core::FallbackConfidence(1e-3f));
+  // Bad tables are refused naming the problem.
+  auto bad = cal;
+  bad.precision[3][1] = 1.5f;
+  CHECK(core::ValidateCalibration(bad, "x").message().find("R_shoulder") != std::string::npos);
+  bad = cal;
+  bad.support_edges_m2 = {1e-3f, 1e-4f, 1e-2f};
+  CHECK_FALSE(core::ValidateCalibration(bad, "x").ok());
+}
+
+TEST_CASE("the calibration table round trips in the forest (format 1.4, JCAL); older files have none",
+          "[skeleton][format]") {
+  core::Forest forest = testing::MakeRandomForest({.num_trees = 2, .max_depth = 6, .nodes_per_tree = 200});
+  const auto plain = core::SerializeForest(forest);
+  auto loaded = core::ParseForest(plain, "plain");
+  REQUIRE(loaded.ok());
+  CHECK_FALSE(loaded->confidence_calibration);  // the fallback applies
+  forest.confidence_calibration = RampCalibration();
+  forest.confidence_calibration->method = core::ConfidenceCalibration::Method::kFastClustering;
+  const auto bytes = core::SerializeForest(forest);
+  CHECK(bytes[10] == 4);  // minor version
+  CHECK(bytes.size() == plain.size() + 16 + 16 + 3 * 4 + 16 * 3 * 4 + 4 /* padding to 8 */);
+  auto again = core::ParseForest(bytes, "mem");
+  REQUIRE(again.ok());
+  REQUIRE(again->confidence_calibration);
+  CHECK(*again->confidence_calibration == *forest.confidence_calibration);
+  CHECK(core::SerializeForest(*again) == bytes);
+  // Out-of-range values are refused at load, naming the section.
+  forest.confidence_calibration->precision[0][0] = -0.5f;
+  auto bad = core::ParseForest(core::SerializeForest(forest), "bad.pff");
+  REQUIRE_FALSE(bad.ok());
+  CHECK(bad.status().message().find("JCAL") != std::string::npos);
+}
+
+TEST_CASE("the isotonic fit is non-decreasing, weighted, and fills empty bins", "[skeleton]") {
+  const auto f = runtime::IsotonicFit({0.2, 0.0, 0.6, 0.4, 0.9, 0.0}, {1, 0, 1, 3, 2, 0});
+  REQUIRE(f.size() == 6);
+  CHECK(f[0] == Approx(0.2));
+  CHECK(f[1] == Approx(0.2));                  // empty: the left neighbour's
+  CHECK(f[2] == Approx((0.6 + 3 * 0.4) / 4));  // pooled with its heavier right neighbour
+  CHECK(f[3] == Approx(f[2]));
+  CHECK(f[4] == Approx(0.9));
+  CHECK(f[5] == Approx(0.9));
+}
+
+TEST_CASE("CalibrateConfidence: big supports on the joint are precise, small ones elsewhere are not",
+          "[skeleton]") {
+  // Each frame: a large head-probability patch at the true head, a small one 40 cm away.
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  std::vector<runtime::ValidationFrame> frames;
+  for (int k = 0; k < 6; ++k) {
+    runtime::ValidationFrame f;
+    f.depth = core::DepthImage(640, 480, 0);
+    f.probs.width = 640, f.probs.height = 480;
+    const int hx = 200 + 20 * k, hy = 200;
+    for (const auto& [cx, cy, half] : {std::tuple{hx, hy, 12}, std::tuple{hx + 115, hy, 2}})
+      for (int y = cy - half; y <= cy + half; ++y)
+        for (int x = cx - half; x <= cx + half; ++x) {
+          f.depth.at(x, y) = 2000;
+          f.probs.pixel.push_back(uint32_t(y * 640 + x));
+          std::array<float, core::kNumJoints> pr{};
+          pr[kHead] = 1.0f;
+          f.probs.prob.push_back(pr);
+        }
+    runtime::PersonJoints person;
+    person.position.fill(Eigen::Vector3f(0, 0, 9));
+    person.position[kHead] = cam.Unproject(hx, hy, 2.0 + 0.039).cast<float>();
+    person.visible[kHead] = true;
+    f.people = {person};
+    frames.push_back(std::move(f));
+  }
+  runtime::ProposalOptions options;
+  options.num_threads = 1;
+  const auto cal = runtime::CalibrateConfidence(frames, options);
+  REQUIRE(core::ValidateCalibration(cal, "measured").ok());
+  CHECK(cal.samples == 12);
+  // Big patch: 625 px * 4 m^2 / (fx fy) ~ 7.5e-3 m^2, always right; small: 25 px ~ 3e-4, always wrong.
+  CHECK(cal.Confidence(kHead, 7.5e-3f) == Approx(1.0f));
+  CHECK(cal.Confidence(kHead, 3e-4f) == Approx(0.0f));
+  // A joint never proposed keeps the fallback's shape.
+  CHECK(cal.Confidence(kLKnee, 1e-3f) == Approx(core::FallbackConfidence(1e-3f)).epsilon(0.5));
+}
+
+TEST_CASE("skeletons: per person the best proposal on its mask; no invented joints", "[skeleton]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 100, 100, 250, 479, 2000);  // person 1 at 2 m
+  scene.Person(2, 400, 150, 520, 300, 3000);  // person 2 at 3 m, upper body only
+  runtime::FrameProposals proposals{};
+  const float big = 0.01f * float(cam.fx * cam.fy);  // support 0.01 m^2
+  // Heads: the most confident lies on person 2, the next on person 1.
+  proposals[kHead] = {At(cam, 450, 170, 3.04f, big * 2), At(cam, 170, 120, 2.04f, big)};
+  // A knee below person 2's mask (out of view: no legs there) and one on person 1.
+  proposals[kLKnee] = {At(cam, 450, 420, 3.04f, big * 3), At(cam, 150, 380, 2.04f, big)};
+  // Person 1's hand: tiny support; person 2's: its depth is 1 m off the mask's.
+  proposals[kLHand] = {At(cam, 120, 250, 2.04f, 1e-6f * float(cam.fx * cam.fy)),
+                       At(cam, 500, 200, 4.0f, big)};
+  const auto cal = RampCalibration();
+  runtime::SkeletonOptions opt;
+  opt.require_tracked_parent = false;  // the knee has no tracked shoulder here; see the next test
+  auto skeletons = runtime::BuildSkeletons(proposals, scene.masks, 2, scene.depth, cam, &cal, opt);
+  REQUIRE(skeletons.size() == 2);
+  const auto& p1 = skeletons[0];
+  const auto& p2 = skeletons[1];
+  CHECK(p1.mask_label == 1);
+  CHECK(p2.mask_label == 2);
+  CHECK(p1.centroid_m.z() == Approx(2.0f));
+  CHECK(p2.pixels == 151 * 121);
+  CHECK(p1.joints[kHead].tracked);
+  CHECK(p1.joints[kHead].pixel.x() == 170);
+  CHECK(p1.joints[kHead].support_m2 == Approx(0.01f));
+  CHECK(p1.joints[kHead].confidence == Approx(cal.Confidence(kHead, 0.01f)));
+  CHECK(p2.joints[kHead].tracked);
+  CHECK(p2.joints[kHead].pixel.x() == 450);
+  CHECK(p1.joints[kLKnee].tracked);
+  // Person 2 has no knee: the strongest knee proposal lies off its mask.
+  CHECK_FALSE(p2.joints[kLKnee].found);
+  CHECK_FALSE(p2.joints[kLKnee].tracked);
+  CHECK(p2.joints[kLKnee].confidence == 0.0f);
+  // Found but not tracked: too little support; off the person's depth.
+  CHECK(p1.joints[kLHand].found);
+  CHECK_FALSE(p1.joints[kLHand].tracked);
+  CHECK(p2.joints[kLHand].found);
+  CHECK_FALSE(p2.joints[kLHand].tracked);
+  // A low calibrated confidence alone also untracks: raise the bar above the head's 0.9.
+  opt.min_confidence = 0.95f;
+  skeletons = runtime::BuildSkeletons(proposals, scene.masks, 2, scene.depth, cam, &cal, opt);
+  CHECK_FALSE(skeletons[0].joints[kHead].tracked);
+  // Without a table: the fallback.
+  skeletons = runtime::BuildSkeletons(proposals, scene.masks, 2, scene.depth, cam, nullptr, opt);
+  CHECK(skeletons[0].joints[kHead].confidence == Approx(core::FallbackConfidence(0.01f)));
+  // No people, no skeletons.
+  CHECK(runtime::BuildSkeletons(proposals, scene.masks, 0, scene.depth, cam, &cal, {}).empty());
+}
+
+TEST_CASE("skeletons: no knees at the border that cuts an upper body, bone lengths, unbroken chains",
+          "[skeleton]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 200, 100, 440, 479, 1500);  // an upper body at 1.5 m, cut by the bottom edge
+  runtime::FrameProposals proposals{};
+  const float big = 0.01f * float(cam.fx * cam.fy);
+  using J = core::Joint;
+  auto put = [&](J j, int x, int y) { proposals[size_t(j)] = {At(cam, x, y, 1.54f, big)}; };
+  put(J::kNeck, 320, 180);
+  put(J::kHead, 320, 120);       // 0.16 m above the neck
+  put(J::kLShoulder, 380, 200);  // 0.2 m from the neck
+  put(J::kRShoulder, 260, 200);
+  put(J::kLElbow, 420, 300);  // 0.28 m from the shoulder
+  put(J::kRElbow, 262, 205);  // 1.3 cm from its shoulder: no such arm
+  put(J::kRWrist, 262, 320);  // would be fine, but its elbow is not tracked
+  put(J::kLKnee, 380, 460);   // 19 px from the bottom edge (0.15 m = 56 px at 1.54 m)
+  put(J::kRKnee, 262, 400);   // far from the edge but 0.53 m below its shoulder: allowed
+  put(J::kLAnkle, 380, 470);  // below a knee that is not tracked
+  const auto cal = RampCalibration();
+  runtime::SkeletonOptions opt;
+  auto s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
+  REQUIRE(s.size() == 1);
+  const auto& j = s[0].joints;
+  for (J ok : {J::kNeck, J::kHead, J::kLShoulder, J::kRShoulder, J::kLElbow, J::kRKnee}) {
+    INFO(core::JointName(int(ok)));
+    CHECK(j[size_t(ok)].tracked);
+  }
+  for (J no : {J::kRElbow, J::kRWrist, J::kLKnee, J::kLAnkle}) {
+    INFO(core::JointName(int(no)));
+    CHECK(j[size_t(no)].found);
+    CHECK_FALSE(j[size_t(no)].tracked);
+  }
+  // Each rule can be turned off.
+  opt.edge_margin_m = 0;
+  opt.check_bone_lengths = false;
+  opt.require_tracked_parent = false;
+  s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
+  for (J all : {J::kRElbow, J::kRWrist, J::kLKnee, J::kLAnkle}) CHECK(s[0].joints[size_t(all)].tracked);
+  // The same knee on a whole body (the mask ends above the edge) is tracked.
+  Scene whole;
+  whole.Person(1, 200, 100, 440, 470, 1500);
+  opt = {};
+  put(J::kLKnee, 380, 430);
+  s = runtime::BuildSkeletons(proposals, whole.masks, 1, whole.depth, cam, &cal, opt);
+  CHECK(s[0].joints[size_t(J::kLKnee)].tracked);
+}
+
+TEST_CASE("person ids stay with the nearest centroid over a sequence", "[skeleton]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  runtime::SkeletonOptions opt;
+  opt.max_missed_frames = 2;
+  runtime::SkeletonTracker tracker(opt);
+  auto person = [](float x, float z) {
+    runtime::Skeleton s;
+    s.centroid_m = Eigen::Vector3f(x, 0, z);
+    return s;
+  };
+  auto ids = [&](std::vector<runtime::Skeleton> in, double t) {
+    std::vector<std::pair<int, float>> out;
+    for (const auto& s : tracker.Update(std::move(in), t, cam)) out.emplace_back(s.id, s.centroid_m.x());
+    return out;
+  };
+  auto a = ids({person(-1, 2), person(1, 2)}, 0.0);
+  REQUIRE(a.size() == 2);
+  CHECK(a[0] == std::pair<int, float>(1, -1.0f));
+  CHECK(a[1] == std::pair<int, float>(2, 1.0f));
+  // Listed the other way round (the segmentation orders by size) and moved a little: same ids.
+  auto b = ids({person(0.9f, 2), person(-0.8f, 2)}, 0.033);
+  CHECK(b[0] == std::pair<int, float>(1, -0.8f));
+  CHECK(b[1] == std::pair<int, float>(2, 0.9f));
+  // Person 1 leaves for two frames and comes back: still id 1 (max_missed_frames = 2).
+  ids({person(0.9f, 2)}, 0.066);
+  ids({person(0.9f, 2)}, 0.1);
+  auto c = ids({person(-0.8f, 2), person(0.9f, 2)}, 0.133);
+  CHECK(c[0].first == 1);
+  // Gone for longer: forgotten; someone far away is somebody new.
+  for (int k = 0; k < 3; ++k) ids({person(0.9f, 2)}, 0.2 + k * 0.033);
+  auto d = ids({person(-0.8f, 2), person(0.9f, 2)}, 0.4);
+  CHECK(d[0].first == 2);
+  CHECK(d[1].first == 3);
+  CHECK(d[1].second == -0.8f);
+  auto e = ids({person(0.9f, 2), person(-0.8f, 3.5f)}, 0.433);  // 1.5 m jump: new id
+  CHECK(e[1].first == 4);
+  CHECK(tracker.people_seen() == 4);
+}
+
+TEST_CASE("One Euro smoothing: less jitter at rest, follows a move", "[skeleton]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  auto run = [&](bool smooth, const std::vector<float>& xs) {
+    runtime::SkeletonOptions opt;
+    opt.smooth = smooth;
+    runtime::SkeletonTracker tracker(opt);
+    std::vector<float> out;
+    for (size_t k = 0; k < xs.size(); ++k) {
+      runtime::Skeleton s;
+      s.centroid_m = Eigen::Vector3f(0, 0, 2);
+      auto& head = s.joints[kHead];
+      head.found = head.tracked = true;
+      head.position_m = Eigen::Vector3f(xs[k], 0, 2);
+      auto r = tracker.Update({s}, double(k) / 30, cam);
+      out.push_back(r[0].joints[kHead].position_m.x());
+      if (smooth)
+        CHECK(r[0].joints[kHead].pixel.x() ==
+              Approx(cam.Project(Eigen::Vector3d(out.back(), 0, 2)).x()).margin(1e-3));
+    }
+    return out;
+  };
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(0, 0.01f);
+  std::vector<float> still(60);
+  for (float& x : still) x = noise(rng);
+  auto spread = [](const std::vector<float>& v) {
+    double s = 0;
+    for (size_t k = 10; k < v.size(); ++k) s += double(v[k]) * v[k];
+    return std::sqrt(s / double(v.size() - 10));
+  };
+  const auto raw = run(false, still), smooth = run(true, still);
+  CHECK(raw == still);
+  CHECK(spread(smooth) < 0.5 * spread(raw));
+  // A 0.5 m step: within 5 cm after half a second.
+  std::vector<float> step(60, 0.0f);
+  for (size_t k = 15; k < step.size(); ++k) step[k] = 0.5f;
+  const auto moved = run(true, step);
+  CHECK(moved[30] == Approx(0.5f).margin(0.05f));
+}
+
+TEST_CASE("the JSON Lines record: one line, people, 16 named joints, null for joints not found",
+          "[skeleton]") {
+  runtime::Skeleton s;
+  s.id = 3;
+  s.pixels = 10;
+  s.centroid_m = Eigen::Vector3f(0.1f, -0.2f, 2.5f);
+  s.joints[kHead].found = s.joints[kHead].tracked = true;
+  s.joints[kHead].position_m = Eigen::Vector3f(0.125f, -0.5f, 2.25f);
+  s.joints[kHead].pixel = Eigen::Vector2f(330.5f, 100.25f);
+  s.joints[kHead].confidence = 0.875f;
+  const std::string line = runtime::SkeletonsJsonLine(7, 0.25, "a\"b\\c\n", {s});
+  CHECK(line.find('\n') == std::string::npos);
+  CHECK(line.rfind(
+            "{\"index\":7,\"time_s\":0.250000,\"source\":\"a\\\"b\\\\c\\u000a\",\"people\":[{\"id\":3,", 0) ==
+        0);
+  CHECK(line.find("{\"name\":\"head\",\"position_m\":[0.1250,-0.5000,2.2500],\"pixel\":[330.5,100.2],"
+                  "\"confidence\":0.8750,\"tracked\":true}") != std::string::npos);
+  CHECK(line.find("{\"name\":\"R_foot\",\"position_m\":null,\"pixel\":null,\"confidence\":0.0000,\"tracked\":"
+                  "false}]}]}") != std::string::npos);
+  CHECK(runtime::SkeletonsJsonLine(0, 0, "x", {}) ==
+        "{\"index\":0,\"time_s\":0.000000,\"source\":\"x\",\"people\":[]}");
+}
