@@ -26,7 +26,12 @@ training_pkgs=(
 )
 
 pkgs=("${runtime_pkgs[@]}")
-if [[ "${1:-}" != "--runtime" ]]; then pkgs+=("${training_pkgs[@]}"); fi
+if [[ "${1:-}" != "--runtime" ]]; then
+  pkgs+=("${training_pkgs[@]}")
+  # test_live_dds decodes `live --dds` with Foxglove's npm packages: Debian's Node.js and npm,
+  # unless a node and an npm are already there (another Node.js install conflicts with them).
+  if ! command -v node >/dev/null || ! command -v npm >/dev/null; then pkgs+=(nodejs npm); fi
+fi
 
 missing=()
 installed=$(dpkg-query -W -f='${db:Status-Status} ${Package}\n' "${pkgs[@]}" 2>/dev/null || true)
