@@ -82,13 +82,13 @@
 
 #include <google/protobuf/text_format.h>
 
-#include "coordinator/distributed/dist_coordinator.h"
-#include "coordinator/local_trainer.h"
+#include "coordinator/dist_coordinator.h"
+#include "engine/local_trainer.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/forest_format.h"
-#include "worker/distributed/dist_common.h"
-#include "worker/distributed/dist_worker.h"
-#include "worker/job_spec.h"
+#include "proto/dds/node_config.h"
+#include "worker/dist_worker.h"
+#include "engine/job_spec.h"
 #include "runtime/core/malloc_tuning.h"
 
 extern char** environ;

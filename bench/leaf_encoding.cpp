@@ -11,14 +11,14 @@
 #include <map>
 #include <vector>
 
-#include "coordinator/evaluation.h"
-#include "coordinator/local_trainer.h"
+#include "engine/evaluation.h"
+#include "engine/local_trainer.h"
 #include "runtime/classifier.h"
 #include "runtime/core/feature.h"
 #include "runtime/core/forest_format.h"
-#include "worker/image_source.h"
+#include "engine/image_source.h"
 #include "poseforest/v1/job.pb.h"
-#include "worker/job_spec.h"
+#include "engine/job_spec.h"
 
 using namespace poseforest;
 

@@ -26,12 +26,12 @@
 #include <fstream>
 #include <string>
 
-#include "coordinator/local_trainer.h"
+#include "engine/local_trainer.h"
 #include "runtime/core/rng.h"
-#include "worker/candidates.h"
-#include "worker/histogram_builder.h"
-#include "worker/image_source.h"
-#include "worker/sample_set.h"
+#include "engine/candidates.h"
+#include "engine/histogram_builder.h"
+#include "engine/image_source.h"
+#include "engine/sample_set.h"
 #include "runtime/core/malloc_tuning.h"
 
 using namespace poseforest;

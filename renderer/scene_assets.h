@@ -1,7 +1,7 @@
 #pragma once
 // Mocap poses and MakeHuman bodies for a SceneConfig: the glue between renderer/assets (pose
 // libraries, the MakeHuman kit) and the scene sampler, shared by `poseforest render` and the
-// training workers (worker/image_source.cpp), so both select clips and build bodies the same way.
+// training workers (engine/image_source.cpp), so both select clips and build bodies the same way.
 
 #include <cstdint>
 #include <filesystem>

@@ -86,7 +86,7 @@ struct NodeConfig {
   /// AUTOMATIC is what the protocol asks for, but Fast DDS 2.9 has a bug (eProsima/Fast-DDS
   /// issue #4373, fixed by PR #4501 on later branches, not in Debian's 2.9.1): while any other remote
   /// participant's AUTOMATIC writer is alive, a killed or cut-off writer is not reported until the
-  /// participant lease expires. tests/dds/test_dds_multiprocess.cpp demonstrates both.
+  /// participant lease expires. tests/proto/test_dds_multiprocess.cpp demonstrates both.
   bool presence_manual_liveliness = true;
   /// Participant lease (discovery): a vanished participant is removed after this.
   std::chrono::milliseconds participant_lease{10000};

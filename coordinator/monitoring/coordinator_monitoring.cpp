@@ -1,0 +1,67 @@
+#include "coordinator/monitoring/coordinator_monitoring.h"
+
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include "coordinator/monitoring/dashboard.h"
+
+namespace poseforest::dist {
+
+core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Start(
+    const JobInfo& job, const std::string& http, const std::string& event_log, const std::string& http_token,
+    const std::string& tls_cert, const std::string& tls_key) {
+  std::unique_ptr<CoordinatorMonitoring> m(new CoordinatorMonitoring());
+  m->model_ = std::make_unique<StatusModel>(job);
+  std::vector<CoordinatorObserver*> targets = {m->model_.get()};
+  if (!event_log.empty()) {
+    auto log = EventLog::Open(event_log, job.job_id);
+    if (!log.ok()) return log.status();
+    m->log_ = std::move(*log);
+    targets.push_back(m->log_.get());
+  }
+  m->fanout_ = ObserverFanOut(targets);
+  if (http != "off") {
+    HttpServerOptions opt;
+    POSEFOREST_RETURN_IF_ERROR(ParseHttpAddress(http, &opt));
+    opt.bearer_token = http_token;
+    opt.tls_cert_file = tls_cert;
+    opt.tls_key_file = tls_key;
+    opt.log = [](const std::string& line) {
+      std::fprintf(stderr, "coordinator: %s\n", line.c_str());
+      std::fflush(stderr);
+    };
+    if (http_token.empty() && !IsLoopbackAddress(opt.address)) {
+      std::fprintf(stderr,
+                   "coordinator: warning: --http %s serves the job's status, metrics and dashboard to anyone "
+                   "who can reach this address, without authentication; give --http-token-file FILE "
+                   "(docs/distributed/monitoring.md#access-control)\n",
+                   http.c_str());
+      std::fflush(stderr);
+    }
+    if (!http_token.empty() && tls_cert.empty() && !IsLoopbackAddress(opt.address)) {
+      std::fprintf(
+          stderr,
+          "coordinator: warning: --http %s with --http-token-file but without "
+          "--http-tls-cert/--http-tls-key: "
+          "the token and the job's status cross the network in clear text; give a certificate and key "
+          "(docs/distributed/monitoring.md#https)\n",
+          http.c_str());
+      std::fflush(stderr);
+    }
+    auto server = HttpServer::Start(opt, StatusHandler(m->model_.get()));
+    if (!server.ok()) return server.status();
+    m->http_ = std::move(*server);
+    m->model_->SetUrl(m->http_->url() + "/");
+  }
+  return m;
+}
+
+void CoordinatorMonitoring::Finish(bool ok, const std::string& message, double linger_s) {
+  model_->Finish(ok, message);
+  if (log_) log_->Write(ok ? "FOREST_WRITTEN" : "JOB_FAILED", {{"message", JsonString(message)}});
+  if (http_ && http_->requests() > 0 && linger_s > 0)
+    std::this_thread::sleep_for(std::chrono::duration<double>(linger_s));
+}
+
+}  // namespace poseforest::dist

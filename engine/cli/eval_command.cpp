@@ -1,0 +1,209 @@
+// poseforest eval: per-class accuracy and joint average precision of a forest on held-out
+// labelled frames.
+#include <algorithm>
+#include <cstdio>
+#include <string>
+
+#include "engine/evaluation.h"
+#include "runtime/camera_model.h"
+#include "runtime/cli/args.h"
+#include "runtime/cli/commands.h"
+#include "runtime/core/forest_format.h"
+#include "engine/job_spec.h"
+
+namespace poseforest::cli {
+namespace {
+constexpr const char* kUsage = R"(usage: poseforest eval --forest FOREST.pff --test-set SET [options]
+
+Reports the paper's two metrics (section 4) on held-out labelled frames:
+  * joint average precision: the forest's joint proposals (mean shift, and the fast bottom-up
+    clustering) are ranked by confidence over all frames; the first proposal within D = 0.1 m of
+    a visible ground-truth joint is a true positive, every other one a false positive; AP per
+    joint, mAP over the 16 joints, and Fig. 7's upper bound: mean shift on the ground-truth part
+    labels; the ratio inferred / upper bound. With several people in a frame, proposals are
+    counted against each person's joints. Uses the proposal parameters stored in the forest
+    (`poseforest tune-joints`), else the paper's means. Needs frames with joints: rendered, or
+    a `poseforest render` folder (joints_%06d.json);
+  * the average per-class accuracy: the mean of the diagonal of the row-normalized confusion
+    matrix between ground-truth and most likely inferred part; the per-part table and the
+    confusion matrix as text (and as a picture with --png).
+
+SET is one of:
+  DIR                a folder written by `poseforest render` (depth/labels/joints_%06d.*; its
+                     camera.txt says the camera, and a forest trained at another focal length
+                     has its offsets rescaled)
+  JOB.textproto      a training job config: its test_set { } is used (held-out mocap clips)
+  procedural:SEED    procedural frames (no joints: accuracy only)
+
+options:
+  --forest PATH     forest file (required)
+  --test-set SET    (required)
+  --images N        frames to evaluate (default: the job's test_set.num_images, else 50; for a
+                    folder at most its frame count)
+  --first N         first frame index (default 0)
+  --people N        render exactly N people per frame (rendered sets; default: the set's own)
+  --method M        joint proposals: both (default), meanshift (skips the fast clustering) or
+                    none (accuracy only)
+  --pr-png DIR      write precision-recall curves: DIR/pr_joints.png (each joint: mean shift,
+                    fast, ground-truth parts) and DIR/pr_mean.png (mean over joints)
+  --threads N       threads (0 = all cores, default)
+  --png PATH        also write the confusion matrix as an RGB PNG
+  --segment M       auto (default): on frames with ground-truth person masks (a folder rendered
+                    with --clutter/--occluders/--masks), also score the runtime's people
+                    segmentation: IoU per person against the masks, and the forest's mAP and
+                    accuracy after segmentation next to those on the frames masked by the
+                    ground truth (clean); on: require masks; off: never
+  --per-person      list each person's segmentation IoU
+  --no-rescale      keep the forest's offsets as trained even when the frames' camera (camera.txt)
+                    has another focal length (to measure what the rescaling buys)
+  --quiet           no progress lines
+  --help            this text
+)";
+}  // namespace
+
+int EvalMain(int argc, char** argv) {
+  Args args(
+      {"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png", "segment"},
+      {"help", "quiet", "per-person", "no-rescale"});
+  if (auto st = args.Parse(argc, argv); !st.ok()) {
+    std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
+    return 2;
+  }
+  if (args.Has("help")) {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  if (!args.Has("forest") || !args.Has("test-set") || !args.positional().empty()) {
+    std::fprintf(stderr, "poseforest eval: need --forest and --test-set\n\n%s", kUsage);
+    return 2;
+  }
+  auto images = args.GetInt("images", -1, 1, 10'000'000);
+  auto first = args.GetInt("first", 0, 0, 1L << 40);
+  auto threads = args.GetInt("threads", 0, 0, 1024);
+  auto people = args.GetInt("people", 0, 1, 8);
+  for (const auto* r : {&images, &first, &threads, &people}) {
+    if (!r->ok()) {
+      std::fprintf(stderr, "poseforest eval: %s\n", r->status().message().c_str());
+      return 2;
+    }
+  }
+  const std::string method = args.GetOr("method", "both");
+  if (method != "both" && method != "meanshift" && method != "none") {
+    std::fprintf(stderr, "poseforest eval: --method must be both, meanshift or none (got '%s')\n",
+                 method.c_str());
+    return 2;
+  }
+  const std::string segment = args.GetOr("segment", "auto");
+  if (segment != "auto" && segment != "on" && segment != "off") {
+    std::fprintf(stderr, "poseforest eval: --segment must be auto, on or off (got '%s')\n", segment.c_str());
+    return 2;
+  }
+  const std::string set = *args.Get("test-set");
+  auto named = coordinator::ResolveSourceArgument(set, coordinator::JobSource::kTestSet);
+  if (!named.ok()) {
+    std::fprintf(stderr, "poseforest eval: --test-set %s\n", named.status().ToString().c_str());
+    return named.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
+  }
+  const int num_images = *images > 0 ? int(*images) : named->num_images;
+  auto forest = core::LoadForest(*args.Get("forest"));
+  if (!forest.ok()) {
+    std::fprintf(stderr, "poseforest eval: %s\n", forest.status().ToString().c_str());
+    return 1;
+  }
+  coordinator::JointEvalOptions eo;
+  eo.num_images = num_images;
+  eo.first_index = uint64_t(*first);
+  eo.threads = int(*threads);
+  eo.people = int(*people);
+  eo.fast = method == "both";
+  eo.rescale = !args.Has("no-rescale");
+  eo.segment = segment == "on"    ? coordinator::JointEvalOptions::Segment::kOn
+               : segment == "off" ? coordinator::JointEvalOptions::Segment::kOff
+                                  : coordinator::JointEvalOptions::Segment::kAuto;
+  const bool quiet = args.Has("quiet");
+  if (!quiet)
+    eo.progress = [](int done, int total) {
+      if (done % 25 == 0 || done == total) std::fprintf(stderr, "eval: %d / %d frames\n", done, total);
+    };
+  auto e = coordinator::EvaluateForestJoints(*forest, named->source, eo);
+  if (!e.ok()) {
+    std::fprintf(stderr, "poseforest eval: %s\n", e.status().ToString().c_str());
+    return e.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
+  }
+  std::printf("forest %s on %s, %d frames\n\n", args.Get("forest")->c_str(), set.c_str(), num_images);
+  std::fputs(coordinator::FormatConfusionText(e->confusion).c_str(), stdout);
+  std::printf("\n");
+  std::fputs(coordinator::FormatAccuracyTable(e->confusion).c_str(), stdout);
+  if (auto png = args.Get("png")) {
+    if (auto st = coordinator::WriteConfusionPng(e->confusion, *png); !st.ok()) {
+      std::fprintf(stderr, "poseforest eval: %s\n", st.ToString().c_str());
+      return 1;
+    }
+    std::printf("confusion matrix picture: %s\n", png->c_str());
+  }
+  if (method != "none") {
+    std::printf("\n");
+    if (!e->has_joints) {
+      std::printf("no joint average precision: %s has no ground-truth joints\n", set.c_str());
+    } else {
+      std::fputs(coordinator::FormatJointApTable(*e).c_str(), stdout);
+      std::printf("\n");
+      std::fputs(coordinator::FormatSkeletonTable(*e).c_str(), stdout);
+      std::printf("ms/frame: classify %.1f, mean shift %.1f", e->classify_ms / e->frames,
+                  e->mean_shift_ms / e->frames);
+      if (e->ran_fast) std::printf(", fast clustering %.1f", e->fast_ms / e->frames);
+      std::printf("\n");
+      if (auto dir = args.Get("pr-png")) {
+        if (auto st = coordinator::WritePrCurves(*e, *dir); !st.ok()) {
+          std::fprintf(stderr, "poseforest eval: %s\n", st.ToString().c_str());
+          return 1;
+        }
+        std::printf("precision-recall curves: %s/pr_joints.png, %s/pr_mean.png\n", dir->c_str(),
+                    dir->c_str());
+      }
+    }
+  }
+  if (!e->rescaled && !runtime::SameFocalLength(*forest, e->camera.fx, e->camera.fy))
+    std::printf(
+        "\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) was NOT rescaled "
+        "(--no-rescale)\n",
+        e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
+  if (e->rescaled)
+    std::printf(
+        "\ncamera fx %.1f fy %.1f: the forest (trained for fx %.1f fy %.1f) had its offsets rescaled\n",
+        e->camera.fx, e->camera.fy, double(forest->training_fx), double(forest->training_fy));
+  if (e->segmented) {
+    std::printf("\nsegmentation (runtime people segmentation vs the ground-truth person masks):\n");
+    if (args.Has("per-person"))
+      for (const auto& p : e->segmentation)
+        std::printf("  frame %d person %d: %d px, IoU %.3f\n", p.frame, p.person, p.pixels, p.iou);
+    int good = 0;
+    for (const auto& p : e->segmentation) good += p.iou >= 0.5;
+    std::printf(
+        "segmentation: %zu people, mean IoU %.3f, %d with IoU >= 0.5; right person count in %d/%d "
+        "frames; %.1f ms/frame\n",
+        e->segmentation.size(), e->MeanIoU(), good, e->frames_right_count, e->frames,
+        e->segment_ms / std::max(1, e->frames));
+    const bool ap = e->has_joints && method != "none";
+    auto line = [&](const char* what, const coordinator::ConfusionMatrix& m,
+                    const runtime::JointApEvaluator& j) {
+      std::printf("  %-44s average per-class accuracy %6.2f%%", what, 100.0 * m.AveragePerClassAccuracy());
+      if (ap) std::printf(", mAP %.3f", j.MeanAveragePrecision());
+      std::printf("\n");
+    };
+    line("frames as they are (everything classified):", e->confusion, e->mean_shift);
+    line("clean (ground-truth masks):", e->clean_confusion, e->clean_mean_shift);
+    line("after segmentation:", e->segmented_confusion, e->segmented_mean_shift);
+    if (ap)
+      std::printf("eval: segmentation mean IoU %.3f, mAP clean %.3f, after segmentation %.3f\n", e->MeanIoU(),
+                  e->clean_mean_shift.MeanAveragePrecision(), e->segmented_mean_shift.MeanAveragePrecision());
+  }
+  // The headline figures on the last line.
+  if (e->has_joints && method != "none")
+    std::printf("eval: mAP %.3f (mean shift), upper bound %.3f, average per-class accuracy %.2f%%\n",
+                e->mean_shift.MeanAveragePrecision(), e->upper_bound.MeanAveragePrecision(),
+                100.0 * e->confusion.AveragePerClassAccuracy());
+  return 0;
+}
+
+}  // namespace poseforest::cli

@@ -1,0 +1,20 @@
+#pragma once
+// The scene a rendered source draws from (SourceSpec -> renderer::SceneConfig): shared by the
+// training sources (image_source.cpp) and the evaluation sets (engine/evaluation.cpp), so
+// a job's test set renders the same kinds of people, bodies in the same order, as its training
+// frames. Only for targets built with the renderer (POSEFOREST_HAS_RENDERER).
+
+#include "renderer/scene.h"
+#include "runtime/core/result.h"
+#include "engine/job_spec.h"
+
+namespace poseforest::worker {
+
+/// Fills `scene` from a rendered `spec`: yaw range, 1..max_people people, the noise switch,
+/// distances (m), the pose library's selected poses, and the bodies: the procedural family when
+/// spec.procedural_bodies, then the 18 MakeHuman presets, then spec.body_meshes in job order.
+/// Poses and bodies are loaded once per process (cached by file path, size and modification
+/// time) and copied from there. Errors are the loaders', naming the file.
+core::Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene);
+
+}  // namespace poseforest::worker

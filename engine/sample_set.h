@@ -1,0 +1,137 @@
+#pragma once
+// The training samples held by one shard: which pixel of which frame, its part label, and the
+// tree node it currently sits in. Stored structure-of-arrays, ordered by (node, frame) so that
+// each frontier node's samples are one contiguous range and, inside it, the samples of one
+// frame are adjacent (their probes then hit the same depth image in cache).
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "runtime/core/depth_image.h"
+#include "runtime/core/feature.h"
+#include "runtime/core/rng.h"
+#include "engine/image_source.h"
+
+namespace poseforest::worker {
+
+/// One sampled pixel of a frame.
+struct PixelSample {
+  int x = 0, y = 0;  ///< pixels
+  uint8_t part = 0;  ///< 0..kNumParts-1
+};
+
+/// Picks up to `count` body pixels (depth > 0 and a part label) of `frame`. `balance` in 0..1:
+/// 0 draws pixels uniformly, 1 gives every present part an equal quota (capped by how many
+/// pixels it has; the rest goes to the others), between interpolates quota ~ n_part^(1-balance).
+/// Deterministic: every draw comes from `rng`. Output sorted by pixel index (row-major).
+std::vector<PixelSample> SamplePixels(const LabelledFrame& frame, int count, double balance,
+                                      const core::CounterRng& rng);
+
+/// A range of samples sitting in one tree node.
+struct NodeRange {
+  uint32_t node = 0;   ///< index in the tree's breadth-first node array
+  uint64_t begin = 0;  ///< first sample
+  uint64_t end = 0;    ///< one past the last sample
+};
+
+/// The frames and samples of one shard of one tree.
+class SampleSet {
+ public:
+  /// Adds a frame and its samples; frames must be added in increasing `frame_index`
+  /// (the index in the tree's frame sequence, which identifies samples globally).
+  void AddFrame(uint64_t frame_index, const core::DepthImage& depth, std::span<const PixelSample> pixels,
+                const core::FeatureConstants& c);
+  /// Adds a frame without samples, in any order (a worker's set of task frames kept across
+  /// batches); returns its local id for AddSamples.
+  uint32_t AddFrameOnly(uint64_t frame_index, const core::DepthImage& depth, const core::FeatureConstants& c);
+  /// Adds samples of the frame with local id `local` (`depth`: that frame, as given to it).
+  void AddSamples(uint32_t local, const core::DepthImage& depth, std::span<const PixelSample> pixels,
+                  const core::FeatureConstants& c);
+  /// Drops every sample and node range; the frames stay (AddSamples, then StartTree, again).
+  void ClearSamples();
+  /// Pixels of all frames held (each frame's copy in probe()).
+  size_t probe_pixels() const { return probe_.size(); }
+  /// Room for `frames` more frames of `pixels` pixels in all and `samples` more samples (saves
+  /// the regrowth of a set built many times, as a distributed worker's subtree tasks do).
+  void Reserve(size_t frames, size_t pixels, size_t samples);
+  /// Puts every sample in node `root` (call once after the last AddFrame).
+  void StartTree(uint32_t root = 0);
+  /// Puts sample i in node `node_of_sample[i]` (one entry per sample), keeping the (frame,
+  /// pixel) order inside each node: several roots in one set (a worker's batch of subtrees).
+  void StartTree(std::span<const uint32_t> node_of_sample);
+
+  size_t num_samples() const { return x_.size(); }
+  size_t num_frames() const { return frames_.size(); }
+  /// Frontier ranges in increasing node order; nodes without samples here are absent.
+  const std::vector<NodeRange>& ranges() const { return ranges_; }
+  /// Range of `node`, or an empty one.
+  NodeRange RangeOf(uint32_t node) const;
+
+  /// Global identity of sample i: (frame index << 24) | pixel index. Never changes, so hashes
+  /// of it select the same samples however frames are spread over shards.
+  uint64_t uid(size_t i) const;
+
+  /// Per-part sample counts of a node range (num_parts entries).
+  void CountParts(const NodeRange& r, int num_parts, uint64_t* counts) const;
+
+  /// Moves samples to children. `decision(node)` returns the split for a node: nullptr -> the
+  /// node became a leaf (its samples are dropped); else go left (to left_child) if the
+  /// response < cut + 0.5, i.e. response <= cut, else right (left_child + 1). Order inside each
+  /// child stays (frame, pixel). `threads` = OpenMP threads.
+  struct Split {
+    uint32_t node = 0;
+    core::FeatureOffsets offsets;
+    int32_t cut = 0;  ///< integer cut: threshold tau = cut + 0.5 mm
+    uint32_t left_child = 0;
+  };
+  void ApplySplits(std::span<const Split> splits, const core::FeatureConstants& c, int threads);
+
+  /// Bytes held (frames + per-sample arrays).
+  uint64_t MemoryBytes() const;
+
+  /// Eq. 1 for sample i (core::FeatureResponse on the frame; bit-identical to the runtime).
+  int32_t Response(size_t i, const core::FeatureOffsets& f, uint16_t background_mm) const {
+    const FrameInfo& fr = frames_[frame_[i]];
+    return core::FeatureResponse(probe_.data() + fr.offset, fr.width, fr.height, x_[i], y_[i], scale_[i], f,
+                                 background_mm);
+  }
+  /// Global frame index of sample i (its index in the tree's frame sequence).
+  uint64_t frame_index(size_t i) const { return frames_[frame_[i]].index; }
+
+  /// Where a frame lies in the probe buffer.
+  struct FrameInfo {
+    uint64_t index = 0;   ///< global frame index
+    uint32_t offset = 0;  ///< first pixel in probe()
+    int width = 0, height = 0;
+  };
+
+  // Hot-loop access (read-only views).
+  /// Every frame's depth, concatenated, with 0 replaced by background_mm (so a probe reads the
+  /// value core::ProbeDepth would return with one bounds test) and 32 entries of padding so a
+  /// 32-bit gather at the last pixel stays inside.
+  const uint16_t* probe() const { return probe_.data(); }
+  const std::vector<FrameInfo>& frames() const { return frames_; }
+  /// True if every frame has the same size (the SIMD kernel's precondition).
+  bool uniform_size() const { return uniform_size_; }
+  const uint32_t* frame() const { return frame_.data(); }
+  const uint32_t* base() const { return base_.data(); }
+  const int16_t* x() const { return x_.data(); }
+  const int16_t* y() const { return y_.data(); }
+  const float* scale() const { return scale_.data(); }
+  const uint8_t* part() const { return part_.data(); }
+
+ private:
+  std::vector<uint16_t> probe_;  ///< frames of this shard (see probe())
+  std::vector<FrameInfo> frames_;
+  bool uniform_size_ = true;
+  uint16_t background_mm_ = 0;
+  std::vector<uint32_t> frame_;  ///< local frame per sample
+  std::vector<uint32_t> base_;   ///< its frame's offset in probe_, per sample
+  std::vector<int16_t> x_, y_;   ///< pixels
+  std::vector<float> scale_;     ///< PixelScale(d(x)) per sample: pixels per offset unit
+  std::vector<uint8_t> part_;
+  std::vector<NodeRange> ranges_;
+};
+
+}  // namespace poseforest::worker

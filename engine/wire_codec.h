@@ -1,0 +1,38 @@
+#pragma once
+// The conversion between the engine's NodeHistogram (slots) and the wire's run-coded
+// counts[candidate][bin][part] tensor, and the wire form of a split: what a worker sends and the
+// coordinator reads (proto/poseforest/v1/wire.proto).
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/histogram_builder.h"
+#include "poseforest/v1/wire.pb.h"
+#include "proto/dds/histogram_codec.h"
+#include "runtime/core/result.h"
+
+namespace poseforest::dist {
+
+/// Dense wire tensor (num_candidates x num_bins x num_parts) of a node histogram built with
+/// `plan` (either form); slot -> part through plan.part_slot.
+std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
+                                   int num_parts);
+/// dds::EncodeHistogramRuns(ToWireCounts(hist, plan, num_parts)), the same runs to the byte, from
+/// the histogram's non-zero counts only: no dense num_parts-wide tensor is built or scanned, so
+/// the cost follows candidates x bins x parts present (and the samples for per-sample bins).
+void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,
+                    google::protobuf::RepeatedField<uint64_t>* runs);
+
+/// Adds a run-encoded wire tensor (dds/histogram_codec.h layout, `dims`) into `hist` without
+/// expanding it. False when the runs overrun the tensor or count a part absent from the node.
+bool AddWireRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const dds::HistogramDims& dims,
+                 const worker::NodePlan& plan, worker::NodeHistogram* hist);
+
+/// Sets the 4 offsets + threshold of a wire FeatureSplit; threshold = cut + 0.5 (exact in float
+/// for |cut| < 2^22).
+void SetFeatureSplit(const core::FeatureOffsets& f, int32_t cut, uint32_t left_child, uint32_t candidate,
+                     v1::FeatureSplit* out);
+/// Inverse of SetFeatureSplit; InvalidArgument for a threshold that is not k + 0.5.
+core::Status GetFeatureSplit(const v1::FeatureSplit& s, core::FeatureOffsets* f, int32_t* cut);
+
+}  // namespace poseforest::dist

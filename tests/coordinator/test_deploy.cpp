@@ -1,0 +1,645 @@
+// deploy/ through the real command line: `poseforest coordinator` and `poseforest worker`
+// processes with the DDS flags a deployment uses (docs/distributed/README.md, "Deployment").
+//  - the shipped Fast DDS XML profile (deploy/fastdds/profiles.xml, poseforest_shm) by flags and
+//    by the POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE environment: `poseforest train`'s forest;
+//  - discovery through a real fast-discovery-server process (--discovery-server), and nothing
+//    without the server; through two servers (ids 0 and 1, a client of both, workers of either
+//    one); a server id that is not the server's -i finds nothing;
+//  - DDS-Security (--security, credentials from deploy/security/make-test-ca.sh): the job trains,
+//    while a worker without credentials and participants that hello/heartbeat on the presence
+//    topic without credentials or with another CA's certificate are never matched, never get
+//    work and are never counted; same forest; `monitor --domain` sees the job only with credentials;
+//  - host names in --discovery-server / --peers: `localhost` resolved once at start-up and shown,
+//    a coordinator and a worker meet through a discovery server named `localhost`; a name that
+//    does not resolve (checked in a network namespace of its own: no DNS query leaves) is refused
+//    naming the flag and the name, also from the job's dds section;
+//  - flag errors name the file, the profile, the missing credential or the contradiction;
+//  - every command line of deploy/k8s/*.yaml and deploy/docker/Dockerfile.* passes the real
+//    argument parser (`--check-config`), and a manifest with a wrong flag fails the check.
+
+#include <algorithm>
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <tuple>
+
+#include "tests/proto/dds_test_util.h"
+#include "tests/coordinator/dist_test_util.h"
+#include "proto/dds/dds_flags.h"
+
+using namespace poseforest;
+using namespace poseforest::dist::testing;
+using poseforest::dds::testing::Child;
+using poseforest::dds::testing::HelperDir;
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+namespace {
+std::string Program() { return (HelperDir() / "poseforest").string(); }
+std::string Peer() { return (HelperDir() / "poseforest_dds_peer").string(); }
+fs::path Source() { return fs::path(POSEFOREST_SOURCE_DIR); }
+std::string ShippedXml() { return (Source() / "deploy/fastdds/profiles.xml").string(); }
+
+/// Runs argv to the end; its exit code and output.
+std::pair<int, std::string> Run(const std::vector<std::string>& argv,
+                                std::chrono::milliseconds timeout = 60s) {
+  Child c;
+  std::string error;
+  if (!c.Start(argv, &error)) return {-1, error};
+  auto rc = c.Wait(timeout);
+  return {rc.value_or(-1000), c.output()};
+}
+
+/// The job (1 tree, depth 6) in `dir` and `poseforest train`'s forest of it: the reference.
+std::vector<uint8_t> WriteJobAndTrain(const fs::path& dir) {
+  std::ofstream(dir / "job.textproto") << TinyJobText(1, 6);
+  auto [rc, out] = Run(
+      {Program(), "train", (dir / "job.textproto").string(), "--out", (dir / "ref.pff").string(), "--quiet"});
+  INFO(out);
+  REQUIRE(rc == 0);
+  auto bytes = ReadAll(dir / "ref.pff");
+  REQUIRE(bytes.size() > 100);
+  return bytes;
+}
+
+/// deploy/security/make-test-ca.sh OUT NAMES...
+void MakeCa(const fs::path& out, const std::vector<std::string>& names) {
+  std::vector<std::string> argv = {"sh", (Source() / "deploy/security/make-test-ca.sh").string(),
+                                   out.string()};
+  argv.insert(argv.end(), names.begin(), names.end());
+  auto [rc, text] = Run(argv);
+  INFO(text);
+  REQUIRE(rc == 0);
+}
+}  // namespace
+
+TEST_CASE("deploy: the shipped XML profile poseforest_shm, by flags and by environment, gives train's forest",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-xml");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const std::string domain = std::to_string(Domain(41));
+  const std::string job_id = "deploy-xml-" + std::to_string(::getpid());
+  Child w0, w1, coord;
+  std::string error;
+  REQUIRE(w0.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "xw-0", "--dds-xml",
+                    ShippedXml(), "--dds-profile", "poseforest_shm"},
+                   &error));
+  // The container images set the profile through the environment instead of flags.
+  REQUIRE(w1.Start({"env", "POSEFOREST_DDS_XML=" + ShippedXml(), "POSEFOREST_DDS_PROFILE=poseforest_shm",
+                    Program(), "worker", "--domain", domain, "--job", job_id, "--id", "xw-1"},
+                   &error));
+  REQUIRE(coord.Start(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "forest.pff").string(), "--domain", domain, "--job-id", job_id, "--min-workers", "2",
+       "--http", "off", "--dds-xml", ShippedXml(), "--dds-profile", "poseforest_shm"},
+      &error));
+  auto rc = coord.Wait(90s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(coord.output().find("2 workers alive") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  for (Child* w : {&w0, &w1}) {
+    CHECK(w->Wait(10s).has_value());  // they exit on JOB_DONE
+    INFO(w->output());
+    CHECK(w->output().find("joined job " + job_id) != std::string::npos);
+  }
+}
+
+TEST_CASE("deploy: --discovery-server through a real fast-discovery-server; nothing without it",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-ds");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const int port = 20000 + int((::getpid() * 7) % 20000);
+  Child server;
+  std::string error;
+  REQUIRE(server.Start({"fast-discovery-server", "-i", "0", "-l", "127.0.0.1", "-p", std::to_string(port)},
+                       &error));
+  REQUIRE(server.WaitForLine("Server is running", 10s).has_value());
+  // --local-workers hands the flag on to the worker processes.
+  auto [rc, out] =
+      Run({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+           (dir.path / "forest.pff").string(), "--local-workers", "2", "--domain", std::to_string(Domain(42)),
+           "--http", "off", "--discovery-server", "127.0.0.1:" + std::to_string(port)},
+          90s);
+  INFO(out);
+  REQUIRE(rc == 0);
+  CHECK(out.find("2 workers alive") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  server.Kill(SIGTERM);
+  CHECK(server.Wait(10s).has_value());
+
+  // The same without a server at that address: clients do not discover each other by multicast.
+  auto [rc2, out2] = Run(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "none.pff").string(), "--local-workers", "1", "--domain", std::to_string(Domain(42)),
+       "--http", "off", "--worker-wait-s", "3", "--discovery-server", "127.0.0.1:" + std::to_string(port)},
+      60s);
+  INFO(out2);
+  CHECK(rc2 == 1);
+  CHECK(out2.find("0 of 1 workers") != std::string::npos);
+  CHECK_FALSE(fs::exists(dir.path / "none.pff"));
+}
+
+TEST_CASE(
+    "deploy: host names in --discovery-server and --peers, resolved once at start-up; unknown names refused",
+    "[deploy][integration]") {
+  // `localhost` comes from /etc/hosts (no DNS query); the IPv4 address, not ::1.
+  auto local = dist::ResolveIPv4("localhost");
+  REQUIRE(local.ok());
+  CHECK(std::find(local->begin(), local->end(), "127.0.0.1") != local->end());
+  for (const std::string& a : *local) CHECK(dds::IsIPv4Address(a));
+  CHECK(*dist::ResolveIPv4("10.1.2.3") == std::vector<std::string>{"10.1.2.3"});
+  for (const char* ok : {"localhost", "coordinator-0.poseforest",
+                         "dds-discovery.poseforest.svc.cluster.local.", "10.0.0.1", "a1"})
+    CHECK(dds::CheckHost(ok, true).ok());
+  for (const char* bad :
+       {"10.0.0", "10.0.0.256", "-x.local", "x-.local", "a..b", "a_b", "::1", "fe80::1", "", "host.123"})
+    CHECK_FALSE(dds::CheckHost(bad, true).ok());
+  CHECK_FALSE(dds::CheckHost("localhost", false).ok());
+
+  TempDir dir("pf-deploy-names");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const std::string job = (dir.path / "job.textproto").string();
+  {  // --check-config shows what each name became; a local worker gets the addresses
+    auto [rc, text] =
+        Run({Program(), "worker", "--check-config", "--discovery-server", "0@localhost:7000,1@10.0.0.2"});
+    INFO(text);
+    CHECK(rc == 0);
+    CHECK(text.find("discovery servers 127.0.0.1:7000 (id 0, GUID prefix 44.53.00.5f") != std::string::npos);
+    CHECK(text.find("host names resolved once, at start-up: --discovery-server localhost -> 127.0.0.1") !=
+          std::string::npos);
+    auto [rc2, text2] = Run({Program(), "coordinator", job, "--out", (dir.path / "x.pff").string(),
+                             "--check-config", "--profile", "udp", "--peers", "localhost:7410,10.0.0.9"});
+    INFO(text2);
+    CHECK(rc2 == 0);
+    CHECK(text2.find("UDP, initial peers 127.0.0.1:7410,10.0.0.9") != std::string::npos);
+    CHECK(text2.find("--peers localhost -> 127.0.0.1") != std::string::npos);
+  }
+  {  // A name that does not resolve: exit 2 naming the flag and the name, at --check-config and at
+     // start, from the command line and from the job's dds section. Run in a network namespace of
+     // its own (no routes), so that the lookup never leaves this host: glibc would ask the DNS
+     // server of /etc/resolv.conf about `.invalid` names too.
+    const std::vector<std::string> netns = {"unshare", "-r", "-n"};
+    auto isolated = [&](std::vector<std::string> argv) {
+      argv.insert(argv.begin(), netns.begin(), netns.end());
+      return Run(argv);
+    };
+    const std::string ds_error =
+        "--discovery-server 0@no-such-host.invalid:7000: host name 'no-such-host.invalid' does not resolve "
+        "to an "
+        "IPv4 address";
+    const std::string peers_error =
+        "--peers 10.0.0.1,no-such-host.invalid: host name 'no-such-host.invalid' does not resolve to an IPv4 "
+        "address";
+    struct Case {
+      std::vector<std::string> argv;
+      std::string expect;
+    };
+    std::ofstream(dir.path / "job-names.textproto")
+        << TinyJobText(1, 6) << "dds { discovery_server: \"no-such-host.invalid\" }\n";
+    const std::vector<Case> cases = {
+        {{Program(), "worker", "--check-config", "--discovery-server", "0@no-such-host.invalid:7000"},
+         ds_error},
+        {{Program(), "worker", "--job", "x", "--discovery-server", "0@no-such-host.invalid:7000"}, ds_error},
+        {{Program(), "coordinator", job, "--out", (dir.path / "x.pff").string(), "--discovery-server",
+          "0@no-such-host.invalid:7000"},
+         ds_error},
+        {{Program(), "worker", "--check-config", "--profile", "udp", "--peers",
+          "10.0.0.1,no-such-host.invalid"},
+         peers_error},
+        {{Program(), "monitor", "--domain", "3", "--profile", "udp", "--peers",
+          "10.0.0.1,no-such-host.invalid"},
+         peers_error},
+        {{Program(), "coordinator", (dir.path / "job-names.textproto").string(), "--out",
+          (dir.path / "x.pff").string(), "--check-config"},
+         "host name 'no-such-host.invalid' does not resolve to an IPv4 address"},
+        {{Program(), "worker", "--job-file", (dir.path / "job-names.textproto").string(), "--check-config"},
+         "(transport settings from the dds section of " + (dir.path / "job-names.textproto").string() + ")"},
+        // localhost still resolves there: /etc/hosts
+        {{Program(), "worker", "--check-config", "--discovery-server", "localhost"},
+         "localhost -> 127.0.0.1"},
+    };
+    for (const Case& c : cases) {
+      auto [rc, text] = isolated(c.argv);
+      INFO(c.argv[1] << " " << c.argv.back() << ": " << text);
+      CHECK(rc == (c.expect.find("->") != std::string::npos ? 0 : 2));
+      CHECK(text.find(c.expect) != std::string::npos);
+    }
+    CHECK_FALSE(fs::exists(dir.path / "x.pff"));
+  }
+  // The real thing: a coordinator and a worker process meet through a fast-discovery-server they
+  // both name `localhost` (the worker with the server's id): `poseforest train`'s forest.
+  const int port = 20000 + int((::getpid() * 7 + 9) % 20000);
+  Child server, worker, coord;
+  std::string error;
+  REQUIRE(server.Start({"fast-discovery-server", "-i", "0", "-l", "127.0.0.1", "-p", std::to_string(port)},
+                       &error));
+  REQUIRE(server.WaitForLine("Server is running", 10s).has_value());
+  const std::string domain = std::to_string(Domain(50));
+  const std::string job_id = "deploy-names-" + std::to_string(::getpid());
+  REQUIRE(worker.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "nw-0",
+                        "--discovery-server", "0@localhost:" + std::to_string(port)},
+                       &error));
+  REQUIRE(coord.Start({Program(), "coordinator", job, "--out", (dir.path / "forest.pff").string(), "--domain",
+                       domain, "--job-id", job_id, "--min-workers", "1", "--worker-wait-s", "40", "--http",
+                       "off", "--discovery-server", "localhost:" + std::to_string(port)},
+                      &error));
+  auto rc = coord.Wait(90s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(
+      coord.output().find("DDS host names resolved at start-up: --discovery-server localhost -> 127.0.0.1") !=
+      std::string::npos);
+  CHECK(coord.output().find("1 workers alive") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  CHECK(worker.Wait(10s).has_value());  // it exits on JOB_DONE
+  INFO(worker.output());
+  CHECK(worker.output().find(
+            "DDS host names resolved at start-up: --discovery-server localhost -> 127.0.0.1") !=
+        std::string::npos);
+  CHECK(worker.output().find("joined job " + job_id) != std::string::npos);
+  server.Kill(SIGTERM);
+  CHECK(server.Wait(10s).has_value());
+}
+
+TEST_CASE("deploy: --discovery-server with redundant servers (ids 0 and 1); the id must be the server's -i",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-ds2");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const int p0 = 20000 + int((::getpid() * 7 + 3) % 20000), p1 = 20000 + int((::getpid() * 7 + 5) % 20000);
+  const std::string s0 = "0@127.0.0.1:" + std::to_string(p0), s1 = "1@127.0.0.1:" + std::to_string(p1);
+  Child server0, server1;
+  std::string error;
+  REQUIRE(server0.Start({"fast-discovery-server", "-i", "0", "-l", "127.0.0.1", "-p", std::to_string(p0)},
+                        &error));
+  REQUIRE(server1.Start({"fast-discovery-server", "-i", "1", "-l", "127.0.0.1", "-p", std::to_string(p1)},
+                        &error));
+  REQUIRE(server0.WaitForLine("Server is running", 10s).has_value());
+  REQUIRE(server1.WaitForLine("Server is running", 10s).has_value());
+  {  // The coordinator and one worker are clients of both servers; the two other workers each of
+     // one only, so the coordinator finds one through server 0 and one through server 1 alone.
+    const std::string domain = std::to_string(Domain(44));
+    const std::string job_id = "deploy-ds2-" + std::to_string(::getpid());
+    Child w_both, w_0, w_1, coord;
+    auto worker = [&](Child* c, const std::string& id, const std::string& servers) {
+      REQUIRE(c->Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", id,
+                        "--discovery-server", servers},
+                       &error));
+    };
+    worker(&w_both, "dw-both", s1 + "," + s0);
+    worker(&w_0, "dw-0", s0);
+    worker(&w_1, "dw-1", s1);
+    REQUIRE(coord.Start(
+        {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+         (dir.path / "forest.pff").string(), "--domain", domain, "--job-id", job_id, "--min-workers", "3",
+         "--worker-wait-s", "40", "--http", "off", "--discovery-server", s0 + "," + s1},
+        &error));
+    auto rc = coord.Wait(90s);
+    INFO(coord.output());
+    REQUIRE(rc.has_value());
+    REQUIRE(*rc == 0);
+    CHECK(coord.output().find("3 workers alive") != std::string::npos);
+    CHECK(ReadAll(dir.path / "forest.pff") == reference);
+    for (Child* w : {&w_both, &w_0, &w_1}) {
+      CHECK(w->Wait(10s).has_value());  // they exit on JOB_DONE
+      INFO(w->output());
+      CHECK(w->output().find("joined job " + job_id) != std::string::npos);
+    }
+  }
+  server0.Kill(SIGTERM);
+  CHECK(server0.Wait(10s).has_value());
+
+  // Only the id-1 server runs: its id reaches it (--local-workers hands the list on)...
+  auto [rc, out] = Run({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                        (dir.path / "forest1.pff").string(), "--local-workers", "1", "--domain",
+                        std::to_string(Domain(46)), "--http", "off", "--discovery-server", s1},
+                       90s);
+  INFO(out);
+  REQUIRE(rc == 0);
+  CHECK(ReadAll(dir.path / "forest1.pff") == reference);
+  // ...another id at the same address does not: the client expects another GUID prefix there.
+  auto [rc2, out2] = Run(
+      {Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+       (dir.path / "none.pff").string(), "--local-workers", "1", "--domain", std::to_string(Domain(48)),
+       "--http", "off", "--worker-wait-s", "3", "--discovery-server", "2@127.0.0.1:" + std::to_string(p1)},
+      60s);
+  INFO(out2);
+  CHECK(rc2 == 1);
+  CHECK(out2.find("0 of 1 workers") != std::string::npos);
+  CHECK_FALSE(fs::exists(dir.path / "none.pff"));
+  server1.Kill(SIGTERM);
+  CHECK(server1.Wait(10s).has_value());
+}
+
+TEST_CASE("deploy: --security trains; participants without credentials or from another CA get nothing in",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-sec");
+  const auto reference = WriteJobAndTrain(dir.path);
+  const fs::path ca = dir.path / "ca", other = dir.path / "other-ca";
+  MakeCa(ca, {"coordinator", "worker-1", "worker-2"});
+  MakeCa(other, {"worker-1"});  // same names and layout, another CA
+  const std::string domain = std::to_string(Domain(43));
+  const std::string job_id = "deploy-sec-" + std::to_string(::getpid());
+  std::string error;
+  // Intruders first, so that they are there for the whole job: a real worker without
+  // credentials, and participants that say hello and heartbeat for the job on the presence topic
+  // (what a worker does to be counted) without credentials and with another CA's certificate.
+  Child intruder_worker, plain_peer, foreign_peer;
+  REQUIRE(intruder_worker.Start(
+      {Program(), "worker", "--domain", domain, "--job", job_id, "--id", "intruder"}, &error));
+  REQUIRE(plain_peer.Start({Peer(), "--mode=alive", "--transport=shm", "--domain=" + domain,
+                            "--job=" + job_id, "--id=plain-peer", "--seconds=120"},
+                           &error));
+  REQUIRE(
+      foreign_peer.Start({Peer(), "--mode=alive", "--transport=shm", "--domain=" + domain, "--job=" + job_id,
+                          "--id=worker-1", "--sec-dir=" + other.string(), "--seconds=120"},
+                         &error));
+  REQUIRE(plain_peer.WaitForLine("STARTED", 20s).has_value());
+  REQUIRE(foreign_peer.WaitForLine("STARTED", 20s).has_value());
+  Child w1, w2, coord;
+  REQUIRE(w1.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "sw-1", "--security",
+                    (ca / "worker-1").string()},
+                   &error));
+  REQUIRE(w2.Start({Program(), "worker", "--domain", domain, "--job", job_id, "--id", "sw-2", "--security",
+                    (ca / "worker-2").string()},
+                   &error));
+  const fs::path events = dir.path / "events.jsonl", pause = dir.path / "pause";
+  std::ofstream(pause) << "hold\n";
+  REQUIRE(coord.Start({Program(), "coordinator", (dir.path / "job.textproto").string(), "--out",
+                       (dir.path / "forest.pff").string(), "--domain", domain, "--job-id", job_id,
+                       "--min-workers", "2", "--http", "off", "--event-log", events.string(), "--pause-file",
+                       pause.string(), "--security", (ca / "coordinator").string()},
+                      &error));
+  {  // Held before level 0 with both workers assigned: `monitor --domain` sees the job only with
+     // credentials (a worker's grant reads the job and status topics).
+    auto paused = coord.WaitForLine("paused (next: tree 0, level 0)", 60s);
+    INFO(coord.output());
+    REQUIRE(paused.has_value());
+    // Asked up to 3 times while the job is held: on a loaded CI machine the secure handshake
+    // with a fresh participant once took longer than one 20 s wait (the test_deploy failure seen
+    // in a fresh-clone CI); the job stays paused, so every attempt sees the same job.
+    int mrc = -1;
+    std::string mout;
+    for (int attempt = 0; attempt < 3 && mrc != 0; ++attempt)
+      std::tie(mrc, mout) = Run({Program(), "monitor", "--domain", domain, "--job", job_id, "--once",
+                                 "--timeout-s", "20", "--security", (ca / "worker-2").string()});
+    INFO(mout);
+    CHECK(mrc == 0);
+    CHECK(mout.find("job " + job_id) != std::string::npos);
+    auto [mrc2, mout2] =
+        Run({Program(), "monitor", "--domain", domain, "--job", job_id, "--once", "--timeout-s", "3"});
+    INFO(mout2);
+    CHECK(mrc2 == 1);
+    CHECK(mout2.find("no status of " + job_id) != std::string::npos);
+    fs::remove(pause);
+  }
+  auto rc = coord.Wait(90s);
+  INFO(coord.output());
+  REQUIRE(rc.has_value());
+  REQUIRE(*rc == 0);
+  CHECK(ReadAll(dir.path / "forest.pff") == reference);
+  CHECK(coord.output().find("2 workers alive") != std::string::npos);
+  CHECK(coord.output().find("3 workers alive") == std::string::npos);
+  CHECK(coord.output().find(" 0 messages rejected") != std::string::npos);
+  const std::string log = ReadText(events);
+  INFO(log);
+  CHECK(log.find("sw-1") != std::string::npos);  // the log names the workers it counted...
+  CHECK(log.find("sw-2") != std::string::npos);
+  for (const char* stranger : {"intruder", "plain-peer", "worker-1"})  // ...and none of these
+    CHECK(log.find(stranger) == std::string::npos);
+  for (const char* stranger : {"intruder", "plain-peer", "worker-1"})
+    CHECK(coord.output().find(stranger) == std::string::npos);
+  for (Child* w : {&w1, &w2}) CHECK(w->Wait(10s).has_value());
+  // The intruders never matched anyone of the job: no job for the worker, no reader for the
+  // presence samples (a peer prints "MATCHED presence" when one of its readers appears).
+  intruder_worker.Kill(SIGKILL);
+  plain_peer.Kill(SIGKILL);
+  foreign_peer.Kill(SIGKILL);
+  INFO(intruder_worker.output());
+  INFO(plain_peer.output());
+  INFO(foreign_peer.output());
+  CHECK(intruder_worker.output().find("joined job") == std::string::npos);
+  CHECK(plain_peer.output().find("MATCHED") == std::string::npos);
+  CHECK(foreign_peer.output().find("MATCHED") == std::string::npos);
+}
+
+TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or the contradiction",
+          "[deploy][integration]") {
+  TempDir dir("pf-deploy-flags");
+  std::ofstream(dir.path / "job.textproto") << TinyJobText(1, 6);
+  const std::string job = (dir.path / "job.textproto").string(), out = (dir.path / "f.pff").string();
+  auto worker = [&](std::vector<std::string> flags) {
+    flags.insert(flags.begin(), {Program(), "worker", "--check-config"});
+    return Run(flags);
+  };
+  auto coordinator = [&](std::vector<std::string> flags) {
+    flags.insert(flags.begin(), {Program(), "coordinator", job, "--out", out, "--check-config"});
+    return Run(flags);
+  };
+  struct Case {
+    std::vector<std::string> flags;
+    std::string expect;
+  };
+  const std::string xml = ShippedXml();
+  const fs::path ca = dir.path / "ca";
+  MakeCa(ca, {"coordinator", "worker-1"});
+  fs::create_directories(dir.path / "incomplete");
+  fs::copy_file(ca / "worker-1" / "cert.pem", dir.path / "incomplete" / "cert.pem");
+  fs::copy_file(ca / "worker-1" / "permissions.p7s", dir.path / "incomplete" / "permissions.p7s");
+  const std::vector<Case> bad = {
+      {{"--dds-xml", "/nonexistent/profiles.xml", "--dds-profile", "x"},
+       "cannot read Fast DDS XML profiles file /nonexistent/profiles.xml"},
+      {{"--dds-xml", xml, "--dds-profile", "poseforest_nope"},
+       "no participant profile 'poseforest_nope' in " + xml + " (it has: poseforest_shm"},
+      {{"--dds-xml", xml}, "needs a participant profile name: --dds-profile NAME"},
+      {{"--dds-profile", "poseforest_shm"}, "needs the XML file: --dds-xml FILE"},
+      {{"--dds-xml", xml, "--dds-profile", "poseforest_shm", "--profile", "udp"},
+       "cannot be combined with --profile"},
+      {{"--dds-xml", xml, "--dds-profile", "poseforest_shm", "--discovery-server", "127.0.0.1"},
+       "cannot be combined with --discovery-server"},
+      {{"--discovery-server", "127.0.0.1:11811", "--profile", "shm"}, "--profile shm contradicts it"},
+      {{"--discovery-server", "127.0.0.1", "--peers", "10.0.0.1"},
+       "--peers cannot be combined with --discovery-server"},
+      {{"--discovery-server", "server_1.local"},
+       "'server_1.local' is not a host name: 'server_1' has characters other than letters, digits and '-'"},
+      {{"--discovery-server", "1@::1"},
+       "'1@::1' is an IPv6 address, not supported: the transports are UDPv4"},
+      {{"--discovery-server", "localhost,1@127.0.0.1"},
+       "1@127.0.0.1:11811 and localhost:11811 are the same address 127.0.0.1:11811"},
+      {{"--profile", "udp", "--peers", "10.0.0"}, "--peers 10.0.0: '10.0.0' is not an IPv4 address"},
+      {{"--profile", "udp", "--peers", "[::1]:7400"}, "'[::1]:7400' is an IPv6 address, not supported"},
+      {{"--profile", "udp", "--interfaces", "localhost"},
+       "--interfaces localhost: 'localhost' is not an IPv4 address (expected a.b.c.d)"},
+      {{"--discovery-server", "256@127.0.0.1"}, "'256@127.0.0.1' has server id '256': expected 0..255"},
+      {{"--discovery-server", "0@127.0.0.1,x@127.0.0.2"}, "'x@127.0.0.2' has server id 'x': expected 0..255"},
+      {{"--discovery-server", "1@127.0.0.1:0"}, "'1@127.0.0.1:0' has port '0': expected 1..65535"},
+      {{"--discovery-server", "127.0.0.1:70000"}, "'127.0.0.1:70000' has port '70000': expected 1..65535"},
+      {{"--discovery-server", "1@10.0.0"},
+       "'1@10.0.0' is not an IPv4 address (expected [ID@]a.b.c.d[:port] or [ID@]HOST-NAME[:port])"},
+      {{"--discovery-server", "1@10.0.0.1,1@10.0.0.2"}, "'1@10.0.0.2' repeats server id 1 of '1@10.0.0.1'"},
+      {{"--discovery-server", "10.0.0.1,0@10.0.0.2"}, "'0@10.0.0.2' repeats server id 0 of '10.0.0.1'"},
+      {{"--discovery-server", "0@10.0.0.1:7000,1@10.0.0.1:7000"},
+       "'1@10.0.0.1:7000' repeats the address 10.0.0.1:7000 of '0@10.0.0.1:7000'"},
+      {{"--discovery-server", ","}, "--discovery-server ,: no server given"},
+      {{"--interfaces", "127.0.0.1"}, "--interfaces needs --profile udp or --discovery-server"},
+      {{"--security", (dir.path / "nothing").string()}, "not a directory"},
+      {{"--security", (dir.path / "incomplete").string()},
+       "missing or unreadable identity_ca.pem (looked in"},
+      {{"--security", (dir.path / "incomplete").string()},
+       "key.pem (looked in " + (dir.path / "incomplete").string() + ")"},
+      {{"--dds-xml", xml, "--dds-profile", "poseforest_secure_template"},
+       "file:///etc/poseforest/dds/identity_ca.pem, which cannot be read"},
+  };
+  for (const Case& c : bad) {
+    for (bool as_worker : {true, false}) {
+      auto [rc, text] = as_worker ? worker(c.flags) : coordinator(c.flags);
+      INFO((as_worker ? "worker " : "coordinator ") << c.flags[0] << " " << c.flags.back() << ": " << text);
+      CHECK(rc == 2);
+      CHECK(text.find(c.expect) != std::string::npos);
+    }
+  }
+  {  // the environment: named in the error; ignored once a transport flag is given
+    auto [rc, text] = Run({"env", "POSEFOREST_DDS_XML=" + xml, Program(), "worker", "--check-config"});
+    INFO(text);
+    CHECK(rc == 2);
+    CHECK(text.find("POSEFOREST_DDS_XML=" + xml + " needs a participant profile name") != std::string::npos);
+    auto [rc2, text2] = Run({"env", "POSEFOREST_DDS_XML=" + xml, "POSEFOREST_DDS_PROFILE=poseforest_nope",
+                             Program(), "worker", "--check-config", "--profile", "udp"});
+    INFO(text2);
+    CHECK(rc2 == 0);
+    CHECK(text2.find("UDP, initial peers 127.0.0.1") != std::string::npos);
+  }
+  {  // --check-config shows each discovery server with the id and GUID prefix the client expects
+     // (Fast DDS: 44.53.<id>.5f.45.50.52.4f.53.49.4d.41); the single-server form is unchanged.
+    auto [rc, text] = worker({"--discovery-server", "0@127.0.0.1:7400,255@10.0.0.2"});
+    INFO(text);
+    CHECK(rc == 0);
+    CHECK(
+        text.find(
+            "UDP, discovery servers 127.0.0.1:7400 (id 0, GUID prefix 44.53.00.5f.45.50.52.4f.53.49.4d.41), "
+            "255@10.0.0.2:11811 (id 255, GUID prefix 44.53.ff.5f.45.50.52.4f.53.49.4d.41)") !=
+        std::string::npos);
+    auto [rc2, text2] = worker({"--discovery-server", "127.0.0.1"});
+    INFO(text2);
+    CHECK(rc2 == 0);
+    CHECK(text2.find("UDP, discovery server 127.0.0.1:11811 (id 0, GUID prefix 44.53.00.5f") !=
+          std::string::npos);
+  }
+  {  // make-test-ca.sh's layout, also written with a trailing slash: the CA files come from the parent
+    auto [rc, text] = worker({"--security", (ca / "worker-1").string() + "/"});
+    INFO(text);
+    CHECK(rc == 0);
+    CHECK(text.find("DDS-Security with " + (ca / "worker-1" / "cert.pem").string()) != std::string::npos);
+  }
+  // --local-workers under --security: the workers need credentials of their own.
+  auto [rc, text] = coordinator({"--local-workers", "2", "--security", (ca / "coordinator").string()});
+  INFO(text);
+  CHECK(rc == 2);
+  CHECK(text.find("needs --worker-security DIR") != std::string::npos);
+  auto [rc2, text2] = coordinator({"--local-workers", "2", "--security", (ca / "coordinator").string(),
+                                   "--worker-security", (ca / "worker-1").string()});
+  INFO(text2);
+  CHECK(rc2 == 0);
+  CHECK(text2.find("DDS-Security with " + (ca / "coordinator" / "cert.pem").string()) != std::string::npos);
+  auto [rc3, text3] = coordinator({"--dds-xml", xml, "--dds-profile", "poseforest_udp_loopback"});
+  INFO(text3);
+  CHECK(rc3 == 0);
+  CHECK(text3.find("coordinator config ok") != std::string::npos);
+  auto [rc4, text4] =
+      Run({Program(), "coordinator", job, "--out", "/nonexistent-dir/f.pff", "--check-config"});
+  INFO(text4);
+  CHECK(rc4 == 2);
+  CHECK(text4.find("folder /nonexistent-dir does not exist") != std::string::npos);
+  // monitor --domain takes the same flags (and the same checks).
+  auto [rc5, text5] =
+      Run({Program(), "monitor", "--domain", "3", "--dds-xml", xml, "--dds-profile", "poseforest_nope"});
+  INFO(text5);
+  CHECK(rc5 == 2);
+  CHECK(text5.find("no participant profile 'poseforest_nope'") != std::string::npos);
+}
+
+namespace {
+/// tests/coordinator/check_deploy_commands.py on `deploy` (a deploy/ folder).
+std::pair<int, std::string> CheckDeployCommands(const fs::path& deploy) {
+  return Run({"python3", (Source() / "tests/coordinator/check_deploy_commands.py").string(), "--bin",
+              Program(), "--source", Source().string(), "--deploy", deploy.string()},
+             120s);
+}
+
+void Replace(const fs::path& file, const std::string& from, const std::string& to) {
+  std::string text = ReadText(file);
+  const size_t at = text.find(from);
+  REQUIRE(at != std::string::npos);
+  text.replace(at, from.size(), to);
+  std::ofstream(file) << text;
+}
+}  // namespace
+
+TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the real parser",
+          "[deploy][integration]") {
+  auto [rc, out] = CheckDeployCommands(Source() / "deploy");
+  INFO(out);
+  CHECK(rc == 0);
+  for (const char* what :
+       {"ok   deploy/docker/Dockerfile.coordinator: poseforest coordinator",
+        "ok   deploy/docker/Dockerfile.worker: poseforest worker",
+        "ok   deploy/docker/Dockerfile.discovery-server",
+        "ok   deploy/k8s/coordinator.yaml Deployment/coordinator",
+        "ok   deploy/k8s/workers.yaml StatefulSet/worker",
+        "ok   deploy/k8s/discovery-server.yaml Deployment/dds-discovery", "coordinator config ok",
+        "worker config ok: id worker-0", "Fast DDS XML profile poseforest_k8s", " 0 problems"})
+    CHECK(out.find(what) != std::string::npos);
+
+  // A manifest or image with a wrong flag, profile or value fails the check, naming it.
+  struct Mutation {
+    std::string file, from, to, expect;
+    std::string fails = "";  ///< the file whose command fails, when not `file`
+  };
+  const std::vector<Mutation> mutations = {
+      {"k8s/coordinator.yaml", "\"--checkpoint\", \"/var/lib/poseforest/checkpoint\"",
+       "\"--checkpoint-dir=/var/lib/poseforest/checkpoint\"", "unknown option --checkpoint-dir"},
+      {"k8s/workers.yaml", "value: poseforest_k8s", "value: poseforest_k9s",
+       "no participant profile 'poseforest_k9s'"},
+      {"k8s/workers.yaml", "\"--threads\", \"4\"", "\"--threads\", \"four\"", "--threads"},
+      {"k8s/coordinator.yaml", "/etc/poseforest/job.textproto", "/etc/poseforest/jobs.textproto",
+       "jobs.textproto"},
+      {"k8s/coordinator.yaml", "\"--http-tls-key\", \"/etc/poseforest-http-tls/tls.key\"",
+       "\"--http-tls-key\", \"/etc/poseforest-http-tls/tls.crt\"", "no PEM private key in it"},
+      {"docker/Dockerfile.worker", "CMD [\"--stay\"]", "CMD [\"--stay\", \"--profile\", \"tcp\"]",
+       "expected shm, udp or default"},
+      {"docker/Dockerfile.coordinator", "POSEFOREST_DDS_PROFILE=poseforest_discovery_client",
+       "POSEFOREST_DDS_PROFILE=poseforest_discovery", "no participant profile 'poseforest_discovery'"},
+      // Host names must name a Service of the manifests (the checker's stand-in for cluster DNS).
+      {"k8s/configmap.yaml", "<address>dds-discovery</address>", "<address>dds-discovry</address>",
+       "Fast DDS cannot parse the XML profiles", "k8s/workers.yaml"},
+      {"k8s/workers.yaml", "\"--stay\"]", "\"--stay\", \"--discovery-server\", \"dds-discovry:11811\"]",
+       "--discovery-server dds-discovry:11811: host name 'dds-discovry' does not resolve"},
+  };
+  for (const Mutation& m : mutations) {
+    TempDir dir("pf-deploy-mutant");
+    fs::copy(Source() / "deploy", dir.path / "deploy", fs::copy_options::recursive);
+    Replace(dir.path / "deploy" / m.file, m.from, m.to);
+    auto [mrc, mout] = CheckDeployCommands(dir.path / "deploy");
+    INFO(m.file << ": " << m.to << "\n" << mout);
+    CHECK(mrc == 1);
+    CHECK(mout.find("FAIL deploy/" + (m.fails.empty() ? m.file : m.fails)) != std::string::npos);
+    CHECK(mout.find(m.expect) != std::string::npos);
+  }
+  {  // ...and the Service's name, short or in full, resolves as in the cluster
+    TempDir dir("pf-deploy-names");
+    fs::copy(Source() / "deploy", dir.path / "deploy", fs::copy_options::recursive);
+    Replace(dir.path / "deploy/k8s/workers.yaml", "\"--stay\"]",
+            "\"--stay\", \"--discovery-server\", \"dds-discovery.poseforest.svc.cluster.local\"]");
+    Replace(dir.path / "deploy/k8s/coordinator.yaml", "\"--resume\",",
+            "\"--resume\", \"--discovery-server\", \"dds-discovery\",");
+    auto [mrc, mout] = CheckDeployCommands(dir.path / "deploy");
+    INFO(mout);
+    CHECK(mrc == 0);
+    CHECK(mout.find("--discovery-server dds-discovery.poseforest.svc.cluster.local -> 10.96.255.") !=
+          std::string::npos);
+    CHECK(mout.find("--discovery-server dds-discovery -> 10.96.255.") != std::string::npos);
+  }
+}

@@ -1,0 +1,359 @@
+// The distributed service in one process (coordinator + workers on threads, real DDS
+// participants over shared memory): byte-identical forests with 1, 2, 3 and 5 workers, a worker
+// stopped mid-job, a garbage writer, and a coordinator "crash" + resume from its checkpoint.
+
+#include <atomic>
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <random>
+
+#include "proto/dds/dds_node.h"
+#include "proto/dds/histogram_codec.h"
+#include "proto/dds/message_gate.h"
+#include "tests/coordinator/dist_test_util.h"
+#include "engine/wire_codec.h"
+#include "proto/dds/node_config.h"
+
+using namespace poseforest;
+using namespace poseforest::dist;
+using namespace poseforest::dist::testing;
+
+namespace {
+CoordinatorOptions Options(uint32_t domain, int min_workers) {
+  CoordinatorOptions o;
+  o.domain = domain;
+  o.min_workers = min_workers;
+  o.worker_wait = std::chrono::seconds(30);
+  if (!std::getenv("POSEFOREST_TEST_VERBOSE")) o.log = [](const std::string&) {};
+  return o;
+}
+}  // namespace
+
+TEST_CASE("distributed forest is byte-identical to LocalTrainer with 1, 2, 3 and 5 workers",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText());
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  for (int n : {1, 2, 3, 5}) {
+    DYNAMIC_SECTION(n << " workers") {
+      const uint32_t domain = Domain(uint32_t(n));
+      const std::string job_id = "t-identical-" + std::to_string(n);
+      ThreadWorkers workers(n, domain, job_id);
+      CoordinatorOptions o = Options(domain, n);
+      o.job_id = job_id;
+      std::vector<DistLevelStats> levels;
+      o.progress = [&](const DistLevelStats& s) { levels.push_back(s); };
+      DistCoordinator coordinator(job.config, job.params, o);
+      auto forest = coordinator.Train();
+      REQUIRE(forest.ok());
+      CHECK(core::SerializeForest(*forest) == reference);
+      REQUIRE(!levels.empty());
+      CHECK(levels.front().workers_alive == n);
+      CHECK(levels.front().workers_assigned == n);  // every worker holds frames
+      CHECK(levels.front().bytes_received > 0);
+      CHECK(coordinator.workers_lost() == 0);
+    }
+  }
+}
+
+TEST_CASE("a worker stopped mid-tree: its frames move to the others, same forest",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText());
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(7);
+  const std::string job_id = "t-loss";
+  ThreadWorkers workers(3, domain, job_id);
+  CoordinatorOptions o = Options(domain, 3);
+  o.job_id = job_id;
+  o.heartbeat_timeout = std::chrono::milliseconds(2000);
+  bool stopped = false;
+  int retries = 0;
+  o.progress = [&](const DistLevelStats& s) {
+    retries += s.retries;
+    if (!stopped && s.tree == 0 && s.level == 1) {
+      workers.Stop(1);  // its participant goes away between two levels
+      stopped = true;
+    }
+  };
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  REQUIRE(forest.ok());
+  CHECK(stopped);
+  CHECK(coordinator.workers_lost() == 1);
+  CHECK(retries >= 1);
+  CHECK(core::SerializeForest(*forest) == reference);
+}
+
+TEST_CASE("a garbage writer on the replies and presence topics does not break the job",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(1, 5));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(11);
+  const std::string job_id = "t-garbage";
+  ThreadWorkers workers(2, domain, job_id);
+  dds::NodeConfig gc;
+  gc.domain_id = domain;
+  gc.participant_name = "garbage";
+  gc.transport = dds::TransportKind::kSharedMemoryOnly;
+  gc.liveliness_lease = CoordinatorOptions{}.lease;  // a longer offered lease would not match
+  gc.write_topics = {dds::Topic::kReplies, dds::Topic::kPresence};
+  auto garbage = dds::DdsNode::Create(gc);
+  REQUIRE(garbage.ok());
+  std::atomic<bool> done{false};
+  std::atomic<int> sent{0}, sent_matched{0};  // sent_matched: while a reader was matched
+  std::thread writer([&] {
+    std::mt19937 rng(3);
+    dds::EnvelopeStamper stamper(job_id, "evil", v1::SENDER_KIND_WORKER);
+    int i = 0;
+    while (!done) {
+      std::string bytes;
+      switch (i++ % 3) {
+        case 0: {  // random bytes
+          bytes.resize(1 + rng() % 300);
+          for (char& c : bytes) c = char(rng());
+          break;
+        }
+        case 1: {  // a well-formed envelope with impossible dimensions
+          v1::Envelope env;
+          auto* h = env.mutable_histogram();
+          h->set_epoch(1);
+          h->set_num_candidates(100000);
+          bytes = stamper.Seal(dds::Topic::kReplies, env);
+          break;
+        }
+        default: {  // a hello with an invalid capacity
+          v1::Envelope env;
+          env.mutable_hello()->mutable_capacity()->set_threads(0);
+          bytes = stamper.Seal(dds::Topic::kPresence, env);
+        }
+      }
+      const dds::Topic topic = i % 3 == 0 ? dds::Topic::kPresence : dds::Topic::kReplies;
+      const bool matched = (*garbage)->MatchedReaders(topic) > 0;
+      (void)(*garbage)->Publish(topic, bytes);
+      ++sent;
+      if (matched) ++sent_matched;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  CoordinatorOptions o = Options(domain, 2);
+  o.job_id = job_id;
+  // A volatile writer's samples before the match are lost, and matching can take seconds on a
+  // loaded machine (once the whole job was over first: 0 rejected). After the first level, wait
+  // until the garbage has been flowing to a matched reader for a while.
+  bool waited = false;
+  o.progress = [&](const DistLevelStats&) {
+    if (waited) return;
+    waited = true;
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (sent_matched < 60 && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  };
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  done = true;
+  writer.join();
+  REQUIRE(forest.ok());
+  CHECK(core::SerializeForest(*forest) == reference);
+  CHECK(sent_matched >= 60);
+  CHECK(coordinator.rejected_messages() > 0);
+}
+
+TEST_CASE("coordinator stopped after a few levels resumes from its checkpoint: same forest",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText());
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(13);
+  const std::string job_id = "t-resume";
+  const auto dir = std::filesystem::temp_directory_path() / ("pf-dist-ckpt-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  ThreadWorkers workers(2, domain, job_id);
+  // Inside tree 0; after tree 0's last level (7 levels: 0..6); inside tree 1.
+  for (int stop_after : {3, 7, 9}) {
+    DYNAMIC_SECTION("stop after " << stop_after << " levels") {
+      std::filesystem::remove_all(dir);
+      CoordinatorOptions o = Options(domain, 2);
+      o.job_id = job_id;
+      o.checkpoint_dir = dir.string();
+      o.stop_after_levels = stop_after;
+      {
+        DistCoordinator first(job.config, job.params, o);
+        auto r = first.Train();
+        REQUIRE(!r.ok());
+        CHECK(r.status().message().find("test hook") != std::string::npos);
+      }
+      o.stop_after_levels = -1;
+      o.resume = true;
+      DistCoordinator second(job.config, job.params, o);
+      auto forest = second.Train();
+      REQUIRE(forest.ok());
+      CHECK(core::SerializeForest(*forest) == reference);
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("a worker joining mid-job gets frames at the next tree", "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(2, 5));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(17);
+  const std::string job_id = "t-late";
+  ThreadWorkers workers(1, domain, job_id);
+  CoordinatorOptions o = Options(domain, 1);
+  o.job_id = job_id;
+  o.min_workers_per_tree = {1, 2};
+  bool added = false;
+  int assigned_tree1 = 0;
+  o.progress = [&](const DistLevelStats& s) {
+    if (!added && s.tree == 0 && s.level == 1) {
+      CHECK(s.workers_assigned == 1);
+      workers.Add(domain, job_id, "tw-late");
+      added = true;
+    }
+    if (s.tree == 1) assigned_tree1 = std::max(assigned_tree1, s.workers_assigned);
+  };
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  REQUIRE(forest.ok());
+  CHECK(added);
+  CHECK(assigned_tree1 == 2);
+  CHECK(core::SerializeForest(*forest) == reference);
+}
+
+TEST_CASE("a registered worker that sends bad replies is evicted; its frames go to the others",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(1, 5));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(19);
+  const std::string job_id = "t-evict";
+  ThreadWorkers workers(2, domain, job_id);
+  dds::NodeConfig gc;
+  gc.domain_id = domain;
+  gc.participant_name = "liar";
+  gc.transport = dds::TransportKind::kSharedMemoryOnly;
+  gc.liveliness_lease = CoordinatorOptions{}.lease;  // a longer offered lease would not match
+  gc.write_topics = {dds::Topic::kReplies, dds::Topic::kPresence};
+  gc.read_topics = {dds::Topic::kControl};
+  auto liar = dds::DdsNode::Create(gc);
+  REQUIRE(liar.ok());
+  std::atomic<bool> done{false};
+  std::thread writer([&] {
+    dds::EnvelopeStamper stamper(job_id, "liar", v1::SENDER_KIND_WORKER);
+    bool assigned = false;
+    while (!done) {
+      uint64_t request_epoch = 0;
+      while (auto s = (*liar)->Receive(std::chrono::milliseconds(0))) {
+        v1::Envelope in;
+        if (!in.ParseFromArray(s->bytes.data(), int(s->bytes.size()))) continue;
+        if (in.has_shard() && in.recipient_id() == "liar") assigned = true;
+        if (in.has_level_request()) request_epoch = in.level_request().epoch();
+      }
+      // Presence stays valid (a proper hello, then heartbeats), so only the gate can catch it.
+      v1::Envelope presence;
+      auto* cap = assigned ? presence.mutable_heartbeat()->mutable_capacity()
+                           : presence.mutable_hello()->mutable_capacity();
+      cap->set_threads(1);
+      cap->set_renderer(v1::RENDERER_KIND_PROCEDURAL);
+      (void)(*liar)->Publish(dds::Topic::kPresence, stamper.Seal(dds::Topic::kPresence, presence));
+      for (int i = 0; request_epoch != 0 && i < 20; ++i) {  // answers of the wrong shape
+        v1::Envelope env;
+        auto* h = env.mutable_histogram();
+        h->set_epoch(request_epoch);
+        h->set_num_candidates(1);
+        h->set_num_bins(2);
+        h->set_num_parts(31);
+        (void)(*liar)->Publish(dds::Topic::kReplies, stamper.Seal(dds::Topic::kReplies, env));
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  });
+  CoordinatorOptions o = Options(domain, 3);
+  o.job_id = job_id;
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  done = true;
+  writer.join();
+  INFO(forest.status().ToString());
+  REQUIRE(forest.ok());
+  CHECK(core::SerializeForest(*forest) == reference);
+  CHECK(coordinator.workers_lost() == 1);
+  CHECK(coordinator.rejected_messages() > 16);
+}
+
+TEST_CASE("EncodeWireRuns gives the runs of EncodeHistogramRuns(ToWireCounts(...)) to the value",
+          "[distributed][unit]") {
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int k = 1 + int(rng() % 40), bins = 2 + int(rng() % 20);
+    std::vector<uint64_t> part_counts(core::kNumParts, 0);
+    const int present = 1 + int(rng() % core::kNumParts);
+    for (int i = 0; i < present; ++i) part_counts[rng() % core::kNumParts] = 1;
+    worker::NodePlan plan;
+    plan.SetParts(part_counts);
+    const bool per_sample = trial % 3 == 0;
+    worker::NodeHistogram h;
+    h.Reset(uint32_t(trial), k, bins, plan.num_slots, per_sample);
+    // Densities from empty to full, so that runs, isolated zeros and long gaps all occur.
+    const uint32_t density = rng() % 101;
+    if (per_sample) {
+      const int n = int(rng() % 50);
+      for (int i = 0; i < n; ++i) {
+        h.sample_slot.push_back(uint8_t(rng() % uint32_t(plan.num_slots)));
+        for (int c = 0; c < k; ++c) h.sample_bin.push_back(uint8_t(rng() % uint32_t(bins)));
+      }
+    } else {
+      for (uint32_t& c : h.counts)
+        if (rng() % 100 < density) c = 1 + rng() % (trial % 2 ? 3 : 100000);
+    }
+    google::protobuf::RepeatedField<uint64_t> direct, reference;
+    EncodeWireRuns(h, plan, core::kNumParts, &direct);
+    dds::EncodeHistogramRuns(ToWireCounts(h, plan, core::kNumParts), &reference);
+    INFO("trial " << trial << ": " << k << " candidates, " << bins << " bins, " << plan.num_slots << " slots"
+                  << (per_sample ? ", per-sample bins" : ""));
+    REQUIRE(std::vector<uint64_t>(direct.begin(), direct.end()) ==
+            std::vector<uint64_t>(reference.begin(), reference.end()));
+  }
+}
+
+TEST_CASE("DistWorker without an id gets worker-HOST-PID-RANDOM, a different one each time",
+          "[distributed][unit]") {
+  WorkerOptions none;
+  none.log = [](const std::string&) {};
+  DistWorker a(none), b(none);
+  const std::string pid = "-" + std::to_string(::getpid()) + "-";
+  for (const std::string& id : {a.id(), b.id()}) {
+    INFO(id);
+    CHECK(id.rfind("worker-", 0) == 0);
+    const size_t at = id.rfind(pid);
+    REQUIRE(at != std::string::npos);
+    const std::string suffix = id.substr(at + pid.size());
+    CHECK(suffix.size() == 6);
+    CHECK(suffix.find_first_not_of("0123456789abcdef") == std::string::npos);
+  }
+  CHECK(a.id() != b.id());  // two workers of one process are two workers to the coordinator
+  CHECK(DefaultWorkerId() != DefaultWorkerId());
+  WorkerOptions named;
+  named.worker_id = "w-7";
+  CHECK(DistWorker(named).id() == "w-7");
+}
+
+TEST_CASE("discovery server lists: [ID@]IP[:PORT], GUID prefixes of fast-discovery-server -i ID",
+          "[distributed][unit]") {
+  CHECK(dds::DiscoveryServerGuidPrefix(0) == "44.53.00.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(dds::DiscoveryServerGuidPrefix(1) == "44.53.01.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(dds::DiscoveryServerGuidPrefix(200) == "44.53.c8.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(dds::DiscoveryServerGuidPrefix(256).empty());
+  auto list = dds::ParseDiscoveryServers("10.0.0.1,3@10.0.0.2:7000,0@10.0.0.3:11811x");
+  REQUIRE_FALSE(list.ok());
+  CHECK(list.status().message().find("'0@10.0.0.3:11811x' has port '11811x'") != std::string::npos);
+  list = dds::ParseDiscoveryServers("10.0.0.1,3@10.0.0.2:7000,,");
+  REQUIRE(list.ok());
+  REQUIRE(list->size() == 2);
+  CHECK((*list)[0].id == 0);
+  CHECK_FALSE((*list)[0].id_given);
+  CHECK((*list)[0].port == 11811);
+  CHECK((*list)[1].id == 3);
+  CHECK((*list)[1].id_given);
+  CHECK((*list)[1].host == "10.0.0.2");
+  CHECK((*list)[1].port == 7000);
+  CHECK(dds::FormatDiscoveryServers(*list) == "10.0.0.1:11811,3@10.0.0.2:7000");
+  CHECK(dds::FormatDiscoveryServers(*dds::ParseDiscoveryServers("0@10.0.0.1")) == "10.0.0.1:11811");
+}

@@ -1,0 +1,265 @@
+// Job configs: text format parsing, defaults, and clear errors naming the field.
+#include <catch2/catch.hpp>
+#include <fstream>
+
+#include "poseforest/v1/job.pb.h"
+#include "tests/support/paths.h"
+#include "engine/job_spec.h"
+
+using namespace poseforest;
+
+namespace {
+
+core::Result<worker::TrainParams> Parse(const std::string& text) {
+  auto config = worker::ParseJobText(text, "job.textproto");
+  if (!config.ok()) return config.status();
+  return worker::ParamsFromConfig(*config, "job.textproto");
+}
+
+std::string ErrorOf(const std::string& text) {
+  auto p = Parse(text);
+  REQUIRE_FALSE(p.ok());
+  CHECK(p.status().code() == core::ErrorCode::kInvalidArgument);
+  return p.status().message();
+}
+
+}  // namespace
+
+TEST_CASE("a minimal job gets the paper's defaults", "[training][config]") {
+  auto p = Parse("images_per_tree: 10 source { procedural { seed: 4 } }");
+  REQUIRE(p.ok());
+  CHECK(p->num_trees == 3);
+  CHECK(p->max_depth == 20);
+  CHECK(p->pixels_per_image == 2000);
+  CHECK(p->candidate_features == 2000);
+  CHECK(p->thresholds_per_feature == 50);
+  CHECK(p->max_probe_offset_pixel_m == 129.0);
+  CHECK(p->max_offset_units() == 129 * 32);
+  CHECK(p->source.kind == worker::SourceKind::kProcedural);
+  CHECK(p->source.seed == 4);
+  CHECK_FALSE(p->has_test_set);
+}
+
+TEST_CASE("a full job parses every field", "[training][config]") {
+  auto p = Parse(R"(
+    seed: 42 num_trees: 2 max_depth: 12 images_per_tree: 100 pixels_per_image: 500
+    candidate_features: 300 thresholds_per_feature: 20 max_probe_offset_pixel_m: 60
+    min_samples_split: 4 min_gain: 0.01 threads: 2 threshold_reference_pixels: 100
+    part_balance: 0.5 histogram_memory_mb: 64
+    source { rendered { seed: 7 rotation_range_deg: 180 max_people: 2 kinect_noise: false } }
+    test_set { source { dataset { folder: "/tmp/test" count: 10 } } num_images: 10 }
+  )");
+  REQUIRE(p.ok());
+  CHECK(p->seed == 42);
+  CHECK(p->max_depth == 12);
+  CHECK(p->min_gain == 0.01);
+  CHECK(p->histogram_memory_bytes == (uint64_t(64) << 20));
+  CHECK(p->source.kind == worker::SourceKind::kRendered);
+  CHECK(p->source.rotation_range_deg == 180.0);
+  CHECK(p->source.max_people == 2);
+  CHECK_FALSE(p->source.kinect_noise);
+  REQUIRE(p->has_test_set);
+  CHECK(p->test_source.kind == worker::SourceKind::kDataset);
+  CHECK(p->test_source.folder == "/tmp/test");
+  CHECK(p->test_images == 10);
+}
+
+TEST_CASE("bad configs give errors naming the field", "[training][config]") {
+  const std::string src = " source { procedural { } }";
+  CHECK_THAT(ErrorOf("source { procedural { } }"),
+             Catch::Contains("images_per_tree") && Catch::Contains("required"));
+  CHECK_THAT(ErrorOf("images_per_tree: 0" + src), Catch::Contains("images_per_tree = 0"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 thresholds_per_feature: 300" + src),
+             Catch::Contains("thresholds_per_feature = 300") && Catch::Contains("1..255"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 max_probe_offset_pixel_m: -1" + src),
+             Catch::Contains("max_probe_offset_pixel_m"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 max_probe_offset_pixel_m: 5000" + src),
+             Catch::Contains("max_probe_offset_pixel_m"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 max_depth: 0" + src), Catch::Contains("max_depth"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 num_trees: 0" + src), Catch::Contains("num_trees"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 min_samples_split: 1" + src), Catch::Contains("min_samples_split"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 min_gain: -0.5" + src), Catch::Contains("min_gain"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 part_balance: 2" + src), Catch::Contains("part_balance"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5"), Catch::Contains("source") && Catch::Contains("required"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { dataset { } }"), Catch::Contains("source.dataset.folder"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { procedural { num_parts: 1 } }"),
+             Catch::Contains("source.procedural.num_parts"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { rotation_range_deg: 400 } }"),
+             Catch::Contains("source.rendered.rotation_range_deg"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5" + src + " test_set { num_images: 3 }"),
+             Catch::Contains("test_set.source"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5000000 pixels_per_image: 2000" + src), Catch::Contains("2^31"));
+  // Syntax errors and unknown fields name the file and the position.
+  CHECK_THAT(ErrorOf("images_per_tree: 5 no_such_field: 3" + src),
+             Catch::Contains("job.textproto") && Catch::Contains("line 1"));
+  CHECK_THAT(ErrorOf("images_per_tree: {"), Catch::Contains("job.textproto: not a valid"));
+}
+
+TEST_CASE("LoadJob reads a file and names it in errors", "[training][config]") {
+  const auto dir = testing::ScratchDir("job-config");
+  const auto path = (dir / "job.textproto").string();
+  std::ofstream(path) << "# a comment\nimages_per_tree: 3\nsource { procedural { seed: 9 } }\n";
+  auto p = worker::LoadJob(path);
+  REQUIRE(p.ok());
+  CHECK(p->images_per_tree == 3);
+  auto missing = worker::LoadJob((dir / "missing.textproto").string());
+  REQUIRE_FALSE(missing.ok());
+  CHECK(missing.status().code() == core::ErrorCode::kIo);
+  CHECK_THAT(missing.status().message(), Catch::Contains("missing.textproto"));
+  std::ofstream(path) << "images_per_tree: 3\nthresholds_per_feature: 0\nsource { procedural { } }\n";
+  auto bad = worker::LoadJob(path);
+  REQUIRE_FALSE(bad.ok());
+  CHECK_THAT(bad.status().message(), Catch::Contains(path) && Catch::Contains("thresholds_per_feature"));
+}
+
+TEST_CASE("mocap pose library and MakeHuman options parse, with paths relative to the job file",
+          "[training][config][mocap]") {
+  const auto dir = testing::ScratchDir("job-config-mocap");
+  std::filesystem::create_directories(dir / "poses");
+  std::filesystem::create_directories(dir / "kit");
+  std::ofstream(dir / "poses" / "lib.pfposes") << "not parsed here";
+  const auto path = (dir / "job.textproto").string();
+  std::ofstream(path) << R"(images_per_tree: 3
+source { rendered { pose_library: "poses/lib.pfposes" clips: CLIP_SET_TRAIN test_fraction: 0.25
+                    split_seed: 9 makehuman_kit: "kit" procedural_bodies: false } }
+test_set { source { rendered { pose_library: "poses/lib.pfposes" clips: CLIP_SET_TEST } } }
+)";
+  auto p = worker::LoadJob(path);
+  REQUIRE(p.ok());
+  CHECK(p->source.pose_library == (dir / "poses" / "lib.pfposes").string());
+  CHECK(p->source.clips == worker::ClipSet::kTrain);
+  CHECK(p->source.test_fraction == 0.25);
+  CHECK(p->source.split_seed == 9);
+  CHECK(p->source.makehuman_kit == (dir / "kit").string());
+  CHECK_FALSE(p->source.procedural_bodies);
+  REQUIRE(p->has_test_set);
+  CHECK(p->test_source.clips == worker::ClipSet::kTest);
+  CHECK(p->test_source.test_fraction == 0.2);  // defaults
+  CHECK(p->test_source.split_seed == 0);
+  CHECK(p->test_source.procedural_bodies);
+  CHECK(p->test_source.makehuman_kit.empty());
+
+  // Without options: procedural poses and bodies, as before.
+  auto plain = Parse("images_per_tree: 5 source { rendered { } }");
+  REQUIRE(plain.ok());
+  CHECK(plain->source.pose_library.empty());
+  CHECK(plain->source.clips == worker::ClipSet::kAll);
+  CHECK(plain->source.procedural_bodies);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("bad mocap options give errors naming the field and the path", "[training][config][mocap]") {
+  const std::string missing = "/nonexistent/poses/lib.pfposes";
+  const std::string e =
+      ErrorOf("images_per_tree: 5 source { rendered { pose_library: \"" + missing + "\" } }");
+  CHECK_THAT(e, Catch::Contains("source.rendered.pose_library") && Catch::Contains(missing) &&
+                    Catch::Contains("no such file"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { procedural { } } test_set { source { rendered { "
+                     "pose_library: \"" +
+                     missing + "\" } } }"),
+             Catch::Contains("test_set.source.rendered.pose_library") && Catch::Contains(missing));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { makehuman_kit: \"/nonexistent/kit\" } }"),
+             Catch::Contains("source.rendered.makehuman_kit") && Catch::Contains("/nonexistent/kit"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { clips: CLIP_SET_TEST } }"),
+             Catch::Contains("source.rendered.pose_library") && Catch::Contains("required"));
+  CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { procedural_bodies: false } }"),
+             Catch::Contains("source.rendered.procedural_bodies"));
+  const auto dir = testing::ScratchDir("job-config-mocap-bad");
+  const auto lib = (dir / "lib.pfposes").string();
+  std::ofstream(lib) << "x";
+  CHECK_THAT(
+      ErrorOf("images_per_tree: 5 source { rendered { pose_library: \"" + lib + "\" test_fraction: 1.5 } }"),
+      Catch::Contains("source.rendered.test_fraction = 1.5"));
+  // A relative path that does not exist next to the job file: the error names the resolved path.
+  const auto job = (dir / "job.textproto").string();
+  std::ofstream(job) << "images_per_tree: 3 source { rendered { pose_library: \"nope.pfposes\" } }\n";
+  auto bad = worker::LoadJob(job);
+  REQUIRE_FALSE(bad.ok());
+  CHECK_THAT(bad.status().message(), Catch::Contains(job) &&
+                                         Catch::Contains("source.rendered.pose_library") &&
+                                         Catch::Contains((dir / "nope.pfposes").string()));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("body_meshes name rigged meshes, with paths relative to the job file",
+          "[training][config][mesh][data]") {
+  namespace fs = std::filesystem;
+  const auto dir = testing::ScratchDir("job-config-meshes");
+  // The job's folder sees the shared meshes as meshes/ (a link: shared data is never copied).
+  fs::create_directory_symlink(testing::DataDir() / "meshes", dir / "meshes");
+  const fs::path cesium = testing::DataDir() / "meshes" / "cesium_man" / "CesiumMan.glb";
+  const auto path = (dir / "job.textproto").string();
+  std::ofstream(path)
+      << "images_per_tree: 3\n"
+         "source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\"\n"
+         "                    body_meshes: \""
+      << cesium.string()
+      << "\" procedural_bodies: false } }\n"
+         "test_set { source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } } }\n";
+  auto p = worker::LoadJob(path);
+  REQUIRE(p.ok());
+  // Job order, relative paths against the job's folder, absolute ones as given.
+  REQUIRE(p->source.body_meshes.size() == 2);
+  CHECK(p->source.body_meshes[0] == (dir / "meshes" / "cesium_man" / "CesiumMan.glb").string());
+  CHECK(p->source.body_meshes[1] == cesium.string());
+  CHECK_FALSE(p->source.procedural_bodies);  // the meshes are bodies enough
+  CHECK(worker::DescribeBodies(p->source) == "mesh CesiumMan.glb + mesh CesiumMan.glb");
+  REQUIRE(p->has_test_set);
+  REQUIRE(p->test_source.body_meshes.size() == 1);
+  CHECK(p->test_source.procedural_bodies);
+  CHECK(worker::DescribeBodies(p->test_source) == "mesh CesiumMan.glb + procedural");
+  CHECK(worker::DescribeBodies(worker::SourceSpec{}) == "");
+  fs::remove_all(dir);
+}
+
+TEST_CASE("body_meshes that cannot be bodies are refused naming the field and the file",
+          "[training][config][mesh][data]") {
+  namespace fs = std::filesystem;
+  const auto dir = testing::ScratchDir("job-config-meshes-bad");
+  auto job_error = [&](const std::string& meshes) {
+    const auto path = (dir / "job.textproto").string();
+    std::ofstream(path) << "images_per_tree: 3 source { procedural { } }\n"
+                           "test_set { source { rendered { "
+                        << meshes << " procedural_bodies: false } } }\n";
+    auto p = worker::LoadJob(path);
+    REQUIRE_FALSE(p.ok());
+    CHECK(p.status().code() == core::ErrorCode::kInvalidArgument);
+    CHECK_THAT(p.status().message(), Catch::Contains(path));
+    return p.status().message();
+  };
+  SECTION("a missing file (relative: the error names the resolved path)") {
+    CHECK_THAT(job_error("body_meshes: \"bodies/nope.glb\""),
+               Catch::Contains("test_set.source.rendered.body_meshes[0]") &&
+                   Catch::Contains((dir / "bodies" / "nope.glb").string()) &&
+                   Catch::Contains("no such file"));
+  }
+  SECTION("a folder") {
+    CHECK_THAT(job_error("body_meshes: \"" + dir.string() + "\""),
+               Catch::Contains("body_meshes[0]") && Catch::Contains("is not a file"));
+  }
+  SECTION("an empty path") {
+    CHECK_THAT(job_error("body_meshes: \"\""), Catch::Contains("body_meshes[0]") && Catch::Contains("empty"));
+  }
+#if POSEFOREST_HAS_RENDERER
+  const fs::path cesium = testing::DataDir() / "meshes" / "cesium_man" / "CesiumMan.glb";
+  SECTION("a mesh without bones (the staged MakeHuman m07 OBJ), after a good one") {
+    const fs::path obj = testing::DataDir() / "meshes" / "makehuman_m07_pcl_bodypart_labels" / "base_m07.obj";
+    CHECK_THAT(job_error("body_meshes: \"" + cesium.string() + "\" body_meshes: \"" + obj.string() + "\""),
+               Catch::Contains("test_set.source.rendered.body_meshes[1]") && Catch::Contains(obj.string()) &&
+                   Catch::Contains("cannot be a body") && Catch::Contains("no skinned mesh"));
+  }
+  SECTION("a file that is no mesh at all") {
+    const fs::path text = testing::DataDir() / "meshes" / "cesium_man" / "LICENSE.md";
+    CHECK_THAT(job_error("body_meshes: \"" + text.string() + "\""),
+               Catch::Contains("body_meshes[0]") && Catch::Contains(text.string()) &&
+                   Catch::Contains("cannot be a body") && Catch::Contains("Assimp cannot read it"));
+  }
+  SECTION("junk named .glb") {
+    const fs::path junk = dir / "junk.glb";
+    std::ofstream(junk) << "this is not a mesh at all";
+    CHECK_THAT(job_error("body_meshes: \"junk.glb\""),
+               Catch::Contains(junk.string()) && Catch::Contains("Assimp cannot read it"));
+  }
+#endif
+  fs::remove_all(dir);
+}

@@ -1,0 +1,140 @@
+// `poseforest worker`: a worker process of the training service (worker/dist_worker.h).
+#include <signal.h>
+#include <sys/prctl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdio>
+#include <limits>
+#include <string>
+
+#include "engine/cli/job_dds.h"
+#include "proto/dds/dds_flags.h"
+#include "proto/dds/node_config.h"
+#include "runtime/cli/args.h"
+#include "runtime/cli/commands.h"
+#include "worker/dist_worker.h"
+
+namespace poseforest::cli {
+
+using core::Status;
+
+namespace {
+std::atomic<poseforest::dist::DistWorker*> g_worker{nullptr};
+void OnWorkerSignal(int) {
+  if (auto* w = g_worker.load()) w->Stop();
+}
+}  // namespace
+
+int WorkerMain(int argc, char** argv) {
+  Args args(WithDdsOptions({"domain", "threads", "job", "job-file", "id", "task-cache-mb", "parent-pid"}),
+            {"stay", "exit-with-parent", "check-config", "help"});
+  if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
+    if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
+    std::fprintf(stderr,
+                 "usage: poseforest worker [--domain D] [--threads N] [--job ID] [--id NAME] [DDS transport flags]\n"
+                 "         [--job-file JOB.textproto]   (the job's id (unless --job) and its dds section: domain\n"
+                 "          and transport, used where the command line gives none; the coordinator's job file,\n"
+                 "          at the same path when the job names relative files)\n"
+                 "         (--id: the sender id, unique per job; default worker-HOST-PID-RANDOM)\n"
+                 "         [--stay]   (keep serving jobs after one is done)\n"
+                 "         [--exit-with-parent [--parent-pid PID]]   (exit when the process that started this\n"
+                 "          one exits; PID: that process, checked at start; `coordinator --local-workers` passes both)\n"
+                 "         [--task-cache-mb M]   (frames of other shards kept between subtree tasks of a\n"
+                 "          tree, least recently used dropped first; default 0 = auto: every frame of a tree,\n"
+                 "          at most an eighth of this machine's memory, at least 256 MiB)\n"
+                 "         [--check-config]   (parse the flags, load the XML profile and the security files,\n"
+                 "          print what would run and exit 0, without joining DDS; 2 on a bad setting)\n"
+                 "%s",
+                 kDdsUsage);
+    return args.Has("help") ? 0 : 2;
+  }
+  // --job-file: the job id and the job's DDS settings (its dds section) from the coordinator's job.
+  JobDds job_dds;
+  std::string job_id = args.GetOr("job", "");
+  if (args.Has("job-file")) {
+    const std::string job_path = *args.Get("job-file");
+    auto config = ReadJobConfig(job_path);  // resolved as the coordinator does: the same job id
+    if (!config.ok()) {
+      std::fprintf(stderr, "worker: --job-file: %s\n",
+                   (config.status().code() == core::ErrorCode::kIo ? config.status().message()
+                                                                   : config.status().ToString())
+                       .c_str());
+      return 2;
+    }
+    auto defaults = JobDdsDefaults(*config, job_path, args);
+    if (!defaults.ok()) {
+      std::fprintf(stderr, "worker: %s\n", defaults.status().message().c_str());
+      return 2;
+    }
+    job_dds = std::move(*defaults);
+    if (job_id.empty()) job_id = dist::DefaultJobId(*config);
+  }
+  auto domain = args.GetInt("domain", job_dds.values.count("domain") ? std::stol(job_dds.values["domain"]) : 0, 0, 232);
+  auto threads = args.GetInt("threads", 1, 1, 1024);
+  auto task_cache_mb = args.GetInt("task-cache-mb", 0, 0, 1 << 20);
+  auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return job_dds.Get(args, name); });
+  if (!domain.ok() || !threads.ok() || !task_cache_mb.ok() || !dds_flags.ok()) {
+    std::fprintf(stderr, "worker: %s\n",
+                 (!domain.ok()           ? domain.status()
+                  : !threads.ok()        ? threads.status()
+                  : !task_cache_mb.ok()  ? task_cache_mb.status()
+                                         : job_dds.Explain(dds_flags.status()))
+                     .message()
+                     .c_str());
+    return 2;
+  }
+  if (args.Has("check-config")) {
+    std::printf("worker config ok: id %s, job %s, %ld threads; DDS domain %ld, %s\n",
+                args.GetOr("id", "(worker-HOST-PID-RANDOM)").c_str(), job_id.empty() ? "(any)" : job_id.c_str(), *threads,
+                *domain, dds_flags->Describe().c_str());
+    return 0;
+  }
+  if (!dds_flags->resolved.empty())  // resolved once: a name that moves later is not followed
+    std::fprintf(stderr, "DDS host names resolved at start-up: %s\n", dds_flags->ResolvedText().c_str());
+  dist::WorkerOptions opt;
+  opt.udp_peers = dds_flags->peers;
+  opt.udp_interfaces = dds_flags->interfaces;
+  opt.transport_extras = dds_flags->extras;
+  opt.worker_id = args.GetOr("id", "");
+  if (opt.worker_id.empty()) opt.worker_id = dist::DefaultWorkerId();  // worker-HOST-PID-RANDOM
+  opt.domain = uint32_t(*domain);
+  opt.transport = dds_flags->transport;
+  opt.threads = int(*threads);
+  opt.task_cache_bytes = uint64_t(*task_cache_mb) << 20;
+  opt.job_id = job_id;
+  opt.exit_when_done = !args.Has("stay");
+  dist::DistWorker worker(opt);
+  g_worker = &worker;
+  struct sigaction sa = {};
+  sa.sa_handler = OnWorkerSignal;
+  ::sigaction(SIGTERM, &sa, nullptr);
+  ::sigaction(SIGINT, &sa, nullptr);
+  // Started by `coordinator --local-workers`: go when the coordinator goes, even on SIGKILL.
+  if (args.Has("exit-with-parent")) {
+    ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+    // The parent may have gone before prctl: then this process was re-parented. Without
+    // --parent-pid, pid 1 stands for "re-parented" (wrong when the parent is pid 1 itself, as a
+    // coordinator that is a container's entrypoint; it passes --parent-pid).
+    auto parent = args.GetInt("parent-pid", 0, 0, std::numeric_limits<int32_t>::max());
+    if (!parent.ok()) {
+      std::fprintf(stderr, "worker: %s\n", parent.status().message().c_str());
+      return 2;
+    }
+    const pid_t expected = *parent > 0 ? pid_t(*parent) : pid_t(0);
+    if (expected > 0 ? ::getppid() != expected : ::getppid() == 1) {
+      std::fprintf(stderr, "worker: the process that started it (%s) is gone; exiting\n",
+                   expected > 0 ? ("pid " + std::to_string(expected)).c_str() : "its parent");
+      return 0;
+    }
+  }
+  Status st = worker.Run();
+  g_worker = nullptr;
+  if (!st.ok()) {
+    std::fprintf(stderr, "worker: %s\n", st.ToString().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace poseforest::cli
