@@ -83,13 +83,13 @@
 #include <google/protobuf/text_format.h>
 
 #include "coordinator/dist_coordinator.h"
+#include "engine/job_spec.h"
 #include "engine/local_trainer.h"
 #include "poseforest/v1/job.pb.h"
-#include "runtime/core/forest_format.h"
 #include "proto/dds/node_config.h"
-#include "worker/dist_worker.h"
-#include "engine/job_spec.h"
+#include "runtime/core/forest_format.h"
 #include "runtime/core/malloc_tuning.h"
+#include "worker/dist_worker.h"
 
 extern char** environ;
 

@@ -12,13 +12,13 @@
 #include <vector>
 
 #include "engine/evaluation.h"
+#include "engine/image_source.h"
+#include "engine/job_spec.h"
 #include "engine/local_trainer.h"
+#include "poseforest/v1/job.pb.h"
 #include "runtime/classifier.h"
 #include "runtime/core/feature.h"
 #include "runtime/core/forest_format.h"
-#include "engine/image_source.h"
-#include "poseforest/v1/job.pb.h"
-#include "engine/job_spec.h"
 
 using namespace poseforest;
 

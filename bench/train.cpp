@@ -26,13 +26,13 @@
 #include <fstream>
 #include <string>
 
-#include "engine/local_trainer.h"
-#include "runtime/core/rng.h"
 #include "engine/candidates.h"
 #include "engine/histogram_builder.h"
 #include "engine/image_source.h"
+#include "engine/local_trainer.h"
 #include "engine/sample_set.h"
 #include "runtime/core/malloc_tuning.h"
+#include "runtime/core/rng.h"
 
 using namespace poseforest;
 

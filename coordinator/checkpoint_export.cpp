@@ -5,12 +5,12 @@
 #include <fstream>
 #include <iterator>
 
+#include "engine/job_spec.h"
 #include "engine/tree_assembler.h"
 #include "poseforest/v1/checkpoint.pb.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/core/forest_format.h"
-#include "engine/job_spec.h"
 
 namespace poseforest::dist {
 

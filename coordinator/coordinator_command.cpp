@@ -1,5 +1,5 @@
-// `poseforest coordinator` and `poseforest worker`: thin wrappers around DistCoordinator and
-// DistWorker (docs/distributed/service.md).
+// `poseforest coordinator` (and `train --local-workers N`, which starts N worker processes of
+// this program): a thin wrapper around DistCoordinator (docs/distributed/service.md).
 
 #include <signal.h>
 #include <spawn.h>
@@ -25,17 +25,16 @@
 #include <vector>
 
 #include "coordinator/checkpoint_export.h"
-#include "coordinator/monitoring/coordinator_monitoring.h"
 #include "coordinator/dist_coordinator.h"
+#include "coordinator/monitoring/coordinator_monitoring.h"
 #include "coordinator/monitoring/http_server.h"
+#include "engine/cli/job_dds.h"
+#include "engine/job_spec.h"
 #include "poseforest/v1/job.pb.h"
+#include "proto/dds/node_config.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
 #include "runtime/core/forest_format.h"
-#include "proto/dds/node_config.h"
-#include "engine/cli/job_dds.h"
-#include "worker/dist_worker.h"
-#include "engine/job_spec.h"
 
 extern char** environ;
 

@@ -15,19 +15,20 @@
 #include <sstream>
 #include <tuple>
 
+#include "engine/candidates.h"
+#include "engine/histogram_builder.h"
+#include "engine/job_spec.h"
 #include "engine/split_search.h"
 #include "engine/subtree_trainer.h"
 #include "engine/tree_assembler.h"
+#include "engine/wire_codec.h"
 #include "poseforest/v1/checkpoint.pb.h"
 #include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
+#include "proto/dds/node_config.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/core/crc32.h"
 #include "runtime/core/forest_format.h"
-#include "engine/candidates.h"
-#include "engine/wire_codec.h"
-#include "proto/dds/node_config.h"
-#include "engine/histogram_builder.h"
 
 namespace poseforest::dist {
 
@@ -116,8 +117,6 @@ void ToProto(const coordinator::SubtreeNode& n, v1::SubtreeNode* o) {
 
 bool FitsInt16(int32_t v) { return v >= INT16_MIN && v <= INT16_MAX; }
 }  // namespace
-
-std::string DefaultJobId(const v1::TrainerConfig& config);
 
 struct DistCoordinator::Impl {
   v1::TrainerConfig config;
@@ -1329,15 +1328,6 @@ struct DistCoordinator::Impl {
     return forest;
   }
 };
-
-std::string DefaultJobId(const v1::TrainerConfig& config) {
-  std::string bytes;
-  config.SerializeToString(&bytes);
-  const uint32_t crc = core::Crc32(bytes.data(), bytes.size());
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "job-%08x", crc);
-  return buf;
-}
 
 DistCoordinator::DistCoordinator(v1::TrainerConfig config, worker::TrainParams params,
                                  CoordinatorOptions options)

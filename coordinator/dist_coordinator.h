@@ -18,13 +18,13 @@
 #include <string>
 #include <vector>
 
+#include "engine/job_spec.h"
 #include "poseforest/v1/job.pb.h"
 #include "poseforest/v1/wire.pb.h"
-#include "proto/dds/dds_node.h"
 #include "proto/dds/dds_flags.h"
+#include "proto/dds/dds_node.h"
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
-#include "engine/job_spec.h"
 
 namespace poseforest::dist {
 
@@ -117,9 +117,6 @@ struct CoordinatorOptions {
   std::function<void(const std::string&)> log;  ///< default: stderr
   CoordinatorObserver* observer = nullptr;       ///< not owned; may be null
 };
-
-/// "job-<crc32 of the serialized config>": the same job file gives the same id (--resume).
-std::string DefaultJobId(const v1::TrainerConfig& config);
 
 class DistCoordinator {
  public:

@@ -11,10 +11,10 @@
 #include <span>
 #include <vector>
 
+#include "engine/job_spec.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/core/feature.h"
 #include "runtime/core/rng.h"
-#include "engine/job_spec.h"
 
 namespace poseforest::worker {
 

@@ -19,8 +19,8 @@
 #include "runtime/skeleton.h"
 #include "runtime/visualize.h"
 #if POSEFOREST_HAS_RENDERER
-#include "renderer/synthetic_source.h"
 #include "engine/rendered_scene.h"
+#include "renderer/synthetic_source.h"
 #endif
 
 namespace poseforest::coordinator {

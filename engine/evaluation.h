@@ -13,11 +13,11 @@
 #include <string>
 #include <vector>
 
+#include "engine/image_source.h"
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 #include "runtime/joint_metrics.h"
 #include "runtime/proposal_tuning.h"
-#include "engine/image_source.h"
 
 namespace poseforest::coordinator {
 

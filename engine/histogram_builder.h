@@ -8,10 +8,10 @@
 #include <span>
 #include <vector>
 
-#include "runtime/core/body_parts.h"
-#include "runtime/core/feature.h"
 #include "engine/candidates.h"
 #include "engine/sample_set.h"
+#include "runtime/core/body_parts.h"
+#include "runtime/core/feature.h"
 
 namespace poseforest::worker {
 

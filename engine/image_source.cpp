@@ -14,11 +14,11 @@
 #include <mutex>
 #include <utility>
 
+#include "engine/rendered_scene.h"
 #include "renderer/assets/mesh_loader.h"
 #include "renderer/part_labels.h"
 #include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
-#include "engine/rendered_scene.h"
 #endif
 
 namespace poseforest::worker {

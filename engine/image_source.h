@@ -7,9 +7,9 @@
 #include <memory>
 #include <string>
 
+#include "engine/job_spec.h"
 #include "runtime/core/depth_image.h"
 #include "runtime/core/result.h"
-#include "engine/job_spec.h"
 
 namespace poseforest::worker {
 

@@ -4,13 +4,15 @@
 #include <google/protobuf/text_format.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
+#include "engine/image_source.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/body_parts.h"
-#include "engine/image_source.h"
+#include "runtime/core/crc32.h"
 
 namespace poseforest::worker {
 
@@ -312,3 +314,15 @@ std::string DescribeParams(const TrainParams& p) {
 }
 
 }  // namespace poseforest::worker
+namespace poseforest::dist {
+
+std::string DefaultJobId(const v1::TrainerConfig& config) {
+  std::string bytes;
+  config.SerializeToString(&bytes);
+  const uint32_t crc = core::Crc32(bytes.data(), bytes.size());
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "job-%08x", crc);
+  return buf;
+}
+
+}  // namespace poseforest::dist

@@ -107,3 +107,11 @@ std::string DescribeBodies(const SourceSpec& spec);
 std::string DescribeParams(const TrainParams& params);
 
 }  // namespace poseforest::worker
+
+namespace poseforest::dist {
+
+/// "job-<crc32 of the serialized config>": the same job file gives the same id (--resume); the
+/// default job id of the coordinator and of the workers given the job file.
+std::string DefaultJobId(const v1::TrainerConfig& config);
+
+}  // namespace poseforest::dist

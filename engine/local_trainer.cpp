@@ -8,12 +8,12 @@
 #include <sstream>
 #include <thread>
 
-#include "engine/split_search.h"
-#include "engine/tree_assembler.h"
 #include "engine/candidates.h"
 #include "engine/histogram_builder.h"
 #include "engine/image_source.h"
 #include "engine/sample_set.h"
+#include "engine/split_search.h"
+#include "engine/tree_assembler.h"
 
 namespace poseforest::coordinator {
 

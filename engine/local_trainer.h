@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
+#include "engine/job_spec.h"
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
-#include "engine/job_spec.h"
 
 namespace poseforest::coordinator {
 

@@ -4,9 +4,9 @@
 // a job's test set renders the same kinds of people, bodies in the same order, as its training
 // frames. Only for targets built with the renderer (POSEFOREST_HAS_RENDERER).
 
+#include "engine/job_spec.h"
 #include "renderer/scene.h"
 #include "runtime/core/result.h"
-#include "engine/job_spec.h"
 
 namespace poseforest::worker {
 

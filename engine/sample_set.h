@@ -8,10 +8,10 @@
 #include <span>
 #include <vector>
 
+#include "engine/image_source.h"
 #include "runtime/core/depth_image.h"
 #include "runtime/core/feature.h"
 #include "runtime/core/rng.h"
-#include "engine/image_source.h"
 
 namespace poseforest::worker {
 

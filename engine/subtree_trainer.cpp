@@ -3,10 +3,10 @@
 #include <cmath>
 #include <string>
 
+#include "engine/candidates.h"
 #include "engine/split_search.h"
 #include "engine/tree_assembler.h"
 #include "runtime/core/body_parts.h"
-#include "engine/candidates.h"
 
 namespace poseforest::coordinator {
 

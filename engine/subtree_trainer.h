@@ -9,12 +9,12 @@
 #include <span>
 #include <vector>
 
-#include "runtime/core/feature.h"
-#include "runtime/core/forest.h"
-#include "runtime/core/result.h"
 #include "engine/histogram_builder.h"
 #include "engine/job_spec.h"
 #include "engine/sample_set.h"
+#include "runtime/core/feature.h"
+#include "runtime/core/forest.h"
+#include "runtime/core/result.h"
 
 namespace poseforest::coordinator {
 

@@ -1,16 +1,15 @@
 #!/usr/bin/env python3
 """Checks that each source folder includes only the folders below it in the layering.
 
-The layers, bottom first (docs/architecture.md):
+The layers, bottom first (docs/architecture.md, ../shared/STYLE.md "Layers"):
     runtime      the inference library and its commands; depends on nothing heavier than Eigen
-    renderer     synthetic depth frames (EGL, Assimp); includes the runtime
     proto        the messages (Protobuf) and the DDS transport; includes the runtime
-    engine       the training engine both services use; includes proto, renderer, runtime
+    renderer     synthetic depth frames (EGL, Assimp); includes the runtime
+    engine       the training engine both services use; includes renderer, proto, runtime
     worker       the worker service; includes engine and below
-    coordinator  the coordinator service; includes worker and below (its `train` command starts
-                 local workers)
-Folders on the same level (renderer, proto) must not include each other. bench/ and tests/ sit
-above everything and are not checked.
+    coordinator  the coordinator service; includes engine and below
+The two services are siblings: neither includes the other (they share code only through the
+engine and proto). bench/ and tests/ sit above everything and are not checked.
 
 Usage: scripts/check-layers.py [--graph] [ROOT]
   --graph  also print the include graph between folders (counts of #include lines).
@@ -22,7 +21,7 @@ import os
 import re
 import sys
 
-LAYERS = {"runtime": 0, "renderer": 1, "proto": 1, "engine": 2, "worker": 3, "coordinator": 4}
+LAYERS = {"runtime": 0, "proto": 1, "renderer": 2, "engine": 3, "worker": 4, "coordinator": 4}
 # Include paths that name no folder: headers generated from proto/poseforest/v1/*.proto, and the
 # runtime library's public headers (runtime/api/include/poseforest/).
 PREFIXES = (("poseforest/v1/", "proto"), ("poseforest/", "runtime"))
@@ -80,11 +79,11 @@ def main():
             print(f"  {src:12s} -> {dst:12s} {n:4d}{mark}")
     if violations:
         print(f"layering: {len(violations)} include(s) against the layering "
-              "(runtime < renderer, proto < engine < worker < coordinator):", file=sys.stderr)
+              "(runtime < proto < renderer < engine < worker, coordinator):", file=sys.stderr)
         for v in violations:
             print("  " + v, file=sys.stderr)
         return 1
-    print("layering: ok (runtime < renderer, proto < engine < worker < coordinator)")
+    print("layering: ok (runtime < proto < renderer < engine < worker, coordinator)")
     return 0
 
 

@@ -13,19 +13,19 @@
 #include <optional>
 #include <thread>
 
-#include "engine/subtree_trainer.h"
-#include "poseforest/v1/job.pb.h"
-#include "proto/dds/histogram_codec.h"
-#include "proto/dds/message_gate.h"
-#include "runtime/core/body_parts.h"
-#include "runtime/core/crc32.h"
 #include "engine/candidates.h"
-#include "engine/wire_codec.h"
-#include "proto/dds/node_config.h"
 #include "engine/histogram_builder.h"
 #include "engine/image_source.h"
 #include "engine/job_spec.h"
 #include "engine/sample_set.h"
+#include "engine/subtree_trainer.h"
+#include "engine/wire_codec.h"
+#include "poseforest/v1/job.pb.h"
+#include "proto/dds/histogram_codec.h"
+#include "proto/dds/message_gate.h"
+#include "proto/dds/node_config.h"
+#include "runtime/core/body_parts.h"
+#include "runtime/core/crc32.h"
 
 namespace poseforest::dist {
 

@@ -20,11 +20,11 @@
 #include <string>
 #include <vector>
 
-#include "proto/dds/dds_node.h"
-#include "proto/dds/dds_flags.h"
-#include "runtime/core/result.h"
 #include "engine/job_spec.h"
 #include "engine/sample_set.h"
+#include "proto/dds/dds_flags.h"
+#include "proto/dds/dds_node.h"
+#include "runtime/core/result.h"
 
 namespace poseforest::dist {
 

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "engine/cli/job_dds.h"
+#include "engine/job_spec.h"
 #include "proto/dds/dds_flags.h"
 #include "proto/dds/node_config.h"
 #include "runtime/cli/args.h"

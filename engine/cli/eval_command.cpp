@@ -5,11 +5,11 @@
 #include <string>
 
 #include "engine/evaluation.h"
+#include "engine/job_spec.h"
 #include "runtime/camera_model.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
 #include "runtime/core/forest_format.h"
-#include "engine/job_spec.h"
 
 namespace poseforest::cli {
 namespace {

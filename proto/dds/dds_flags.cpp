@@ -12,8 +12,8 @@
 #include <cstring>
 #include <filesystem>
 
-#include "proto/dds/xml_profile_check.h"
 #include "proto/dds/node_config.h"
+#include "proto/dds/xml_profile_check.h"
 
 namespace poseforest::dist {
 

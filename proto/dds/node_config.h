@@ -8,10 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "proto/dds/dds_flags.h"
 #include "proto/dds/dds_node.h"
 #include "runtime/core/result.h"
-#include "proto/dds/dds_flags.h"
-#include "engine/histogram_builder.h"
 
 namespace poseforest::dist {
 

@@ -14,12 +14,12 @@
 #include <vector>
 
 #include "coordinator/dist_coordinator.h"
+#include "engine/job_spec.h"
 #include "engine/local_trainer.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/forest_format.h"
-#include "worker/dist_worker.h"
 #include "tests/support/dds_domain.h"
-#include "engine/job_spec.h"
+#include "worker/dist_worker.h"
 
 namespace poseforest::dist::testing {
 

@@ -24,9 +24,9 @@
 #include <iterator>
 #include <tuple>
 
-#include "tests/proto/dds_test_util.h"
-#include "tests/coordinator/dist_test_util.h"
 #include "proto/dds/dds_flags.h"
+#include "tests/coordinator/dist_test_util.h"
+#include "tests/proto/dds_test_util.h"
 
 using namespace poseforest;
 using namespace poseforest::dist::testing;

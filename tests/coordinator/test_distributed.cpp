@@ -7,12 +7,12 @@
 #include <filesystem>
 #include <random>
 
+#include "engine/wire_codec.h"
 #include "proto/dds/dds_node.h"
 #include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
-#include "tests/coordinator/dist_test_util.h"
-#include "engine/wire_codec.h"
 #include "proto/dds/node_config.h"
+#include "tests/coordinator/dist_test_util.h"
 
 using namespace poseforest;
 using namespace poseforest::dist;

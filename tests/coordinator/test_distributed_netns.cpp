@@ -20,8 +20,8 @@
 #include <iterator>
 #include <regex>
 
-#include "tests/proto/dds_test_util.h"
 #include "tests/coordinator/dist_test_util.h"
+#include "tests/proto/dds_test_util.h"
 #include "tests/support/netns.h"
 #include "tests/support/process.h"
 

@@ -11,8 +11,8 @@
 #include <fstream>
 #include <iterator>
 
-#include "tests/proto/dds_test_util.h"
 #include "tests/coordinator/dist_test_util.h"
+#include "tests/proto/dds_test_util.h"
 #include "tests/support/process.h"
 
 using namespace poseforest;

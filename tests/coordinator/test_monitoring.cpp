@@ -30,9 +30,9 @@
 #include "coordinator/monitoring/dashboard.h"
 #include "coordinator/monitoring/http_server.h"
 #include "coordinator/monitoring/status_model.h"
-#include "tests/proto/dds_test_util.h"
 #include "tests/coordinator/dist_test_util.h"
 #include "tests/coordinator/http_test_util.h"
+#include "tests/proto/dds_test_util.h"
 #include "tests/support/process.h"
 
 using namespace poseforest;

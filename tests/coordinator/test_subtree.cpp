@@ -10,9 +10,9 @@
 #include <mutex>
 #include <thread>
 
+#include "engine/candidates.h"
 #include "engine/subtree_trainer.h"
 #include "tests/coordinator/dist_test_util.h"
-#include "engine/candidates.h"
 
 using namespace poseforest;
 using namespace poseforest::dist;

@@ -6,13 +6,13 @@
 #include <fstream>
 
 #include "engine/evaluation.h"
+#include "engine/image_source.h"
+#include "engine/job_spec.h"
 #include "engine/local_trainer.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/core/forest_format.h"
 #include "tests/support/paths.h"
-#include "engine/image_source.h"
-#include "engine/job_spec.h"
 
 namespace fs = std::filesystem;
 using namespace poseforest;

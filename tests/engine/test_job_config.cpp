@@ -2,9 +2,9 @@
 #include <catch2/catch.hpp>
 #include <fstream>
 
+#include "engine/job_spec.h"
 #include "poseforest/v1/job.pb.h"
 #include "tests/support/paths.h"
-#include "engine/job_spec.h"
 
 using namespace poseforest;
 

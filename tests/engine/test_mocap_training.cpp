@@ -6,12 +6,12 @@
 #include <fstream>
 
 #include "engine/evaluation.h"
+#include "engine/image_source.h"
+#include "engine/job_spec.h"
 #include "engine/local_trainer.h"
 #include "renderer/assets/pose_library.h"
 #include "runtime/core/forest_format.h"
 #include "tests/support/paths.h"
-#include "engine/image_source.h"
-#include "engine/job_spec.h"
 
 namespace fs = std::filesystem;
 using namespace poseforest;

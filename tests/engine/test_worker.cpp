@@ -4,11 +4,11 @@
 #include <catch2/catch.hpp>
 #include <map>
 
-#include "runtime/core/feature.h"
 #include "engine/candidates.h"
 #include "engine/histogram_builder.h"
 #include "engine/image_source.h"
 #include "engine/sample_set.h"
+#include "runtime/core/feature.h"
 
 using namespace poseforest;
 

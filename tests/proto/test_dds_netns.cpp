@@ -13,9 +13,9 @@
 #include <cstdio>
 #include <memory>
 
+#include "tests/proto/dds_test_util.h"
 #include "tests/support/netns.h"
 #include "tests/support/process.h"
-#include "tests/proto/dds_test_util.h"
 
 namespace pdt = poseforest::dds::testing;
 using namespace std::chrono_literals;
