@@ -16,10 +16,11 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
-#include <sstream>
 #include <set>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -291,15 +292,18 @@ int CoordinatorMain(int argc, char** argv) {
     std::printf("%s\n", line);
     std::fflush(stdout);
     if (!status_file.empty()) {
-      char json[512];
-      std::snprintf(
-          json, sizeof json,
-          "{\"tree\":%d,\"level\":%d,\"nodes\":%zu,\"split\":%zu,\"samples\":%llu,\"evaluations_per_s\":%.6g,"
-          "\"workers_alive\":%d,\"bytes_received\":%llu,\"merge_s\":%.6f,\"elapsed_s\":%.3f}\n",
-          s.tree, s.level, s.frontier_nodes, s.split_nodes, (unsigned long long)s.samples,
-          s.evaluations_per_s, s.workers_alive, (unsigned long long)s.bytes_received, s.merge_seconds,
-          s.elapsed_s);
-      const std::string j = json;
+      const std::string j = nlohmann::ordered_json{{"tree", s.tree},
+                                                   {"level", s.level},
+                                                   {"nodes", s.frontier_nodes},
+                                                   {"split", s.split_nodes},
+                                                   {"samples", s.samples},
+                                                   {"evaluations_per_s", s.evaluations_per_s},
+                                                   {"workers_alive", s.workers_alive},
+                                                   {"bytes_received", s.bytes_received},
+                                                   {"merge_s", s.merge_seconds},
+                                                   {"elapsed_s", s.elapsed_s}}
+                                .dump() +
+                            "\n";
       (void)core::WriteFileAtomic(
           status_file, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(j.data()), j.size()));
     }

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "runtime/camera_model.h"
 #include "runtime/classifier.h"
@@ -231,43 +232,46 @@ core::Result<ConfusionMatrix> EvaluateForest(const core::Forest& forest, const w
 Result<std::vector<runtime::PersonJoints>> ReadJointsJson(const std::string& path) {
   auto bytes = core::ReadFileBytes(path);
   if (!bytes.ok()) return bytes.status();
-  const std::string text(bytes->begin(), bytes->end());
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
-  size_t pos = text.find("\"people\"");
-  if (pos == std::string::npos)
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(bytes->begin(), bytes->end());
+  } catch (const nlohmann::json::parse_error& e) {
+    return bad("not valid JSON (" + std::string(e.what()) + ")");
+  }
+  const auto people_it = doc.is_object() ? doc.find("people") : doc.end();
+  if (people_it == doc.end() || !people_it->is_array())
     return bad("no \"people\" array (expected joints_%06d.json from `poseforest render`)");
   std::vector<runtime::PersonJoints> people;
-  while ((pos = text.find("\"joints\"", pos)) != std::string::npos) {
-    runtime::PersonJoints person;
-    pos += 8;
+  for (const nlohmann::json& p : *people_it) {
+    const std::string person = "person " + std::to_string(people.size());
+    const auto joints = p.is_object() ? p.find("joints") : p.end();
+    if (joints == p.end() || !joints->is_array()) return bad(person + ": no \"joints\" array");
+    if (joints->size() != size_t(core::kNumJoints))
+      return bad(person + ": " + std::to_string(joints->size()) + " joints, expected " +
+                 std::to_string(core::kNumJoints));
+    runtime::PersonJoints out;
     for (int j = 0; j < core::kNumJoints; ++j) {
-      const std::string who = "person " + std::to_string(people.size()) + ", joint " + std::to_string(j) +
-                              " (" + std::string(core::JointName(j)) + ")";
+      const std::string who =
+          person + ", joint " + std::to_string(j) + " (" + std::string(core::JointName(j)) + ")";
+      const nlohmann::json& joint = (*joints)[size_t(j)];
+      if (!joint.is_object()) return bad(who + ": not an object");
       float xyz[3];
-      const char* keys[3] = {"\"x\":", "\"y\":", "\"z\":"};
+      const char* keys[3] = {"x", "y", "z"};
       for (int a = 0; a < 3; ++a) {
-        pos = text.find(keys[a], pos);
-        if (pos == std::string::npos) return bad(who + ": missing " + std::string(keys[a]).substr(0, 3));
-        pos += 4;
-        const char* begin = text.c_str() + pos;
-        char* end = nullptr;
-        xyz[a] = std::strtof(begin, &end);
-        if (end == begin || !std::isfinite(xyz[a]))
-          return bad(who + ": " + std::string(keys[a]).substr(0, 3) + " is not a number");
-        pos = size_t(end - text.c_str());
+        const auto v = joint.find(keys[a]);
+        if (v == joint.end()) return bad(who + ": missing \"" + keys[a] + "\"");
+        if (!v->is_number() || !std::isfinite(v->get<float>()))
+          return bad(who + ": \"" + keys[a] + "\" is not a number");
+        xyz[a] = v->get<float>();
       }
-      person.position[size_t(j)] = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]);
-      pos = text.find("\"visible\":", pos);
-      if (pos == std::string::npos) return bad(who + ": missing \"visible\"");
-      pos += 10;
-      while (pos < text.size() && text[pos] == ' ') ++pos;
-      if (text.compare(pos, 4, "true") == 0) {
-        person.visible[size_t(j)] = true;
-      } else if (text.compare(pos, 5, "false") != 0) {
-        return bad(who + ": \"visible\" must be true or false");
-      }
+      out.position[size_t(j)] = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]);
+      const auto visible = joint.find("visible");
+      if (visible == joint.end()) return bad(who + ": missing \"visible\"");
+      if (!visible->is_boolean()) return bad(who + ": \"visible\" must be true or false");
+      out.visible[size_t(j)] = visible->get<bool>();
     }
-    people.push_back(person);
+    people.push_back(out);
   }
   return people;
 }

@@ -15,20 +15,6 @@ using core::ErrorCode;
 using core::Result;
 using core::Status;
 
-std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
-                                   int num_parts) {
-  const worker::NodeHistogram dense = hist.sample_bins ? hist.ToDense() : hist;
-  const size_t k_count = size_t(dense.num_candidates), bins = size_t(dense.num_bins),
-               slots = size_t(dense.num_slots);
-  std::vector<int> part_of_slot(slots, 0);
-  for (int p = 0; p < num_parts && p < int(plan.part_slot.size()); ++p)
-    if (plan.part_slot[size_t(p)] != 0xFF) part_of_slot[plan.part_slot[size_t(p)]] = p;
-  std::vector<uint32_t> wire(k_count * bins * size_t(num_parts), 0);
-  if (dense.counts.empty()) return wire;
-  for (size_t kb = 0; kb < k_count * bins; ++kb)
-    for (size_t s = 0; s < slots; ++s)
-      wire[kb * size_t(num_parts) + size_t(part_of_slot[s])] = dense.counts[kb * slots + s];
-  return wire;
 }
 
 void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,

@@ -13,13 +13,10 @@
 
 namespace poseforest::dist {
 
-/// Dense wire tensor (num_candidates x num_bins x num_parts) of a node histogram built with
-/// `plan` (either form); slot -> part through plan.part_slot.
-std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
-                                   int num_parts);
-/// dds::EncodeHistogramRuns(ToWireCounts(hist, plan, num_parts)), the same runs to the byte, from
-/// the histogram's non-zero counts only: no dense num_parts-wide tensor is built or scanned, so
-/// the cost follows candidates x bins x parts present (and the samples for per-sample bins).
+/// dds::EncodeHistogramRuns of the dense wire tensor (num_candidates x num_bins x num_parts; slot
+/// -> part through plan.part_slot), the same runs to the byte, from the histogram's non-zero
+/// counts only: no dense num_parts-wide tensor is built or scanned, so the cost follows
+/// candidates x bins x parts present (and the samples for per-sample bins).
 void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,
                     google::protobuf::RepeatedField<uint64_t>* runs);
 

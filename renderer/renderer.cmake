@@ -20,7 +20,7 @@ target_link_libraries(poseforest_renderer
 if(EXISTS ${CMAKE_CURRENT_LIST_DIR}/cli/render_command.cpp)
   add_library(poseforest_render_cli STATIC ${CMAKE_CURRENT_LIST_DIR}/cli/render_command.cpp)
   add_library(poseforest::render_cli ALIAS poseforest_render_cli)
-  target_link_libraries(poseforest_render_cli PUBLIC poseforest::renderer poseforest::cli_runtime Threads::Threads PRIVATE poseforest::warnings)
+  target_link_libraries(poseforest_render_cli PUBLIC poseforest::renderer poseforest::cli_runtime Threads::Threads PRIVATE nlohmann_json::nlohmann_json poseforest::warnings)
   # Default --data folder (POSEFOREST_DATA_DIR in the environment wins).
   target_compile_definitions(poseforest_render_cli PRIVATE POSEFOREST_RENDER_DATA_DIR="${POSEFOREST_DATA_DIR}")
   set_property(GLOBAL APPEND PROPERTY POSEFOREST_CLI_LIBS poseforest_render_cli)

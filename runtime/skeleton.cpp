@@ -235,6 +235,7 @@ void AppendVec(std::string& out, const float* v, int n, const char* fmt) {
 }
 }  // namespace
 
+// Written by hand: the runtime depends on nothing but Eigen and OpenMP (no JSON library).
 std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& source,
                               const std::vector<Skeleton>& skeletons) {
   std::string out = "{\"index\":" + std::to_string(index) + ",\"time_s\":";

@@ -12,6 +12,7 @@ runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2
 )
 training_pkgs=(
   libprotobuf-dev protobuf-compiler         # job configs and wire messages
+  nlohmann-json3-dev                        # JSON readers (MakeHuman rigs, joints files, status files)
   libfastrtps-dev fastdds-tools             # Fast DDS 2.9 (coordinator <-> workers)
   libassimp-dev assimp-testmodels           # rigged meshes (+ CMU BVH test clips)
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri  # headless EGL/GLES (Mesa llvmpipe on CPU)

@@ -59,7 +59,12 @@ core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Star
 
 void CoordinatorMonitoring::Finish(bool ok, const std::string& message, double linger_s) {
   model_->Finish(ok, message);
-  if (log_) log_->Write(ok ? "FOREST_WRITTEN" : "JOB_FAILED", {{"message", JsonString(message)}});
+  if (log_) {
+    v1::JobEvent e;
+    e.set_event(ok ? "FOREST_WRITTEN" : "JOB_FAILED");
+    e.set_message(message);
+    log_->Write(std::move(e));
+  }
   if (http_ && http_->requests() > 0 && linger_s > 0)
     std::this_thread::sleep_for(std::chrono::duration<double>(linger_s));
 }

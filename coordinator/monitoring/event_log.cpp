@@ -1,7 +1,9 @@
 #include "coordinator/monitoring/event_log.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <ctime>
 
@@ -37,13 +39,14 @@ EventLog::~EventLog() {
   if (file_) std::fclose(file_);
 }
 
-void EventLog::Write(const std::string& event,
-                     const std::vector<std::pair<std::string, std::string>>& fields) {
+void EventLog::Write(v1::JobEvent e) {
   const double now = UnixSeconds();
-  std::string line = "{\"time\":" + JsonString(IsoTime(now)) + ",\"unix\":" + JsonNumber(now) +
-                     ",\"job\":" + JsonString(job_id_) + ",\"event\":" + JsonString(event);
-  for (const auto& [k, v] : fields) line += "," + JsonString(k) + ":" + v;
-  line += "}\n";
+  e.set_time(IsoTime(now));
+  e.set_unix(now);
+  e.set_job(ValidUtf8(job_id_));
+  if (e.has_worker()) e.set_worker(ValidUtf8(e.worker()));
+  if (e.has_message()) e.set_message(ValidUtf8(e.message()));
+  const std::string line = MessageJson(e, /*every_field=*/false) + "\n";
   std::lock_guard<std::mutex> lock(mu_);
   // A full disk must not stop training: the error is not fatal, the line is lost.
   (void)std::fwrite(line.data(), 1, line.size(), file_);
@@ -56,34 +59,38 @@ void EventLog::OnLevelDone(const DistLevelStats& s) {
 }
 
 void EventLog::OnWorkerAssigned(const std::string& id, int tree, uint64_t frames) {
-  Write("WORKER_ASSIGNED",
-        {{"worker", JsonString(id)}, {"tree", std::to_string(tree)}, {"frames", std::to_string(frames)}});
+  v1::JobEvent e;
+  e.set_event("WORKER_ASSIGNED");
+  e.set_worker(id);
+  e.set_tree(tree);
+  e.set_frames(double(frames));
+  Write(std::move(e));
 }
 
-void EventLog::OnStatus(const v1::StatusEvent& e) {
-  std::vector<std::pair<std::string, std::string>> f = {
-      {"tree", std::to_string(e.tree())},
-      {"level", std::to_string(e.level())},
-      {"epoch", std::to_string(e.epoch())},
-      {"progress", JsonNumber(e.progress())},
-      {"active_workers", std::to_string(e.active_workers())},
-  };
-  if (!e.worker_id().empty()) f.push_back({"worker", JsonString(e.worker_id())});
-  if (!e.message().empty()) f.push_back({"message", JsonString(e.message())});
-  if (e.kind() == v1::STATUS_KIND_LEVEL_DONE && have_level_) {
-    const DistLevelStats& s = last_level_;
-    f.insert(f.end(), {{"nodes", std::to_string(s.frontier_nodes)},
-                       {"split", std::to_string(s.split_nodes)},
-                       {"samples", std::to_string(s.samples)},
-                       {"evaluations", std::to_string(s.evaluations)},
-                       {"evaluations_per_s", JsonNumber(s.evaluations_per_s)},
-                       {"mean_entropy", JsonNumber(s.mean_entropy)},
-                       {"mean_gain", JsonNumber(s.mean_gain)},
-                       {"bytes_received", std::to_string(s.bytes_received)},
-                       {"seconds", JsonNumber(s.level_seconds)},
-                       {"retries", std::to_string(s.retries)}});
+void EventLog::OnStatus(const v1::StatusEvent& s) {
+  v1::JobEvent e;
+  e.set_event(StatusKindName(s.kind()));
+  e.set_tree(int32_t(s.tree()));
+  e.set_level(int32_t(s.level()));
+  e.set_epoch(uint32_t(std::min<uint64_t>(s.epoch(), UINT32_MAX)));
+  e.set_progress(Finite(s.progress()));
+  e.set_active_workers(s.active_workers());
+  if (!s.worker_id().empty()) e.set_worker(s.worker_id());
+  if (!s.message().empty()) e.set_message(s.message());
+  if (s.kind() == v1::STATUS_KIND_LEVEL_DONE && have_level_) {
+    const DistLevelStats& l = last_level_;
+    e.set_nodes(uint32_t(std::min<size_t>(l.frontier_nodes, UINT32_MAX)));
+    e.set_split(uint32_t(std::min<size_t>(l.split_nodes, UINT32_MAX)));
+    e.set_samples(double(l.samples));
+    e.set_evaluations(double(l.evaluations));
+    e.set_evaluations_per_s(Finite(l.evaluations_per_s));
+    e.set_mean_entropy(Finite(l.mean_entropy));
+    e.set_mean_gain(Finite(l.mean_gain));
+    e.set_bytes_received(double(l.bytes_received));
+    e.set_seconds(Finite(l.level_seconds));
+    e.set_retries(l.retries);
   }
-  Write(StatusKindName(e.kind()), f);
+  Write(std::move(e));
 }
 
 }  // namespace poseforest::dist

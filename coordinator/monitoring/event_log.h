@@ -3,15 +3,15 @@
 // things happen, so a crashed or killed coordinator leaves every event up to its end. Lines:
 // JOB_STARTED, LEVEL_DONE (with the level's figures), TREE_DONE, JOB_DONE, WORKER_JOINED,
 // WORKER_LOST, WORKER_EVICTED, WORKER_ASSIGNED, ERROR, and from the command FOREST_WRITTEN /
-// JOB_FAILED. Schema: docs/distributed/monitoring.md.
+// JOB_FAILED. Schema: JobEvent in proto/poseforest/v1/status.proto (docs/distributed/monitoring.md).
 
 #include <cstdio>
 #include <memory>
 #include <mutex>
 #include <string>
-#include <vector>
 
 #include "coordinator/dist_coordinator.h"
+#include "poseforest/v1/status.pb.h"
 #include "runtime/core/result.h"
 
 namespace poseforest::dist {
@@ -26,9 +26,8 @@ class EventLog : public CoordinatorObserver {
   void OnLevelDone(const DistLevelStats& s) override;
   void OnWorkerAssigned(const std::string& id, int tree, uint64_t frames) override;
 
-  /// Writes one line {"time", "unix", "job", "event": `event`, then `fields` (already JSON:
-  /// pairs of key and JSON value)}.
-  void Write(const std::string& event, const std::vector<std::pair<std::string, std::string>>& fields);
+  /// Writes `e` as one line, with its time, unix and job set here (only the fields set are written).
+  void Write(v1::JobEvent e);
 
  private:
   EventLog() = default;

@@ -1,7 +1,6 @@
 // `poseforest monitor`: a live terminal view of a training job, read from the coordinator's
 // /status.json (--url) or its status events on DDS (--domain) (docs/distributed/monitoring.md).
 
-#include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 #include <unistd.h>
 
@@ -17,6 +16,7 @@
 
 #include "coordinator/monitoring/http_server.h"
 #include "coordinator/monitoring/status_model.h"
+#include "poseforest/v1/status.pb.h"
 #include "poseforest/v1/wire.pb.h"
 #include "proto/dds/dds_node.h"
 #include "proto/dds/message_gate.h"
@@ -30,27 +30,6 @@ using core::Status;
 namespace pb = google::protobuf;
 
 namespace {
-const pb::Value* Field(const pb::Struct& s, const std::string& key) {
-  auto it = s.fields().find(key);
-  return it == s.fields().end() ? nullptr : &it->second;
-}
-double Num(const pb::Struct& s, const std::string& key, double fallback = NAN) {
-  const pb::Value* v = Field(s, key);
-  return v && v->kind_case() == pb::Value::kNumberValue ? v->number_value() : fallback;
-}
-std::string Str(const pb::Struct& s, const std::string& key) {
-  const pb::Value* v = Field(s, key);
-  return v && v->kind_case() == pb::Value::kStringValue ? v->string_value() : "";
-}
-const pb::Struct* Obj(const pb::Struct& s, const std::string& key) {
-  const pb::Value* v = Field(s, key);
-  return v && v->kind_case() == pb::Value::kStructValue ? &v->struct_value() : nullptr;
-}
-const pb::ListValue* List(const pb::Struct& s, const std::string& key) {
-  const pb::Value* v = Field(s, key);
-  return v && v->kind_case() == pb::Value::kListValue ? &v->list_value() : nullptr;
-}
-
 std::string Si(double v) {
   if (!std::isfinite(v)) return "-";
   char buf[32];
@@ -81,109 +60,86 @@ std::string Duration(double s) {
 
 /// The per-level table (`--levels`): the columns of the dashboard's "Levels" table, oldest level
 /// first. `note`: said under the heading (where the rows come from), may be empty.
-std::string LevelTable(const pb::ListValue* levels, const std::string& note) {
+std::string LevelTable(const v1::JobStatus& s, const std::string& note) {
   std::string out = "levels (mean entropy and gain in bits)" + (note.empty() ? "" : "; " + note) + ":\n";
   char line[512];
   std::snprintf(line, sizeof line, "  %4s %5s %9s %9s %12s %12s %10s %14s %9s %7s\n", "tree", "level",
                 "nodes", "split", "samples", "mean entropy", "mean gain", "evaluations/s", "seconds",
                 "workers");
   out += line;
-  int rows = 0;
-  if (levels)
-    for (const auto& l : levels->values()) {
-      if (!l.has_struct_value()) continue;
-      const pb::Struct& ls = l.struct_value();
-      std::snprintf(line, sizeof line, "  %4.0f %5.0f %9.0f %9.0f %12.0f %12.3f %10.3f %14.0f %9.3f %7.0f\n",
-                    Num(ls, "tree", 0), Num(ls, "level", 0), Num(ls, "nodes", 0), Num(ls, "split", 0),
-                    Num(ls, "samples", 0), Num(ls, "entropy", 0), Num(ls, "gain", 0),
-                    Num(ls, "evaluations_per_s", 0), Num(ls, "seconds", 0), Num(ls, "workers", 0));
-      out += line;
-      ++rows;
-    }
-  if (rows == 0) out += "  (no level finished yet)\n";
+  for (const v1::JobStatus::Level& l : s.levels()) {
+    std::snprintf(line, sizeof line, "  %4d %5d %9u %9u %12.0f %12.3f %10.3f %14.0f %9.3f %7d\n", l.tree(),
+                  l.level(), l.nodes(), l.split(), l.samples(), l.entropy(), l.gain(), l.evaluations_per_s(),
+                  l.seconds(), l.workers());
+    out += line;
+  }
+  if (s.levels().empty()) out += "  (no level finished yet)\n";
   return out;
 }
 
 /// The text of one snapshot; with `levels_table` the per-level table after it (`levels_note`
 /// under its heading).
-std::string Render(const pb::Struct& s, bool levels_table = false, const std::string& levels_note = "") {
+std::string Render(const v1::JobStatus& s, bool levels_table = false, const std::string& levels_note = "") {
   std::string out;
   char line[512];
-  const pb::Struct* cfg = Obj(s, "config");
-  const double trees = cfg ? Num(*cfg, "num_trees", 0) : 0, depth = cfg ? Num(*cfg, "max_depth", 0) : 0;
-  const std::string state = Str(s, "state");
-  std::snprintf(line, sizeof line, "job %s  state %s  elapsed %s  ETA %s\n", Str(s, "job_id").c_str(),
-                state.c_str(), Duration(Num(s, "elapsed_s")).c_str(),
-                state == "done" ? "done" : Duration(Num(s, "eta_s")).c_str());
+  const int trees = s.config().num_trees(), depth = s.config().max_depth();
+  const std::string& state = s.state();
+  std::snprintf(line, sizeof line, "job %s  state %s  elapsed %s  ETA %s\n", s.job_id().c_str(),
+                state.c_str(), Duration(s.elapsed_s()).c_str(),
+                state == "done" ? "done" : Duration(s.has_eta_s() ? s.eta_s() : NAN).c_str());
   out += line;
-  const double p = std::clamp(Num(s, "progress", 0), 0.0, 1.0);
+  const double p = std::clamp(s.progress(), 0.0, 1.0);
   std::string bar(30, '.');
   for (int i = 0; i < int(std::lround(p * 30)); ++i) bar[size_t(i)] = '#';
-  std::snprintf(line, sizeof line, "progress [%s] %5.1f %%  trees done %.0f of %.0f\n", bar.c_str(), p * 100,
-                Num(s, "trees_done", 0), trees);
+  std::snprintf(line, sizeof line, "progress [%s] %5.1f %%  trees done %d of %d\n", bar.c_str(), p * 100,
+                s.trees_done(), trees);
   out += line;
-  std::snprintf(line, sizeof line, "tree %.0f/%.0f  level %.0f/%.0f  nodes %.0f/%.0f  forest nodes %.0f\n",
-                Num(s, "tree", 0) + 1, trees, Num(s, "level", 0), depth, Num(s, "level_nodes_done", 0),
-                Num(s, "level_nodes_total", 0), Num(s, "forest_nodes", 0));
+  std::snprintf(line, sizeof line, "tree %d/%d  level %d/%d  nodes %u/%u  forest nodes %.0f\n", s.tree() + 1,
+                trees, s.level(), depth, s.level_nodes_done(), s.level_nodes_total(), s.forest_nodes());
   out += line;
-  std::snprintf(line, sizeof line, "samples/s %s  evaluations/s %s", Si(Num(s, "samples_per_s")).c_str(),
-                Si(Num(s, "evaluations_per_s")).c_str());
+  std::snprintf(line, sizeof line, "samples/s %s  evaluations/s %s", Si(s.samples_per_s()).c_str(),
+                Si(s.evaluations_per_s()).c_str());
   out += line;
-  if (const pb::Struct* t = Obj(s, "totals"))
-    std::snprintf(line, sizeof line, "  (%s evaluations, %.1f MiB received, %.0f retries)\n",
-                  Si(Num(*t, "evaluations", 0)).c_str(), Num(*t, "bytes_received", 0) / 1048576,
-                  Num(*t, "retries", 0));
+  if (s.has_totals())
+    std::snprintf(line, sizeof line, "  (%s evaluations, %.1f MiB received, %u retries)\n",
+                  Si(s.totals().evaluations()).c_str(), s.totals().bytes_received() / 1048576,
+                  s.totals().retries());
   else
     std::snprintf(line, sizeof line, "\n");
   out += line;
-  if (!Str(s, "message").empty()) out += "message: " + Str(s, "message") + "\n";
-  const pb::ListValue* workers = List(s, "workers");
+  if (!s.message().empty()) out += "message: " + s.message() + "\n";
   int alive = 0, lost = 0;
-  if (workers)
-    for (const auto& w : workers->values())
-      if (w.has_struct_value()) {
-        const std::string ws = Str(w.struct_value(), "state");
-        alive += ws == "training" || ws == "joined";
-        lost += ws == "lost" || ws == "evicted";
-      }
+  for (const v1::JobStatus::Worker& w : s.workers()) {
+    alive += w.state() == "training" || w.state() == "joined";
+    lost += w.state() == "lost" || w.state() == "evicted";
+  }
   std::snprintf(line, sizeof line, "workers: %d alive, %d lost or evicted\n", alive, lost);
   out += line;
   std::snprintf(line, sizeof line, "  %-32s %-9s %7s %8s %15s %12s %10s\n", "worker", "state", "frames",
                 "replies", "evaluations/s", "evaluations", "last seen");
   out += line;
-  if (workers)
-    for (const auto& w : workers->values()) {
-      if (!w.has_struct_value()) continue;
-      const pb::Struct& ws = w.struct_value();
-      const double seen = Num(ws, "last_seen_s", -1);
-      std::snprintf(line, sizeof line, "  %-32.32s %-9s %7.0f %8.0f %15s %12s %10s\n", Str(ws, "id").c_str(),
-                    Str(ws, "state").c_str(), Num(ws, "frames", 0), Num(ws, "replies", 0),
-                    Si(Num(ws, "evaluations_per_s", 0)).c_str(), Si(Num(ws, "evaluations", 0)).c_str(),
-                    seen >= 0 ? (Duration(seen) + " ago").c_str() : "-");
-      out += line;
-    }
-  if (const pb::ListValue* levels = List(s, "levels"); levels && levels->values_size() > 0) {
-    const auto& l = levels->values(levels->values_size() - 1);
-    if (l.has_struct_value()) {
-      const pb::Struct& ls = l.struct_value();
-      std::snprintf(line, sizeof line,
-                    "last level: tree %.0f level %.0f, %.0f nodes (%.0f split), entropy %.3f bits, gain %.3f "
-                    "bits, %.2f s\n",
-                    Num(ls, "tree", 0), Num(ls, "level", 0), Num(ls, "nodes", 0), Num(ls, "split", 0),
-                    Num(ls, "entropy", 0), Num(ls, "gain", 0), Num(ls, "seconds", 0));
-      out += line;
-    }
+  for (const v1::JobStatus::Worker& w : s.workers()) {
+    const double seen = w.last_seen_s();
+    std::snprintf(line, sizeof line, "  %-32.32s %-9s %7.0f %8.0f %15s %12s %10s\n", w.id().c_str(),
+                  w.state().c_str(), w.frames(), w.replies(), Si(w.evaluations_per_s()).c_str(),
+                  Si(w.evaluations()).c_str(), seen >= 0 ? (Duration(seen) + " ago").c_str() : "-");
+    out += line;
   }
-  if (levels_table) out += LevelTable(List(s, "levels"), levels_note);
-  if (const pb::ListValue* events = List(s, "events"); events && events->values_size() > 0) {
-    const auto& e = events->values(events->values_size() - 1);
-    if (e.has_struct_value()) {
-      const pb::Struct& es = e.struct_value();
-      out += "last event: " + Str(es, "event");
-      if (!Str(es, "worker").empty()) out += " " + Str(es, "worker");
-      if (!Str(es, "message").empty()) out += " (" + Str(es, "message") + ")";
-      out += "\n";
-    }
+  if (!s.levels().empty()) {
+    const v1::JobStatus::Level& l = *s.levels().rbegin();
+    std::snprintf(
+        line, sizeof line,
+        "last level: tree %d level %d, %u nodes (%u split), entropy %.3f bits, gain %.3f bits, %.2f s\n",
+        l.tree(), l.level(), l.nodes(), l.split(), l.entropy(), l.gain(), l.seconds());
+    out += line;
+  }
+  if (levels_table) out += LevelTable(s, levels_note);
+  if (!s.events().empty()) {
+    const v1::JobEvent& e = *s.events().rbegin();
+    out += "last event: " + e.event();
+    if (!e.worker().empty()) out += " " + e.worker();
+    if (!e.message().empty()) out += " (" + e.message() + ")";
+    out += "\n";
   }
   return out;
 }
@@ -205,82 +161,56 @@ std::string WorkerStateName(v1::WorkerState s) {
   }
 }
 
-/// A StatusEvent (checked by the gate) as the /status.json object Render() shows. `age_s`: how
-/// long ago the coordinator wrote it (elapsed and ETA move on by that much).
-pb::Struct StatusAsJson(const v1::StatusEvent& e, const std::string& job_id, int trees, int depth,
-                        double age_s) {
-  pb::Struct s;
-  auto& f = *s.mutable_fields();
-  auto num = [](double v) {
-    pb::Value x;
-    x.set_number_value(v);
-    return x;
-  };
-  auto str = [](const std::string& v) {
-    pb::Value x;
-    x.set_string_value(v);
-    return x;
-  };
+/// A StatusEvent (checked by the gate) as the JobStatus of /status.json that Render() shows.
+/// `age_s`: how long ago the coordinator wrote it (elapsed and ETA move on by that much).
+v1::JobStatus StatusAsJobStatus(const v1::StatusEvent& e, const std::string& job_id, int trees, int depth,
+                                double age_s) {
+  v1::JobStatus s;
   const bool done = e.kind() == v1::STATUS_KIND_JOB_DONE, failed = e.kind() == v1::STATUS_KIND_ERROR;
   const bool live = !done && !failed;
-  f["job_id"] = str(job_id);
-  f["state"] = str(done ? "done" : failed ? "failed" : "training");
-  if (failed) f["message"] = str(e.message());
-  f["elapsed_s"] = num(e.elapsed_s() + (live ? age_s : 0));
-  if (e.has_eta_s()) f["eta_s"] = num(std::max(0.0, e.eta_s() - (live ? age_s : 0)));
-  f["progress"] = num(e.progress());
-  pb::Value cfg;
-  (*cfg.mutable_struct_value()->mutable_fields())["num_trees"] = num(trees);
-  (*cfg.mutable_struct_value()->mutable_fields())["max_depth"] = num(depth);
-  f["config"] = cfg;
-  f["trees_done"] = num(done ? trees : e.trees_done());
-  f["tree"] = num(e.tree());
-  f["level"] = num(e.level());
-  f["level_nodes_done"] = num(e.level_nodes_done());
-  f["level_nodes_total"] = num(e.level_nodes_total());
-  f["forest_nodes"] = num(double(e.forest_nodes()));
-  f["samples_per_s"] = num(e.samples_per_s());
-  f["evaluations_per_s"] = num(e.evaluations_per_s());
-  pb::Value totals;
-  auto& t = *totals.mutable_struct_value()->mutable_fields();
-  t["evaluations"] = num(double(e.evaluations()));
-  t["bytes_received"] = num(double(e.bytes_received()));
-  t["retries"] = num(double(e.retries()));
-  f["totals"] = totals;
-  pb::Value workers;
+  s.set_job_id(job_id);
+  s.set_state(done ? "done" : failed ? "failed" : "training");
+  if (failed) s.set_message(e.message());
+  s.set_elapsed_s(e.elapsed_s() + (live ? age_s : 0));
+  if (e.has_eta_s()) s.set_eta_s(std::max(0.0, e.eta_s() - (live ? age_s : 0)));
+  s.set_progress(e.progress());
+  s.mutable_config()->set_num_trees(trees);
+  s.mutable_config()->set_max_depth(depth);
+  s.set_trees_done(done ? trees : int(e.trees_done()));
+  s.set_tree(int(e.tree()));
+  s.set_level(int(e.level()));
+  s.set_level_nodes_done(e.level_nodes_done());
+  s.set_level_nodes_total(e.level_nodes_total());
+  s.set_forest_nodes(double(e.forest_nodes()));
+  s.set_samples_per_s(e.samples_per_s());
+  s.set_evaluations_per_s(e.evaluations_per_s());
+  s.mutable_totals()->set_evaluations(double(e.evaluations()));
+  s.mutable_totals()->set_bytes_received(double(e.bytes_received()));
+  s.mutable_totals()->set_retries(uint32_t(std::min<uint64_t>(e.retries(), UINT32_MAX)));
   for (const v1::WorkerStatus& w : e.workers()) {
-    pb::Value wv;
-    auto& ws = *wv.mutable_struct_value()->mutable_fields();
-    ws["id"] = str(w.id());
-    ws["state"] = str(WorkerStateName(w.state()));
-    ws["frames"] = num(double(w.frames()));
-    ws["replies"] = num(double(w.replies()));
-    ws["evaluations"] = num(double(w.evaluations()));
-    ws["evaluations_per_s"] = num(w.evaluations_per_s());
-    ws["last_seen_s"] = num(w.last_seen_s() >= 0 ? w.last_seen_s() + age_s : -1);
-    *workers.mutable_list_value()->add_values() = wv;
+    v1::JobStatus::Worker* ws = s.add_workers();
+    ws->set_id(w.id());
+    ws->set_state(WorkerStateName(w.state()));
+    ws->set_frames(double(w.frames()));
+    ws->set_replies(double(w.replies()));
+    ws->set_evaluations(double(w.evaluations()));
+    ws->set_evaluations_per_s(w.evaluations_per_s());
+    ws->set_last_seen_s(w.last_seen_s() >= 0 ? w.last_seen_s() + age_s : -1);
   }
-  workers.mutable_list_value();  // an empty list, not null
-  f["workers"] = workers;
-  pb::Value levels;  // the newest levels, as /status.json's "levels" entries
-  for (const v1::LevelStatus& l : e.levels()) {
-    pb::Value lv;
-    auto& ls = *lv.mutable_struct_value()->mutable_fields();
-    ls["tree"] = num(l.tree());
-    ls["level"] = num(l.level());
-    ls["nodes"] = num(double(l.nodes()));
-    ls["split"] = num(double(l.split()));
-    ls["samples"] = num(double(l.samples()));
-    ls["entropy"] = num(l.entropy());
-    ls["gain"] = num(l.gain());
-    ls["evaluations"] = num(double(l.evaluations()));
-    ls["evaluations_per_s"] = num(l.evaluations_per_s());
-    ls["seconds"] = num(l.seconds());
-    ls["workers"] = num(l.workers());
-    *levels.mutable_list_value()->add_values() = lv;
+  for (const v1::LevelStatus& l : e.levels()) {  // the newest levels
+    v1::JobStatus::Level* ls = s.add_levels();
+    ls->set_tree(int(l.tree()));
+    ls->set_level(int(l.level()));
+    ls->set_nodes(uint32_t(std::min<uint64_t>(l.nodes(), UINT32_MAX)));
+    ls->set_split(uint32_t(std::min<uint64_t>(l.split(), UINT32_MAX)));
+    ls->set_samples(double(l.samples()));
+    ls->set_entropy(l.entropy());
+    ls->set_gain(l.gain());
+    ls->set_evaluations(double(l.evaluations()));
+    ls->set_evaluations_per_s(l.evaluations_per_s());
+    ls->set_seconds(l.seconds());
+    ls->set_workers(int(l.workers()));
   }
-  levels.mutable_list_value();
-  f["levels"] = levels;
   return s;
 }
 
@@ -328,7 +258,7 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
     } else {
       const double age = std::clamp(dist::UnixSeconds() - t_last, 0.0, 5.0);
       const int rows = last.levels_size();
-      out += Render(StatusAsJson(last, job_id, trees, depth, age), levels,
+      out += Render(StatusAsJobStatus(last, job_id, trees, depth, age), levels,
                     rows >= dist::StatusModel::kMaxStatusLevels
                         ? "the newest " + std::to_string(rows) + " (all of them: --url)"
                         : "");
@@ -487,13 +417,14 @@ int MonitorMain(int argc, char** argv) {
   std::string last_state;
   for (;;) {
     auto body = dist::HttpGet(url + "/status.json", std::chrono::milliseconds(5000), token, ca_file);
-    pb::Struct status;
+    v1::JobStatus status;
     Status st = body.ok() ? Status::Ok() : body.status();
     if (st.ok()) {
       pb::util::JsonParseOptions po;
-      po.ignore_unknown_fields = true;
-      if (!pb::util::JsonStringToMessage(*body, &status, po).ok())
-        st = Status(core::ErrorCode::kDataLoss, url + "/status.json: not a JSON object");
+      po.ignore_unknown_fields = true;  // a newer coordinator's fields (status.proto)
+      if (const auto parsed = pb::util::JsonStringToMessage(*body, &status, po); !parsed.ok())
+        st = Status(core::ErrorCode::kDataLoss, url + "/status.json: not a JobStatus JSON object (" +
+                                                    std::string(parsed.message()) + ")");
     }
     if (!st.ok()) {
       // InvalidArgument: a bad URL, HTTP 401, a certificate not trusted: retrying will not help.
@@ -508,7 +439,7 @@ int MonitorMain(int argc, char** argv) {
       }
     } else {
       last_ok = std::chrono::steady_clock::now();
-      last_state = Str(status, "state");
+      last_state = status.state();
       const std::string text = Render(status, args.Has("levels"));
       if (tty) std::fputs("\033[H\033[2J", stdout);
       std::fputs(text.c_str(), stdout);

@@ -1,5 +1,7 @@
 #include "coordinator/monitoring/status_model.h"
 
+#include <google/protobuf/util/json_util.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -12,9 +14,6 @@ double SteadySeconds() {
 }
 
 constexpr double kWorkerWindowS = 10;  // per-worker throughput window
-
-std::string Num(double v) { return JsonNumber(v); }
-std::string Int(uint64_t v) { return std::to_string(v); }
 
 /// Prometheus label value: backslash, double quote and newline escaped.
 std::string Label(const std::string& s) {
@@ -45,47 +44,47 @@ double UnixSeconds() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-std::string JsonNumber(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.15g", v);
-  return buf;
-}
+double Finite(double v) { return std::isfinite(v) ? v : 0; }
 
-std::string JsonString(const std::string& s) {
-  std::string out = "\"";
+std::string ValidUtf8(const std::string& s) {
+  std::string out;
+  out.reserve(s.size());
   const auto* p = reinterpret_cast<const unsigned char*>(s.data());
   const size_t n = s.size();
   for (size_t i = 0; i < n;) {
     const unsigned char c = p[i];
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += char(c);
-      ++i;
-    } else if (c < 0x20 || c == 0x7f) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", c);
-      out += buf;
-      ++i;
-    } else if (c < 0x80) {
-      out += char(c);
-      ++i;
+    // Copy a well-formed UTF-8 sequence; replace anything else with U+FFFD.
+    const int len = c < 0x80                 ? 1
+                    : c >= 0xF0 && c <= 0xF4 ? 4
+                    : c >= 0xE0 && c < 0xF0  ? 3
+                    : c >= 0xC2 && c < 0xE0  ? 2
+                                             : 0;
+    bool ok = len > 0 && i + size_t(len) <= n;
+    for (int k = 1; ok && k < len; ++k) ok = (p[i + size_t(k)] & 0xC0) == 0x80;
+    if (ok && len >= 3) {  // no overlong forms, surrogates or code points past U+10FFFF
+      const unsigned char c1 = p[i + 1];
+      ok = !(c == 0xE0 && c1 < 0xA0) && !(c == 0xED && c1 > 0x9F) && !(c == 0xF0 && c1 < 0x90) &&
+           !(c == 0xF4 && c1 > 0x8F);
+    }
+    if (ok) {
+      out.append(s, i, size_t(len));
+      i += size_t(len);
     } else {
-      // Copy a well-formed UTF-8 sequence; replace anything else with U+FFFD.
-      int len = c >= 0xF0 && c <= 0xF4 ? 4 : c >= 0xE0 ? 3 : c >= 0xC2 && c < 0xE0 ? 2 : 0;
-      bool ok = len > 0 && i + size_t(len) <= n;
-      for (int k = 1; ok && k < len; ++k) ok = (p[i + size_t(k)] & 0xC0) == 0x80;
-      if (ok) {
-        out.append(s, i, size_t(len));
-        i += size_t(len);
-      } else {
-        out += "\\ufffd";
-        ++i;
-      }
+      out += "\xef\xbf\xbd";
+      ++i;
     }
   }
-  out += '"';
   return out;
+}
+
+std::string MessageJson(const google::protobuf::Message& m, bool every_field) {
+  google::protobuf::util::JsonPrintOptions o;
+  o.preserve_proto_field_names = true;  // job_id, not jobId: the names users have always read
+  o.always_print_primitive_fields = every_field;
+  std::string out;
+  // Cannot fail for our messages (no Any, no invalid UTF-8: callers pass strings through ValidUtf8).
+  const auto st = google::protobuf::util::MessageToJsonString(m, &out, o);
+  return st.ok() ? out : "{}";
 }
 
 std::string StatusKindName(v1::StatusKind kind) {
@@ -358,85 +357,97 @@ double StatusModel::WorkerRate(const Worker& w, double now) const {
   return double(evals) / span;
 }
 
-std::string StatusModel::Json() const {
+v1::JobStatus StatusModel::Snapshot() const {
   std::lock_guard<std::mutex> lock(mu_);
   const double now = SteadySeconds();
   const double end = end_steady_ >= 0 ? end_steady_ : now;
   const double eta = Eta();
-  std::string j = "{";
-  auto kv = [&](const std::string& k, const std::string& v, bool comma = true) {
-    j += JsonString(k) + ":" + v + (comma ? "," : "");
-  };
-  kv("job_id", JsonString(info_.job_id));
-  kv("state", JsonString(state_));
-  kv("message", JsonString(message_));
-  kv("url", JsonString(url_));
-  kv("domain", Int(info_.domain));
-  kv("profile", JsonString(info_.profile));
-  kv("out", JsonString(info_.out_path));
-  kv("started_unix", Num(start_unix_));
-  kv("now_unix", Num(UnixSeconds()));
-  kv("elapsed_s", Num(end - start_steady_));
-  kv("config", "{\"num_trees\":" + std::to_string(info_.num_trees) +
-                   ",\"max_depth\":" + std::to_string(info_.max_depth) +
-                   ",\"images_per_tree\":" + std::to_string(info_.images_per_tree) +
-                   ",\"pixels_per_image\":" + std::to_string(info_.pixels_per_image) +
-                   ",\"candidate_features\":" + std::to_string(info_.candidate_features) +
-                   ",\"thresholds_per_feature\":" + std::to_string(info_.thresholds_per_feature) + "}");
-  kv("tree", std::to_string(tree_));
-  kv("level", std::to_string(level_));
-  kv("trees_done", std::to_string(trees_done_));
-  kv("level_nodes_done", Int(nodes_done_));
-  kv("level_nodes_total", Int(nodes_total_));
-  kv("level_samples", Int(level_samples_));
-  kv("forest_nodes", Int(nodes_finished_trees_ + nodes_current_tree_));
-  kv("progress", Num(Progress()));
-  kv("eta_s", eta >= 0 ? Num(eta) : "null");
-  kv("samples_per_s", Num(samples_per_s_));
-  kv("evaluations_per_s", Num(evaluations_per_s_));
-  kv("totals",
-     "{\"levels\":" + Int(total_levels_) + ",\"samples\":" + Int(total_samples_) +
-         ",\"evaluations\":" + Int(total_evaluations_) + ",\"bytes_received\":" + Int(total_bytes_received_) +
-         ",\"bytes_sent\":" + Int(total_bytes_sent_) + ",\"retries\":" + Int(total_retries_) +
-         ",\"workers_lost\":" + Int(workers_lost_) + ",\"workers_evicted\":" + Int(workers_evicted_) +
-         ",\"level_seconds\":" + Num(total_level_s_) + "}");
-  j += "\"levels\":[";
-  for (size_t i = 0; i < levels_.size(); ++i) {
-    const DistLevelStats& s = levels_[i];
-    j += (i ? "," : "") + std::string("{\"tree\":") + std::to_string(s.tree) +
-         ",\"level\":" + std::to_string(s.level) + ",\"nodes\":" + Int(s.frontier_nodes) +
-         ",\"split\":" + Int(s.split_nodes) + ",\"samples\":" + Int(s.samples) +
-         ",\"entropy\":" + Num(s.mean_entropy) + ",\"gain\":" + Num(s.mean_gain) +
-         ",\"evaluations\":" + Int(s.evaluations) + ",\"evaluations_per_s\":" + Num(s.evaluations_per_s) +
-         ",\"samples_per_s\":" + Num(s.level_seconds > 0 ? double(s.samples) / s.level_seconds : 0) +
-         ",\"seconds\":" + Num(s.level_seconds) + ",\"elapsed_s\":" + Num(s.elapsed_s) +
-         ",\"workers\":" + std::to_string(s.workers_alive) + ",\"bytes_received\":" + Int(s.bytes_received) +
-         ",\"retries\":" + std::to_string(s.retries) + "}";
+  v1::JobStatus j;
+  j.set_job_id(ValidUtf8(info_.job_id));
+  j.set_state(state_);
+  j.set_message(ValidUtf8(message_));
+  j.set_url(ValidUtf8(url_));
+  j.set_domain(info_.domain);
+  j.set_profile(ValidUtf8(info_.profile));
+  j.set_out(ValidUtf8(info_.out_path));
+  j.set_started_unix(Finite(start_unix_));
+  j.set_now_unix(Finite(UnixSeconds()));
+  j.set_elapsed_s(Finite(end - start_steady_));
+  v1::JobStatus::Config* c = j.mutable_config();
+  c->set_num_trees(info_.num_trees);
+  c->set_max_depth(info_.max_depth);
+  c->set_images_per_tree(info_.images_per_tree);
+  c->set_pixels_per_image(info_.pixels_per_image);
+  c->set_candidate_features(info_.candidate_features);
+  c->set_thresholds_per_feature(info_.thresholds_per_feature);
+  j.set_tree(tree_);
+  j.set_level(level_);
+  j.set_trees_done(trees_done_);
+  j.set_level_nodes_done(uint32_t(std::min<size_t>(nodes_done_, UINT32_MAX)));
+  j.set_level_nodes_total(uint32_t(std::min<size_t>(nodes_total_, UINT32_MAX)));
+  j.set_level_samples(double(level_samples_));
+  j.set_forest_nodes(double(nodes_finished_trees_ + nodes_current_tree_));
+  j.set_progress(Finite(Progress()));
+  if (eta >= 0 && std::isfinite(eta)) j.set_eta_s(eta);
+  j.set_samples_per_s(Finite(samples_per_s_));
+  j.set_evaluations_per_s(Finite(evaluations_per_s_));
+  v1::JobStatus::Totals* t = j.mutable_totals();
+  t->set_levels(uint32_t(total_levels_));
+  t->set_samples(double(total_samples_));
+  t->set_evaluations(double(total_evaluations_));
+  t->set_bytes_received(double(total_bytes_received_));
+  t->set_bytes_sent(double(total_bytes_sent_));
+  t->set_retries(uint32_t(total_retries_));
+  t->set_workers_lost(uint32_t(workers_lost_));
+  t->set_workers_evicted(uint32_t(workers_evicted_));
+  t->set_level_seconds(Finite(total_level_s_));
+  for (const DistLevelStats& s : levels_) {
+    v1::JobStatus::Level* l = j.add_levels();
+    l->set_tree(s.tree);
+    l->set_level(s.level);
+    l->set_nodes(uint32_t(std::min<size_t>(s.frontier_nodes, UINT32_MAX)));
+    l->set_split(uint32_t(std::min<size_t>(s.split_nodes, UINT32_MAX)));
+    l->set_samples(double(s.samples));
+    l->set_entropy(Finite(s.mean_entropy));
+    l->set_gain(Finite(s.mean_gain));
+    l->set_evaluations(double(s.evaluations));
+    l->set_evaluations_per_s(Finite(s.evaluations_per_s));
+    l->set_samples_per_s(Finite(s.level_seconds > 0 ? double(s.samples) / s.level_seconds : 0));
+    l->set_seconds(Finite(s.level_seconds));
+    l->set_elapsed_s(Finite(s.elapsed_s));
+    l->set_workers(s.workers_alive);
+    l->set_bytes_received(double(s.bytes_received));
+    l->set_retries(s.retries);
   }
-  j += "],\"workers\":[";
-  bool first = true;
   for (const auto& [id, w] : workers_) {
-    j += (first ? "" : ",") + std::string("{\"id\":") + JsonString(id) + ",\"state\":" + JsonString(w.state) +
-         ",\"frames\":" + Int(w.frames) + ",\"replies\":" + Int(w.replies) +
-         ",\"samples\":" + Int(w.samples) + ",\"evaluations\":" + Int(w.evaluations) +
-         ",\"evaluations_per_s\":" + Num(WorkerRate(w, now)) +
-         ",\"compute_evaluations_per_s\":" + Num(w.compute_s > 0 ? double(w.evaluations) / w.compute_s : 0) +
-         ",\"reported_evaluations\":" + Int(w.reported_evaluations) +
-         ",\"reported_evaluations_per_s\":" + Num(w.state == "training" ? w.reported_rate : 0) +
-         ",\"bytes_received\":" + Int(w.bytes) + ",\"joined_unix\":" + Num(w.joined) +
-         ",\"last_seen_s\":" + Num(w.last_seen > 0 ? now - w.last_seen : -1) + "}";
-    first = false;
+    v1::JobStatus::Worker* ws = j.add_workers();
+    ws->set_id(ValidUtf8(id));
+    ws->set_state(w.state);
+    ws->set_frames(double(w.frames));
+    ws->set_replies(double(w.replies));
+    ws->set_samples(double(w.samples));
+    ws->set_evaluations(double(w.evaluations));
+    ws->set_evaluations_per_s(Finite(WorkerRate(w, now)));
+    ws->set_compute_evaluations_per_s(Finite(w.compute_s > 0 ? double(w.evaluations) / w.compute_s : 0));
+    ws->set_reported_evaluations(double(w.reported_evaluations));
+    ws->set_reported_evaluations_per_s(Finite(w.state == "training" ? w.reported_rate : 0));
+    ws->set_bytes_received(double(w.bytes));
+    ws->set_joined_unix(Finite(w.joined));
+    ws->set_last_seen_s(Finite(w.last_seen > 0 ? now - w.last_seen : -1));
   }
-  j += "],\"events\":[";
-  for (size_t i = 0; i < events_.size(); ++i) {
-    const Event& e = events_[i];
-    j += (i ? "," : "") + std::string("{\"unix\":") + Num(e.unix_s) + ",\"event\":" + JsonString(e.kind) +
-         ",\"tree\":" + std::to_string(e.tree) + ",\"level\":" + std::to_string(e.level) +
-         ",\"worker\":" + JsonString(e.worker) + ",\"message\":" + JsonString(e.message) + "}";
+  for (const Event& e : events_) {
+    v1::JobEvent* ev = j.add_events();
+    ev->set_unix(Finite(e.unix_s));
+    ev->set_event(e.kind);
+    ev->set_tree(e.tree);
+    ev->set_level(e.level);
+    ev->set_worker(ValidUtf8(e.worker));
+    ev->set_message(ValidUtf8(e.message));
   }
-  j += "]}\n";
   return j;
 }
+
+std::string StatusModel::Json() const { return MessageJson(Snapshot(), /*every_field=*/true) + "\n"; }
 
 std::string StatusModel::Prometheus() const {
   std::lock_guard<std::mutex> lock(mu_);
@@ -481,7 +492,8 @@ std::string StatusModel::Prometheus() const {
   const double gain = levels_.empty() ? 0 : levels_.back().mean_gain;
   const double entropy = levels_.empty() ? 0 : levels_.back().mean_entropy;
   metric("poseforest_level_mean_information_gain", "gauge",
-         "Mean information gain of the last level's splits (bits; not in the name: promtool's lint reads bits as data).",
+         "Mean information gain of the last level's splits (bits; not in the name: promtool's lint reads "
+         "bits as data).",
          {{"", gain}});
   metric("poseforest_level_mean_part_entropy", "gauge",
          "Sample-weighted part entropy of the last level's frontier (bits).", {{"", entropy}});

@@ -3,7 +3,7 @@
 // ETA, per-level entropy and gain, workers with their state and throughput, recent events.
 // Fed on the training thread (a CoordinatorObserver), read by the HTTP server's thread as JSON
 // (/status.json, `poseforest monitor`, the dashboard) and Prometheus text (/metrics).
-// docs/distributed/monitoring.md describes every field.
+// Schema: JobStatus in proto/poseforest/v1/status.proto (docs/distributed/monitoring.md).
 
 #include <chrono>
 #include <cstdint>
@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "coordinator/dist_coordinator.h"
+#include "poseforest/v1/status.pb.h"
 
 namespace poseforest::dist {
 
@@ -53,7 +54,9 @@ class StatusModel : public CoordinatorObserver {
   /// The dashboard's address, shown in the JSON (empty: none).
   void SetUrl(const std::string& url);
 
-  /// The status as one JSON object (schema in docs/distributed/monitoring.md).
+  /// The status now (schema: proto/poseforest/v1/status.proto).
+  v1::JobStatus Snapshot() const;
+  /// Snapshot() as one line of JSON (GET /status.json), every field present.
   std::string Json() const;
   /// Prometheus text exposition format 0.0.4.
   std::string Prometheus() const;
@@ -152,10 +155,14 @@ class ObserverFanOut : public CoordinatorObserver {
   std::vector<CoordinatorObserver*> targets_;
 };
 
-/// JSON string literal of `s` (quotes included; control characters and invalid UTF-8 escaped).
-std::string JsonString(const std::string& s);
-/// A JSON number; NaN and infinities become null.
-std::string JsonNumber(double v);
+/// `s` with every byte that is not part of well-formed UTF-8 replaced by U+FFFD (a protobuf
+/// string must be UTF-8; worker ids and messages come from peers).
+std::string ValidUtf8(const std::string& s);
+/// `v`, or 0 when it is NaN or infinite (the JSON figures are numbers, never "NaN").
+double Finite(double v);
+/// `m` as one line of JSON by Protobuf's printer, field names as in the .proto; `every_field`:
+/// also the fields at their default (0, "", []), else only the fields set.
+std::string MessageJson(const google::protobuf::Message& m, bool every_field);
 /// Short name of a StatusKind ("LEVEL_DONE", ...).
 std::string StatusKindName(v1::StatusKind kind);
 /// Seconds since the Unix epoch (wall clock).

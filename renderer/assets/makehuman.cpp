@@ -6,10 +6,11 @@
 #include <fstream>
 #include <limits>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <unordered_map>
 
-#include "renderer/assets/json_lite.h"
+#include "runtime/core/forest_format.h"
 
 namespace poseforest::renderer::assets {
 namespace {
@@ -21,15 +22,22 @@ using core::Status;
 constexpr double kDecimetre = 0.1;
 
 Result<std::string> ReadFile(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec))
-    return Status(ErrorCode::kNotFound, path.string() + ": no such file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status(ErrorCode::kIo, path.string() + ": cannot open for reading");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) return Status(ErrorCode::kIo, path.string() + ": read error");
-  return ss.str();
+  auto bytes = core::ReadFileBytes(path.string());
+  if (!bytes.ok()) return bytes.status();
+  return std::string(bytes->begin(), bytes->end());
+}
+
+// ordered_json: bones keep the order of the file (their indices are the skinning's bone ids).
+using Json = nlohmann::ordered_json;
+
+/// `text` as JSON; DataLoss naming `source` and the parser's byte offset.
+Result<Json> ParseJson(const std::string& text, const std::string& source) {
+  try {
+    return Json::parse(text);
+  } catch (const Json::parse_error& e) {
+    return Status(ErrorCode::kDataLoss,
+                  source + ": JSON error at byte " + std::to_string(e.byte) + ": " + e.what());
+  }
 }
 
 bool ParseNum(std::string_view w, double* out) {
@@ -184,62 +192,64 @@ Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::
   const auto skel_path = kit_dir / "rigs" / "default.mhskel";
   auto skel_text = ReadFile(skel_path);
   if (!skel_text.ok()) return skel_text.status();
-  auto skel = json::Parse(*skel_text, skel_path.string());
+  auto skel = ParseJson(*skel_text, skel_path.string());
   if (!skel.ok()) return skel.status();
-  const json::Value* bones = skel->Find("bones");
-  const json::Value* joints = skel->Find("joints");
-  if (!bones || !bones->IsObject() || !joints || !joints->IsObject())
+  const auto bones = skel->find("bones"), joints = skel->find("joints");
+  if (bones == skel->end() || !bones->is_object() || joints == skel->end() || !joints->is_object())
     return Status(ErrorCode::kDataLoss, skel_path.string() + ": missing 'bones' or 'joints'");
-  for (const auto& [name, jv] : joints->object) {
-    if (!jv.IsArray() || jv.array.empty())
+  for (const auto& [name, jv] : joints->items()) {
+    if (!jv.is_array() || jv.empty())
       return Status(ErrorCode::kDataLoss, skel_path.string() + ": joint '" + name + "' has no vertex list");
     std::vector<uint32_t> idx;
-    for (const auto& e : jv.array) {
-      if (!e.IsNumber() || e.number < 0 || e.number >= double(m.base.size()))
+    for (const auto& e : jv) {
+      if (!e.is_number() || !(e.get<double>() >= 0 && e.get<double>() < double(m.base.size())))
         return Status(ErrorCode::kDataLoss,
                       skel_path.string() + ": joint '" + name + "' names a vertex out of range");
-      idx.push_back(uint32_t(e.number));
+      idx.push_back(uint32_t(e.get<double>()));
     }
     m.joints[name] = std::move(idx);
   }
-  for (const auto& [name, bv] : bones->object) {
-    const json::Value* head = bv.Find("head");
-    const json::Value* tail = bv.Find("tail");
-    const json::Value* parent = bv.Find("parent");
-    if (!head || !head->IsString() || !tail || !tail->IsString() || !m.joints.count(head->string) ||
-        !m.joints.count(tail->string))
+  auto string_member = [](const Json& v, const char* key) -> const std::string* {
+    if (!v.is_object()) return nullptr;
+    const auto it = v.find(key);
+    return it != v.end() && it->is_string() ? it->get_ptr<const std::string*>() : nullptr;
+  };
+  for (const auto& [name, bv] : bones->items()) {
+    const std::string* head = string_member(bv, "head");
+    const std::string* tail = string_member(bv, "tail");
+    const std::string* parent = string_member(bv, "parent");
+    if (!head || !tail || !m.joints.count(*head) || !m.joints.count(*tail))
       return Status(ErrorCode::kDataLoss,
                     skel_path.string() + ": bone '" + name + "' has no valid head/tail joint");
-    m.bones.push_back({name, head->string, tail->string, parent && parent->IsString() ? parent->string : ""});
+    m.bones.push_back({name, *head, *tail, parent ? *parent : ""});
   }
 
   // --- rigs/default_weights.mhw ---
   const auto mhw_path = kit_dir / "rigs" / "default_weights.mhw";
   auto mhw_text = ReadFile(mhw_path);
   if (!mhw_text.ok()) return mhw_text.status();
-  auto mhw = json::Parse(*mhw_text, mhw_path.string());
+  auto mhw = ParseJson(*mhw_text, mhw_path.string());
   if (!mhw.ok()) return mhw.status();
-  const json::Value* weights = mhw->Find("weights");
-  if (!weights || !weights->IsObject())
+  const auto weights = mhw->find("weights");
+  if (weights == mhw->end() || !weights->is_object())
     return Status(ErrorCode::kDataLoss, mhw_path.string() + ": missing 'weights'");
   m.weights.assign(m.body_vertices.size(), {});
-  for (const auto& [bone, list] : weights->object) {
+  for (const auto& [bone, list] : weights->items()) {
     int b = -1;
     for (size_t k = 0; k < m.bones.size(); ++k)
       if (m.bones[k].name == bone) b = int(k);
     if (b < 0)
       return Status(ErrorCode::kDataLoss, mhw_path.string() + ": weights for unknown bone '" + bone + "'");
-    if (!list.IsArray())
+    if (!list.is_array())
       return Status(ErrorCode::kDataLoss, mhw_path.string() + ": bone '" + bone + "': not a list");
-    for (const auto& pair : list.array) {
-      if (!pair.IsArray() || pair.array.size() != 2 || !pair.array[0].IsNumber() ||
-          !pair.array[1].IsNumber() || pair.array[0].number < 0 ||
-          pair.array[0].number >= double(m.base.size()))
+    for (const auto& pair : list) {
+      if (!pair.is_array() || pair.size() != 2 || !pair[0].is_number() || !pair[1].is_number() ||
+          !(pair[0].get<double>() >= 0 && pair[0].get<double>() < double(m.base.size())))
         return Status(ErrorCode::kDataLoss,
                       mhw_path.string() + ": bone '" + bone + "': bad [vertex, weight] pair");
-      const int c = compact[size_t(pair.array[0].number)];
-      if (c >= 0 && pair.array[1].number > 0)
-        m.weights[size_t(c)].push_back({b, float(pair.array[1].number)});
+      const int c = compact[size_t(pair[0].get<double>())];
+      if (c >= 0 && pair[1].get<double>() > 0)
+        m.weights[size_t(c)].push_back({b, float(pair[1].get<double>())});
     }
   }
   return kit;
@@ -326,13 +336,7 @@ Result<BodyMesh> MakeHumanKit::Build(const MakeHumanParams& p) const {
   EstimateMissingJoints(*rig, body.vertices, body.skin);
   body.rest_joints = rig->rest_joints;
 
-  // Feet on y = 0, pelvis above the origin.
-  float min_y = std::numeric_limits<float>::infinity();
-  for (const auto& v : body.vertices) min_y = std::min(min_y, v.y());
-  const Eigen::Vector3d pelvis = body.rest_joints[size_t(SkelJoint::kPelvis)];
-  const Eigen::Vector3d shift(-pelvis.x(), -double(min_y), -pelvis.z());
-  for (auto& v : body.vertices) v += shift.cast<float>();
-  for (auto& j : body.rest_joints) j += shift;
+  PlaceOnFloor(&body);
   return body;
 }
 

@@ -232,12 +232,7 @@ Result<BodyMesh> LoadRiggedMesh(const std::filesystem::path& path, const MeshLoa
   body.vertices = std::move(vertices);
   body.triangles = std::move(triangles);
   body.rest_joints = rig.rest_joints;
-  float min_y = std::numeric_limits<float>::infinity();
-  for (const auto& v : body.vertices) min_y = std::min(min_y, v.y());
-  const Eigen::Vector3d pelvis = body.rest_joints[size_t(SkelJoint::kPelvis)];
-  const Eigen::Vector3d shift(-pelvis.x(), -double(min_y), -pelvis.z());
-  for (auto& v : body.vertices) v += shift.cast<float>();
-  for (auto& j : body.rest_joints) j += shift;
+  PlaceOnFloor(&body);
   return body;
 }
 

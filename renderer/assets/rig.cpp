@@ -173,4 +173,13 @@ Eigen::Matrix3d SnapToAxes(const Eigen::Matrix3d& m) {
   return best;
 }
 
+void PlaceOnFloor(BodyMesh* body) {
+  float min_y = std::numeric_limits<float>::infinity();
+  for (const auto& v : body->vertices) min_y = std::min(min_y, v.y());
+  const Eigen::Vector3d pelvis = body->rest_joints[size_t(SkelJoint::kPelvis)];
+  const Eigen::Vector3d shift(-pelvis.x(), -double(min_y), -pelvis.z());
+  for (auto& v : body->vertices) v += shift.cast<float>();
+  for (auto& j : body->rest_joints) j += shift;
+}
+
 }  // namespace poseforest::renderer::assets

@@ -52,6 +52,10 @@ std::vector<SkinInfluence> FoldSkin(const FoldedRig& rig, const RigWeights& weig
 void EstimateMissingJoints(FoldedRig& rig, const std::vector<Eigen::Vector3f>& vertices,
                            const std::vector<SkinInfluence>& skin);
 
+/// Moves `body` (vertices and rest joints, metres) so that its lowest vertex is on y = 0 and its
+/// pelvis above the origin.
+void PlaceOnFloor(BodyMesh* body);
+
 /// The signed axis permutation (a proper rotation) nearest to the rotation `m`.
 Eigen::Matrix3d SnapToAxes(const Eigen::Matrix3d& m);
 

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
@@ -79,29 +80,36 @@ std::string FrameName(const std::string& dir, const char* stem, uint64_t i, cons
   return (std::filesystem::path(dir) / buf).string();
 }
 
+/// `v` rounded to `decimals` places: the precision the files have always had (0.01 mm, 0.01 px).
+double Rounded(double v, double decimals) {
+  const double scale = std::pow(10.0, decimals);
+  return std::isfinite(v) ? std::round(v * scale) / scale : 0.0;
+}
+
 std::string JointsJson(const renderer::RenderedFrame& f, const core::CameraIntrinsics& cam, uint64_t seed,
                        uint64_t index) {
-  std::string s =
-      "{\n  \"seed\": " + std::to_string(seed) + ",\n  \"index\": " + std::to_string(index) +
-      ",\n  \"units\": \"metres, camera frame: x right, y down, z forward; u, v pixels\",\n  \"people\": [";
-  char buf[256];
+  nlohmann::ordered_json people = nlohmann::ordered_json::array();
   for (size_t p = 0; p < f.joints.size(); ++p) {
-    s += p ? ",\n    {\"joints\": [" : "\n    {\"joints\": [";
+    nlohmann::ordered_json joints = nlohmann::ordered_json::array();
     for (int j = 0; j < core::kNumJoints; ++j) {
       const Eigen::Vector3f q = f.joints[p][size_t(j)];
       const Eigen::Vector2d uv = q.z() > 0 ? cam.Project(q.cast<double>()) : Eigen::Vector2d(-1, -1);
-      std::snprintf(
-          buf, sizeof buf,
-          "%s\n      {\"name\": \"%s\", \"x\": %.5f, \"y\": %.5f, \"z\": %.5f, \"u\": %.2f, \"v\": %.2f, "
-          "\"visible\": %s}",
-          j ? "," : "", std::string(core::JointName(j)).c_str(), q.x(), q.y(), q.z(), uv.x(), uv.y(),
-          f.visible[p][size_t(j)] ? "true" : "false");
-      s += buf;
+      joints.push_back({{"name", std::string(core::JointName(j))},
+                        {"x", Rounded(q.x(), 5)},
+                        {"y", Rounded(q.y(), 5)},
+                        {"z", Rounded(q.z(), 5)},
+                        {"u", Rounded(uv.x(), 2)},
+                        {"v", Rounded(uv.y(), 2)},
+                        {"visible", bool(f.visible[p][size_t(j)])}});
     }
-    s += "\n    ]}";
+    people.push_back({{"joints", std::move(joints)}});
   }
-  s += "\n  ]\n}\n";
-  return s;
+  const nlohmann::ordered_json doc = {
+      {"seed", seed},
+      {"index", index},
+      {"units", "metres, camera frame: x right, y down, z forward; u, v pixels"},
+      {"people", std::move(people)}};
+  return doc.dump(2) + "\n";
 }
 
 }  // namespace

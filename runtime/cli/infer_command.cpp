@@ -94,6 +94,7 @@ float CalibratedConfidence(const core::ConfidenceCalibration* cal, int joint, co
   return cal ? cal->Confidence(joint, support) : core::FallbackConfidence(support);
 }
 
+// Written by hand: the runtime depends on nothing but Eigen and OpenMP (no JSON library).
 std::string JointsJson(const std::string& source, const core::DepthImage& depth, const runtime::FrameProposals& f,
                        const char* method, const core::ConfidenceCalibration* cal, const core::CameraIntrinsics& camera) {
   std::string out = "{\n  \"frame\": \"";

@@ -28,8 +28,10 @@
 
 #include "coordinator/checkpoint_export.h"
 #include "coordinator/monitoring/dashboard.h"
+#include "coordinator/monitoring/event_log.h"
 #include "coordinator/monitoring/http_server.h"
 #include "coordinator/monitoring/status_model.h"
+#include "poseforest/v1/status.pb.h"
 #include "tests/coordinator/dist_test_util.h"
 #include "tests/coordinator/http_test_util.h"
 #include "tests/proto/dds_test_util.h"
@@ -77,10 +79,29 @@ const pb::ListValue& List(const pb::Struct& s, const std::string& k) {
   return it->second.list_value();
 }
 
+/// `text` into `m` strictly (an unknown field or a wrong type fails), as status.proto says.
+template <typename Message>
+Message ParseStrict(const std::string& text) {
+  Message m;
+  const auto st = pb::util::JsonStringToMessage(text, &m);  // default: unknown fields rejected
+  INFO(text.substr(0, 2000));
+  INFO(st.ToString());
+  REQUIRE(st.ok());
+  return m;
+}
+
 pb::Struct GetStatus(const std::string& url) {
   auto body = HttpGet(url + "/status.json", 5s);
   if (!body.ok()) FAIL(body.status().ToString());
+  (void)ParseStrict<v1::JobStatus>(*body);  // the schema holds every field the coordinator prints
   return ParseJson(*body);
+}
+
+/// The keys of `s`, sorted.
+std::set<std::string> Keys(const pb::Struct& s) {
+  std::set<std::string> keys;
+  for (const auto& [k, v] : s.fields()) keys.insert(k);
+  return keys;
 }
 
 /// The URL from the coordinator's "status: http://..." line.
@@ -136,7 +157,10 @@ std::vector<pb::Struct> EventLines(const fs::path& p) {
   std::vector<pb::Struct> out;
   std::istringstream in(ReadText(p));
   std::string line;
-  while (std::getline(in, line)) out.push_back(ParseJson(line));
+  while (std::getline(in, line)) {
+    (void)ParseStrict<v1::JobEvent>(line);
+    out.push_back(ParseJson(line));
+  }
   return out;
 }
 
@@ -1118,4 +1142,167 @@ TEST_CASE("/metrics shows each worker's subtree-task frames of the current tree"
   CHECK(m.find("poseforest_worker_task_frames_rendered{exported_job=\"job-1\",worker=\"w-a\",tree=\"2\"} 1234") != std::string::npos);
   CHECK(m.find("poseforest_worker_task_frames_cached{exported_job=\"job-1\",worker=\"w-a\",tree=\"2\"} 5678") != std::string::npos);
   CHECK(m.find("poseforest_worker_task_cache_evictions{exported_job=\"job-1\",worker=\"w-a\",tree=\"2\"} 91") != std::string::npos);
+}
+
+// Issue 17: one schema for status (proto/poseforest/v1/status.proto). /status.json and the event
+// log parse strictly into JobStatus / JobEvent, with the key names and JSON types users have
+// always read (the dashboard's script, `monitor`, their own scripts).
+TEST_CASE("/status.json parses strictly into JobStatus, with the names and types users read",
+          "[distributed][monitoring][unit]") {
+  StatusModel model({"job-7", 3, "udp", 2, 4, 10, 100, 20, 8, "/data/forest.pff"});
+  {
+    const v1::JobStatus waiting = ParseStrict<v1::JobStatus>(model.Json());
+    CHECK(waiting.state() == "waiting");
+    CHECK(!waiting.has_eta_s());  // unknown: absent
+    CHECK(waiting.levels().empty());
+    CHECK(model.Json().find("\"levels\":[]") != std::string::npos);  // arrays are there, empty
+  }
+  v1::StatusEvent joined;
+  joined.set_kind(v1::STATUS_KIND_WORKER_JOINED);
+  joined.set_worker_id("w-a");
+  model.OnStatus(joined);
+  model.OnWorkerAssigned("w-a", 0, 30);
+  model.OnLevelStart(0, 0, 1, 6000);
+  v1::HistogramReply reply;
+  reply.set_num_candidates(20);
+  reply.add_nodes()->set_samples(6000);
+  model.OnWorkerReply("w-a", 4096, reply);
+  DistLevelStats level;
+  level.frontier_nodes = 1;
+  level.split_nodes = 1;
+  level.samples = 6000;
+  level.evaluations = 5000000000;  // past 2^32: still a JSON number
+  level.evaluations_per_s = 1e9;
+  level.mean_entropy = 3.5;
+  level.mean_gain = std::numeric_limits<double>::quiet_NaN();  // printed 0, never "NaN"
+  level.level_seconds = 5;
+  level.workers_alive = 1;
+  model.OnLevelDone(level);
+  const std::string json = model.Json();
+  INFO(json);
+  const v1::JobStatus st = ParseStrict<v1::JobStatus>(json);
+  CHECK(st.job_id() == "job-7");
+  CHECK(st.state() == "training");
+  CHECK(st.domain() == 3);
+  CHECK(st.out() == "/data/forest.pff");
+  CHECK(st.config().num_trees() == 2);
+  CHECK(st.config().max_depth() == 4);
+  CHECK(st.has_eta_s());
+  REQUIRE(st.levels_size() == 1);
+  CHECK(st.levels(0).evaluations() == 5000000000.0);
+  CHECK(st.levels(0).entropy() == 3.5);
+  CHECK(st.levels(0).gain() == 0);
+  REQUIRE(st.workers_size() == 1);
+  CHECK(st.workers(0).id() == "w-a");
+  CHECK(st.workers(0).state() == "training");
+  CHECK(st.workers(0).frames() == 30);
+  CHECK(st.workers(0).evaluations() == 120000);
+  REQUIRE(st.events_size() == 1);
+  CHECK(st.events(0).event() == "WORKER_JOINED");
+  CHECK(json.find("5000000000") != std::string::npos);
+  CHECK(json.find("\"5000000000\"") == std::string::npos);  // not a string (uint64 would be)
+  CHECK(json.find("NaN") == std::string::npos);
+  // Every field the printer wrote is in the schema: printed again, the same text.
+  CHECK(MessageJson(st, /*every_field=*/true) + "\n" == json);
+  // The keys of the JSON before the schema (what the dashboard and scripts read), no more, no fewer.
+  const pb::Struct s = ParseJson(json);
+  CHECK(Keys(s) == std::set<std::string>{"job_id",
+                                         "state",
+                                         "message",
+                                         "url",
+                                         "domain",
+                                         "profile",
+                                         "out",
+                                         "started_unix",
+                                         "now_unix",
+                                         "elapsed_s",
+                                         "config",
+                                         "tree",
+                                         "level",
+                                         "trees_done",
+                                         "level_nodes_done",
+                                         "level_nodes_total",
+                                         "level_samples",
+                                         "forest_nodes",
+                                         "progress",
+                                         "eta_s",
+                                         "samples_per_s",
+                                         "evaluations_per_s",
+                                         "totals",
+                                         "levels",
+                                         "workers",
+                                         "events"});
+  CHECK(Keys(s.fields().at("config").struct_value()) ==
+        std::set<std::string>{"num_trees", "max_depth", "images_per_tree", "pixels_per_image",
+                              "candidate_features", "thresholds_per_feature"});
+  CHECK(Keys(s.fields().at("totals").struct_value()) ==
+        std::set<std::string>{"levels", "samples", "evaluations", "bytes_received", "bytes_sent", "retries",
+                              "workers_lost", "workers_evicted", "level_seconds"});
+  CHECK(Keys(List(s, "levels").values(0).struct_value()) ==
+        std::set<std::string>{"tree", "level", "nodes", "split", "samples", "entropy", "gain", "evaluations",
+                              "evaluations_per_s", "samples_per_s", "seconds", "elapsed_s", "workers",
+                              "bytes_received", "retries"});
+  CHECK(Keys(List(s, "workers").values(0).struct_value()) ==
+        std::set<std::string>{"id", "state", "frames", "replies", "samples", "evaluations",
+                              "evaluations_per_s", "compute_evaluations_per_s", "reported_evaluations",
+                              "reported_evaluations_per_s", "bytes_received", "joined_unix", "last_seen_s"});
+  CHECK(Keys(List(s, "events").values(0).struct_value()) ==
+        std::set<std::string>{"unix", "event", "tree", "level", "worker", "message"});
+  for (const auto& [k, v] : s.fields())
+    if (k != "config" && k != "totals" && k != "levels" && k != "workers" && k != "events") {
+      INFO(k);
+      CHECK((v.has_number_value() || v.has_string_value()));
+    }
+  // Strict: unknown fields and wrong types are refused.
+  v1::JobStatus bad;
+  CHECK(!pb::util::JsonStringToMessage(R"({"job_id":"x","no_such_field":1})", &bad).ok());
+  CHECK(!pb::util::JsonStringToMessage(R"({"tree":"zero"})", &bad).ok());
+  CHECK(!pb::util::JsonStringToMessage(R"({"levels":[{"nodes":-1}]})", &bad).ok());
+}
+
+TEST_CASE("event log lines parse strictly into JobEvent, each with the keys of its event",
+          "[distributed][monitoring][unit]") {
+  TempDir dir("pf-mon-events");
+  const fs::path path = dir.path / "events.jsonl";
+  {
+    auto log = EventLog::Open(path.string(), "job-\"e\"");
+    REQUIRE(log.ok());
+    DistLevelStats level;
+    level.tree = 1;
+    level.level = 2;
+    level.frontier_nodes = 4;
+    level.split_nodes = 3;
+    level.samples = 5000000000;
+    level.mean_entropy = 2.25;
+    (*log)->OnLevelDone(level);
+    v1::StatusEvent e;
+    e.set_kind(v1::STATUS_KIND_LEVEL_DONE);
+    e.set_tree(1);
+    e.set_level(2);
+    e.set_epoch(9);
+    e.set_progress(0.5);
+    e.set_active_workers(2);
+    (*log)->OnStatus(e);
+    (*log)->OnWorkerAssigned("w\xff", 1, 30);
+    v1::JobEvent written;
+    written.set_event("FOREST_WRITTEN");
+    written.set_message("wrote forest.pff");
+    (*log)->Write(written);
+  }
+  const auto lines = EventLines(path);  // each line strictly a JobEvent
+  REQUIRE(lines.size() == 3);
+  CHECK(Keys(lines[0]) == std::set<std::string>{"time", "unix", "job", "event", "tree", "level", "epoch",
+                                                "progress", "active_workers", "nodes", "split", "samples",
+                                                "evaluations", "evaluations_per_s", "mean_entropy",
+                                                "mean_gain", "bytes_received", "seconds", "retries"});
+  CHECK(Str(lines[0], "event") == "LEVEL_DONE");
+  CHECK(Str(lines[0], "job") == "job-\"e\"");
+  CHECK(Num(lines[0], "samples") == 5000000000.0);
+  CHECK(Num(lines[0], "mean_entropy") == 2.25);
+  CHECK(std::regex_match(Str(lines[0], "time"), std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z)")));
+  CHECK(Keys(lines[1]) == std::set<std::string>{"time", "unix", "job", "event", "worker", "tree", "frames"});
+  CHECK(Str(lines[1], "worker") == "w\xef\xbf\xbd");
+  CHECK(Num(lines[1], "frames") == 30);
+  CHECK(Keys(lines[2]) == std::set<std::string>{"time", "unix", "job", "event", "message"});
+  CHECK(Str(lines[2], "event") == "FOREST_WRITTEN");
 }

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <string>
 
+#include "runtime/core/body_parts.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #include "tests/support/paths.h"
@@ -253,5 +254,21 @@ TEST_CASE("tune-joints and eval refuse bad input with clear messages", "[cli][jo
       << "{\"people\": [{\"joints\": [{\"x\": oops}]}]}";
   auto corrupt = RunPoseforest("eval --forest " + forest + " --test-set " + (dir / "frames").string());
   CHECK(corrupt.exit_code == 1);
-  CHECK_THAT(corrupt.output, Catch::Contains("joints_000000.json") && Catch::Contains("not a number"));
+  CHECK_THAT(corrupt.output, Catch::Contains("joints_000000.json") && Catch::Contains("not valid JSON"));
+  // Valid JSON of the wrong shape: the error names the file, the person, the joint and the key.
+  std::string joints;
+  for (int j = 0; j < core::kNumJoints; ++j)
+    joints += std::string(j ? "," : "") + "{\"x\": 0.1, \"y\": 0.2, \"z\": " + (j == 3 ? "\"far\"" : "2") +
+              ", \"visible\": true}";
+  std::ofstream((dir / "frames" / "joints_000000.json").string())
+      << "{\"people\": [{\"joints\": [" + joints + "]}]}";
+  auto wrong = RunPoseforest("eval --forest " + forest + " --test-set " + (dir / "frames").string());
+  CHECK(wrong.exit_code == 1);
+  CHECK_THAT(wrong.output, Catch::Contains("joints_000000.json: person 0, joint 3") &&
+                               Catch::Contains("\"z\" is not a number"));
+  std::ofstream((dir / "frames" / "joints_000000.json").string()) << "{\"people\": [{\"joints\": []}]}";
+  auto short_list = RunPoseforest("eval --forest " + forest + " --test-set " + (dir / "frames").string());
+  CHECK(short_list.exit_code == 1);
+  CHECK_THAT(short_list.output,
+             Catch::Contains("person 0: 0 joints, expected " + std::to_string(core::kNumJoints)));
 }
