@@ -8,7 +8,7 @@ set -euo pipefail
 
 runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2
   python3-dev python3-pybind11 python3-numpy  # the optional Python module and its test (consumer_python)
-  libcpp-httplib-dev                          # optional: `live --http` (its browser test uses chromium, below)
+  libcpp-httplib-dev                          # `live --http` (optional here); the coordinator's status server (training)
 )
 training_pkgs=(
   libprotobuf-dev protobuf-compiler         # job configs and wire messages

@@ -2,7 +2,6 @@
 
 #include <arpa/inet.h>
 #include <fcntl.h>
-#include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <openssl/crypto.h>
@@ -22,9 +21,14 @@
 #include <cctype>
 #include <cerrno>
 #include <cstring>
-#include <map>
+#include <list>
+#include <set>
 #include <sstream>
+#include <system_error>
 #include <vector>
+
+// cpp-httplib with its OpenSSL support (CPPHTTPLIB_OPENSSL_SUPPORT comes with the pkg-config target).
+#include <httplib.h>
 
 namespace poseforest::dist {
 
@@ -75,11 +79,6 @@ std::string Serialize(const HttpResponse& r, bool head_only, const std::string& 
 HttpResponse Error(int status, const std::string& why) {
   return {status, "text/plain; charset=utf-8",
           std::to_string(status) + " " + Reason(status) + ": " + why + "\n"};
-}
-
-bool SetNonBlocking(int fd) {
-  const int flags = ::fcntl(fd, F_GETFL, 0);
-  return flags >= 0 && ::fcntl(fd, F_SETFL, flags | O_NONBLOCK) == 0;
 }
 
 bool IsTokenChar(char c) {
@@ -300,20 +299,6 @@ Result<SslCtxPtr> MakeServerContext(const std::string& cert_file, const std::str
   return ctx;
 }
 
-struct Conn {
-  enum class Phase { kHandshake, kReading, kWriting, kClosing };
-  int fd = -1;
-  uint32_t peer_ip = 0;  ///< network order
-  std::string peer;      ///< "IP:PORT"
-  std::string in, out;
-  size_t sent = 0;
-  Phase phase = Phase::kReading;
-  short want = POLLIN;  ///< what the next step waits for (TLS may want to write while reading)
-  SslPtr ssl;           ///< with TLS
-  Clock::time_point deadline;
-};
-
-/// Parses the request head; on failure returns the error response.
 bool ParseHead(const std::string& head, HttpRequest* req, HttpResponse* error) {
   const size_t eol = head.find_first_of("\r\n");
   const std::string line = head.substr(0, eol);
@@ -475,6 +460,7 @@ Result<std::string> ReadHttpTokenFile(const std::string& path) {
 
 void HttpServer::Log(const std::string& line) {
   if (!opt_.log) return;
+  std::lock_guard<std::mutex> lock(log_mu_);  // connections log from their own threads
   const auto now = Clock::now();
   if (log_refill_ == Clock::time_point{}) {
     log_credit_ = std::max(1, opt_.log_burst);
@@ -549,6 +535,236 @@ Status CheckHttpCaFile(const std::string& ca_file) {
   return Status::Ok();
 }
 
+namespace {
+/// One connection's socket (and TLS session) under one deadline for the whole exchange: the
+/// request head in, the reply out. httplib's own timeouts are per read and per write, so a client
+/// that sends a byte now and then (slow loris) would hold a connection forever; every wait here
+/// ends at the deadline, or at once when the server stops.
+struct Conn {
+  int fd = -1;
+  int wake_fd = -1;  ///< readable once the server stops
+  SslPtr ssl;
+  Clock::time_point deadline;
+  bool timed_out = false;  ///< the last wait ended at the deadline (not at a stop)
+
+  Conn() = default;
+  Conn(const Conn&) = delete;
+  Conn& operator=(const Conn&) = delete;
+  ~Conn() {
+    if (fd >= 0) Close();
+  }
+
+  /// Until `fd` is ready for `events`; false at the deadline or when the server stops.
+  bool Wait(short events) {
+    for (;;) {
+      const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now()).count();
+      if (left <= 0) {
+        timed_out = true;
+        return false;
+      }
+      pollfd p[2] = {{fd, events, 0}, {wake_fd, POLLIN, 0}};
+      const int r = ::poll(p, 2, int(std::min<int64_t>(left, 1000)));
+      if (r < 0 && errno != EINTR) return false;
+      if (r > 0 && (p[1].revents & POLLIN)) return false;
+      if (r > 0 && p[0].revents != 0) return true;
+    }
+  }
+  /// Waits for what an SSL_* call that returned `r` <= 0 needs; false: it failed, or the wait did.
+  bool SslWait(int r) {
+    const int e = SSL_get_error(ssl.get(), r);
+    if (e == SSL_ERROR_WANT_READ) return Wait(POLLIN);
+    if (e == SSL_ERROR_WANT_WRITE) return Wait(POLLOUT);
+    return false;
+  }
+  /// Some bytes (> 0), 0 when the peer closed, -1 on an error or a failed wait.
+  ssize_t Read(char* buf, size_t size) {
+    for (;;) {
+      if (ssl) {
+        ERR_clear_error();
+        const int r = SSL_read(ssl.get(), buf, int(std::min<size_t>(size, 1 << 20)));
+        if (r > 0) return r;
+        if (SSL_get_error(ssl.get(), r) == SSL_ERROR_ZERO_RETURN) return 0;
+        if (!SslWait(r)) return -1;
+        continue;
+      }
+      const ssize_t n = ::recv(fd, buf, size, MSG_DONTWAIT);
+      if (n >= 0) return n;
+      if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) return -1;
+      if (!Wait(POLLIN)) return -1;
+    }
+  }
+  /// All of `size` bytes, or false.
+  bool WriteAll(const char* data, size_t size) {
+    size_t sent = 0;
+    while (sent < size) {
+      if (ssl) {
+        ERR_clear_error();
+        const int r = SSL_write(ssl.get(), data + sent, int(std::min<size_t>(size - sent, 1 << 20)));
+        if (r > 0) {
+          sent += size_t(r);
+        } else if (!SslWait(r)) {
+          return false;
+        }
+        continue;
+      }
+      const ssize_t n = ::send(fd, data + sent, size - sent, MSG_NOSIGNAL | MSG_DONTWAIT);
+      if (n > 0) {
+        sent += size_t(n);
+      } else if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) {
+        return false;
+      } else if (!Wait(POLLOUT)) {
+        return false;
+      }
+    }
+    return true;
+  }
+  /// Ends the connection: TLS close_notify (so that the client knows the reply is complete), what
+  /// already arrived read and dropped (so that close() sends FIN, not an RST that would discard the
+  /// reply at the client), FIN, close.
+  void Close() {
+    if (ssl) {
+      ERR_clear_error();
+      (void)SSL_shutdown(ssl.get());
+      ERR_clear_error();
+      ssl.reset();
+    }
+    char sink[4096];
+    while (::recv(fd, sink, sizeof sink, MSG_DONTWAIT) > 0) {
+    }
+    ::shutdown(fd, SHUT_WR);
+    ::close(fd);
+    fd = -1;
+  }
+};
+
+/// httplib reads the request from, and writes the reply to, a Conn through this: the request head
+/// that the checks before httplib already read first, then the socket.
+class ConnStream final : public httplib::Stream {
+ public:
+  ConnStream(Conn* c, std::string head, std::string peer_ip, int peer_port)
+      : c_(c), head_(std::move(head)), peer_ip_(std::move(peer_ip)), peer_port_(peer_port) {}
+  bool is_readable() const override {
+    return pos_ < head_.size() || (c_->ssl && SSL_pending(c_->ssl.get()) > 0) || c_->Wait(POLLIN);
+  }
+  bool is_writable() const override { return c_->Wait(POLLOUT); }
+  ssize_t read(char* ptr, size_t size) override {
+    if (pos_ < head_.size()) {
+      const size_t n = std::min(size, head_.size() - pos_);
+      std::memcpy(ptr, head_.data() + pos_, n);
+      pos_ += n;
+      return ssize_t(n);
+    }
+    return c_->Read(ptr, size);
+  }
+  ssize_t write(const char* ptr, size_t size) override {
+    return c_->WriteAll(ptr, size) ? ssize_t(size) : -1;
+  }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override {
+    ip = peer_ip_;
+    port = peer_port_;
+  }
+  void get_local_ip_and_port(std::string& ip, int& port) const override {
+    sockaddr_in a{};
+    socklen_t len = sizeof a;
+    char text[INET_ADDRSTRLEN] = "";
+    if (::getsockname(c_->fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
+      ::inet_ntop(AF_INET, &a.sin_addr, text, sizeof text);
+    ip = text;
+    port = ntohs(a.sin_port);
+  }
+  socket_t socket() const override { return c_->fd; }
+
+ private:
+  Conn* c_;
+  std::string head_;
+  size_t pos_ = 0;
+  std::string peer_ip_;
+  int peer_port_;
+};
+
+/// httplib's task queue with a thread per connection, where its default is a fixed pool (8
+/// threads) that queues the rest: with a pool, idle or slow clients would keep the next ones
+/// waiting, unseen, until a thread is free, while the caps (HttpServer::Serve) must look at every
+/// connection as soon as it is accepted and refuse the extra ones at once. The threads are
+/// short-lived (the deadline bounds each) and joined.
+class ThreadPerConnection final : public httplib::TaskQueue {
+ public:
+  void enqueue(std::function<void()> fn) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (auto it = threads_.begin(); it != threads_.end();) {
+      if (*it->done) {
+        it->thread.join();
+        it = threads_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    auto done = std::make_shared<std::atomic<bool>>(false);
+    auto task = std::make_shared<std::function<void()>>(std::move(fn));
+    try {
+      threads_.push_back({std::thread([task, done] {
+                            (*task)();
+                            *done = true;
+                          }),
+                          done});
+    } catch (const std::system_error&) {
+      // No thread to be had: served here, holding up the accept loop for one connection.
+      (*task)();
+    }
+  }
+  void shutdown() override {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (auto& t : threads_) t.thread.join();
+    threads_.clear();
+  }
+
+ private:
+  struct Worker {
+    std::thread thread;
+    std::shared_ptr<std::atomic<bool>> done;
+  };
+  std::mutex mu_;
+  std::list<Worker> threads_;
+};
+
+/// The request being served on this thread (set by HttpServer::Serve around httplib's processing,
+/// read by the route): the request line as the checks before httplib parsed it, the peer, the server.
+thread_local const HttpRequest* g_current_request = nullptr;
+}  // namespace
+
+/// The httplib::Server that answers a connection once the checks around it have passed.
+/// process_and_close_socket is httplib's hook for one accepted socket (its SSLServer overrides it
+/// the same way to add TLS); ours hands the socket to HttpServer::Serve, which calls back Process.
+class HttpServer::Httpd final : public httplib::Server {
+ public:
+  explicit Httpd(HttpServer* owner) : owner_(owner) {}
+  /// httplib parses the request in `strm`, routes it and writes the reply ("Connection: close").
+  bool Process(httplib::Stream& strm, const HttpRequest& req) {
+    g_current_request = &req;
+    bool closed = false;
+    const bool ok = process_request(strm, /*close_connection=*/true, closed, nullptr);
+    g_current_request = nullptr;
+    return ok;
+  }
+  /// httplib 0.11 listens with a backlog of 5 (CPPHTTPLIB_LISTEN_BACKLOG, compiled into Debian's
+  /// library): a burst of connections beyond it would wait for the kernel's SYN-ACK retries (a
+  /// second or more), long enough to miss the caps or the timeout. Linux takes a second listen()
+  /// on the bound socket as a new backlog.
+  bool SetBacklog(int backlog) { return ::listen(svr_sock_, backlog) == 0; }
+
+ private:
+  bool process_and_close_socket(socket_t sock) override {
+    owner_->Serve(sock);
+    return true;
+  }
+  HttpServer* owner_;
+};
+
+struct HttpServer::Peers {
+  std::mutex mu;
+  std::multiset<uint32_t> open;  ///< one entry per open connection: its peer's IPv4 address
+};
+
 Result<std::unique_ptr<HttpServer>> HttpServer::Start(const HttpServerOptions& opt, Handler handler) {
   std::unique_ptr<HttpServer> s(new HttpServer());
   s->opt_ = opt;
@@ -560,37 +776,63 @@ Result<std::unique_ptr<HttpServer>> HttpServer::Start(const HttpServerOptions& o
     s->tls_->ctx = std::move(*ctx);
   }
   const std::string where = opt.address + ":" + std::to_string(opt.port);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(opt.port);
-  if (::inet_pton(AF_INET, opt.address.c_str(), &addr.sin_addr) != 1)
+  in_addr check{};
+  if (::inet_pton(AF_INET, opt.address.c_str(), &check) != 1)
     return Status(ErrorCode::kInvalidArgument, "HTTP address " + where + ": not an IPv4 address");
-  s->listen_fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (s->listen_fd_ < 0) return Status(ErrorCode::kIo, "HTTP socket: " + std::string(std::strerror(errno)));
-  const int one = 1;
-  ::setsockopt(s->listen_fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-  if (::bind(s->listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0)
-    return Status(ErrorCode::kIo, "HTTP bind " + where + ": " + std::strerror(errno));
-  if (::listen(s->listen_fd_, 64) != 0 || !SetNonBlocking(s->listen_fd_))
-    return Status(ErrorCode::kIo, "HTTP listen " + where + ": " + std::strerror(errno));
-  socklen_t len = sizeof addr;
-  ::getsockname(s->listen_fd_, reinterpret_cast<sockaddr*>(&addr), &len);
-  s->port_ = ntohs(addr.sin_port);
   if (::pipe2(s->wake_, O_CLOEXEC | O_NONBLOCK) != 0)
     return Status(ErrorCode::kIo, "HTTP pipe: " + std::string(std::strerror(errno)));
+  s->peers_ = std::make_unique<Peers>();
+  s->httpd_ = std::make_unique<Httpd>(s.get());
+  Httpd& h = *s->httpd_;
+  h.new_task_queue = [] { return new ThreadPerConnection(); };
+  // httplib's default sets SO_REUSEPORT, which would let a second server bind the same port.
+  h.set_socket_options([](socket_t sock) {
+    const int one = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    ::fcntl(sock, F_SETFD, FD_CLOEXEC);
+  });
+  h.set_address_family(AF_INET);
+  h.set_default_headers({{"Cache-Control", "no-store"},
+                         {"X-Content-Type-Options", "nosniff"},
+                         {"Referrer-Policy", "no-referrer"}});
   HttpServer* raw = s.get();
-  s->thread_ = std::thread([raw] { raw->Loop(); });
+  // Every request that reaches httplib was checked (method GET or HEAD, target, token): one route.
+  h.Get(".*", [raw](const httplib::Request&, httplib::Response& res) {
+    HttpResponse r;
+    try {
+      r = raw->handler_(*g_current_request);
+    } catch (...) {
+      r = Error(500, "handler failed");
+    }
+    ++raw->requests_;
+    res.status = r.status;
+    res.set_content(r.body, r.content_type.c_str());
+  });
+  errno = 0;
+  // Port 0: the one the kernel chose (bind_to_any_port says it).
+  const int port = opt.port == 0 ? h.bind_to_any_port(opt.address)
+                                 : (h.bind_to_port(opt.address, opt.port) ? opt.port : -1);
+  if (port < 0)
+    return Status(ErrorCode::kIo,
+                  "HTTP bind " + where + ": " + (errno != 0 ? std::strerror(errno) : "cannot listen there"));
+  s->port_ = uint16_t(port);
+  if (!h.SetBacklog(std::max(64, opt.max_connections)))
+    return Status(ErrorCode::kIo, "HTTP listen " + where + ": " + std::strerror(errno));
+  s->thread_ = std::thread([raw] { raw->httpd_->listen_after_bind(); });
+  // Until the accept loop runs: Server::stop() before that would leave it running forever.
+  for (int i = 0; i < 10000 && !h.is_running(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   return s;
 }
 
 HttpServer::~HttpServer() {
-  stop_ = true;
   if (wake_[1] >= 0) {
     const char c = 1;
-    (void)!::write(wake_[1], &c, 1);
+    (void)!::write(wake_[1], &c, 1);  // every connection's wait ends
   }
+  if (httpd_) httpd_->stop();  // the accept loop ends, then httplib joins the connections' threads
   if (thread_.joinable()) thread_.join();
-  for (int fd : {listen_fd_, wake_[0], wake_[1]})
+  for (int fd : wake_)
     if (fd >= 0) ::close(fd);
 }
 
@@ -599,317 +841,200 @@ std::string HttpServer::url() const {
   return (tls_ ? "https://" : "http://") + host + ":" + std::to_string(port_);
 }
 
-void HttpServer::Loop() {
+void HttpServer::Serve(int fd) {
   // OpenSSL writes with write(), which raises SIGPIPE on a socket the peer closed: never on this
-  // thread (the error comes back as EPIPE instead; a SIGPIPE left pending here is harmless).
+  // thread (the error comes back as EPIPE instead).
   {
     sigset_t pipe_set;
     sigemptyset(&pipe_set);
     sigaddset(&pipe_set, SIGPIPE);
     ::pthread_sigmask(SIG_BLOCK, &pipe_set, nullptr);
   }
-  std::vector<Conn> conns;
-  std::vector<pollfd> fds;
-  while (!stop_) {
-    fds.clear();
-    fds.push_back({wake_[0], POLLIN, 0});
-    fds.push_back({listen_fd_, POLLIN, 0});
-    for (const Conn& c : conns) fds.push_back({c.fd, c.want, 0});
-    // Wake at the nearest deadline (at most every 200 ms) to time out slow clients.
-    int wait_ms = 200;
-    const auto now = Clock::now();
-    for (const Conn& c : conns)
-      wait_ms = std::min<int>(
-          wait_ms, int(std::max<int64_t>(
-                       0, std::chrono::duration_cast<std::chrono::milliseconds>(c.deadline - now).count())));
-    if (::poll(fds.data(), fds.size(), wait_ms) < 0 && errno != EINTR) break;
-    if (stop_) break;
-    if (fds[0].revents & POLLIN) {
-      char buf[64];
-      while (::read(wake_[0], buf, sizeof buf) > 0) {
+  ::fcntl(fd, F_SETFD, FD_CLOEXEC);  // httplib's accept() does not ask for it
+  const int flags = ::fcntl(fd, F_GETFL, 0);
+  ::fcntl(fd, F_SETFL, (flags < 0 ? 0 : flags) | O_NONBLOCK);
+  sockaddr_in peer{};
+  socklen_t peer_len = sizeof peer;
+  ::getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &peer_len);
+  char ip[INET_ADDRSTRLEN] = "?";
+  ::inet_ntop(AF_INET, &peer.sin_addr, ip, sizeof ip);
+  const std::string peer_text = std::string(ip) + ":" + std::to_string(ntohs(peer.sin_port));
+  Conn c;
+  c.fd = fd;
+  c.wake_fd = wake_[0];
+  c.deadline = Clock::now() + opt_.timeout;
+
+  // The connection caps (in all, and per peer address), which httplib does not have: checked as
+  // soon as the connection is accepted (a thread per connection, see ThreadPerConnection).
+  {
+    std::unique_lock<std::mutex> lock(peers_->mu);
+    const int from_peer = int(peers_->open.count(peer.sin_addr.s_addr));
+    const bool over_total = int(peers_->open.size()) >= opt_.max_connections;
+    const bool over_peer = from_peer >= opt_.max_connections_per_peer;
+    if (over_total || over_peer) {
+      lock.unlock();
+      ++dropped_;
+      if (over_peer)
+        Log("http: 503 for a connection from " + peer_text + ": " + std::to_string(from_peer) +
+            " already open from that address");
+      // Plain HTTP: a 503. TLS: just closed (before a handshake there is no way to say it).
+      if (!tls_) {
+        const std::string r = Serialize(Error(503, "too many connections"), false);
+        (void)::send(fd, r.data(), r.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
       }
+      c.Close();
+      return;
     }
-    // Existing connections first (their pollfd entries follow the first two).
-    std::vector<Conn> keep;
-    for (size_t i = 0; i < conns.size(); ++i) {
-      Conn& c = conns[i];
-      const short ev = fds[i + 2].revents;
-      bool close_it = false;
-      auto respond_raw = [&](std::string bytes) {
-        c.out = std::move(bytes);
-        c.sent = 0;
-        c.phase = Conn::Phase::kWriting;
-        c.want = POLLOUT;
-        c.in.clear();
-        c.in.shrink_to_fit();
-      };
-      auto respond = [&](const HttpResponse& r, bool head_only) { respond_raw(Serialize(r, head_only)); };
-      // One complete request head in c.in: answer it. False while the head is incomplete.
-      auto answer_head = [&]() -> bool {
-        // A TLS ClientHello (a handshake record, version 3.x) to a plain port: refused at once rather
-        // than at the timeout, so that an https:// client hears at once that this is not TLS.
-        if (!c.ssl && c.in.size() >= 2 && c.in[0] == '\x16' && c.in[1] == '\x03') {
-          ++bad_;
-          respond(Error(400, "this port speaks plain HTTP, not TLS: use http://"), false);
-          return true;
-        }
-        size_t end = c.in.find("\r\n\r\n");
-        if (end == std::string::npos) end = c.in.find("\n\n");
-        if (end == std::string::npos && c.in.size() > opt_.max_head_bytes) {
-          ++bad_;
-          respond(Error(431, "request head over " + std::to_string(opt_.max_head_bytes) + " bytes"), false);
-          return true;
-        }
-        if (end == std::string::npos) return false;
-        HttpRequest req;
-        HttpResponse err;
-        if (end > opt_.max_head_bytes) {
-          ++bad_;
-          respond(Error(431, "request head over " + std::to_string(opt_.max_head_bytes) + " bytes"), false);
-          return true;
-        }
-        if (!ParseHead(c.in.substr(0, end), &req, &err)) {
-          ++bad_;
-          respond(err, false);
-          return true;
-        }
-        req.peer = c.peer;
-        req.server = this;
-        bool present = false, ambiguous = false;
-        // /healthz is open (probes carry no secret; its "ok" reveals nothing).
-        const bool authorized =
-            opt_.bearer_token.empty() || req.path == "/healthz" ||
-            (ConstantTimeEquals(PresentedToken(c.in.substr(0, end), req, &present, &ambiguous),
-                                opt_.bearer_token) &&
-             !ambiguous);
-        if (!authorized) {
-          // Nothing about the server or the path: the status, the scheme, one line.
-          ++unauthorized_;
-          Log("http: 401 for " + req.method + " " + req.path.substr(0, 100) + " from " + c.peer + ": " +
-              (ambiguous ? "several Authorization headers"
-               : present ? "wrong token"
-                         : "no token"));
-          respond_raw(
-              Serialize({401, "text/plain; charset=utf-8", "401 Unauthorized: a bearer token is required\n"},
-                        req.method == "HEAD",
-                        std::string("WWW-Authenticate: Bearer realm=\"poseforest\"") +
-                            (present ? ", error=\"invalid_token\"" : "") + "\r\n"));
-          return true;
-        }
-        HttpResponse r;
-        try {
-          r = handler_(req);
-        } catch (...) {
-          r = Error(500, "handler failed");
-        }
-        ++requests_;
-        respond(r, req.method == "HEAD");
-        return true;
-      };
-      // A failed TLS handshake: counted and logged unless the peer sent nothing at all (a port
-      // check); plain HTTP sent to the port gets a plain 400 that says to use https://.
-      auto handshake_failed = [&](int ssl_error) {
-        const unsigned long first = ERR_peek_error();
-        const bool plain_http =
-            ERR_GET_LIB(first) == ERR_LIB_SSL && ERR_GET_REASON(first) == SSL_R_HTTP_REQUEST;
-        const std::string why =
-            ssl_error == SSL_ERROR_SYSCALL && first == 0 ? "connection closed" : OpenSslReasons();
-        ERR_clear_error();
-        if (BIO_number_read(SSL_get_rbio(c.ssl.get())) == 0) return;
+    peers_->open.insert(peer.sin_addr.s_addr);
+  }
+  struct Leave {
+    Peers* peers;
+    uint32_t ip;
+    ~Leave() {
+      std::lock_guard<std::mutex> lock(peers->mu);
+      peers->open.erase(peers->open.find(ip));
+    }
+  } leave{peers_.get(), peer.sin_addr.s_addr};
+
+  auto respond = [&](const HttpResponse& r, bool head_only, const std::string& extra_headers = "") {
+    const std::string bytes = Serialize(r, head_only, extra_headers);
+    (void)c.WriteAll(bytes.data(), bytes.size());
+    c.Close();
+  };
+
+  // TLS: the handshake under the connection's deadline (httplib's SSLServer cannot say why one
+  // failed, nor answer plain HTTP sent to the port).
+  if (tls_) {
+    ERR_clear_error();
+    c.ssl.reset(SSL_new(tls_->ctx.get()));
+    if (!c.ssl || SSL_set_fd(c.ssl.get(), fd) != 1) {
+      ERR_clear_error();
+      ++dropped_;
+      c.ssl.reset();
+      c.Close();
+      return;
+    }
+    SSL_set_accept_state(c.ssl.get());
+    for (;;) {
+      ERR_clear_error();
+      const int r = SSL_accept(c.ssl.get());
+      if (r == 1) break;
+      const int e = SSL_get_error(c.ssl.get(), r);
+      if (e == SSL_ERROR_WANT_READ || e == SSL_ERROR_WANT_WRITE) {
+        if (c.Wait(e == SSL_ERROR_WANT_READ ? POLLIN : POLLOUT)) continue;
+        if (c.timed_out) ++bad_;  // a silent or slow client
+        c.ssl.reset();
+        c.Close();
+        return;
+      }
+      // Failed: counted and logged unless the peer sent nothing at all (a port check); plain HTTP
+      // sent to the port gets a plain 400 that says to use https://.
+      const unsigned long first = ERR_peek_error();
+      const bool plain_http =
+          ERR_GET_LIB(first) == ERR_LIB_SSL && ERR_GET_REASON(first) == SSL_R_HTTP_REQUEST;
+      const std::string why = e == SSL_ERROR_SYSCALL && first == 0 ? "connection closed" : OpenSslReasons();
+      ERR_clear_error();
+      const bool sent_nothing = BIO_number_read(SSL_get_rbio(c.ssl.get())) == 0;
+      c.ssl.reset();
+      if (!sent_nothing) {
         ++tls_failed_;
-        Log("http: TLS handshake with " + c.peer +
+        Log("http: TLS handshake with " + peer_text +
             " failed: " + (plain_http ? std::string("plain HTTP sent to the HTTPS port") : why));
         if (plain_http) {
-          const std::string r =
+          const std::string bytes =
               Serialize(Error(400, "this port speaks HTTPS only: use https:// instead of http://"), false);
-          (void)::send(c.fd, r.data(), r.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-          char sink[4096];
-          while (::recv(c.fd, sink, sizeof sink, MSG_DONTWAIT) > 0) {
-          }
-          ::shutdown(c.fd, SHUT_WR);
-        }
-      };
-      // The next step of an SSL_* call that returned `r` <= 0: wait (true) or give up (false).
-      auto ssl_wait = [&](int r) {
-        const int e = SSL_get_error(c.ssl.get(), r);
-        if (e == SSL_ERROR_WANT_READ) {
-          c.want = POLLIN;
-          return true;
-        }
-        if (e == SSL_ERROR_WANT_WRITE) {
-          c.want = POLLOUT;
-          return true;
-        }
-        ERR_clear_error();
-        return false;
-      };
-      if (ev != 0 && c.phase == Conn::Phase::kHandshake) {
-        ERR_clear_error();
-        const int r = SSL_accept(c.ssl.get());
-        if (r == 1) {
-          c.phase = Conn::Phase::kReading;  // the request may have come with the last flight: read now
-          c.want = POLLIN;
-        } else {
-          const int e = SSL_get_error(c.ssl.get(), r);
-          if (e == SSL_ERROR_WANT_READ) {
-            c.want = POLLIN;
-          } else if (e == SSL_ERROR_WANT_WRITE) {
-            c.want = POLLOUT;
-          } else {
-            handshake_failed(e);
-            close_it = true;
-          }
-        }
-      } else if (ev != 0 && c.phase == Conn::Phase::kReading) {
-        c.want = POLLIN;
-      }
-      if (!close_it && ev != 0 && c.phase == Conn::Phase::kReading) {
-        // Until the socket (and OpenSSL's buffer) is drained or the head is complete.
-        for (;;) {
-          char buf[4096];
-          ssize_t n = 0;
-          if (c.ssl) {
-            ERR_clear_error();
-            const int r = SSL_read(c.ssl.get(), buf, int(sizeof buf));
-            if (r <= 0) {
-              if (!ssl_wait(r)) close_it = true;
-              break;
-            }
-            n = r;
-          } else {
-            n = ::recv(c.fd, buf, sizeof buf, 0);
-            if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR))
-              close_it = true;
-            if (n <= 0) break;
-          }
-          c.in.append(buf, size_t(n));
-          if (answer_head()) break;
-        }
-      } else if (ev != 0 && c.phase == Conn::Phase::kWriting) {
-        while (c.sent < c.out.size()) {
-          if (c.ssl) {
-            ERR_clear_error();
-            const int r = SSL_write(c.ssl.get(), c.out.data() + c.sent,
-                                    int(std::min<size_t>(c.out.size() - c.sent, 1 << 20)));
-            if (r <= 0) {
-              if (!ssl_wait(r)) close_it = true;
-              break;
-            }
-            c.sent += size_t(r);
-          } else {
-            const ssize_t n = ::send(c.fd, c.out.data() + c.sent, c.out.size() - c.sent, MSG_NOSIGNAL);
-            if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) close_it = true;
-            if (n <= 0) break;
-            c.sent += size_t(n);
-          }
-        }
-        if (!close_it && c.sent == c.out.size()) {
-          if (c.ssl) {
-            c.phase = Conn::Phase::kClosing;
-          } else {
-            ::shutdown(c.fd, SHUT_WR);
-            close_it = true;
-          }
+          (void)::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
         }
       }
-      if (!close_it && ev != 0 && c.phase == Conn::Phase::kClosing) {
-        // TLS close_notify (so that the client knows the reply is complete), then close.
-        ERR_clear_error();
-        const int r = SSL_shutdown(c.ssl.get());
-        if (r < 0 && SSL_get_error(c.ssl.get(), r) == SSL_ERROR_WANT_WRITE) {
-          c.want = POLLOUT;
-        } else {
-          ERR_clear_error();
-          ::shutdown(c.fd, SHUT_WR);
-          close_it = true;
-        }
-      }
-      if (!close_it && Clock::now() > c.deadline) {
-        // Slow client (over TLS: the handshake included): one best-effort 408 once HTTP is
-        // spoken (non-blocking), then close.
-        if (c.phase == Conn::Phase::kHandshake || c.phase == Conn::Phase::kReading) ++bad_;
-        if (c.phase == Conn::Phase::kReading) {
-          const std::string r = Serialize(Error(408, "request not complete in time"), false);
-          if (c.ssl) {
-            ERR_clear_error();
-            (void)SSL_write(c.ssl.get(), r.data(), int(r.size()));
-            ERR_clear_error();
-          } else {
-            (void)::send(c.fd, r.data(), r.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-          }
-        }
-        close_it = true;
-      }
-      if (close_it) {
-        c.ssl.reset();
-        ::close(c.fd);
-      } else {
-        keep.push_back(std::move(c));
-      }
-    }
-    conns.swap(keep);
-    if (fds[1].revents & POLLIN) {
-      for (;;) {
-        sockaddr_in peer{};
-        socklen_t peer_len = sizeof peer;
-        const int fd = ::accept4(listen_fd_, reinterpret_cast<sockaddr*>(&peer), &peer_len,
-                                 SOCK_NONBLOCK | SOCK_CLOEXEC);
-        if (fd < 0) break;
-        char ip[INET_ADDRSTRLEN] = "?";
-        ::inet_ntop(AF_INET, &peer.sin_addr, ip, sizeof ip);
-        const std::string peer_text = std::string(ip) + ":" + std::to_string(ntohs(peer.sin_port));
-        int from_peer = 0;
-        for (const Conn& o : conns) from_peer += o.peer_ip == peer.sin_addr.s_addr;
-        const bool over_total = int(conns.size()) >= opt_.max_connections;
-        const bool over_peer = from_peer >= opt_.max_connections_per_peer;
-        if (over_total || over_peer) {
-          ++dropped_;
-          if (over_peer)
-            Log("http: 503 for a connection from " + peer_text + ": " + std::to_string(from_peer) +
-                " already open from that address");
-          // Plain HTTP: a 503. TLS: just closed (before a handshake there is no way to say it).
-          if (!tls_) {
-            const std::string r = Serialize(Error(503, "too many connections"), false);
-            (void)::send(fd, r.data(), r.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-          }
-          // Read what already arrived so that close() sends FIN, not RST (which would discard
-          // the 503 at the client).
-          char sink[4096];
-          while (::recv(fd, sink, sizeof sink, MSG_DONTWAIT) > 0) {
-          }
-          ::shutdown(fd, SHUT_WR);
-          ::close(fd);
-          continue;
-        }
-        Conn c;
-        c.fd = fd;
-        c.peer_ip = peer.sin_addr.s_addr;
-        c.peer = peer_text;
-        c.deadline = Clock::now() + opt_.timeout;
-        if (tls_) {
-          ERR_clear_error();
-          c.ssl.reset(SSL_new(tls_->ctx.get()));
-          if (!c.ssl || SSL_set_fd(c.ssl.get(), fd) != 1) {
-            ERR_clear_error();
-            ++dropped_;
-            c.ssl.reset();
-            ::close(fd);
-            continue;
-          }
-          SSL_set_accept_state(c.ssl.get());
-          c.phase = Conn::Phase::kHandshake;
-          c.want = POLLIN;  // the ClientHello
-        }
-        conns.push_back(std::move(c));
-      }
+      c.Close();
+      return;
     }
   }
-  for (Conn& c : conns) {
-    c.ssl.reset();
-    ::close(c.fd);
-  }
-}
 
+  // The request head, read here rather than by httplib: bounded in size (431; httplib's limits are
+  // per line, 8 KiB) and in time (408 at the deadline, for the whole head).
+  std::string in;
+  size_t end = std::string::npos;
+  for (;;) {
+    // A TLS ClientHello (a handshake record, version 3.x) to a plain port: refused at once rather
+    // than at the timeout, so that an https:// client hears at once that this is not TLS.
+    if (!c.ssl && in.size() >= 2 && in[0] == '\x16' && in[1] == '\x03') {
+      ++bad_;
+      respond(Error(400, "this port speaks plain HTTP, not TLS: use http://"), false);
+      return;
+    }
+    end = in.find("\r\n\r\n");
+    if (end == std::string::npos) end = in.find("\n\n");
+    if ((end == std::string::npos && in.size() > opt_.max_head_bytes) ||
+        (end != std::string::npos && end > opt_.max_head_bytes)) {
+      ++bad_;
+      respond(Error(431, "request head over " + std::to_string(opt_.max_head_bytes) + " bytes"), false);
+      return;
+    }
+    if (end != std::string::npos) break;
+    char buf[4096];
+    const ssize_t n = c.Read(buf, sizeof buf);
+    if (n > 0) {
+      in.append(buf, size_t(n));
+      continue;
+    }
+    if (n < 0 && c.timed_out) {
+      // Slow client: one best-effort 408, then close.
+      ++bad_;
+      c.deadline = Clock::now() + std::chrono::milliseconds(100);
+      respond(Error(408, "request not complete in time"), false);
+      return;
+    }
+    c.Close();  // the peer went away, or the server stops
+    return;
+  }
+
+  // The request line, checked more strictly than httplib does (which takes "GET  /  HTTP/1.1",
+  // "GET nopath ...", and answers other methods 400 or 404 rather than 405).
+  HttpRequest req;
+  HttpResponse err;
+  if (!ParseHead(in.substr(0, end), &req, &err)) {
+    ++bad_;
+    respond(err, false);
+    return;
+  }
+  req.peer = peer_text;
+  req.server = this;
+
+  // The bearer token, checked on the raw head: httplib 0.11 percent-decodes header values, and its
+  // query parser turns '+' into a space.
+  bool present = false, ambiguous = false;
+  // /healthz is open (probes carry no secret; its "ok" reveals nothing).
+  const bool authorized =
+      opt_.bearer_token.empty() || req.path == "/healthz" ||
+      (ConstantTimeEquals(PresentedToken(in.substr(0, end), req, &present, &ambiguous), opt_.bearer_token) &&
+       !ambiguous);
+  if (!authorized) {
+    // Nothing about the server or the path: the status, the scheme, one line.
+    ++unauthorized_;
+    Log("http: 401 for " + req.method + " " + req.path.substr(0, 100) + " from " + peer_text + ": " +
+        (ambiguous ? "several Authorization headers"
+         : present ? "wrong token"
+                   : "no token"));
+    respond({401, "text/plain; charset=utf-8", "401 Unauthorized: a bearer token is required\n"},
+            req.method == "HEAD",
+            std::string("WWW-Authenticate: Bearer realm=\"poseforest\"") +
+                (present ? ", error=\"invalid_token\"" : "") + "\r\n");
+    return;
+  }
+
+  // httplib: the headers, the route, the reply.
+  // httplib wants CRLF line ends; the checks above also took bare LF ones.
+  std::string head;
+  for (size_t i = 0; i < end; ++i) {
+    if (in[i] == '\n' && (i == 0 || in[i - 1] != '\r')) head += '\r';
+    head += in[i];
+  }
+  head += "\r\n\r\n";
+  ConnStream strm(&c, std::move(head), ip, ntohs(peer.sin_port));
+  (void)httpd_->Process(strm, req);
+  c.Close();
+}
 namespace {
 /// An http:// or https:// URL taken apart (HttpGet).
 struct ParsedUrl {
@@ -956,6 +1081,25 @@ Result<ParsedUrl> ParseUrl(const std::string& url) {
 }
 }  // namespace
 
+namespace {
+/// The first certificate check that failed in this thread's HttpGet (X509_V_ERR_*; 0: none).
+thread_local long g_verify_error = 0;
+
+/// OpenSSL's certificate check callback of HttpGet's TLS context. httplib 0.11 makes its sessions
+/// SSL_VERIFY_NONE and checks the certificate after the handshake, so a server would never hear
+/// that its certificate was refused; on the first failed check this turns the session to
+/// SSL_VERIFY_PEER, and OpenSSL ends the handshake with an alert (unknown CA, bad certificate)
+/// that the server counts and logs (HttpServer::tls_handshake_failures).
+int RefuseInHandshake(int ok, X509_STORE_CTX* store) {
+  if (!ok) {
+    if (g_verify_error == 0) g_verify_error = X509_STORE_CTX_get_error(store);
+    SSL* ssl = static_cast<SSL*>(X509_STORE_CTX_get_ex_data(store, SSL_get_ex_data_X509_STORE_CTX_idx()));
+    if (ssl) SSL_set_verify(ssl, SSL_VERIFY_PEER, nullptr);
+  }
+  return ok;
+}
+}  // namespace
+
 Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout,
                             const std::string& bearer_token, const std::string& ca_file) {
   auto parsed = ParseUrl(url);
@@ -963,190 +1107,108 @@ Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds ti
   const ParsedUrl& u = *parsed;
   if (!ca_file.empty() && !u.tls)
     return Status(ErrorCode::kInvalidArgument, url + ": --http-ca-file is for https:// URLs");
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(u.port);
-  const bool ip_literal = ::inet_pton(AF_INET, u.host.c_str(), &addr.sin_addr) == 1;
-  if (!ip_literal) {
-    if (u.host == "localhost") {
-      addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    } else {
-      addrinfo hints{};
-      hints.ai_family = AF_INET;
-      hints.ai_socktype = SOCK_STREAM;
-      addrinfo* found = nullptr;
-      const int rc = ::getaddrinfo(u.host.c_str(), nullptr, &hints, &found);
-      if (rc != 0 || !found)
-        return Status(ErrorCode::kIo, url + ": cannot resolve " + u.host + ": " + ::gai_strerror(rc));
-      addr.sin_addr = reinterpret_cast<const sockaddr_in*>(found->ai_addr)->sin_addr;
-      ::freeaddrinfo(found);
-    }
-  }
-  // The TLS context before connecting: a bad CA file is an error at once.
-  SslCtxPtr ctx;
+  in_addr literal{};
+  const bool ip_literal = ::inet_pton(AF_INET, u.host.c_str(), &literal) == 1;
+  std::unique_ptr<httplib::ClientImpl> cli;
+  httplib::SSLClient* ssl = nullptr;
   if (u.tls) {
+    // A bad CA file is an error at once, naming it.
     if (!ca_file.empty()) POSEFOREST_RETURN_IF_ERROR(CheckHttpCaFile(ca_file));
-    ERR_clear_error();
-    ctx.reset(SSL_CTX_new(TLS_client_method()));
+    auto s = std::make_unique<httplib::SSLClient>(u.host, u.port);
+    ssl = s.get();
+    cli = std::move(s);
+    SSL_CTX* ctx = ssl->ssl_context();
     if (!ctx)
       return Status(ErrorCode::kInternal, url + ": TLS: cannot create a context: " + OpenSslReasons());
-    SSL_CTX_set_min_proto_version(ctx.get(), TLS1_2_VERSION);
-    // A peer that closes without close_notify reads as the end; the Content-Length check below
-    // catches a truncated reply.
-    SSL_CTX_set_options(ctx.get(), SSL_OP_IGNORE_UNEXPECTED_EOF | SSL_OP_NO_RENEGOTIATION);
-    SSL_CTX_set_mode(ctx.get(), SSL_MODE_ENABLE_PARTIAL_WRITE | SSL_MODE_ACCEPT_MOVING_WRITE_BUFFER);
-    SSL_CTX_set_verify(ctx.get(), SSL_VERIFY_PEER, nullptr);
-    const int loaded = ca_file.empty() ? SSL_CTX_set_default_verify_paths(ctx.get())
-                                       : SSL_CTX_load_verify_locations(ctx.get(), ca_file.c_str(), nullptr);
-    if (loaded != 1)
-      return Status(ErrorCode::kInvalidArgument,
-                    (ca_file.empty() ? url + ": the system's trust store" : "--http-ca-file " + ca_file) +
-                        ": cannot be loaded: " + OpenSslReasons());
+    SSL_CTX_set_min_proto_version(ctx, TLS1_2_VERSION);
+    SSL_CTX_set_options(ctx, SSL_OP_NO_RENEGOTIATION);
+    // The certificate must chain to ca_file (empty: the system's trust store) and name the host
+    // (DNS name or IP address), both checked by OpenSSL during the handshake (RefuseInHandshake)
+    // and again by httplib after it.
+    SSL_CTX_set_verify(ctx, SSL_VERIFY_PEER, RefuseInHandshake);
+    X509_VERIFY_PARAM* param = SSL_CTX_get0_param(ctx);
+    if (ip_literal)
+      X509_VERIFY_PARAM_set1_ip_asc(param, u.host.c_str());
+    else
+      X509_VERIFY_PARAM_set1_host(param, u.host.c_str(), 0);
+    if (!ca_file.empty()) ssl->set_ca_cert_path(ca_file.c_str());
+    ssl->enable_server_certificate_verification(true);
+  } else {
+    cli = std::make_unique<httplib::ClientImpl>(u.host, u.port);
   }
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-  if (fd < 0) return Status(ErrorCode::kIo, url + ": socket: " + std::strerror(errno));
-  struct Closer {
-    int fd;
-    ~Closer() { ::close(fd); }
-  } closer{fd};
-  const auto deadline = Clock::now() + timeout;
-  auto wait = [&](short events) {
-    const int left = int(std::max<int64_t>(
-        0, std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count()));
-    pollfd p{fd, events, 0};
-    return ::poll(&p, 1, left) > 0;
-  };
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    if (errno != EINPROGRESS) return Status(ErrorCode::kIo, url + ": " + std::strerror(errno));
-    if (!wait(POLLOUT)) return Status(ErrorCode::kIo, url + ": connect timed out");
-    int err = 0;
-    socklen_t len = sizeof err;
-    ::getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len);
-    if (err != 0) return Status(ErrorCode::kIo, url + ": " + std::strerror(err));
-  }
+  cli->set_address_family(AF_INET);
+  cli->set_connection_timeout(timeout);
+  cli->set_read_timeout(timeout);
+  cli->set_write_timeout(timeout);
+  httplib::Headers headers;
+  if (!bearer_token.empty()) headers.emplace("Authorization", "Bearer " + bearer_token);
+  std::string body;
+  bool too_big = false;
   SigpipeBlock no_sigpipe;  // OpenSSL's write() to a closed socket
-  SslPtr ssl;
-  // Waits for what an SSL_* call that returned `r` <= 0 needs; false: it failed or timed out.
-  auto ssl_wait = [&](int r, bool* timed_out) {
-    const int e = SSL_get_error(ssl.get(), r);
-    *timed_out = false;
-    if (e != SSL_ERROR_WANT_READ && e != SSL_ERROR_WANT_WRITE) return false;
-    if (!wait(e == SSL_ERROR_WANT_READ ? POLLIN : POLLOUT)) {
-      *timed_out = true;
+  ERR_clear_error();
+  g_verify_error = 0;
+  const httplib::Result res = cli->Get(u.path, headers, [&](const char* data, size_t n) {
+    if (body.size() + n > (size_t(64) << 20)) {
+      too_big = true;
       return false;
     }
+    body.append(data, n);
     return true;
-  };
-  if (u.tls) {
-    ssl.reset(SSL_new(ctx.get()));
-    if (!ssl || SSL_set_fd(ssl.get(), fd) != 1)
-      return Status(ErrorCode::kInternal, url + ": TLS: " + OpenSslReasons());
-    if (ip_literal) {
-      X509_VERIFY_PARAM_set1_ip_asc(SSL_get0_param(ssl.get()), u.host.c_str());
-    } else {
-      SSL_set_tlsext_host_name(ssl.get(), u.host.c_str());
-      SSL_set1_host(ssl.get(), u.host.c_str());
-    }
-    for (;;) {
-      ERR_clear_error();
-      const int r = SSL_connect(ssl.get());
-      if (r == 1) break;
-      const int e = SSL_get_error(ssl.get(), r);
-      bool timed_out = false;
-      if (ssl_wait(r, &timed_out)) continue;
-      if (timed_out) return Status(ErrorCode::kIo, url + ": TLS handshake timed out");
-      const long verify = SSL_get_verify_result(ssl.get());
-      if (verify != X509_V_OK) {
-        ERR_clear_error();
-        const std::string why = X509_verify_cert_error_string(verify);
-        if (verify == X509_V_ERR_HOSTNAME_MISMATCH || verify == X509_V_ERR_IP_ADDRESS_MISMATCH)
-          return Status(ErrorCode::kInvalidArgument,
-                        url + ": the server's certificate is not for " + u.host + " (" + why +
-                            "); use the host name it was issued for, or issue one with " + u.host +
-                            " in its subjectAltName");
-        return Status(ErrorCode::kInvalidArgument,
-                      url + ": the server's certificate is not trusted (" + why + "); " +
-                          (ca_file.empty() ? "it was checked against the system's trust store: give the CA "
-                                             "that signed it with --http-ca-file FILE"
-                                           : "it does not chain to a CA in --http-ca-file " + ca_file));
-      }
-      const unsigned long first = ERR_peek_error();
-      if (e == SSL_ERROR_SYSCALL && first == 0)
-        return Status(ErrorCode::kIo, url + ": the connection was closed during the TLS handshake");
-      const bool plain =
-          ERR_GET_LIB(first) == ERR_LIB_SSL && (ERR_GET_REASON(first) == SSL_R_WRONG_VERSION_NUMBER ||
-                                                ERR_GET_REASON(first) == SSL_R_PACKET_LENGTH_TOO_LONG);
-      return Status(ErrorCode::kInvalidArgument,
-                    url + ": TLS handshake failed (" + OpenSslReasons() + ")" +
-                        (plain ? "; the server does not speak TLS: is it http://?" : ""));
-    }
-  }
-  const std::string req = "GET " + u.path + " HTTP/1.1\r\nHost: " + u.hostport + "\r\n" +
-                          (bearer_token.empty() ? "" : "Authorization: Bearer " + bearer_token + "\r\n") +
-                          "Connection: close\r\n\r\n";
-  size_t sent = 0;
-  while (sent < req.size()) {
-    if (ssl) {
-      ERR_clear_error();
-      const int r = SSL_write(ssl.get(), req.data() + sent, int(req.size() - sent));
-      if (r > 0) {
-        sent += size_t(r);
-        continue;
-      }
-      bool timed_out = false;
-      if (!ssl_wait(r, &timed_out))
-        return Status(ErrorCode::kIo,
-                      url + (timed_out ? ": send timed out" : ": TLS send: " + OpenSslReasons()));
-      continue;
-    }
-    if (!wait(POLLOUT)) return Status(ErrorCode::kIo, url + ": send timed out");
-    const ssize_t n = ::send(fd, req.data() + sent, req.size() - sent, MSG_NOSIGNAL);
-    if (n < 0 && errno != EAGAIN && errno != EINTR)
-      return Status(ErrorCode::kIo, url + ": " + std::strerror(errno));
-    if (n > 0) sent += size_t(n);
-  }
-  std::string resp;
-  for (;;) {
-    char buf[16384];
-    if (ssl) {
-      ERR_clear_error();
-      const int r = SSL_read(ssl.get(), buf, int(sizeof buf));
-      if (r > 0) {
-        resp.append(buf, size_t(r));
-      } else if (SSL_get_error(ssl.get(), r) == SSL_ERROR_ZERO_RETURN) {
+  });
+  if (too_big) return Status(ErrorCode::kDataLoss, url + ": reply over 64 MiB");
+  if (!res) {
+    const httplib::Error e = res.error();
+    switch (e) {
+      case httplib::Error::SSLServerVerification:  // checked after the handshake: a name CN only
+        if (g_verify_error == 0)
+          g_verify_error = ip_literal ? X509_V_ERR_IP_ADDRESS_MISMATCH : X509_V_ERR_HOSTNAME_MISMATCH;
         break;
-      } else {
-        bool timed_out = false;
-        if (!ssl_wait(r, &timed_out))
-          return Status(ErrorCode::kIo, url + (timed_out ? ": no complete reply in time"
-                                                         : ": TLS receive: " + OpenSslReasons()));
-        continue;
-      }
-    } else {
-      if (!wait(POLLIN)) return Status(ErrorCode::kIo, url + ": no complete reply in time");
-      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-      if (n == 0) break;
-      if (n < 0) {
-        if (errno == EAGAIN || errno == EINTR) continue;
-        return Status(ErrorCode::kIo, url + ": " + std::strerror(errno));
-      }
-      resp.append(buf, size_t(n));
+      default:
+        break;
     }
-    if (resp.size() > (64u << 20)) return Status(ErrorCode::kDataLoss, url + ": reply over 64 MiB");
+    if (g_verify_error != 0) {
+      ERR_clear_error();
+      const std::string why = X509_verify_cert_error_string(g_verify_error);
+      if (g_verify_error == X509_V_ERR_HOSTNAME_MISMATCH || g_verify_error == X509_V_ERR_IP_ADDRESS_MISMATCH)
+        return Status(ErrorCode::kInvalidArgument,
+                      url + ": the server's certificate is not for " + u.host + " (" + why +
+                          "); use the host name it was issued for, or issue one with " + u.host +
+                          " in its subjectAltName");
+      return Status(ErrorCode::kInvalidArgument,
+                    url + ": the server's certificate is not trusted (" + why + "); " +
+                        (ca_file.empty() ? "it was checked against the system's trust store: give the CA "
+                                           "that signed it with --http-ca-file FILE"
+                                         : "it does not chain to a CA in --http-ca-file " + ca_file));
+    }
+    switch (e) {
+      case httplib::Error::SSLConnection: {
+        const unsigned long first = ERR_peek_error();
+        if (first == 0)
+          return Status(ErrorCode::kIo, url + ": the TLS handshake did not complete (closed or timed out)");
+        const bool plain =
+            ERR_GET_LIB(first) == ERR_LIB_SSL && (ERR_GET_REASON(first) == SSL_R_WRONG_VERSION_NUMBER ||
+                                                  ERR_GET_REASON(first) == SSL_R_PACKET_LENGTH_TOO_LONG);
+        return Status(ErrorCode::kInvalidArgument,
+                      url + ": TLS handshake failed (" + OpenSslReasons() + ")" +
+                          (plain ? "; the server does not speak TLS: is it http://?" : ""));
+      }
+      case httplib::Error::SSLLoadingCerts:
+        return Status(ErrorCode::kInvalidArgument,
+                      (ca_file.empty() ? url + ": the system's trust store" : "--http-ca-file " + ca_file) +
+                          ": cannot be loaded: " + OpenSslReasons());
+      case httplib::Error::Connection:
+        return Status(ErrorCode::kIo, url + ": cannot connect (refused, unreachable or no such host)");
+      case httplib::Error::ConnectionTimeout:
+        return Status(ErrorCode::kIo, url + ": connect timed out");
+      case httplib::Error::Read:
+        return Status(ErrorCode::kIo, url + ": no complete HTTP reply (timed out, truncated, or not HTTP)");
+      case httplib::Error::Write:
+        return Status(ErrorCode::kIo, url + ": cannot send the request");
+      default:
+        return Status(ErrorCode::kIo, url + ": " + httplib::to_string(e));
+    }
   }
-  const size_t head_end = resp.find("\r\n\r\n");
-  if (resp.rfind("HTTP/1.", 0) != 0 || head_end == std::string::npos || resp.size() < 12)
-    return Status(ErrorCode::kDataLoss, url + ": not an HTTP reply");
-  const int code = std::atoi(resp.substr(9, 3).c_str());
-  std::string body = resp.substr(head_end + 4);
-  if (const auto length = HeaderValues(resp.substr(0, head_end), "content-length"); length.size() == 1) {
-    char* end = nullptr;
-    const unsigned long long n = std::strtoull(length[0].c_str(), &end, 10);
-    if (end == length[0].c_str() || *end != '\0' || n != body.size())
-      return Status(ErrorCode::kDataLoss, url + ": reply truncated or malformed (" +
-                                              std::to_string(body.size()) +
-                                              " bytes of body, Content-Length " + length[0] + ")");
-  }
+  const int code = res->status;
   if (code == 401)
     return Status(
         ErrorCode::kInvalidArgument,

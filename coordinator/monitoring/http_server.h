@@ -1,22 +1,22 @@
 #pragma once
-// A small HTTP/1.1 server for the coordinator's status (GET/HEAD only, one response per
-// connection, "Connection: close"), and the matching client used by `poseforest monitor`. One
-// background thread polls every socket without blocking, so a slow or hostile client cannot hold
-// up the others or the training thread: request heads are bounded (431), malformed request lines
-// get 400, other methods 405, a request not complete within the timeout 408, and connections
-// beyond the limit (in all, or from one peer address) are closed at once with 503. With a bearer
-// token (`--http-token-file`) every request but /healthz must carry it ("Authorization: Bearer
-// TOKEN", or `?token=TOKEN` for the dashboard page itself); others get 401, are counted and logged
-// (rate-limited) with the peer address. With a certificate and key (`--http-tls-cert`,
-// `--http-tls-key`; OpenSSL) it speaks HTTPS only (TLS 1.2+), the handshake driven by the same
-// poll loop (non-blocking, under the same timeout and connection caps); a failed handshake (plain
-// HTTP to the port included) is counted and closed. docs/distributed/monitoring.md.
+// The coordinator's HTTP status server (GET/HEAD only, one response per connection, "Connection:
+// close") on cpp-httplib (Debian libcpp-httplib-dev), and the matching client used by `poseforest
+// monitor` (httplib::Client / SSLClient). cpp-httplib parses the request, routes it to the handler
+// and writes the response; what it does not do is done around it, before a request reaches it
+// (http_server.cpp says why for each): connection caps (in all, and per peer address: 503), one
+// deadline for the whole exchange (slow clients: 408), bounded request heads (431), strict request
+// lines (400; other methods 405), the bearer token (`--http-token-file`: every request but
+// /healthz must carry it, "Authorization: Bearer TOKEN", or `?token=TOKEN` for the dashboard page
+// itself; others get 401, are counted and logged, rate-limited, with the peer address) and HTTPS
+// (`--http-tls-cert`, `--http-tls-key`; OpenSSL, TLS 1.2+): a failed handshake is counted and
+// logged, and plain HTTP sent to the TLS port gets a plain 400. docs/distributed/monitoring.md.
 
 #include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -93,7 +93,7 @@ class HttpServer {
  public:
   using Handler = std::function<HttpResponse(const HttpRequest&)>;
 
-  /// Binds, listens and starts the serving thread. Errors name the address.
+  /// Binds, listens and starts httplib's accept loop on its own thread. Errors name the address.
   static core::Result<std::unique_ptr<HttpServer>> Start(const HttpServerOptions& opt, Handler handler);
   ~HttpServer();  ///< stops the thread and closes every socket
 
@@ -111,23 +111,29 @@ class HttpServer {
   uint64_t tls_handshake_failures() const { return tls_failed_; }
 
  private:
+  class Httpd;   // the httplib::Server (http_server.cpp)
+  struct Tls;    // OpenSSL's server context (http_server.cpp)
+  struct Peers;  // open connections by peer address (http_server.cpp)
   HttpServer() = default;
-  void Loop();
+  /// One accepted connection, on its own thread (httplib's task queue): caps, TLS, the checks
+  /// httplib does not make, then httplib's request processing. Closes `fd`.
+  void Serve(int fd);
+  void Log(const std::string& line);
 
   HttpServerOptions opt_;
   Handler handler_;
-  int listen_fd_ = -1, wake_[2] = {-1, -1};
   uint16_t port_ = 0;
-  std::atomic<bool> stop_{false};
   std::atomic<uint64_t> requests_{0}, bad_{0}, dropped_{0}, unauthorized_{0}, tls_failed_{0};
-  struct Tls;  // OpenSSL's server context (http_server.cpp)
   std::shared_ptr<Tls> tls_;
-  // Rate limit of opt_.log (serving thread only).
+  std::unique_ptr<Peers> peers_;
+  std::unique_ptr<Httpd> httpd_;
+  int wake_[2] = {-1, -1};  ///< readable once the server stops: ends every connection's wait
+  std::thread thread_;      ///< httplib's accept loop
+  // Rate limit of opt_.log (under log_mu_: connections log from their own threads).
+  std::mutex log_mu_;
   int log_credit_ = 0;
   std::chrono::steady_clock::time_point log_refill_{};
   uint64_t log_suppressed_ = 0;
-  void Log(const std::string& line);
-  std::thread thread_;
 };
 
 /// The body of GET http[s]://HOST[:PORT]/path (HOST an IPv4 address or a name resolved to one;
@@ -136,7 +142,8 @@ class HttpServer {
 /// and name HOST (DNS name or IP address), over TLS 1.2 or later. Errors: the URL, connection,
 /// timeout, TLS (an untrusted certificate or one for another host, saying what to do), a truncated
 /// reply, a non-200 status (its code and first line of the body; for 401 also whether a token was
-/// sent). InvalidArgument: retrying will not help (bad URL, 401, TLS refused).
+/// sent). InvalidArgument: retrying will not help (bad URL, 401, TLS refused). httplib's client:
+/// `timeout` bounds the connect, and each read and write (not their sum).
 core::Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout,
                                   const std::string& bearer_token = "", const std::string& ca_file = "");
 
