@@ -137,18 +137,18 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
   TreeAssembler assembler(core::kNumParts);
   engine::FrontierLoopHooks hooks;
   // One tree: a node's sample-node id is its breadth-first index, the assembler's.
-  hooks.place = [&](const engine::OpenNode& f, const engine::NodeDecision& d) -> uint32_t {
+  hooks.place = [&](const engine::OpenNode& f, engine::NodeDecision& d) -> Result<uint32_t> {
     POSEFOREST_CHECK(f.node == f.local);
     if (!d.split) {
       if (options_.leaf_counts) options_.leaf_counts(tree, assembler.num_leaves(), f.parts);
       assembler.MakeLeaf(f.node, f.parts);
-      return 0;
+      return uint32_t(0);
     }
     return assembler.MakeSplit(f.node, d.offsets, d.choice.cut);
   };
   uint64_t evals_before = builder.evaluations();
   double hist_before = shard_set.histogram_seconds();
-  hooks.level_done = [&](const engine::LevelDone& done) {
+  hooks.level_done = [&](const engine::LevelDone& done) -> Status {
     stats_.peak_histogram_bytes =
         std::max(stats_.peak_histogram_bytes, done.max_batch_bytes * (shards.size() > 1 ? 2 : 1));
     const double level_hist_s = shard_set.histogram_seconds() - hist_before;
@@ -167,6 +167,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
     }
     evals_before = builder.evaluations();
     hist_before = shard_set.histogram_seconds();
+    return Status::Ok();
   };
   const double range_before = shard_set.range_seconds();
   POSEFOREST_RETURN_IF_ERROR(engine::RunFrontierLoop(shard_set, params_, tree, 0, std::move(frontier), 1,

@@ -70,7 +70,7 @@ Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
                                   params.threads > 0 ? params.threads : 1);
   engine::FrontierLoopHooks hooks;
   // Each root's nodes in the loop's (breadth-first) order: its subtree's layout.
-  hooks.place = [&](const engine::OpenNode& f, const engine::NodeDecision& d) -> uint32_t {
+  hooks.place = [&](const engine::OpenNode& f, engine::NodeDecision& d) -> Result<uint32_t> {
     SubtreeOutput& o = out[f.owner];
     o.evaluations += d.evaluations;  // every node tried is binned once over all its samples
     SubtreeNode& n = o.nodes.emplace_back();
@@ -78,7 +78,7 @@ Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
     n.parts = f.parts;
     if (!d.split) {
       assemblers[f.owner].MakeLeaf(f.local, f.parts);
-      return 0;
+      return uint32_t(0);
     }
     n.split = true;
     n.offsets = d.offsets;

@@ -88,18 +88,24 @@ Status RunFrontierLoop(ShardSet& shards, const worker::TrainParams& params, int 
       done.samples += frontier[i].total();
       if (WantsSplit(params, frontier[i].depth, frontier[i].parts)) to_split.push_back(i);
     }
+    if (hooks.before_decide) POSEFOREST_RETURN_IF_ERROR(hooks.before_decide(level, frontier, &to_split));
     std::vector<NodeDecision> decisions(frontier.size());
-    POSEFOREST_RETURN_IF_ERROR(DecideNodes(
-        shards, params, tree, level, frontier, to_split, max_batch_bytes, &decisions,
-        [&](size_t, uint64_t bytes) { done.max_batch_bytes = std::max(done.max_batch_bytes, bytes); }));
+    POSEFOREST_RETURN_IF_ERROR(DecideNodes(shards, params, tree, level, frontier, to_split, max_batch_bytes,
+                                           &decisions, [&](size_t decided, uint64_t bytes) {
+                                             done.max_batch_bytes = std::max(done.max_batch_bytes, bytes);
+                                             if (hooks.after_batch) hooks.after_batch(decided, bytes);
+                                           }));
+    if (hooks.after_decide) POSEFOREST_RETURN_IF_ERROR(hooks.after_decide(level));
     // Children in frontier order: the breadth-first layout.
     std::vector<OpenNode> next;
     std::vector<worker::SampleSet::Split> splits;
     for (size_t i = 0; i < frontier.size(); ++i) {
       const OpenNode& f = frontier[i];
       NodeDecision& d = decisions[i];
-      const uint32_t left = hooks.place(f, d);
+      const core::Result<uint32_t> placed = hooks.place(f, d);
+      if (!placed.ok()) return placed.status();
       if (!d.split) continue;
+      const uint32_t left = *placed;
       ++done.split_nodes;
       const uint32_t left_node = next_node;
       next_node += 2;
@@ -110,7 +116,8 @@ Status RunFrontierLoop(ShardSet& shards, const worker::TrainParams& params, int 
                       std::move(d.choice.right_parts), f.owner, left + 1});
     }
     POSEFOREST_RETURN_IF_ERROR(shards.ApplySplits(splits));
-    if (hooks.level_done) hooks.level_done(done);
+    done.next = next;
+    if (hooks.level_done) POSEFOREST_RETURN_IF_ERROR(hooks.level_done(done));
     frontier.swap(next);
   }
   return Status::Ok();

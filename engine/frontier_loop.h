@@ -58,16 +58,30 @@ struct LevelDone {
   int level = 0;
   size_t frontier_nodes = 0;
   size_t split_nodes = 0;
-  uint64_t samples = 0;          ///< in the frontier
-  uint64_t max_batch_bytes = 0;  ///< largest histogram batch of the level
+  uint64_t samples = 0;            ///< in the frontier
+  uint64_t max_batch_bytes = 0;    ///< largest histogram batch of the level
+  std::span<const OpenNode> next;  ///< the next level's frontier
 };
 
+/// What a user of the loop adds around it. Only `place` is required. A hook's error ends the
+/// loop with that error.
 struct FrontierLoopHooks {
+  /// Before a level's nodes are decided: may take nodes out of `to_split` (those decided
+  /// elsewhere, e.g. a distributed coordinator's delegated subtrees), order kept.
+  std::function<core::Status(int level, std::span<const OpenNode> frontier, std::vector<size_t>* to_split)>
+      before_decide;
+  /// After each batch: how many of to_split are decided so far, the batch's histogram bytes.
+  std::function<void(size_t decided, uint64_t batch_bytes)> after_batch;
+  /// After every node of to_split is decided, before any is placed.
+  std::function<core::Status(int level)> after_decide;
   /// Called for every frontier node in frontier order once its level is decided: the caller
-  /// lays it out (a leaf, or a split whose children's index in the owner's layout it returns:
-  /// left, and left + 1 for the right child; ignored for a leaf).
-  std::function<uint32_t(const OpenNode&, const NodeDecision&)> place;
-  std::function<void(const LevelDone&)> level_done;  ///< optional
+  /// lays it out (a leaf, or a split whose left child's index in the owner's layout it
+  /// returns; the right child is left + 1; ignored for a leaf). A node taken out of to_split
+  /// arrives untried; the caller may fill in the decision made elsewhere (split, offsets,
+  /// choice.cut, choice.left_parts/right_parts), which the loop then follows.
+  std::function<core::Result<uint32_t>(const OpenNode&, NodeDecision&)> place;
+  /// After the level's splits are applied.
+  std::function<core::Status(const LevelDone&)> level_done;
 };
 
 /// Grows `frontier` level by level until no node is left open: DecideNodes on every node that
