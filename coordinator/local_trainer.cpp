@@ -169,10 +169,9 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
     hist_before = shard_set.histogram_seconds();
     return Status::Ok();
   };
-  const double range_before = shard_set.range_seconds();
   POSEFOREST_RETURN_IF_ERROR(engine::RunFrontierLoop(shard_set, params_, tree, 0, std::move(frontier), 1,
                                                      params_.histogram_memory_bytes, hooks));
-  stats_.range_seconds += shard_set.range_seconds() - range_before;
+  stats_.range_seconds += shard_set.range_seconds();  // the shard set is this tree's
   stats_.histogram_seconds += shard_set.histogram_seconds();
   stats_.evaluations += builder.evaluations();
   return assembler.Finish();

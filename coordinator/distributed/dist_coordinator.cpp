@@ -43,17 +43,6 @@ constexpr int kParts = core::kNumParts;
 /// draws are keyed by them since subtree hand-off); format 1 checkpoints cannot resume.
 constexpr uint32_t kCheckpointFormat = 2;
 
-struct FrontierNode {
-  uint32_t node = 0;
-  uint64_t position = 0;  ///< heap position: keys the node's random draws
-  std::vector<uint64_t> parts;
-  uint64_t total() const {
-    uint64_t n = 0;
-    for (uint64_t c : parts) n += c;
-    return n;
-  }
-};
-
 struct WorkerInfo {
   std::string id;
   std::string presence_writer, participant;
@@ -1015,7 +1004,7 @@ struct DistCoordinator::Impl {
     }
   };
 
-  Result<core::Tree> TrainTree(std::vector<FrontierNode> frontier, int first_level, int* levels_done) {
+  Result<core::Tree> TrainTree(std::vector<engine::OpenNode> frontier, int first_level, int* levels_done) {
     coordinator::TreeAssembler assembler(kParts);
     POSEFOREST_RETURN_IF_ERROR(Replay(ckpt.current(), &assembler));
     split_of.clear();
@@ -1040,7 +1029,8 @@ struct DistCoordinator::Impl {
     RemoteShards shards(*this, merge_threads);
     if (frontier.empty()) {
       // Census of the root.
-      FrontierNode root{0, worker::kRootPosition, {}};
+      engine::OpenNode root;
+      root.position = worker::kRootPosition;
       POSEFOREST_RETURN_IF_ERROR(shards.CountParts(0, &root.parts));
       if (root.total() == 0)
         return Status(ErrorCode::kInvalidArgument, "tree " + std::to_string(tree) +
@@ -1048,10 +1038,6 @@ struct DistCoordinator::Impl {
                                                        std::to_string(params.images_per_tree) + " frames");
       frontier.push_back(std::move(root));
     }
-    std::vector<engine::OpenNode> open;
-    for (FrontierNode& f : frontier)
-      open.push_back({f.node, f.position, worker::PositionDepth(f.position), std::move(f.parts), 0, f.node});
-
     // Per level: what the hooks below share.
     double t_level = 0;
     uint64_t evaluations = 0, level_samples = 0;
@@ -1227,7 +1213,7 @@ struct DistCoordinator::Impl {
       return Status::Ok();
     };
     POSEFOREST_RETURN_IF_ERROR(engine::RunFrontierLoop(
-        shards, params, tree, first_level, std::move(open), uint32_t(assembler.num_nodes()),
+        shards, params, tree, first_level, std::move(frontier), uint32_t(assembler.num_nodes()),
         std::min(params.histogram_memory_bytes, opt.max_batch_bytes), hooks));
     return assembler.Finish();
   }
@@ -1249,7 +1235,7 @@ struct DistCoordinator::Impl {
 
     // Resume.
     std::vector<core::Tree> trees;
-    std::vector<FrontierNode> frontier;
+    std::vector<engine::OpenNode> frontier;
     int first_level = 0;
     ckpt.Clear();
     ckpt.set_format(kCheckpointFormat);
@@ -1278,8 +1264,10 @@ struct DistCoordinator::Impl {
       }
       for (const v1::FrontierEntry& fe : saved.frontier()) {
         if (fe.part_counts_size() != kParts) return Status(ErrorCode::kDataLoss, ckpt_path + ": frontier");
-        frontier.push_back({fe.node(), fe.position(),
-                            std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end())});
+        // Every frontier node sits at depth first_level; node ids are breadth-first indices.
+        frontier.push_back({fe.node(), fe.position(), worker::PositionDepth(fe.position()),
+                            std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end()), 0,
+                            fe.node()});
       }
       first_level = saved.current().levels_size();
       epoch = saved.epoch();
