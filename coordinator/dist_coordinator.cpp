@@ -16,6 +16,7 @@
 #include <tuple>
 
 #include "engine/candidates.h"
+#include "engine/frontier_loop.h"
 #include "engine/histogram_builder.h"
 #include "engine/job_spec.h"
 #include "engine/split_search.h"
@@ -44,17 +45,6 @@ constexpr int kParts = core::kNumParts;
 /// draws are keyed by them since subtree hand-off); format 1 checkpoints cannot resume.
 constexpr uint32_t kCheckpointFormat = 2;
 
-struct FrontierNode {
-  uint32_t node = 0;
-  uint64_t position = 0;  ///< heap position: keys the node's random draws
-  std::vector<uint64_t> parts;
-  uint64_t total() const {
-    uint64_t n = 0;
-    for (uint64_t c : parts) n += c;
-    return n;
-  }
-};
-
 struct WorkerInfo {
   std::string id;
   std::string presence_writer, participant;
@@ -81,7 +71,7 @@ struct SubtreeJob {
   uint32_t node = 0;  ///< breadth-first id
   uint64_t position = 0;
   std::vector<uint64_t> parts;
-  std::vector<uint32_t> frames;             ///< tree-local frames holding its samples
+  std::vector<uint32_t> frames;  ///< tree-local frames holding its samples
   /// The samples themselves when every holder listed them (FRAMES round): per frame of
   /// `frames`, how many, and their delta-coded pixel indices (SubtreeTask.sample_*).
   std::vector<uint32_t> sample_counts, pixel_deltas;
@@ -149,7 +139,7 @@ struct DistCoordinator::Impl {
   /// SubtreeTasks chosen by SendTask, per worker, until FlushTasks sends them.
   std::map<std::string, std::vector<v1::SubtreeTask>> task_outbox;
   uint64_t level_task_messages = 0;  ///< SubtreeTasks messages sent this level
-  std::set<std::string> banned;          ///< senders of hostile SubtreeResults: never rejoin
+  std::set<std::string> banned;      ///< senders of hostile SubtreeResults: never rejoin
   uint64_t subtree_rejected = 0;
   uint64_t level_subtree_evaluations = 0;
   // Level accounting.
@@ -728,7 +718,293 @@ struct DistCoordinator::Impl {
     return Status::Ok();
   }
 
-  Result<core::Tree> TrainTree(std::vector<FrontierNode> frontier, int first_level, int* levels_done) {
+  // Small nodes go to one worker each, whole (SubtreeTask): ask the workers which frames
+  // hold their samples, send the tasks, and let them train while the histogram rounds of
+  // the other nodes run. Never the root: one worker would train the whole tree. Small: at
+  // most subtree_max_samples samples, or (the frame rule) samples in at most
+  // subtree_max_frames frames, up to 16 x subtree_max_samples samples and a quarter of the
+  // tree's samples per live worker (a level of few large tasks would leave workers idle).
+  // Returns how many nodes were handed off; they leave *to_split.
+  Result<size_t> HandOff(int level, std::span<const engine::OpenNode> frontier, uint64_t level_samples,
+                         std::vector<size_t>* to_split) {
+    level_handed.clear();
+    level_largest_task = 0;
+    level_task_messages = 0;
+    if (params.subtree_max_samples > 0 && level > 0) {
+      const uint64_t by_samples = params.subtree_max_samples;
+      const uint64_t by_frames =
+          params.subtree_max_frames > 0
+              ? std::min(16 * by_samples, level_samples / (4 * uint64_t(std::max(1, AliveCount()))))
+              : 0;
+      std::vector<size_t> keep, ask, hand;
+      for (size_t i : *to_split)
+        (frontier[i].total() <= std::max(by_samples, by_frames) ? ask : keep).push_back(i);
+      if (!ask.empty()) {
+        std::vector<uint32_t> ids;
+        std::vector<v1::NodeSpec> specs(ask.size());
+        for (size_t q = 0; q < ask.size(); ++q) {
+          ids.push_back(frontier[ask[q]].node);
+          specs[q].set_num_samples(frontier[ask[q]].total());
+          specs[q].set_position(frontier[ask[q]].position);
+        }
+        auto rf = Round(v1::PHASE_FRAMES, ids, specs, level);
+        if (!rf.ok()) return rf.status();
+        tasks.clear();
+        subtree_load.clear();
+        for (size_t q = 0; q < ask.size(); ++q) {
+          const engine::OpenNode& f = frontier[ask[q]];
+          SubtreeJob job;
+          job.node = f.node;
+          job.position = f.position;
+          job.parts = f.parts;
+          uint64_t held = 0;
+          // (frame, reply, first delta, count) of the listed samples; any holder without a
+          // consistent list: the task goes without (the worker routes the frames' samples).
+          std::vector<std::tuple<uint32_t, const v1::NodeRanges*, int, uint32_t>> listed;
+          bool all_listed = true;
+          for (const Reply& r : *rf) {
+            const v1::NodeRanges& nr = r.body.ranges(int(q));
+            if (nr.num_samples() > 0) job.holders[r.sender] = nr.num_samples();
+            held += nr.num_samples();
+            job.frames.insert(job.frames.end(), nr.frames().begin(), nr.frames().end());
+            uint64_t sum = 0;
+            for (uint32_t c : nr.frame_samples()) sum += c;
+            if (nr.frame_samples_size() != nr.frames_size() || sum != nr.num_samples() ||
+                uint64_t(nr.pixel_deltas_size()) != sum) {
+              if (nr.frame_samples_size() > 0 || nr.pixel_deltas_size() > 0)
+                Log("FRAMES reply from " + r.sender + ", node " + std::to_string(f.node) + ": " +
+                    std::to_string(nr.pixel_deltas_size()) + " sample pixels, " + std::to_string(sum) +
+                    " by its counts, " + std::to_string(nr.num_samples()) +
+                    " samples: the task goes without sample lists (the worker routes)");
+              all_listed = all_listed && nr.num_samples() == 0;
+              continue;
+            }
+            for (int e = 0, at = 0; e < nr.frames_size(); at += int(nr.frame_samples(e)), ++e)
+              listed.emplace_back(nr.frames(e), &nr, at, nr.frame_samples(e));
+          }
+          if (held != f.total())
+            return Status(ErrorCode::kDataLoss, "node " + std::to_string(f.node) + ": the workers hold " +
+                                                    std::to_string(held) + " of its samples, expected " +
+                                                    std::to_string(f.total()));
+          std::sort(job.frames.begin(), job.frames.end());
+          job.frames.erase(std::unique(job.frames.begin(), job.frames.end()), job.frames.end());
+          if (f.total() > by_samples && job.frames.size() > params.subtree_max_frames) {
+            keep.push_back(ask[q]);  // too many frames to hand over: histogram rounds
+            continue;
+          }
+          hand.push_back(ask[q]);
+          std::sort(listed.begin(), listed.end(),
+                    [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
+          if (all_listed && listed.size() == job.frames.size()) {  // no frame listed twice
+            job.pixel_deltas.reserve(f.total());
+            for (const auto& [frame, nr, at, count] : listed) {
+              job.sample_counts.push_back(count);
+              job.pixel_deltas.insert(job.pixel_deltas.end(), nr->pixel_deltas().begin() + at,
+                                      nr->pixel_deltas().begin() + at + int(count));
+            }
+          }
+          tasks[f.position] = std::move(job);
+        }
+        // Largest first, each to the least loaded worker (SendTask): the level's subtree work
+        // splits evenly however unequal the nodes are.
+        std::vector<SubtreeJob*> order;
+        for (auto& [pos, job] : tasks) order.push_back(&job);
+        std::stable_sort(order.begin(), order.end(), [](const SubtreeJob* a, const SubtreeJob* b) {
+          uint64_t na = 0, nb = 0;
+          for (uint64_t c : a->parts) na += c;
+          for (uint64_t c : b->parts) nb += c;
+          return na > nb;
+        });
+        for (SubtreeJob* job : order) POSEFOREST_RETURN_IF_ERROR(SendTask(*job));
+        POSEFOREST_RETURN_IF_ERROR(FlushTasks());
+        std::sort(keep.begin(), keep.end());  // frontier order, as before
+        to_split->swap(keep);
+        return hand.size();
+      }
+    }
+    return size_t(0);
+  }
+
+  /// The workers' shards as the frontier loop sees them: each pass is one request/reply Round
+  /// over the assigned workers (lost workers' frames handed on, the round asked again), the
+  /// replies merged here. Nothing is decided here: the loop (engine/frontier_loop.h) does that.
+  struct RemoteShards final : engine::ShardSet {
+    Impl& impl;
+    int merge_threads;
+    double hist_s = 0, merge_s = 0;  ///< of the current level: rounds, merging
+    /// Set by the coordinator while it places a level's nodes: the decisions ApplySplits sends.
+    v1::Envelope* decisions = nullptr;
+
+    RemoteShards(Impl& i, int threads) : impl(i), merge_threads(threads) {}
+
+    Status CountParts(uint32_t node, std::vector<uint64_t>* parts) override {
+      if (node != 0) return Status(ErrorCode::kInternal, "remote census of a node other than the root");
+      auto replies = impl.Round(v1::PHASE_COUNTS, {0}, {v1::NodeSpec{}}, 0);
+      if (!replies.ok()) return replies.status();
+      parts->assign(size_t(kParts), 0);
+      for (const Reply& r : *replies)
+        for (int p = 0; p < kParts; ++p) (*parts)[size_t(p)] += r.body.ranges(0).part_counts(p);
+      return Status::Ok();
+    }
+
+    /// Ranges merged by min/max. A worker that holds every sample of a node whose reference
+    /// subsample is the whole node builds it in one fused pass and returns its histogram and
+    /// cuts right away.
+    Status Ranges(int /*tree*/, int level, engine::Batch* batch, const engine::HistogramSink& sink) override {
+      const worker::TrainParams& params = impl.params;
+      std::vector<worker::NodePlan>& plans = batch->plans;
+      const int k = params.candidate_features;
+      const int t_count = params.thresholds_per_feature;
+      const int cut_stride = worker::CutStride(t_count);
+      const dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
+      batch->ranges.assign(plans.size(), {});
+      batch->fused.assign(plans.size(), 0);
+      std::vector<uint32_t> ids;
+      std::vector<v1::NodeSpec> specs(plans.size());
+      for (size_t p = 0; p < plans.size(); ++p) {
+        ids.push_back(plans[p].node);
+        specs[p].set_num_samples(plans[p].num_samples);
+        specs[p].set_position(plans[p].position);
+      }
+      const double t_ranges = NowSeconds();
+      auto r1 = impl.Round(v1::PHASE_RANGES, ids, specs, level);
+      if (!r1.ok()) return r1.status();
+      hist_s += NowSeconds() - t_ranges;
+      std::vector<int> fused_by(plans.size(), -1);
+      for (size_t p = 0; p < plans.size(); ++p) {
+        for (size_t r = 0; r < r1->size(); ++r)
+          if ((*r1)[r].body.ranges(int(p)).fused()) {
+            if (fused_by[p] >= 0)
+              return Status(ErrorCode::kDataLoss, "node " + std::to_string(plans[p].node) +
+                                                      ": two workers claim all of its samples");
+            fused_by[p] = int(r);
+          }
+        if (fused_by[p] >= 0) continue;
+        std::vector<worker::ResponseRange>& merged = batch->ranges[p];
+        merged.resize(size_t(k));
+        for (const Reply& r : *r1)
+          for (int c = 0; c < k; ++c)
+            merged[size_t(c)].Merge({r.body.ranges(int(p)).lo(c), r.body.ranges(int(p)).hi(c)});
+      }
+      // Fused nodes: cuts and histogram from their one worker.
+      const double t_merge = NowSeconds();
+      for (size_t p = 0; p < plans.size(); ++p) {
+        if (fused_by[p] < 0) continue;
+        batch->fused[p] = 1;
+        const Reply& r = (*r1)[size_t(fused_by[p])];
+        const v1::NodeRanges& nr = r.body.ranges(int(p));
+        plans[p].cuts.assign(size_t(k) * size_t(cut_stride), worker::kNoCut);
+        int pos = 0;
+        bool ok = r.body.nodes(int(p)).samples() == plans[p].num_samples;
+        for (int c = 0; c < k && ok; ++c) {
+          int64_t v = 0;
+          for (uint32_t j = 0; j < nr.cut_counts(c); ++j) {
+            const int32_t d = nr.cut_deltas(pos++);
+            if (j > 0 && d <= 0) ok = false;
+            v = j == 0 ? int64_t(d) : v + int64_t(d);
+            if (v >= int64_t(worker::kNoCut)) ok = false;
+            plans[p].cuts[size_t(c) * size_t(cut_stride) + j] = int32_t(v);
+          }
+        }
+        worker::NodeHistogram hist;
+        hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
+        if (ok) ok = AddWireRuns(r.body.nodes(int(p)).runs(), dims, plans[p], &hist);
+        if (!ok)
+          return Status(ErrorCode::kDataLoss, "fused node " + std::to_string(plans[p].node) + " from " +
+                                                  r.sender + " is inconsistent");
+        sink(p, hist);
+      }
+      merge_s += NowSeconds() - t_merge;
+      return Status::Ok();
+    }
+
+    /// Histograms summed, per node in parallel (independent, deterministic per node). A reply
+    /// that counts a part absent from a node comes from a worker that disagrees with the
+    /// coordinator: it is evicted and the round asked again without it.
+    Status Histograms(int /*tree*/, int level, engine::Batch* batch, std::span<const size_t> which,
+                      const engine::HistogramSink& sink) override {
+      const worker::TrainParams& params = impl.params;
+      const std::vector<worker::NodePlan>& plans = batch->plans;
+      const int k = params.candidate_features;
+      const int t_count = params.thresholds_per_feature;
+      const dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
+      std::vector<uint32_t> ids2;
+      std::vector<v1::NodeSpec> specs2(which.size());
+      for (size_t q = 0; q < which.size(); ++q) {
+        const size_t p = which[q];
+        ids2.push_back(plans[p].node);
+        specs2[q].set_num_samples(plans[p].num_samples);
+        specs2[q].set_position(plans[p].position);
+        for (uint64_t c : batch->parts[p]) specs2[q].add_part_counts(c);
+        for (const auto& m : batch->ranges[p]) {
+          specs2[q].add_range_lo(m.lo);
+          specs2[q].add_range_hi(m.hi);
+        }
+      }
+      for (int attempt = 0;; ++attempt) {
+        const double t_hist = NowSeconds();
+        auto r2 = impl.Round(v1::PHASE_HISTOGRAMS, ids2, specs2, level);
+        if (!r2.ok()) return r2.status();
+        hist_s += NowSeconds() - t_hist;
+        const double t_merge = NowSeconds();
+        const auto nq = int64_t(which.size());
+        std::vector<std::string> bad(which.size());
+        std::vector<uint64_t> got(which.size(), 0);
+        std::exception_ptr merge_error;
+#pragma omp parallel for num_threads(merge_threads) schedule(dynamic, 1)
+        for (int64_t qi = 0; qi < nq; ++qi) {
+          try {  // no exception may leave the OpenMP region: stored, rethrown after it
+            const auto q = size_t(qi);
+            const size_t p = which[q];
+            worker::NodeHistogram hist;
+            hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
+            for (const Reply& r : *r2) {
+              const auto& nh = r.body.nodes(int(q));
+              if (!AddWireRuns(nh.runs(), dims, plans[p], &hist)) {
+                bad[q] = r.sender;
+                break;
+              }
+              got[q] += nh.samples();
+            }
+            if (!bad[q].empty() || got[q] != plans[p].num_samples) continue;
+            sink(p, hist);
+          } catch (...) {
+#pragma omp critical(poseforest_dist_merge_error)
+            if (!merge_error) merge_error = std::current_exception();
+          }
+        }
+        if (merge_error) std::rethrow_exception(merge_error);
+        merge_s += NowSeconds() - t_merge;
+        std::string culprit;
+        for (const std::string& b : bad)
+          if (!b.empty()) culprit = b;
+        if (!culprit.empty() && attempt < 3) {
+          impl.Log("histogram from " + culprit + " counts parts absent from a node");
+          impl.MarkLost(culprit, "evicted");
+          continue;
+        }
+        for (size_t q = 0; q < which.size(); ++q)
+          if (!bad[q].empty() || got[q] != plans[which[q]].num_samples)
+            return Status(ErrorCode::kDataLoss, "node " + std::to_string(plans[which[q]].node) +
+                                                    ": the workers' histograms hold " +
+                                                    std::to_string(got[q]) + " samples, expected " +
+                                                    std::to_string(plans[which[q]].num_samples));
+        return Status::Ok();
+      }
+    }
+
+    /// The level's decisions (leaves, splits, delegated nodes) to every worker: each routes its
+    /// own samples.
+    Status ApplySplits(std::span<const worker::SampleSet::Split> /*splits*/) override {
+      if (!decisions) return Status(ErrorCode::kInternal, "no decisions to send");
+      v1::SplitDecisions* dec = decisions->mutable_decisions();
+      dec->set_epoch(++impl.epoch);
+      impl.tree_decisions.push_back(*dec);
+      return impl.Send(Topic::kControl, *decisions);
+    }
+  };
+
+  Result<core::Tree> TrainTree(std::vector<engine::OpenNode> frontier, int first_level, int* levels_done) {
     coordinator::TreeAssembler assembler(kParts);
     POSEFOREST_RETURN_IF_ERROR(Replay(ckpt.current(), &assembler));
     split_of.clear();
@@ -747,413 +1023,149 @@ struct DistCoordinator::Impl {
     for (auto& [id, w] : workers) w.assigned = false, w.frames.clear();
     orphan_frames.clear();
     POSEFOREST_RETURN_IF_ERROR(Distribute({{0, uint32_t(params.images_per_tree)}}));
+    const int merge_threads = opt.merge_threads > 0 ? opt.merge_threads
+                              : params.threads > 0  ? params.threads
+                                                    : omp_get_max_threads();
+    RemoteShards shards(*this, merge_threads);
     if (frontier.empty()) {
       // Census of the root.
-      auto replies = Round(v1::PHASE_COUNTS, {0}, {v1::NodeSpec{}}, 0);
-      if (!replies.ok()) return replies.status();
-      FrontierNode root{0, worker::kRootPosition, std::vector<uint64_t>(kParts, 0)};
-      for (const Reply& r : *replies) {
-        for (int p = 0; p < kParts; ++p) root.parts[size_t(p)] += r.body.ranges(0).part_counts(p);
-      }
+      engine::OpenNode root;
+      root.position = worker::kRootPosition;
+      POSEFOREST_RETURN_IF_ERROR(shards.CountParts(0, &root.parts));
       if (root.total() == 0)
         return Status(ErrorCode::kInvalidArgument, "tree " + std::to_string(tree) +
                                                        ": no body pixels in any of its " +
                                                        std::to_string(params.images_per_tree) + " frames");
       frontier.push_back(std::move(root));
     }
-    const int k = params.candidate_features;
-    const int t_count = params.thresholds_per_feature;
-    const int merge_threads = opt.merge_threads > 0 ? opt.merge_threads
-                              : params.threads > 0  ? params.threads
-                                                    : omp_get_max_threads();
-    const int cut_stride = worker::CutStride(t_count);
-    const dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
-    for (int level = first_level; !frontier.empty(); ++level) {
+    // Per level: what the hooks below share.
+    double t_level = 0;
+    uint64_t evaluations = 0, level_samples = 0;
+    size_t handed_off = 0, from_subtrees = 0, frontier_size = 0, histogram_nodes = 0;
+    double entropy_sum = 0, gain_sum = 0;  // for DistLevelStats
+    v1::Envelope env;
+    v1::LoggedLevel* logged = nullptr;
+    engine::FrontierLoopHooks hooks;
+    hooks.before_decide = [&](int level, std::span<const engine::OpenNode> level_nodes,
+                              std::vector<size_t>* to_split) -> Status {
       if (!opt.pause_file.empty() && std::filesystem::exists(opt.pause_file)) {
         Log("paused (next: tree " + std::to_string(tree) + ", level " + std::to_string(level) + "); remove " +
             opt.pause_file + " to go on");
         while (std::filesystem::exists(opt.pause_file)) Pump(std::chrono::milliseconds(50), 0, nullptr);
         Log("resumed");
       }
-      const double t_level = NowSeconds();
+      t_level = NowSeconds();
       level_bytes_received = level_bytes_sent = 0;
       level_retries = 0;
       level_subtree_evaluations = 0;
-      double hist_s = 0, merge_s = 0;
-      uint64_t evaluations = 0, level_samples = 0;
-      std::vector<size_t> to_split;
-      for (size_t i = 0; i < frontier.size(); ++i) {
-        const uint64_t n = frontier[i].total();
-        level_samples += n;
-        int present = 0;
-        for (uint64_t c : frontier[i].parts) present += c > 0;
-        // Nodes of delegated subtrees are decided by their SubtreeResult.
-        if (delegated.count(frontier[i].position)) continue;
-        if (level < params.max_depth && int64_t(n) >= params.min_samples_split && present > 1)
-          to_split.push_back(i);
-      }
+      shards.hist_s = shards.merge_s = 0;
+      evaluations = level_samples = 0;
+      from_subtrees = 0;
+      entropy_sum = gain_sum = 0;
+      frontier_size = level_nodes.size();
+      for (const engine::OpenNode& f : level_nodes) level_samples += f.total();
+      // Nodes of delegated subtrees are decided by their SubtreeResult.
+      std::erase_if(*to_split, [&](size_t i) { return delegated.count(level_nodes[i].position) > 0; });
       if (opt.observer) {
-        opt.observer->OnLevelStart(tree, level, frontier.size(), level_samples);
-        opt.observer->OnNodesDecided(frontier.size() - to_split.size(), frontier.size());
+        opt.observer->OnLevelStart(tree, level, level_nodes.size(), level_samples);
+        opt.observer->OnNodesDecided(level_nodes.size() - to_split->size(), level_nodes.size());
       }
-      std::vector<uint8_t> is_split(frontier.size(), 0);
-      std::vector<coordinator::SplitChoice> choices(frontier.size());
-      std::vector<core::FeatureOffsets> chosen(frontier.size());
-      // Small nodes go to one worker each, whole (SubtreeTask): ask the workers which frames
-      // hold their samples, send the tasks, and let them train while the histogram rounds of
-      // the other nodes run. Never the root: one worker would train the whole tree. Small: at
-      // most subtree_max_samples samples, or (the frame rule) samples in at most
-      // subtree_max_frames frames, up to 16 x subtree_max_samples samples and a quarter of the
-      // tree's samples per live worker (a level of few large tasks would leave workers idle).
-      size_t handed_off = 0;
-      level_handed.clear();
-      level_largest_task = 0;
-      level_task_messages = 0;
-      if (params.subtree_max_samples > 0 && level > 0) {
-        const uint64_t by_samples = params.subtree_max_samples;
-        const uint64_t by_frames =
-            params.subtree_max_frames > 0
-                ? std::min(16 * by_samples, level_samples / (4 * uint64_t(std::max(1, AliveCount()))))
-                : 0;
-        std::vector<size_t> keep, ask, hand;
-        for (size_t i : to_split)
-          (frontier[i].total() <= std::max(by_samples, by_frames) ? ask : keep).push_back(i);
-        if (!ask.empty()) {
-          std::vector<uint32_t> ids;
-          std::vector<v1::NodeSpec> specs(ask.size());
-          for (size_t q = 0; q < ask.size(); ++q) {
-            ids.push_back(frontier[ask[q]].node);
-            specs[q].set_num_samples(frontier[ask[q]].total());
-            specs[q].set_position(frontier[ask[q]].position);
-          }
-          auto rf = Round(v1::PHASE_FRAMES, ids, specs, level);
-          if (!rf.ok()) return rf.status();
-          tasks.clear();
-          subtree_load.clear();
-          for (size_t q = 0; q < ask.size(); ++q) {
-            const FrontierNode& f = frontier[ask[q]];
-            SubtreeJob job;
-            job.node = f.node;
-            job.position = f.position;
-            job.parts = f.parts;
-            uint64_t held = 0;
-            // (frame, reply, first delta, count) of the listed samples; any holder without a
-            // consistent list: the task goes without (the worker routes the frames' samples).
-            std::vector<std::tuple<uint32_t, const v1::NodeRanges*, int, uint32_t>> listed;
-            bool all_listed = true;
-            for (const Reply& r : *rf) {
-              const v1::NodeRanges& nr = r.body.ranges(int(q));
-              if (nr.num_samples() > 0) job.holders[r.sender] = nr.num_samples();
-              held += nr.num_samples();
-              job.frames.insert(job.frames.end(), nr.frames().begin(), nr.frames().end());
-              uint64_t sum = 0;
-              for (uint32_t c : nr.frame_samples()) sum += c;
-              if (nr.frame_samples_size() != nr.frames_size() || sum != nr.num_samples() ||
-                  uint64_t(nr.pixel_deltas_size()) != sum) {
-                if (nr.frame_samples_size() > 0 || nr.pixel_deltas_size() > 0)
-                  Log("FRAMES reply from " + r.sender + ", node " + std::to_string(f.node) + ": " +
-                      std::to_string(nr.pixel_deltas_size()) + " sample pixels, " + std::to_string(sum) +
-                      " by its counts, " + std::to_string(nr.num_samples()) +
-                      " samples: the task goes without sample lists (the worker routes)");
-                all_listed = all_listed && nr.num_samples() == 0;
-                continue;
-              }
-              for (int e = 0, at = 0; e < nr.frames_size(); at += int(nr.frame_samples(e)), ++e)
-                listed.emplace_back(nr.frames(e), &nr, at, nr.frame_samples(e));
-            }
-            if (held != f.total())
-              return Status(ErrorCode::kDataLoss, "node " + std::to_string(f.node) + ": the workers hold " +
-                                                      std::to_string(held) + " of its samples, expected " +
-                                                      std::to_string(f.total()));
-            std::sort(job.frames.begin(), job.frames.end());
-            job.frames.erase(std::unique(job.frames.begin(), job.frames.end()), job.frames.end());
-            if (f.total() > by_samples && job.frames.size() > params.subtree_max_frames) {
-              keep.push_back(ask[q]);  // too many frames to hand over: histogram rounds
-              continue;
-            }
-            hand.push_back(ask[q]);
-            std::sort(listed.begin(), listed.end(),
-                      [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
-            if (all_listed && listed.size() == job.frames.size()) {  // no frame listed twice
-              job.pixel_deltas.reserve(f.total());
-              for (const auto& [frame, nr, at, count] : listed) {
-                job.sample_counts.push_back(count);
-                job.pixel_deltas.insert(job.pixel_deltas.end(), nr->pixel_deltas().begin() + at,
-                                        nr->pixel_deltas().begin() + at + int(count));
-              }
-            }
-            tasks[f.position] = std::move(job);
-          }
-          // Largest first, each to the least loaded worker (SendTask): the level's subtree work
-          // splits evenly however unequal the nodes are.
-          std::vector<SubtreeJob*> order;
-          for (auto& [pos, job] : tasks) order.push_back(&job);
-          std::stable_sort(order.begin(), order.end(), [](const SubtreeJob* a, const SubtreeJob* b) {
-            uint64_t na = 0, nb = 0;
-            for (uint64_t c : a->parts) na += c;
-            for (uint64_t c : b->parts) nb += c;
-            return na > nb;
-          });
-          for (SubtreeJob* job : order) POSEFOREST_RETURN_IF_ERROR(SendTask(*job));
-          POSEFOREST_RETURN_IF_ERROR(FlushTasks());
-          handed_off = hand.size();
-          std::sort(keep.begin(), keep.end());  // frontier order, as before
-          to_split.swap(keep);
-        }
-      }
-      for (size_t b0 = 0; b0 < to_split.size();) {
-        // Batches bounded by histogram memory, as LocalTrainer (the split choice is per node,
-        // so the batching does not change the result).
-        std::vector<worker::NodePlan> plans;
-        uint64_t batch_bytes = 0;
-        size_t b1 = b0;
-        while (b1 < to_split.size()) {
-          const FrontierNode& f = frontier[to_split[b1]];
-          worker::NodePlan plan;
-          plan.node = f.node;
-          plan.position = f.position;
-          plan.num_samples = f.total();
-          plan.SetParts(f.parts);
-          plan.sample_bins = worker::UseSampleBins(plan.num_samples, t_count, plan.num_slots);
-          plan.features.resize(size_t(k));
-          const uint64_t bytes = worker::PlanHistogramBytes(plan, t_count);
-          if (!plans.empty() &&
-              batch_bytes + bytes > std::min(params.histogram_memory_bytes, opt.max_batch_bytes))
-            break;
-          batch_bytes += bytes;
-          plan.features = worker::DrawFeatures(params, tree, f.position);
-          plan.cut_stride = cut_stride;
-          plans.push_back(std::move(plan));
-          ++b1;
-        }
-        // Pass 1: ranges, merged by min/max. A worker that holds every sample of a node whose
-        // reference subsample is the whole node builds it in one fused pass (as LocalTrainer
-        // does for a shard) and returns its histogram and cuts right away.
-        std::vector<uint32_t> ids;
-        std::vector<v1::NodeSpec> specs(plans.size());
-        for (size_t p = 0; p < plans.size(); ++p) {
-          ids.push_back(plans[p].node);
-          specs[p].set_num_samples(plans[p].num_samples);
-          specs[p].set_position(plans[p].position);
-        }
-        const double t_ranges = NowSeconds();
-        auto r1 = Round(v1::PHASE_RANGES, ids, specs, level);
-        if (!r1.ok()) return r1.status();
-        hist_s += NowSeconds() - t_ranges;
-        std::vector<size_t> rest;  // plans that need pass 2
-        std::vector<int> fused_by(plans.size(), -1);
-        for (size_t p = 0; p < plans.size(); ++p) {
-          for (size_t r = 0; r < r1->size(); ++r)
-            if ((*r1)[r].body.ranges(int(p)).fused()) {
-              if (fused_by[p] >= 0)
-                return Status(ErrorCode::kDataLoss, "node " + std::to_string(plans[p].node) +
-                                                        ": two workers claim all of its samples");
-              fused_by[p] = int(r);
-            }
-          if (fused_by[p] >= 0) continue;
-          std::vector<worker::ResponseRange> merged(static_cast<size_t>(k));
-          for (const Reply& r : *r1)
-            for (int c = 0; c < k; ++c)
-              merged[size_t(c)].Merge({r.body.ranges(int(p)).lo(c), r.body.ranges(int(p)).hi(c)});
-          plans[p].cuts = worker::DrawCuts(params, tree, plans[p].position, merged);
-          const FrontierNode& f = frontier[to_split[b0 + p]];
-          for (uint64_t c : f.parts) specs[p].add_part_counts(c);
-          for (const auto& m : merged) {
-            specs[p].add_range_lo(m.lo);
-            specs[p].add_range_hi(m.hi);
-          }
-          rest.push_back(p);
-        }
-        // Fused nodes: cuts and histogram from their one worker.
-        {
-          const double t_merge = NowSeconds();
-          for (size_t p = 0; p < plans.size(); ++p) {
-            if (fused_by[p] < 0) continue;
-            const Reply& r = (*r1)[size_t(fused_by[p])];
-            const v1::NodeRanges& nr = r.body.ranges(int(p));
-            const size_t fi = to_split[b0 + p];
-            plans[p].cuts.assign(size_t(k) * size_t(cut_stride), worker::kNoCut);
-            int pos = 0;
-            bool ok = r.body.nodes(int(p)).samples() == plans[p].num_samples;
-            for (int c = 0; c < k && ok; ++c) {
-              int64_t v = 0;
-              for (uint32_t j = 0; j < nr.cut_counts(c); ++j) {
-                const int32_t d = nr.cut_deltas(pos++);
-                if (j > 0 && d <= 0) ok = false;
-                v = j == 0 ? int64_t(d) : v + int64_t(d);
-                if (v >= int64_t(worker::kNoCut)) ok = false;
-                plans[p].cuts[size_t(c) * size_t(cut_stride) + j] = int32_t(v);
-              }
-            }
-            worker::NodeHistogram hist;
-            hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
-            if (ok) ok = AddWireRuns(r.body.nodes(int(p)).runs(), dims, plans[p], &hist);
-            if (!ok)
-              return Status(ErrorCode::kDataLoss, "fused node " + std::to_string(plans[p].node) + " from " +
-                                                      r.sender + " is inconsistent");
-            evaluations += plans[p].num_samples * uint64_t(k);
-            choices[fi] = coordinator::FindBestSplit(hist, plans[p], frontier[fi].parts);
-            is_split[fi] = choices[fi].valid && choices[fi].gain >= params.min_gain;
-            if (is_split[fi]) chosen[fi] = plans[p].features[size_t(choices[fi].candidate)];
-          }
-          merge_s += NowSeconds() - t_merge;
-        }
-        // Pass 2: histograms, summed. Per node in parallel (independent, deterministic per node).
-        // A reply that counts a part absent from a node comes from a worker that disagrees with
-        // the coordinator: it is evicted and the round asked again without it.
-        std::vector<uint32_t> ids2;
-        std::vector<v1::NodeSpec> specs2;
-        for (size_t p : rest) {
-          ids2.push_back(ids[p]);
-          specs2.push_back(std::move(specs[p]));
-        }
-        for (int attempt = 0; !rest.empty(); ++attempt) {
-          const double t_hist = NowSeconds();
-          auto r2 = Round(v1::PHASE_HISTOGRAMS, ids2, specs2, level);
-          if (!r2.ok()) return r2.status();
-          hist_s += NowSeconds() - t_hist;
-          const double t_merge = NowSeconds();
-          const auto nq = int64_t(rest.size());
-          std::vector<std::string> bad(rest.size());
-          std::vector<uint64_t> got(rest.size(), 0);
-          std::exception_ptr merge_error;
-#pragma omp parallel for num_threads(merge_threads) schedule(dynamic, 1)
-          for (int64_t qi = 0; qi < nq; ++qi) {
-            try {  // no exception may leave the OpenMP region: stored, rethrown after it
-              const auto q = size_t(qi);
-              const size_t p = rest[q];
-              const size_t fi = to_split[b0 + p];
-              worker::NodeHistogram hist;
-              hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
-              for (const Reply& r : *r2) {
-                const auto& nh = r.body.nodes(int(q));
-                if (!AddWireRuns(nh.runs(), dims, plans[p], &hist)) {
-                  bad[q] = r.sender;
-                  break;
-                }
-                got[q] += nh.samples();
-              }
-              if (!bad[q].empty() || got[q] != plans[p].num_samples) continue;
-              choices[fi] = coordinator::FindBestSplit(hist, plans[p], frontier[fi].parts);
-              is_split[fi] = choices[fi].valid && choices[fi].gain >= params.min_gain;
-              if (is_split[fi]) chosen[fi] = plans[p].features[size_t(choices[fi].candidate)];
-            } catch (...) {
-#pragma omp critical(poseforest_dist_merge_error)
-              if (!merge_error) merge_error = std::current_exception();
-            }
-          }
-          if (merge_error) std::rethrow_exception(merge_error);
-          merge_s += NowSeconds() - t_merge;
-          std::string culprit;
-          for (const std::string& b : bad)
-            if (!b.empty()) culprit = b;
-          if (!culprit.empty() && attempt < 3) {
-            Log("histogram from " + culprit + " counts parts absent from a node");
-            MarkLost(culprit, "evicted");
-            continue;
-          }
-          for (size_t q = 0; q < rest.size(); ++q) {
-            if (!bad[q].empty() || got[q] != plans[rest[q]].num_samples)
-              return Status(ErrorCode::kDataLoss, "node " + std::to_string(plans[rest[q]].node) +
-                                                      ": the workers' histograms hold " +
-                                                      std::to_string(got[q]) + " samples, expected " +
-                                                      std::to_string(plans[rest[q]].num_samples));
-            evaluations += got[q] * uint64_t(k);
-          }
-          break;
-        }
-        b0 = b1;
-        if (opt.observer)
-          opt.observer->OnNodesDecided(frontier.size() - to_split.size() - handed_off + b0, frontier.size());
-      }
+      handed_off = 0;
+      auto handed = HandOff(level, level_nodes, level_samples, to_split);
+      if (!handed.ok()) return handed.status();
+      handed_off = *handed;
+      histogram_nodes = to_split->size();
+      return Status::Ok();
+    };
+    hooks.after_batch = [&](size_t decided, uint64_t /*batch_bytes*/) {
+      if (opt.observer)
+        opt.observer->OnNodesDecided(frontier_size - histogram_nodes - handed_off + decided, frontier_size);
+    };
+    hooks.after_decide = [&](int level) -> Status {
       if (!tasks.empty()) {
         const double t_wait = NowSeconds();
         POSEFOREST_RETURN_IF_ERROR(WaitSubtrees());
-        hist_s += NowSeconds() - t_wait;
+        shards.hist_s += NowSeconds() - t_wait;
         for (auto& [pos, job] : tasks)
           for (coordinator::SubtreeNode& n : job.nodes) delegated[n.position] = std::move(n);
         tasks.clear();
         subtree_load.clear();
         evaluations += level_subtree_evaluations;
-        if (opt.observer) opt.observer->OnNodesDecided(frontier.size(), frontier.size());
+        if (opt.observer) opt.observer->OnNodesDecided(frontier_size, frontier_size);
       }
       // Children in node order (breadth-first layout), decisions to the workers, the log.
-      std::vector<FrontierNode> next;
-      size_t num_split = 0;
-      v1::Envelope env;
+      env.Clear();
       v1::SplitDecisions* dec = env.mutable_decisions();
       dec->set_tree(uint32_t(tree));
       dec->set_level(uint32_t(level));
-      v1::LoggedLevel* logged = ckpt.mutable_current()->add_levels();
-      size_t from_subtrees = 0;
-      double entropy_sum = 0, gain_sum = 0;  // for DistLevelStats
-      for (size_t i = 0; i < frontier.size(); ++i) {
-        const FrontierNode& f = frontier[i];
-        entropy_sum += coordinator::Entropy(f.parts) * double(f.total());
-        auto* nd = dec->add_nodes();
-        nd->set_node_id(f.node);
-        v1::LoggedDecision* ld = logged->add_decisions();
-        ld->set_node(f.node);
-        ld->set_position(f.position);
-        if (auto it = delegated.find(f.position); it != delegated.end()) {
-          ld->set_delegated(true);
-          // Decided by a worker that holds the whole subtree; the other workers drop their
-          // samples of it (a delegated decision routes nothing).
-          ++from_subtrees;
-          nd->set_delegated(true);
-          const coordinator::SubtreeNode d = std::move(it->second);
-          delegated.erase(it);
-          if (!std::equal(d.parts.begin(), d.parts.end(), f.parts.begin(), f.parts.end()))
-            return Status(ErrorCode::kInternal,
-                          "subtree node " + std::to_string(f.position) + ": part counts");
-          if (!d.split) {
-            assembler.MakeLeaf(f.node, f.parts);
-            for (uint64_t c : f.parts) ld->add_part_counts(c);
-            continue;
-          }
-          ++num_split;
-          gain_sum += d.gain;
-          const uint32_t left = assembler.MakeSplit(f.node, d.offsets, d.cut);
-          ld->set_split(true);
-          ld->set_ux(d.offsets.ux), ld->set_uy(d.offsets.uy), ld->set_vx(d.offsets.vx),
-              ld->set_vy(d.offsets.vy);
-          ld->set_cut(d.cut);
-          ld->set_left_child(left);
-          split_of[f.position] = {d.offsets, d.cut};
-          const uint64_t lp = worker::LeftChildPosition(f.position),
-                         rp = worker::RightChildPosition(f.position);
-          next.push_back({left, lp, delegated.at(lp).parts});
-          next.push_back({left + 1, rp, delegated.at(rp).parts});
-          continue;
-        }
-        if (!is_split[i]) {
+      logged = ckpt.mutable_current()->add_levels();
+      shards.decisions = &env;
+      return Status::Ok();
+    };
+    hooks.place = [&](const engine::OpenNode& f, engine::NodeDecision& d) -> Result<uint32_t> {
+      // One tree: a node's sample-node id is its breadth-first index, the assembler's.
+      POSEFOREST_CHECK(f.node == f.local);
+      if (d.tried) evaluations += d.evaluations;
+      entropy_sum += coordinator::Entropy(f.parts) * double(f.total());
+      auto* nd = env.mutable_decisions()->add_nodes();
+      nd->set_node_id(f.node);
+      v1::LoggedDecision* ld = logged->add_decisions();
+      ld->set_node(f.node);
+      ld->set_position(f.position);
+      if (auto it = delegated.find(f.position); it != delegated.end()) {
+        ld->set_delegated(true);
+        // Decided by a worker that holds the whole subtree; the other workers drop their
+        // samples of it (a delegated decision routes nothing).
+        ++from_subtrees;
+        nd->set_delegated(true);
+        const coordinator::SubtreeNode s = std::move(it->second);
+        delegated.erase(it);
+        if (!std::equal(s.parts.begin(), s.parts.end(), f.parts.begin(), f.parts.end()))
+          return Status(ErrorCode::kInternal, "subtree node " + std::to_string(f.position) + ": part counts");
+        if (!s.split) {
           assembler.MakeLeaf(f.node, f.parts);
-          for (uint64_t c : f.parts) {
-            nd->mutable_leaf()->add_part_counts(c);
-            ld->add_part_counts(c);
-          }
-          continue;
+          for (uint64_t c : f.parts) ld->add_part_counts(c);
+          return uint32_t(0);
         }
-        ++num_split;
-        const coordinator::SplitChoice& c = choices[i];
-        gain_sum += c.gain;
-        const uint32_t left = assembler.MakeSplit(f.node, chosen[i], c.cut);
-        SetFeatureSplit(chosen[i], c.cut, left, uint32_t(c.candidate), nd->mutable_split());
+        gain_sum += s.gain;
+        const uint32_t left = assembler.MakeSplit(f.node, s.offsets, s.cut);
         ld->set_split(true);
-        ld->set_ux(chosen[i].ux), ld->set_uy(chosen[i].uy), ld->set_vx(chosen[i].vx),
-            ld->set_vy(chosen[i].vy);
-        ld->set_cut(c.cut);
+        ld->set_ux(s.offsets.ux), ld->set_uy(s.offsets.uy), ld->set_vx(s.offsets.vx),
+            ld->set_vy(s.offsets.vy);
+        ld->set_cut(s.cut);
         ld->set_left_child(left);
-        split_of[f.position] = {chosen[i], c.cut};
-        next.push_back({left, worker::LeftChildPosition(f.position), c.left_parts});
-        next.push_back({left + 1, worker::RightChildPosition(f.position), c.right_parts});
+        split_of[f.position] = {s.offsets, s.cut};
+        // The loop follows the worker's decision: children with the subtree's counts.
+        d.split = true;
+        d.offsets = s.offsets;
+        d.choice.cut = s.cut;
+        d.choice.left_parts = delegated.at(worker::LeftChildPosition(f.position)).parts;
+        d.choice.right_parts = delegated.at(worker::RightChildPosition(f.position)).parts;
+        return left;
       }
-      dec->set_epoch(++epoch);
-      tree_decisions.push_back(*dec);
-      POSEFOREST_RETURN_IF_ERROR(Send(Topic::kControl, env));
-      frontier.swap(next);
+      if (!d.split) {
+        assembler.MakeLeaf(f.node, f.parts);
+        for (uint64_t c : f.parts) {
+          nd->mutable_leaf()->add_part_counts(c);
+          ld->add_part_counts(c);
+        }
+        return uint32_t(0);
+      }
+      const coordinator::SplitChoice& c = d.choice;
+      gain_sum += c.gain;
+      const uint32_t left = assembler.MakeSplit(f.node, d.offsets, c.cut);
+      SetFeatureSplit(d.offsets, c.cut, left, uint32_t(c.candidate), nd->mutable_split());
+      ld->set_split(true);
+      ld->set_ux(d.offsets.ux), ld->set_uy(d.offsets.uy), ld->set_vx(d.offsets.vx), ld->set_vy(d.offsets.vy);
+      ld->set_cut(c.cut);
+      ld->set_left_child(left);
+      split_of[f.position] = {d.offsets, c.cut};
+      return left;
+    };
+    hooks.level_done = [&](const engine::LevelDone& done) -> Status {
+      shards.decisions = nullptr;
       ckpt.clear_frontier();
-      for (const FrontierNode& f : frontier) {
+      for (const engine::OpenNode& f : done.next) {
         auto* fe = ckpt.add_frontier();
         fe->set_node(f.node);
         fe->set_position(f.position);
@@ -1165,17 +1177,17 @@ struct DistCoordinator::Impl {
       POSEFOREST_RETURN_IF_ERROR(SaveCheckpoint());
       DistLevelStats st;
       st.tree = tree;
-      st.level = level;
-      st.frontier_nodes = is_split.size();
-      st.split_nodes = num_split;
-      st.samples = level_samples;
+      st.level = done.level;
+      st.frontier_nodes = done.frontier_nodes;
+      st.split_nodes = done.split_nodes;
+      st.samples = done.samples;
       st.evaluations = evaluations;
-      st.evaluations_per_s = hist_s > 0 ? double(evaluations) / hist_s : 0;
+      st.evaluations_per_s = shards.hist_s > 0 ? double(evaluations) / shards.hist_s : 0;
       st.workers_alive = AliveCount();
       for (const auto& [id, w] : workers) st.workers_assigned += w.alive && w.assigned;
       st.bytes_received = level_bytes_received;
       st.bytes_sent = level_bytes_sent;
-      st.merge_seconds = merge_s;
+      st.merge_seconds = shards.merge_s;
       st.level_seconds = NowSeconds() - t_level;
       st.elapsed_s = NowSeconds() - start;
       st.retries = level_retries;
@@ -1185,20 +1197,24 @@ struct DistCoordinator::Impl {
         st.subtree_samples += n, st.subtree_samples_busiest = std::max(st.subtree_samples_busiest, n);
       st.subtree_largest_task = level_largest_task;
       st.subtree_task_messages = level_task_messages;
-      st.mean_entropy = level_samples > 0 ? entropy_sum / double(level_samples) : 0;
-      st.mean_gain = num_split > 0 ? gain_sum / double(num_split) : 0;
+      st.mean_entropy = done.samples > 0 ? entropy_sum / double(done.samples) : 0;
+      st.mean_gain = done.split_nodes > 0 ? gain_sum / double(done.split_nodes) : 0;
       if (opt.progress) opt.progress(st);
       if (opt.observer) opt.observer->OnLevelDone(st);
       const double progress =
-          (double(tree) + std::min(1.0, double(level + 1) / double(params.max_depth + 1))) /
+          (double(tree) + std::min(1.0, double(done.level + 1) / double(params.max_depth + 1))) /
           double(params.num_trees);
-      PublishStatus(v1::STATUS_KIND_LEVEL_DONE, "level done", "", level, progress);
+      PublishStatus(v1::STATUS_KIND_LEVEL_DONE, "level done", "", done.level, progress);
       last_progress = progress;
       ++*levels_done;
       if (opt.stop_after_levels >= 0 && *levels_done >= opt.stop_after_levels)
         return Status(ErrorCode::kInternal,
                       "stopped after " + std::to_string(*levels_done) + " levels (test hook)");
-    }
+      return Status::Ok();
+    };
+    POSEFOREST_RETURN_IF_ERROR(engine::RunFrontierLoop(
+        shards, params, tree, first_level, std::move(frontier), uint32_t(assembler.num_nodes()),
+        std::min(params.histogram_memory_bytes, opt.max_batch_bytes), hooks));
     return assembler.Finish();
   }
 
@@ -1219,7 +1235,7 @@ struct DistCoordinator::Impl {
 
     // Resume.
     std::vector<core::Tree> trees;
-    std::vector<FrontierNode> frontier;
+    std::vector<engine::OpenNode> frontier;
     int first_level = 0;
     ckpt.Clear();
     ckpt.set_format(kCheckpointFormat);
@@ -1248,8 +1264,10 @@ struct DistCoordinator::Impl {
       }
       for (const v1::FrontierEntry& fe : saved.frontier()) {
         if (fe.part_counts_size() != kParts) return Status(ErrorCode::kDataLoss, ckpt_path + ": frontier");
-        frontier.push_back({fe.node(), fe.position(),
-                            std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end())});
+        // Every frontier node sits at depth first_level; node ids are breadth-first indices.
+        frontier.push_back({fe.node(), fe.position(), worker::PositionDepth(fe.position()),
+                            std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end()), 0,
+                            fe.node()});
       }
       first_level = saved.current().levels_size();
       epoch = saved.epoch();

@@ -1,8 +1,9 @@
 #pragma once
 // The distributed coordinator: announces a job on a DDS domain, spreads each tree's frames over
-// the workers that join (ShardAssignment), and runs LocalTrainer's level-wise loop with the
-// shards' work done by the workers: per batch of frontier nodes a ranges round (pass 1) and a
-// histograms round (pass 2), merged here, FindBestSplit here, SplitDecisions broadcast. The
+// the workers that join (ShardAssignment), and runs the engine's level-wise loop
+// (engine/frontier_loop.h) over a remote shard set: per batch of frontier nodes a ranges round
+// (pass 1) and a histograms round (pass 2), merged here, FindBestSplit here (the loop's),
+// SplitDecisions broadcast as the shard set's ApplySplits. The
 // forest is byte-identical to LocalTrainer's for the same job, whatever the worker count and
 // whatever workers are lost on the way (docs/distributed/service.md).
 //

@@ -9,8 +9,10 @@
 #include <thread>
 
 #include "engine/candidates.h"
+#include "engine/frontier_loop.h"
 #include "engine/histogram_builder.h"
 #include "engine/image_source.h"
+#include "engine/local_shard_set.h"
 #include "engine/sample_set.h"
 #include "engine/split_search.h"
 #include "engine/tree_assembler.h"
@@ -19,9 +21,6 @@ namespace poseforest::coordinator {
 
 using core::Result;
 using core::Status;
-using worker::NodeHistogram;
-using worker::NodePlan;
-using worker::ResponseRange;
 using worker::SampleSet;
 
 namespace {
@@ -29,18 +28,6 @@ namespace {
 double Now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
-
-/// A frontier node as the coordinator knows it.
-struct FrontierNode {
-  uint32_t node;                ///< breadth-first index (the file's layout)
-  uint64_t position;            ///< heap position: keys the node's random draws (candidates.h)
-  std::vector<uint64_t> parts;  ///< kNumParts counts over all shards
-  uint64_t total() const {
-    uint64_t n = 0;
-    for (uint64_t c : parts) n += c;
-    return n;
-  }
-};
 
 }  // namespace
 
@@ -141,178 +128,52 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
     options_.log(m.str());
   }
 
-  // --- Level-wise growth. ---
-  TreeAssembler assembler(core::kNumParts);
-  std::vector<FrontierNode> frontier(1);
+  // --- Level-wise growth: the frontier loop over the shards held here. ---
+  worker::HistogramBuilder builder(params_.constants, threads);
+  engine::LocalShardSet shard_set(shards, params_, builder, threads);
+  std::vector<engine::OpenNode> frontier(1);
   frontier[0].node = 0;
   frontier[0].position = worker::kRootPosition;
-  frontier[0].parts.assign(core::kNumParts, 0);
-  for (auto& s : shards) {
-    if (s.ranges().empty()) continue;
-    std::vector<uint64_t> c(core::kNumParts);
-    s.CountParts(s.ranges()[0], core::kNumParts, c.data());
-    for (int p = 0; p < core::kNumParts; ++p) frontier[0].parts[size_t(p)] += c[size_t(p)];
-  }
-  worker::HistogramBuilder builder(params_.constants, threads);
-  const int t_count = params_.thresholds_per_feature;
-  const int cut_stride = worker::CutStride(t_count);
-
-  for (int level = 0; !frontier.empty(); ++level) {
-    const uint64_t evals_before = builder.evaluations();
-    double level_hist_s = 0;
-    uint64_t level_samples = 0;
-    std::vector<FrontierNode> next;
-    std::vector<SampleSet::Split> splits;
-    // Which nodes are candidates for splitting at all.
-    std::vector<size_t> to_split;
-    for (size_t i = 0; i < frontier.size(); ++i) {
-      const FrontierNode& f = frontier[i];
-      const uint64_t n = f.total();
-      level_samples += n;
-      int present = 0;
-      for (uint64_t c : f.parts) present += c > 0;
-      if (level < params_.max_depth && int64_t(n) >= params_.min_samples_split && present > 1)
-        to_split.push_back(i);
+  POSEFOREST_RETURN_IF_ERROR(shard_set.CountParts(0, &frontier[0].parts));
+  TreeAssembler assembler(core::kNumParts);
+  engine::FrontierLoopHooks hooks;
+  // One tree: a node's sample-node id is its breadth-first index, the assembler's.
+  hooks.place = [&](const engine::OpenNode& f, engine::NodeDecision& d) -> Result<uint32_t> {
+    POSEFOREST_CHECK(f.node == f.local);
+    if (!d.split) {
+      if (options_.leaf_counts) options_.leaf_counts(tree, assembler.num_leaves(), f.parts);
+      assembler.MakeLeaf(f.node, f.parts);
+      return uint32_t(0);
     }
-    // Decisions are made in node order, batch by batch (batches bounded by histogram memory).
-    std::vector<uint8_t> is_split(frontier.size(), 0);
-    std::vector<SplitChoice> choices(frontier.size());
-    std::vector<core::FeatureOffsets> chosen_offsets(frontier.size());
-    for (size_t b0 = 0; b0 < to_split.size();) {
-      std::vector<NodePlan> plans;
-      uint64_t batch_bytes = 0;
-      size_t b1 = b0;
-      while (b1 < to_split.size()) {
-        const FrontierNode& f = frontier[to_split[b1]];
-        NodePlan plan;
-        plan.node = f.node;
-        plan.position = f.position;
-        plan.num_samples = f.total();
-        plan.SetParts(f.parts);
-        plan.sample_bins = worker::UseSampleBins(plan.num_samples, t_count, plan.num_slots);
-        plan.features.resize(size_t(params_.candidate_features));  // sized for the byte count
-        const uint64_t bytes = worker::PlanHistogramBytes(plan, t_count);
-        if (!plans.empty() && batch_bytes + bytes > params_.histogram_memory_bytes) break;
-        batch_bytes += bytes;
-        plan.features = worker::DrawFeatures(params_, tree, f.position);
-        plan.cut_stride = cut_stride;
-        plans.push_back(std::move(plan));
-        ++b1;
-      }
-      // Nodes whose samples all sit on one shard and whose reference subsample is the whole
-      // node are built by that shard alone in one fused pass (same result, half the
-      // evaluations); a distributed coordinator knows this from the shards' sample counts.
-      std::vector<int> fuse_shard(plans.size(), -1);
-      std::vector<NodePlan> normal;
-      std::vector<std::vector<NodePlan>> fused(shards.size());
-      std::vector<std::pair<int, size_t>> where(plans.size());  // (-1 | shard, index in list)
-      for (size_t p = 0; p < plans.size(); ++p) {
-        for (size_t s = 0; s < shards.size() && fuse_shard[p] < 0; ++s)
-          if (worker::HistogramBuilder::CanFuse(shards[s], params_, plans[p])) fuse_shard[p] = int(s);
-        if (fuse_shard[p] < 0) {
-          where[p] = {-1, normal.size()};
-          normal.push_back(std::move(plans[p]));
-        } else {
-          where[p] = {fuse_shard[p], fused[size_t(fuse_shard[p])].size()};
-          fused[size_t(fuse_shard[p])].push_back(std::move(plans[p]));
-        }
-      }
-      // Pass 1: threshold ranges, merged over shards (min/max: order-independent).
-      const double t_range = Now();
-      if (!normal.empty()) {
-        std::vector<std::vector<ResponseRange>> merged, part;
-        for (size_t s = 0; s < shards.size(); ++s) {
-          builder.ComputeRanges(shards[s], params_, tree, normal, s == 0 ? &merged : &part);
-          if (s == 0) continue;
-          for (size_t p = 0; p < normal.size(); ++p)
-            for (size_t k = 0; k < merged[p].size(); ++k) merged[p][k].Merge(part[p][k]);
-        }
-        for (size_t p = 0; p < normal.size(); ++p)
-          normal[p].cuts = worker::DrawCuts(params_, tree, normal[p].position, merged[p]);
-      }
-      stats_.range_seconds += Now() - t_range;
-      // Pass 2: histograms, summed over shards (integer sums: order-independent).
-      const double t_hist = Now();
-      std::vector<NodeHistogram> normal_hists, shard_hists;
-      if (!normal.empty()) {
-        for (size_t s = 0; s < shards.size(); ++s) {
-          builder.Build(shards[s], normal, t_count, s == 0 ? &normal_hists : &shard_hists);
-          if (s == 0) continue;
-          for (size_t p = 0; p < normal.size(); ++p) normal_hists[p].Add(shard_hists[p]);
-        }
-      }
-      std::vector<std::vector<NodeHistogram>> fused_hists(shards.size());
-      for (size_t s = 0; s < shards.size(); ++s)
-        if (!fused[s].empty()) builder.BuildFused(shards[s], params_, tree, fused[s], &fused_hists[s]);
-      // Back to node order.
-      std::vector<NodeHistogram> hists(plans.size());
-      for (size_t p = 0; p < plans.size(); ++p) {
-        const auto [sh, i] = where[p];
-        if (sh < 0) {
-          plans[p] = std::move(normal[i]);
-          hists[p] = std::move(normal_hists[i]);
-        } else {
-          plans[p] = std::move(fused[size_t(sh)][i]);
-          hists[p] = std::move(fused_hists[size_t(sh)][i]);
-        }
-      }
-      const double dt = Now() - t_hist;
-      level_hist_s += dt;
-      stats_.histogram_seconds += dt;
-      stats_.peak_histogram_bytes =
-          std::max(stats_.peak_histogram_bytes, batch_bytes * (shards.size() > 1 ? 2 : 1));
-      // Split choice per node (independent: parallel, deterministic per node).
-      const auto np = int64_t(plans.size());
-      std::exception_ptr error;
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
-      for (int64_t p = 0; p < np; ++p) {
-        try {
-          const size_t fi = to_split[b0 + size_t(p)];
-          choices[fi] = FindBestSplit(hists[size_t(p)], plans[size_t(p)], frontier[fi].parts);
-          if (choices[fi].valid && choices[fi].gain >= params_.min_gain) {
-            is_split[fi] = 1;
-            chosen_offsets[fi] = plans[size_t(p)].features[size_t(choices[fi].candidate)];
-          }
-        } catch (...) {
-#pragma omp critical(poseforest_local_trainer_error)
-          if (!error) error = std::current_exception();
-        }
-      }
-      if (error) std::rethrow_exception(error);
-      b0 = b1;
-    }
-    // Allocate children in node order: breadth-first layout.
-    size_t num_split = 0;
-    for (size_t i = 0; i < frontier.size(); ++i) {
-      const FrontierNode& f = frontier[i];
-      if (!is_split[i]) {
-        if (options_.leaf_counts) options_.leaf_counts(tree, assembler.num_leaves(), f.parts);
-        assembler.MakeLeaf(f.node, f.parts);
-        continue;
-      }
-      ++num_split;
-      const SplitChoice& c = choices[i];
-      const uint32_t left = assembler.MakeSplit(f.node, chosen_offsets[i], c.cut);
-      splits.push_back({f.node, chosen_offsets[i], c.cut, left});
-      next.push_back({left, worker::LeftChildPosition(f.position), c.left_parts});
-      next.push_back({left + 1, worker::RightChildPosition(f.position), c.right_parts});
-    }
-    for (auto& s : shards) s.ApplySplits(splits, params_.constants, threads);
+    return assembler.MakeSplit(f.node, d.offsets, d.choice.cut);
+  };
+  uint64_t evals_before = builder.evaluations();
+  double hist_before = shard_set.histogram_seconds();
+  hooks.level_done = [&](const engine::LevelDone& done) -> Status {
+    stats_.peak_histogram_bytes =
+        std::max(stats_.peak_histogram_bytes, done.max_batch_bytes * (shards.size() > 1 ? 2 : 1));
+    const double level_hist_s = shard_set.histogram_seconds() - hist_before;
     if (options_.progress) {
       LevelProgress lp;
       lp.tree = tree;
-      lp.level = level;
-      lp.frontier_nodes = frontier.size();
-      lp.split_nodes = num_split;
-      lp.samples = level_samples;
+      lp.level = done.level;
+      lp.frontier_nodes = done.frontier_nodes;
+      lp.split_nodes = done.split_nodes;
+      lp.samples = done.samples;
       lp.evaluations = builder.evaluations() - evals_before;
       lp.evaluations_per_s = level_hist_s > 0 ? double(lp.evaluations) / level_hist_s : 0;
       lp.elapsed_s = Now() - start_;
       lp.memory_bytes = stats_.peak_sample_bytes + stats_.peak_histogram_bytes;
       options_.progress(lp);
     }
-    frontier.swap(next);
-  }
+    evals_before = builder.evaluations();
+    hist_before = shard_set.histogram_seconds();
+    return Status::Ok();
+  };
+  POSEFOREST_RETURN_IF_ERROR(engine::RunFrontierLoop(shard_set, params_, tree, 0, std::move(frontier), 1,
+                                                     params_.histogram_memory_bytes, hooks));
+  stats_.range_seconds += shard_set.range_seconds();  // the shard set is this tree's
+  stats_.histogram_seconds += shard_set.histogram_seconds();
   stats_.evaluations += builder.evaluations();
   return assembler.Finish();
 }

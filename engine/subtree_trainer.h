@@ -1,9 +1,10 @@
 #pragma once
 // Training one node's whole subtree from the samples of that node alone: what a distributed
-// worker does with a SubtreeTask (docs/distributed/service.md). The level loop is
-// LocalTrainer's on one shard: the same to-split rule, candidates keyed by the node's heap
-// position (candidates.h), fused or two-pass histograms, FindBestSplit and min_gain, so every
-// decision equals the one the level-wise loop over all samples makes for the same node.
+// worker does with a SubtreeTask (docs/distributed/service.md). It is the engine's frontier
+// loop (engine/frontier_loop.h) over this one shard: the same to-split rule, candidates keyed
+// by the node's heap position (candidates.h), fused or two-pass histograms, FindBestSplit and
+// min_gain, so every decision equals the one the level-wise loop over all samples makes for
+// the same node.
 
 #include <cstdint>
 #include <span>

@@ -15,7 +15,6 @@ using core::ErrorCode;
 using core::Result;
 using core::Status;
 
-
 void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,
                     google::protobuf::RepeatedField<uint64_t>* runs) {
   runs->Clear();
