@@ -17,7 +17,7 @@
      pf_last_error_message is per thread.
    - Versioning: see poseforest/version.h (compile time) and pf_version() (run time). Until
      1.0 the ABI may change with each minor version; the shared library's SONAME carries
-     major.minor (libposeforest.so.0.2). Symbols are prefixed pf_ / PF_; nothing else is
+     major.minor (libposeforest.so.0.3). Symbols are prefixed pf_ / PF_; nothing else is
      exported. */
 #ifndef POSEFOREST_POSEFOREST_H_
 #define POSEFOREST_POSEFOREST_H_
@@ -78,7 +78,7 @@ typedef struct pf_joint_proposal {
 
 /** Version of the loaded library as POSEFOREST_VERSION_NUMBER encodes it (0x00MMmmpp). */
 PF_API uint32_t pf_version(void);
-/** Version of the loaded library, "0.2.0". Static storage. */
+/** Version of the loaded library, "0.3.0". Static storage. */
 PF_API const char* pf_version_string(void);
 /** Name of a status, "DataLoss" (as messages start), "Ok" for PF_OK, "Unknown" for other values.
     Static storage. */
