@@ -26,7 +26,8 @@ namespace {
 //    cut-off radius: a query reads 9 contiguous runs (3 x-adjacent cells each) and evaluates
 //    the Gaussian with a polynomial exp in an `omp simd` loop (relative error ~2e-7).
 //  - Trajectories that come near an earlier end point stop there (basin shortcut).
-//  - Joints are spread over the OpenMP team.
+//  - Joints are spread over the OpenMP team, the most populated first (the reprojection
+//    pass counts each joint's pixels; each thread keeps its bounds and counts in registers).
 
 // Integer cell coordinates packed into one key (21 bits each, offset so negatives fit).
 uint64_t CellKey(int x, int y, int z) {
@@ -550,12 +551,17 @@ FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of
   const int team = int(std::min<size_t>(size_t(threads), std::max<size_t>(1, n / 4096)));
   std::vector<Eigen::Vector3f> lo(size_t(team), Eigen::Vector3f::Constant(std::numeric_limits<float>::max()));
   std::vector<Eigen::Vector3f> hi(size_t(team), Eigen::Vector3f::Constant(std::numeric_limits<float>::lowest()));
+  // Per thread and joint, the pixels at or above min_probability (about the joint's work).
+  const float min_p = std::max(options.min_probability, std::numeric_limits<float>::min());
+  std::vector<std::array<uint32_t, core::kNumJoints>> listed(static_cast<size_t>(team));
   // Nothing in here allocates or throws.
 #pragma omp parallel num_threads(team)
   {
-    Eigen::Vector3f& my_lo = lo[size_t(omp_get_thread_num())];
-    Eigen::Vector3f& my_hi = hi[size_t(omp_get_thread_num())];
-#pragma omp for schedule(static)
+    // Bounds and counts in registers, stored once at the end: the threads' entries share a
+    // cache line, and updating them there per pixel made two threads slower than one.
+    Eigen::Vector3f my_lo = lo[0], my_hi = hi[0];
+    std::array<uint32_t, core::kNumJoints> my_listed{};
+#pragma omp for schedule(static) nowait
     for (size_t k = 0; k < n; ++k) {
       const uint32_t i = pixel_of(k);
       const uint16_t d = i < num_pixels ? depth.pixels[i] : 0;
@@ -563,7 +569,9 @@ FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of
       probability_row(k, row);
       for (int j = 0; j < core::kNumJoints; ++j) {
         const float p = row[size_t(j)];
-        joint_prob[size_t(j) * n + k] = d != 0 && p > 0 && std::isfinite(p) ? p : 0.0f;
+        const float kept = d != 0 && p > 0 && std::isfinite(p) ? p : 0.0f;
+        joint_prob[size_t(j) * n + k] = kept;
+        my_listed[size_t(j)] += uint32_t(kept >= min_p);
       }
       if (d == 0) continue;
       const int x = int(i % uint32_t(depth.width)), y = int(i / uint32_t(depth.width));
@@ -575,6 +583,10 @@ FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of
       my_lo = my_lo.cwiseMin(p);
       my_hi = my_hi.cwiseMax(p);
     }
+    const size_t t = size_t(omp_get_thread_num());
+    lo[t] = my_lo;
+    hi[t] = my_hi;
+    listed[t] = my_listed;
   }
   cloud.lo = lo[0];
   cloud.hi = hi[0];
@@ -584,10 +596,20 @@ FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of
   }
   if (!(cloud.lo.array() <= cloud.hi.array()).all()) return out;  // no usable pixel
 
+  // Joints with the most pixels first (about the most work), so that the last joint a thread
+  // takes is a small one and neither waits long for the other; each joint's result is its
+  // own, whatever the order and the thread.
+  std::array<uint32_t, core::kNumJoints> total{}, order{};
+  for (const auto& counts : listed)
+    for (int j = 0; j < core::kNumJoints; ++j) total[size_t(j)] += counts[size_t(j)];
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](uint32_t a, uint32_t b) { return total[a] > total[b]; });
   // No exception may leave the parallel region: the first is kept and rethrown after it.
   std::exception_ptr error;
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1)
-  for (int j = 0; j < core::kNumJoints; ++j) {
+  for (int o = 0; o < core::kNumJoints; ++o) {
+    const int j = int(order[size_t(o)]);
     try {
       const core::JointParams& jp = options.params[size_t(j)];
       auto& proposals = out[size_t(j)];
@@ -602,8 +624,7 @@ FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of
       };
       const float* const pj = joint_prob + size_t(j) * n;
       PointSet& v = s.voxels;
-      // Pixels below the floor add (almost) nothing to the density and are never seeds.
-      const float min_p = std::max(options.min_probability, std::numeric_limits<float>::min());
+      // Pixels below the floor (min_p) add (almost) nothing to the density and are never seeds.
       v.clear();
       if (options.method == ProposalMethod::kMeanShift) {
         const float voxel = jp.bandwidth_m * options.voxel_fraction;

@@ -1,8 +1,10 @@
 // The C API (poseforest/poseforest.h) over the runtime: the only code of libposeforest whose
 // symbols are exported. No exception leaves a pf_ function: each catches, and turns what it
 // caught into a status and the calling thread's message.
+#include <cmath>
 #include <cstring>
 #include <exception>
+#include <memory>
 #include <new>
 #include <string>
 #include <vector>
@@ -11,11 +13,18 @@
 #include "runtime/classifier.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/joint_proposals.h"
+#include "runtime/skeleton_pipeline.h"
 
 struct pf_forest {
   poseforest::core::Forest forest;
   std::string source;  ///< the file or `source` it was loaded from, for messages
   bool has_joints = false;
+};
+
+struct pf_skeleton_stream {
+  std::unique_ptr<poseforest::runtime::SkeletonPipeline> pipeline;
+  poseforest::runtime::SkeletonFrame frame;  ///< the last frame's result (storage reused)
+  std::vector<pf_skeleton> last;             ///< its skeletons in the C layout
 };
 
 namespace {
@@ -109,7 +118,18 @@ pf_status TooSmall(const char* function, const char* what, size_t given, size_t 
                                        " " + unit + ", needs " + std::to_string(needed));
 }
 
+/// Copies `all` to `out` under the buffer protocol (count set; nothing written if short).
+pf_status CopySkeletons(const char* function, const std::vector<pf_skeleton>& all, pf_skeleton* out,
+                        size_t capacity, size_t* count) {
+  *count = all.size();
+  if (all.size() > capacity) return TooSmall(function, "skeletons", capacity, all.size(), "skeletons");
+  if (!all.empty()) std::memcpy(out, all.data(), all.size() * sizeof(pf_skeleton));
+  return Succeed();
+}
+
 }  // namespace
+
+static_assert(PF_SKELETON_JOINTS == poseforest::core::kNumJoints);
 
 extern "C" {
 
@@ -275,6 +295,90 @@ pf_status pf_propose_joints(const pf_forest* forest, const uint16_t* depth_mm, i
       }
     if (labels) std::memcpy(labels, c.labels.pixels.data(), pixels);
     return Succeed();
+  });
+}
+
+pf_status pf_skeleton_stream_create(const pf_forest* forest, int num_threads, pf_skeleton_stream** out) {
+  namespace rt = poseforest::runtime;
+  return Guard("pf_skeleton_stream_create", [&]() -> pf_status {
+    if (!out) return Fail(PF_INVALID_ARGUMENT, "pf_skeleton_stream_create: out is NULL");
+    *out = nullptr;
+    if (!forest) return Fail(PF_INVALID_ARGUMENT, "pf_skeleton_stream_create: forest is NULL");
+    if (num_threads < 0) return Fail(PF_INVALID_ARGUMENT, "pf_skeleton_stream_create: num_threads < 0");
+    if (!forest->has_joints)
+      return Fail(Status(ErrorCode::kInvalidArgument,
+                         forest->source +
+                             ": skeletons need a forest with the paper's 31-part taxonomy (this one has " +
+                             std::to_string(forest->forest.num_parts) + " parts)"));
+    rt::SkeletonPipelineOptions options;  // `poseforest live`'s defaults
+    options.num_threads = num_threads;
+    auto pipeline = rt::SkeletonPipeline::Create(forest->forest, options);
+    if (!pipeline.ok()) return Fail(pipeline.status());
+    auto stream = std::make_unique<pf_skeleton_stream>();
+    stream->pipeline = std::move(*pipeline);
+    *out = stream.release();
+    return Succeed();
+  });
+}
+
+void pf_skeleton_stream_free(pf_skeleton_stream* stream) { delete stream; }
+
+pf_status pf_skeleton_stream_process(pf_skeleton_stream* stream, const uint16_t* depth_mm, int width,
+                                     int height, double timestamp_s, pf_skeleton* skeletons, size_t capacity,
+                                     size_t* count) {
+  namespace rt = poseforest::runtime;
+  const char* const function = "pf_skeleton_stream_process";
+  return Guard(function, [&]() -> pf_status {
+    if (!count) return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": count is NULL");
+    *count = 0;
+    if (!stream) return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": stream is NULL");
+    if (!skeletons && capacity != 0)
+      return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": skeletons is NULL");
+    if (!depth_mm) return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": depth_mm is NULL");
+    if (width < 1 || height < 1 || width > kMaxSide || height > kMaxSide)
+      return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": image size " + std::to_string(width) + "x" +
+                                           std::to_string(height) + " is outside 1..32768 per side");
+    if (!std::isfinite(timestamp_s))
+      return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": timestamp_s is not finite");
+    rt::Frame frame;
+    frame.depth = CopyDepth(depth_mm, width, height);
+    frame.timestamp_s = timestamp_s;
+    frame.source = "pf_skeleton_stream";
+    stream->pipeline->Process(frame, &stream->frame);
+    stream->frame.depth = nullptr;  // pointed into `frame`
+    stream->last.clear();
+    for (const rt::Skeleton& s : stream->frame.skeletons) {
+      pf_skeleton o{};
+      o.id = s.id;
+      o.pixels = s.pixels;
+      for (int i = 0; i < 3; ++i) o.centroid_m[i] = s.centroid_m[i];
+      for (int j = 0; j < PF_SKELETON_JOINTS; ++j) {
+        const rt::SkeletonJoint& in = s.joints[size_t(j)];
+        pf_skeleton_joint& oj = o.joints[j];
+        oj.found = in.found ? 1 : 0;
+        oj.tracked = in.tracked ? 1 : 0;
+        if (!in.found) continue;  // zeros
+        for (int i = 0; i < 3; ++i) oj.position_m[i] = in.position_m[i];
+        oj.pixel[0] = in.pixel.x();
+        oj.pixel[1] = in.pixel.y();
+        oj.confidence = in.confidence;
+      }
+      stream->last.push_back(o);
+    }
+    return CopySkeletons(function, stream->last, skeletons, capacity, count);
+  });
+}
+
+pf_status pf_skeleton_stream_last(const pf_skeleton_stream* stream, pf_skeleton* skeletons, size_t capacity,
+                                  size_t* count) {
+  const char* const function = "pf_skeleton_stream_last";
+  return Guard(function, [&]() -> pf_status {
+    if (!count) return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": count is NULL");
+    *count = 0;
+    if (!stream) return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": stream is NULL");
+    if (!skeletons && capacity != 0)
+      return Fail(PF_INVALID_ARGUMENT, std::string(function) + ": skeletons is NULL");
+    return CopySkeletons(function, stream->last, skeletons, capacity, count);
   });
 }
 

@@ -139,6 +139,34 @@ big = np.tile(depth, (4, 4))  # 1920 x 2560
 state = {"inside": False, "done": False, "seconds": 0.0}
 
 
+# Skeletons: the pre-segmented person is one skeleton whose found joints are proposals of
+# forest.joints() (a skeleton joint is its joint's most confident proposal on the person).
+stream = poseforest.SkeletonStream(forest, threads=2)
+people = stream.process(depth, 0.0)
+check(len(people) == 1 and people[0]["id"] == 1 and people[0]["pixels"] == int((depth > 0).sum()),
+      f"SkeletonStream: one person of {int((depth > 0).sum())} pixels, id 1")
+person = people[0]
+check([j["name"] for j in person["joints"]] == list(poseforest.JOINT_NAMES), "skeleton: 16 joints in JOINT_NAMES order")
+found = [j for j in person["joints"] if j["found"]]
+check(len(found) > 0, f"skeleton: {len(found)} joints found")
+for k, j in enumerate(person["joints"]):
+    if not j["found"]:
+        check(j["position_m"] is None and not j["tracked"] and j["confidence"] == 0, f"skeleton {j['name']}: not found")
+        continue
+    mine = [p for p in joints if p["joint"] == k]
+    check(any(tuple(float(v) for v in p["position_m"]) == j["position_m"] for p in mine),
+          f"skeleton {j['name']}: position is one of its proposals")
+    check(0 <= j["confidence"] <= 1, f"skeleton {j['name']}: confidence {j['confidence']:.3f} in 0..1")
+again = stream.process(depth, 1 / 30)
+check(len(again) == 1 and again[0]["id"] == 1 and again[0]["joints"] == person["joints"],
+      "SkeletonStream: the same frame again keeps id 1 and the same joints")
+try:
+    stream.process(depth.astype(np.int32), 0.1)
+    check(False, "SkeletonStream.process(int32) raises TypeError")
+except TypeError:
+    check(True, "SkeletonStream.process(int32) raises TypeError")
+
+
 def worker():
     state["inside"] = True
     t = time.perf_counter()

@@ -21,8 +21,10 @@
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #include "runtime/joint_proposals.h"
+#include "runtime/skeleton_pipeline.h"
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
+#include "tests/support/scene.h"
 #include "tests/support/synthetic.h"
 
 using namespace poseforest;
@@ -348,6 +350,124 @@ TEST_CASE("joint proposals equal the runtime's; the buffer protocol and the 31-p
   CHECK(std::string(pf_last_error_message()) ==
         "InvalidArgument: " + five +
             ": joint proposals need a forest with the paper's 31-part taxonomy (this one has 5 parts)");
+}
+
+TEST_CASE("skeleton streams equal the runtime's pipeline: ids over frames, joints, the buffer protocol",
+          "[api]") {
+  // The documented layout (docs/runtime/api.md).
+  CHECK(sizeof(pf_skeleton_joint) == 32);
+  CHECK(sizeof(pf_skeleton) == 532);
+  const core::Forest forest = SmallForest(11);
+  const std::string path = SaveTo(forest, "skeletons.pff");
+  Loaded f;
+  REQUIRE(pf_forest_load_file(path.c_str(), &f.forest) == PF_OK);
+  // Raw cluttered frames with two people walking (segmented by the stream), as bench/live makes.
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  testing::ClutterSpec spec;
+  spec.floor_y_m = 1.1;
+  spec.back_wall_z_m = 4.6;
+  spec.boxes.push_back({{0.9, 0.85, 3.0}, {1.6, 1.1, 3.5}});
+  std::vector<core::DepthImage> frames;
+  for (int k = 0; k < 4; ++k)
+    frames.push_back(testing::ComposeScene(cam, spec,
+                                           {testing::MakePersonDepth(2.2 + 0.02 * k, 640, 480, -0.7, 0.12),
+                                            testing::MakePersonDepth(3.0 - 0.02 * k, 640, 480, 0.6, 0.12)})
+                         .depth);
+
+  runtime::SkeletonPipelineOptions options;
+  auto pipeline = runtime::SkeletonPipeline::Create(forest, options);
+  REQUIRE(pipeline.ok());
+  pf_skeleton_stream* stream = nullptr;
+  REQUIRE(pf_skeleton_stream_create(f.forest, 0, &stream) == PF_OK);
+  REQUIRE(stream != nullptr);
+  int found = 0, tracked = 0;
+  for (size_t k = 0; k < frames.size(); ++k) {
+    INFO("frame " << k);
+    runtime::Frame frame;
+    frame.depth = frames[k];
+    frame.timestamp_s = double(k) / 30;
+    runtime::SkeletonFrame expected;
+    (*pipeline)->Process(frame, &expected);
+    REQUIRE(expected.skeletons.size() == 2);  // two people, not the clutter
+
+    size_t count = 99;
+    std::vector<pf_skeleton> got(1);  // too small: the frame is kept, fetched with _last
+    CHECK(pf_skeleton_stream_process(stream, frames[k].data(), 640, 480, frame.timestamp_s, got.data(),
+                                     got.size(), &count) == PF_BUFFER_TOO_SMALL);
+    CHECK(std::string(pf_last_error_message()) ==
+          "BufferTooSmall: pf_skeleton_stream_process: skeletons holds 1 skeletons, needs 2");
+    REQUIRE(count == 2);
+    got.resize(count);
+    REQUIRE(pf_skeleton_stream_last(stream, got.data(), got.size(), &count) == PF_OK);
+    REQUIRE(count == 2);
+    for (size_t s = 0; s < count; ++s) {
+      const runtime::Skeleton& e = expected.skeletons[s];
+      CHECK(got[s].id == e.id);
+      CHECK(got[s].id == int(s) + 1);  // the same two ids on every frame
+      CHECK(got[s].pixels == e.pixels);
+      CHECK(got[s].centroid_m[0] == e.centroid_m.x());
+      CHECK(got[s].centroid_m[2] == e.centroid_m.z());
+      for (int j = 0; j < PF_SKELETON_JOINTS; ++j) {
+        const runtime::SkeletonJoint& ej = e.joints[size_t(j)];
+        const pf_skeleton_joint& gj = got[s].joints[j];
+        CHECK(gj.found == int(ej.found));
+        CHECK(gj.tracked == int(ej.tracked));
+        CHECK(gj.position_m[0] == (ej.found ? ej.position_m.x() : 0.0f));
+        CHECK(gj.position_m[1] == (ej.found ? ej.position_m.y() : 0.0f));
+        CHECK(gj.position_m[2] == (ej.found ? ej.position_m.z() : 0.0f));
+        CHECK(gj.pixel[0] == (ej.found ? ej.pixel.x() : 0.0f));
+        CHECK(gj.pixel[1] == (ej.found ? ej.pixel.y() : 0.0f));
+        CHECK(gj.confidence == (ej.found ? ej.confidence : 0.0f));
+        CHECK(gj.confidence >= 0.0f);
+        CHECK(gj.confidence <= 1.0f);
+        found += gj.found;
+        tracked += gj.tracked;
+      }
+    }
+  }
+  CHECK(found > 0);
+  INFO("tracked joints over the frames: " << tracked);
+  // An empty frame: no people; no buffer needed.
+  const std::vector<uint16_t> empty(640 * 480, 0);
+  size_t count = 5;
+  CHECK(pf_skeleton_stream_process(stream, empty.data(), 640, 480, 1.0, nullptr, 0, &count) == PF_OK);
+  CHECK(count == 0);
+  CHECK(pf_skeleton_stream_last(stream, nullptr, 0, &count) == PF_OK);
+  CHECK(count == 0);
+
+  // Bad arguments: a status and a message, never a crash.
+  CHECK(pf_skeleton_stream_process(stream, nullptr, 640, 480, 0.0, nullptr, 0, &count) ==
+        PF_INVALID_ARGUMENT);
+  CHECK(std::string(pf_last_error_message()) ==
+        "InvalidArgument: pf_skeleton_stream_process: depth_mm is NULL");
+  CHECK(pf_skeleton_stream_process(stream, empty.data(), 0, 480, 0.0, nullptr, 0, &count) ==
+        PF_INVALID_ARGUMENT);
+  CHECK(pf_skeleton_stream_process(stream, empty.data(), 640, 480, std::nan(""), nullptr, 0, &count) ==
+        PF_INVALID_ARGUMENT);
+  CHECK(pf_skeleton_stream_process(stream, empty.data(), 640, 480, 0.0, nullptr, 3, &count) ==
+        PF_INVALID_ARGUMENT);
+  CHECK(pf_skeleton_stream_process(nullptr, empty.data(), 640, 480, 0.0, nullptr, 0, &count) ==
+        PF_INVALID_ARGUMENT);
+  CHECK(pf_skeleton_stream_process(stream, empty.data(), 640, 480, 0.0, nullptr, 0, nullptr) ==
+        PF_INVALID_ARGUMENT);
+  CHECK(pf_skeleton_stream_last(nullptr, nullptr, 0, &count) == PF_INVALID_ARGUMENT);
+  pf_skeleton_stream_free(stream);
+  pf_skeleton_stream_free(nullptr);
+  pf_skeleton_stream* none = nullptr;
+  CHECK(pf_skeleton_stream_create(nullptr, 0, &none) == PF_INVALID_ARGUMENT);
+  CHECK(none == nullptr);
+  CHECK(pf_skeleton_stream_create(f.forest, -1, &none) == PF_INVALID_ARGUMENT);
+  CHECK(pf_skeleton_stream_create(f.forest, 0, nullptr) == PF_INVALID_ARGUMENT);
+
+  // A forest with another part table has no skeletons.
+  const std::string five = SaveTo(SmallForest(3, 5), "five-skeletons.pff");
+  Loaded g;
+  REQUIRE(pf_forest_load_file(five.c_str(), &g.forest) == PF_OK);
+  CHECK(pf_skeleton_stream_create(g.forest, 0, &none) == PF_INVALID_ARGUMENT);
+  CHECK(none == nullptr);
+  CHECK(std::string(pf_last_error_message()) ==
+        "InvalidArgument: " + five +
+            ": skeletons need a forest with the paper's 31-part taxonomy (this one has 5 parts)");
 }
 
 TEST_CASE("many threads classify with one forest at once", "[api]") {

@@ -40,6 +40,47 @@ py::object JointDtype() {
   return py::module_::import("numpy").attr("dtype")(fields);
 }
 
+/// A pf_skeleton_stream owned by Python (the Forest it reads is kept alive by keep_alive).
+struct SkeletonStream {
+  pf_skeleton_stream* stream = nullptr;
+  SkeletonStream() = default;
+  SkeletonStream(const SkeletonStream&) = delete;
+  SkeletonStream& operator=(const SkeletonStream&) = delete;
+  ~SkeletonStream() { pf_skeleton_stream_free(stream); }
+};
+
+py::object Xyz(const float* v, int n) {
+  py::tuple t(n);
+  for (int i = 0; i < n; ++i) t[size_t(i)] = py::float_(v[i]);
+  return std::move(t);
+}
+
+/// The skeletons as the JSON Lines record's people (docs/runtime/live.md): dicts and tuples.
+py::list SkeletonsToPython(const std::vector<pf_skeleton>& skeletons) {
+  py::list people;
+  for (const pf_skeleton& s : skeletons) {
+    py::list joints;
+    for (int j = 0; j < PF_SKELETON_JOINTS; ++j) {
+      const pf_skeleton_joint& pj = s.joints[j];
+      py::dict joint;
+      joint["name"] = pf_joint_name(j);
+      joint["found"] = bool(pj.found);
+      joint["tracked"] = bool(pj.tracked);
+      joint["position_m"] = pj.found ? Xyz(pj.position_m, 3) : py::none();
+      joint["pixel"] = pj.found ? Xyz(pj.pixel, 2) : py::none();
+      joint["confidence"] = pj.confidence;
+      joints.append(joint);
+    }
+    py::dict person;
+    person["id"] = s.id;
+    person["pixels"] = s.pixels;
+    person["centroid_m"] = Xyz(s.centroid_m, 3);
+    person["joints"] = joints;
+    people.append(person);
+  }
+  return people;
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_poseforest, m) {
@@ -127,4 +168,42 @@ PYBIND11_MODULE(_poseforest, m) {
           py::arg("depth"), py::arg("method") = "meanshift", py::arg("threads") = 0,
           "3D joint proposals as a structured array (joint, position_m[3], pixel[2], confidence), grouped by "
           "joint in JOINT_NAMES order, most confident first.");
+
+  py::class_<SkeletonStream>(
+      m, "SkeletonStream",
+      "Per-person skeletons over a stream of depth frames (pf_skeleton_stream: "
+      "segmentation, ids, calibrated confidence, tracked state). One thread at a time.")
+      .def(py::init([](const Forest& f, int threads) {
+             auto s = std::make_unique<SkeletonStream>();
+             poseforest::api::Check(pf_skeleton_stream_create(f.handle(), threads, &s->stream));
+             return s;
+           }),
+           py::arg("forest"), py::arg("threads") = 0, py::keep_alive<1, 2>(),
+           "A stream over `forest` (31 parts, else poseforest.Error).")
+      .def(
+          "process",
+          [](SkeletonStream& self, const py::array& depth, double timestamp_s) {
+            auto d = DepthArray(depth);
+            const DepthView view = View(d);
+            std::vector<pf_skeleton> out(8);
+            size_t count = 0;
+            pf_status st;
+            {
+              py::gil_scoped_release release;
+              st = pf_skeleton_stream_process(self.stream, view.data, view.width, view.height, timestamp_s,
+                                              out.data(), out.size(), &count);
+              if (st == PF_BUFFER_TOO_SMALL) {  // the frame ran: fetch it, never run it twice
+                out.resize(count);
+                st = pf_skeleton_stream_last(self.stream, out.data(), out.size(), &count);
+              }
+            }
+            poseforest::api::Check(st);
+            out.resize(count);
+            return SkeletonsToPython(out);
+          },
+          py::arg("depth"), py::arg("timestamp_s"),
+          "Runs one frame (uint16 (height, width) mm; seconds, not decreasing): a list of people, each a "
+          "dict "
+          "id, pixels, centroid_m, joints (16 dicts: name, found, tracked, position_m, pixel, confidence; "
+          "position_m and pixel None when not found), ordered by id.");
 }

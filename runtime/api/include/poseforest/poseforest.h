@@ -17,7 +17,7 @@
      pf_last_error_message is per thread.
    - Versioning: see poseforest/version.h (compile time) and pf_version() (run time). Until
      1.0 the ABI may change with each minor version; the shared library's SONAME carries
-     major.minor (libposeforest.so.0.2). Symbols are prefixed pf_ / PF_; nothing else is
+     major.minor (libposeforest.so.0.3). Symbols are prefixed pf_ / PF_; nothing else is
      exported. */
 #ifndef POSEFOREST_POSEFOREST_H_
 #define POSEFOREST_POSEFOREST_H_
@@ -78,7 +78,7 @@ typedef struct pf_joint_proposal {
 
 /** Version of the loaded library as POSEFOREST_VERSION_NUMBER encodes it (0x00MMmmpp). */
 PF_API uint32_t pf_version(void);
-/** Version of the loaded library, "0.2.0". Static storage. */
+/** Version of the loaded library, "0.3.0". Static storage. */
 PF_API const char* pf_version_string(void);
 /** Name of a status, "DataLoss" (as messages start), "Ok" for PF_OK, "Unknown" for other values.
     Static storage. */
@@ -143,6 +143,59 @@ PF_API pf_status pf_classify(const pf_forest* forest, const uint16_t* depth_mm, 
 PF_API pf_status pf_propose_joints(const pf_forest* forest, const uint16_t* depth_mm, int width, int height,
                                    pf_proposal_method method, int num_threads, pf_joint_proposal* proposals,
                                    size_t capacity, size_t* count, uint8_t* labels, size_t labels_len);
+
+/* ---- skeletons (as `poseforest live`) ------------------------------------------------------ */
+
+/** A stream of depth frames turned into per-person skeletons (opaque): people segmentation, the
+    forest's parts, mean-shift joint proposals and skeletons with ids that stay with people over
+    the stream, as `poseforest live` (docs/runtime/live.md). */
+typedef struct pf_skeleton_stream pf_skeleton_stream;
+
+/** One joint of a skeleton. */
+typedef struct pf_skeleton_joint {
+  int32_t found;       /**< 1 if a proposal lies on the person (position_m and pixel are valid), else 0 */
+  int32_t tracked;     /**< 1 if the joint passes every tracking rule of docs/runtime/live.md, else 0 */
+  float position_m[3]; /**< x right, y down, z forward; metres, camera frame; zeros when not found */
+  float pixel[2];      /**< where position_m projects: x (column), y (row), pixels; zeros when not found */
+  float confidence;    /**< 0..1: the forest's calibrated precision (or the fallback); 0 when not found */
+} pf_skeleton_joint;
+
+/** Number of joints in a pf_skeleton (the paper's 16, pf_joint_name order). */
+#define PF_SKELETON_JOINTS 16
+
+/** One person's skeleton. */
+typedef struct pf_skeleton {
+  int32_t id;          /**< >= 1, stable over the stream (nearest centroid between frames) */
+  int32_t pixels;      /**< pixels of the person's mask */
+  float centroid_m[3]; /**< mean of the mask's 3D points, metres, camera frame */
+  pf_skeleton_joint joints[PF_SKELETON_JOINTS]; /**< in pf_joint_name order */
+} pf_skeleton;
+
+/** Starts a stream over `forest` (which must outlive it and have the paper's 31 parts, else
+    PF_INVALID_ARGUMENT). Frames are raw (segmented into people: floor, depth bands, components)
+    or pre-segmented (only people have depth: everything with depth is one person), told apart
+    per frame as `poseforest live` does; proposals use mean shift with the forest's parameters;
+    confidences use the forest's calibration table if it has one for mean shift. num_threads:
+    OpenMP threads per frame, 0 = all cores. On success *out is a new stream to release with
+    pf_skeleton_stream_free. */
+PF_API pf_status pf_skeleton_stream_create(const pf_forest* forest, int num_threads,
+                                           pf_skeleton_stream** out);
+/** Releases a stream. NULL is allowed. */
+PF_API void pf_skeleton_stream_free(pf_skeleton_stream* stream);
+
+/** Runs one frame (Kinect v1 intrinsics; timestamps in seconds, not decreasing) and writes its
+    skeletons, ordered by id, into skeletons[0 .. *count). The stream keeps the frame's result:
+    if *count exceeds `capacity`, nothing is written, PF_BUFFER_TOO_SMALL is returned and
+    pf_skeleton_stream_last gives the same skeletons without running the frame again
+    (skeletons may be NULL when capacity is 0). A stream is not thread-safe: one thread at a
+    time per stream (streams on one forest may run in parallel). */
+PF_API pf_status pf_skeleton_stream_process(pf_skeleton_stream* stream, const uint16_t* depth_mm, int width,
+                                            int height, double timestamp_s, pf_skeleton* skeletons,
+                                            size_t capacity, size_t* count);
+/** The skeletons of the last frame processed (none before the first), with the buffer protocol
+    of pf_skeleton_stream_process. */
+PF_API pf_status pf_skeleton_stream_last(const pf_skeleton_stream* stream, pf_skeleton* skeletons,
+                                         size_t capacity, size_t* count);
 
 #ifdef __cplusplus
 } /* extern "C" */

@@ -5,10 +5,11 @@
     labels = forest.classify(depth)          # depth: uint16 (height, width), millimetres
     probs = forest.distributions(depth)      # float32 (height, width, num_parts)
     joints = forest.joints(depth)            # structured array, see JOINT_NAMES
+    stream = poseforest.SkeletonStream(forest)
+    people = stream.process(depth, 0.0)      # per person: id, joints (position, tracked, ...)
 
-Skeletons and segmentation are not in the runtime yet, so not here either.
 Reference: docs/runtime/api.md (share/doc/poseforest/api.md when installed).
 """
-from ._poseforest import JOINT_NAMES, Error, Forest, __version__
+from ._poseforest import JOINT_NAMES, Error, Forest, SkeletonStream, __version__
 
-__all__ = ["Forest", "Error", "JOINT_NAMES", "__version__"]
+__all__ = ["Forest", "SkeletonStream", "Error", "JOINT_NAMES", "__version__"]
