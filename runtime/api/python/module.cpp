@@ -52,7 +52,7 @@ struct SkeletonStream {
 py::object Xyz(const float* v, int n) {
   py::tuple t(n);
   for (int i = 0; i < n; ++i) t[size_t(i)] = py::float_(v[i]);
-  return std::move(t);
+  return t;
 }
 
 /// The skeletons as the JSON Lines record's people (docs/runtime/live.md): dicts and tuples.
