@@ -10,6 +10,35 @@
 
 namespace poseforest::worker {
 
+namespace {
+/// New storage for a SampleSet's per-sample columns, filled in a new order (StartTree: by node;
+/// ApplySplits: left, then right, per node) and then swapped in.
+struct SampleColumns {
+  std::vector<uint32_t> frame, base;
+  std::vector<int16_t> x, y;
+  std::vector<float> scale;
+  std::vector<uint8_t> part;
+  explicit SampleColumns(size_t n) : frame(n), base(n), x(n), y(n), scale(n), part(n) {}
+  void Set(uint64_t o, uint32_t f, uint32_t b, int16_t px, int16_t py, float s, uint8_t p) {
+    frame[o] = f;
+    base[o] = b;
+    x[o] = px;
+    y[o] = py;
+    scale[o] = s;
+    part[o] = p;
+  }
+  void SwapWith(std::vector<uint32_t>& f, std::vector<uint32_t>& b, std::vector<int16_t>& px,
+                std::vector<int16_t>& py, std::vector<float>& s, std::vector<uint8_t>& p) {
+    f.swap(frame);
+    b.swap(base);
+    px.swap(x);
+    py.swap(y);
+    s.swap(scale);
+    p.swap(part);
+  }
+};
+}  // namespace
+
 std::vector<PixelSample> SamplePixels(const LabelledFrame& frame, int count, double balance,
                                       const core::CounterRng& rng) {
   POSEFOREST_CHECK(frame.depth.width == frame.labels.width && frame.depth.height == frame.labels.height);
@@ -155,26 +184,13 @@ void SampleSet::StartTree(std::span<const uint32_t> node_of_sample) {
   for (size_t k = 0; k < nodes.size(); ++k) start[k + 1] += start[k];
   ranges_.clear();
   for (size_t k = 0; k < nodes.size(); ++k) ranges_.push_back({nodes[k], start[k], start[k + 1]});
-  std::vector<uint32_t> frame(x_.size()), base(x_.size());
-  std::vector<int16_t> x(x_.size()), y(x_.size());
-  std::vector<float> scale(x_.size());
-  std::vector<uint8_t> part(x_.size());
+  SampleColumns out(x_.size());
   for (size_t i = 0; i < x_.size(); ++i) {
     const size_t k = size_t(std::lower_bound(nodes.begin(), nodes.end(), node_of_sample[i]) - nodes.begin());
     const uint64_t o = start[k]++;
-    frame[o] = frame_[i];
-    base[o] = base_[i];
-    x[o] = x_[i];
-    y[o] = y_[i];
-    scale[o] = scale_[i];
-    part[o] = part_[i];
+    out.Set(o, frame_[i], base_[i], x_[i], y_[i], scale_[i], part_[i]);
   }
-  frame_.swap(frame);
-  base_.swap(base);
-  x_.swap(x);
-  y_.swap(y);
-  scale_.swap(scale);
-  part_.swap(part);
+  out.SwapWith(frame_, base_, x_, y_, scale_, part_);
 }
 
 NodeRange SampleSet::RangeOf(uint32_t node) const {
@@ -208,10 +224,7 @@ void SampleSet::ApplySplits(std::span<const Split> splits, const core::FeatureCo
   for (size_t r = 0; r < ranges_.size(); ++r)
     out_begin[r + 1] = out_begin[r] + (of_range[r] ? ranges_[r].end - ranges_[r].begin : 0);
   const uint64_t kept = out_begin.back();
-  std::vector<uint32_t> frame(kept), base(kept);
-  std::vector<int16_t> x(kept), y(kept);
-  std::vector<float> scale(kept);
-  std::vector<uint8_t> part(kept);
+  SampleColumns out(kept);
   std::vector<uint64_t> num_left(ranges_.size(), 0);
   const auto nr = int64_t(ranges_.size());
   uint64_t largest = 0;
@@ -237,12 +250,7 @@ void SampleSet::ApplySplits(std::span<const Split> splits, const core::FeatureCo
       uint64_t li = out_begin[size_t(r)], ri = li + nl;
       for (uint64_t i = range.begin; i < range.end; ++i) {
         const uint64_t o = goes_left[i - range.begin] ? li++ : ri++;
-        frame[o] = frame_[i];
-        base[o] = base_[i];
-        x[o] = x_[i];
-        y[o] = y_[i];
-        scale[o] = scale_[i];
-        part[o] = part_[i];
+        out.Set(o, frame_[i], base_[i], x_[i], y_[i], scale_[i], part_[i]);
       }
       num_left[size_t(r)] = nl;
     }
@@ -255,12 +263,7 @@ void SampleSet::ApplySplits(std::span<const Split> splits, const core::FeatureCo
     if (m > b) ranges.push_back({s->left_child, b, m});
     if (e > m) ranges.push_back({s->left_child + 1, m, e});
   }
-  frame_.swap(frame);
-  base_.swap(base);
-  x_.swap(x);
-  y_.swap(y);
-  scale_.swap(scale);
-  part_.swap(part);
+  out.SwapWith(frame_, base_, x_, y_, scale_, part_);
   ranges_.swap(ranges);
 }
 

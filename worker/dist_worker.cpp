@@ -136,6 +136,12 @@ struct DistWorker::Impl {
   std::mutex send_mu;  // guards stamper + job identity used by the heartbeat thread
   dds::EnvelopeStamper stamper;
   std::atomic<bool> has_job{false}, assigned_any{false}, busy{false};
+  /// Marks the worker busy (its heartbeats say so) while a subtree task or batch runs.
+  struct BusyScope {
+    explicit BusyScope(std::atomic<bool>& f) : flag(f) { flag = true; }
+    ~BusyScope() { flag = false; }
+    std::atomic<bool>& flag;
+  };
   std::atomic<uint64_t> newest_epoch{0}, frames_rendered{0}, shard_epoch{0}, received_shard_epoch{0};
   /// Decisions and level requests below this epoch belong to a skipped assignment (Dispatch).
   uint64_t skip_below_epoch = 0;
@@ -498,6 +504,13 @@ struct DistWorker::Impl {
     reply->set_num_bins(uint32_t(t + 1));
     reply->set_num_parts(uint32_t(core::kNumParts));
     reply->set_phase(req.phase());
+    // A node of the reply without a histogram: its id and zero part counts.
+    auto add_empty_node = [reply](uint32_t node) {
+      auto* nh = reply->add_nodes();
+      nh->set_node_id(node);
+      nh->set_samples(0);
+      for (int p = 0; p < core::kNumParts; ++p) nh->add_part_counts(0);
+    };
     if (req.phase() == v1::PHASE_RANGES) {
       // Nodes held entirely here with a whole-node reference: one fused pass (LocalTrainer's
       // BuildFused), histogram and cuts sent now; the others: ranges.
@@ -562,10 +575,7 @@ struct DistWorker::Impl {
       }
     } else if (req.phase() == v1::PHASE_FRAMES) {
       for (int i = 0; i < n; ++i) {
-        auto* nh = reply->add_nodes();
-        nh->set_node_id(plans[size_t(i)].node);
-        nh->set_samples(0);
-        for (int p = 0; p < core::kNumParts; ++p) nh->add_part_counts(0);
+        add_empty_node(plans[size_t(i)].node);
         auto* rr = reply->add_ranges();
         const worker::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
         rr->set_num_samples(r.end - r.begin);
@@ -589,10 +599,7 @@ struct DistWorker::Impl {
       }
     } else if (req.phase() == v1::PHASE_COUNTS) {
       for (int i = 0; i < n; ++i) {
-        auto* nh = reply->add_nodes();
-        nh->set_node_id(plans[size_t(i)].node);
-        nh->set_samples(0);
-        for (int p = 0; p < core::kNumParts; ++p) nh->add_part_counts(0);
+        add_empty_node(plans[size_t(i)].node);
         std::vector<uint64_t> parts(static_cast<size_t>(core::kNumParts), 0);
         const worker::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
         if (r.end > r.begin) samples.CountParts(r, core::kNumParts, parts.data());
@@ -778,11 +785,7 @@ struct DistWorker::Impl {
     POSEFOREST_RETURN_IF_ERROR(CheckTask(task, &wanted));
     const bool listed = Listed(task);
     const double t0 = NowSeconds();
-    busy = true;
-    struct Idle {
-      std::atomic<bool>& busy;
-      ~Idle() { busy = false; }
-    } idle{busy};
+    const BusyScope busy_scope(busy);
     ++cpu.subtree_tasks;
     std::vector<uint64_t> missing;
     std::vector<FrameData> loaded;
@@ -927,11 +930,7 @@ struct DistWorker::Impl {
     if (tasks.empty()) return;
     const int t = int(tasks[0]->tree());
     const double t0 = NowSeconds();
-    busy = true;
-    struct Idle {
-      std::atomic<bool>& busy;
-      ~Idle() { busy = false; }
-    } idle{busy};
+    const BusyScope busy_scope(busy);
     cpu.subtree_tasks += tasks.size();
     ++cpu.subtree_batches;
     // The union of the tasks' frames; per frame, which tasks list samples there and where.

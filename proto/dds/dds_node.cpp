@@ -147,19 +147,25 @@ struct DdsNode::Impl : public fdds::DomainParticipantListener {
     return config.keep_all_max_samples > 0 ? config.keep_all_max_samples : kKeepAllMaxSamples;
   }
 
+  /// A writer or reader (un)matched on `topic` with the remote endpoint `peer`.
+  void PushMatchEvent(DdsEvent::Kind kind, Topic topic, const frtps::InstanceHandle_t& peer, int32_t count) {
+    DdsEvent e{kind};
+    e.topic = topic;
+    const frtps::GUID_t guid = frtps::iHandle2GUID(peer);
+    e.peer_guid = ToString(guid);
+    e.peer_participant = ToString(guid.guidPrefix);
+    e.current_count = count;
+    PushEvent(std::move(e));
+  }
+
   // Per-endpoint listeners know their topic.
   struct WriterListener : public fdds::DataWriterListener {
     Impl* impl = nullptr;
     Topic topic = Topic::kJob;
     void on_publication_matched(fdds::DataWriter*, const fdds::PublicationMatchedStatus& info) override {
       impl->matched_readers[static_cast<int>(topic)] = info.current_count;
-      DdsEvent e{info.current_count_change > 0 ? DdsEvent::Kind::kWriterMatched : DdsEvent::Kind::kWriterUnmatched};
-      e.topic = topic;
-      const frtps::GUID_t guid = frtps::iHandle2GUID(info.last_subscription_handle);
-      e.peer_guid = ToString(guid);
-      e.peer_participant = ToString(guid.guidPrefix);
-      e.current_count = info.current_count;
-      impl->PushEvent(std::move(e));
+      impl->PushMatchEvent(info.current_count_change > 0 ? DdsEvent::Kind::kWriterMatched : DdsEvent::Kind::kWriterUnmatched,
+                           topic, info.last_subscription_handle, info.current_count);
     }
   };
   struct ReaderListener : public fdds::DataReaderListener {
@@ -174,13 +180,8 @@ struct DdsNode::Impl : public fdds::DomainParticipantListener {
     }
     void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& info) override {
       impl->matched_writers[static_cast<int>(topic)] = info.current_count;
-      DdsEvent e{info.current_count_change > 0 ? DdsEvent::Kind::kReaderMatched : DdsEvent::Kind::kReaderUnmatched};
-      e.topic = topic;
-      const frtps::GUID_t guid = frtps::iHandle2GUID(info.last_publication_handle);
-      e.peer_guid = ToString(guid);
-      e.peer_participant = ToString(guid.guidPrefix);
-      e.current_count = info.current_count;
-      impl->PushEvent(std::move(e));
+      impl->PushMatchEvent(info.current_count_change > 0 ? DdsEvent::Kind::kReaderMatched : DdsEvent::Kind::kReaderUnmatched,
+                           topic, info.last_publication_handle, info.current_count);
     }
     void on_liveliness_changed(fdds::DataReader*, const fdds::LivelinessChangedStatus& status) override {
       const frtps::GUID_t guid = frtps::iHandle2GUID(status.last_publication_handle);
