@@ -57,6 +57,14 @@
 //                   loop and next to random reads over 16 MiB, R rounds; shows what a second
 //                   busy process costs through the shared L3 (docs/distributed/service.md)
 // POSEFOREST_BENCH_WORKER_WRAP="CMD ARGS": worker processes run under CMD (a profiler).
+//   --commands-only [--keep-logs DIR]  only the two commands as users run them (no in-process
+//                   runs: for big jobs, e.g. issue 13's 2,000 images per tree), --repeat R pairs;
+//                   per pair the wall and CPU of each, the forests compared, and a per-level
+//                   table both ways from their logs with the service's level time split into
+//                   the rounds (the critical worker's computing, its request queued while it
+//                   was busy, traffic), merge, waiting for subtree results and other, beside
+//                   the workers' subtree and rendering seconds. Above the last line: the
+//                   median wall ratio (service / engine; issue 13's goal: at most 1.10).
 
 #include <fcntl.h>
 #include <signal.h>
@@ -74,6 +82,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -127,6 +136,200 @@ pid_t Spawn(std::vector<std::string> args, const posix_spawn_file_actions_t* act
 double LoadAverage() {
   double l[1] = {0};
   return ::getloadavg(l, 1) == 1 ? l[0] : -1;
+}
+
+/// Runs `args` (args[0]: the program) with stdout and stderr appended to `log`; its CPU and that
+/// of its reaped descendants in *cpu, its wall time in *wall. False if it could not start or
+/// did not exit 0.
+bool RunCommand(const std::vector<std::string>& args, const std::string& log, double* cpu, double* wall) {
+  posix_spawn_file_actions_t fa;
+  ::posix_spawn_file_actions_init(&fa);
+  ::posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+  ::posix_spawn_file_actions_adddup2(&fa, 1, 2);
+  const double c0 = CpuSeconds(RUSAGE_CHILDREN), t0 = dist::NowSeconds();
+  const pid_t pid = Spawn(args, &fa);
+  ::posix_spawn_file_actions_destroy(&fa);
+  if (pid < 0) return false;
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  *cpu = CpuSeconds(RUSAGE_CHILDREN) - c0;
+  *wall = dist::NowSeconds() - t0;
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+std::vector<uint8_t> ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::vector<uint8_t>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+/// Per (tree, level): seconds of the level in the log of `poseforest train JOB --threads N`
+/// (its "tree T level L: ... S s," lines give seconds since the start; a tree's "loaded in S s"
+/// line is frame loading, not part of its first level) or of `train JOB --local-workers N`
+/// (its "level S s" and, under each level, the "time:" line of where it went: rounds, the
+/// critical worker's computing, its request queued, traffic, merge, waiting for subtrees).
+struct LevelTimes {
+  struct Service {
+    double level = 0, rounds = 0, compute = 0, queued = 0, traffic = 0, merge = 0, wait = 0, busy = 0, render = 0;
+    double received_mib = 0;
+    int tasks = 0;
+  };
+  std::map<std::pair<int, int>, double> engine;
+  std::map<std::pair<int, int>, Service> service;
+  void ReadEngine(const std::string& path) {
+    std::ifstream in(path);
+    double last = 0;
+    for (std::string line; std::getline(in, line);) {
+      int t = 0, l = 0;
+      double v = 0;
+      if (std::sscanf(line.c_str(), "tree %d: %*d samples from %*d frames in %*d shard(s), %*d MiB "
+                                    "frames+samples, loaded in %lf s", &t, &v) == 2) {
+        last += v;
+        continue;
+      }
+      const size_t at = line.find(" evaluations/s, ");
+      if (std::sscanf(line.c_str(), "tree %d level %d:", &t, &l) == 2 && at != std::string::npos &&
+          std::sscanf(line.c_str() + at, " evaluations/s, %lf s,", &v) == 1) {
+        engine[{t, l}] = v - last;
+        last = v;
+      }
+    }
+  }
+  void ReadService(const std::string& path) {
+    std::ifstream in(path);
+    std::pair<int, int> key{-1, -1};
+    for (std::string line; std::getline(in, line);) {
+      int t = 0, l = 0, rounds = 0;
+      if (std::sscanf(line.c_str(), "tree %d level %d:", &t, &l) == 2) {
+        key = {t, l};
+        Service& s = service[key];
+        s = {};
+        if (const size_t at = line.find(", level "); at != std::string::npos)
+          std::sscanf(line.c_str() + at, ", level %lf s", &s.level);
+        if (const size_t at = line.find(" subtrees handed off"); at != std::string::npos) {
+          const size_t from = line.rfind(", ", at);
+          if (from != std::string::npos) s.tasks = std::atoi(line.c_str() + from + 2);
+        }
+        double v = 0;
+        char unit[8] = {};
+        if (const size_t at = line.find(" workers alive, "); at != std::string::npos &&
+            std::sscanf(line.c_str() + at, " workers alive, %lf %7s received", &v, unit) == 2)
+          s.received_mib = v * (!std::strcmp(unit, "GiB") ? 1024 : !std::strcmp(unit, "MiB") ? 1
+                                : !std::strcmp(unit, "KiB") ? 1.0 / 1024 : 1.0 / (1 << 20));
+        continue;
+      }
+      Service* s = service.count(key) ? &service[key] : nullptr;
+      if (s && std::sscanf(line.c_str(),
+                           "  time: %d rounds %lf s (worker computing %lf s, busy before it %lf s, traffic %lf s), "
+                           "merge %lf s, waiting for subtrees %lf s, other %*f s; workers: subtrees %lf s, "
+                           "rendering %lf s",
+                           &rounds, &s->rounds, &s->compute, &s->queued, &s->traffic, &s->merge, &s->wait, &s->busy,
+                           &s->render) == 9)
+        continue;
+    }
+  }
+  /// The table: per level both ways and where the service's time went.
+  void Print() const {
+    std::printf("\nper level, seconds (service: the rounds split into the critical worker's computing, its request "
+                "queued while it was busy, traffic; then merge, waiting for subtree results, other; workers' "
+                "subtree and rendering seconds are summed over the workers and overlap the rest)\n");
+    std::printf("%4s %5s %9s %9s %7s %9s %9s %9s %9s %7s %9s %7s %9s %9s %9s\n", "tree", "level", "engine", "service",
+                "ratio", "rounds", "computing", "queued", "traffic", "merge", "wait sub", "other", "MiB recv",
+                "subtree s", "render s");
+    double te = 0, ts = 0;
+    Service sum;
+    std::set<std::pair<int, int>> keys;
+    for (const auto& [k, v] : engine) keys.insert(k);
+    for (const auto& [k, v] : service) keys.insert(k);
+    for (const auto& k : keys) {
+      const double e = engine.count(k) ? engine.at(k) : 0;
+      const Service s = service.count(k) ? service.at(k) : Service{};
+      te += e, ts += s.level;
+      sum.rounds += s.rounds, sum.compute += s.compute, sum.queued += s.queued, sum.traffic += s.traffic;
+      sum.merge += s.merge, sum.wait += s.wait, sum.busy += s.busy, sum.render += s.render;
+      sum.received_mib += s.received_mib;
+      const double other = std::max(0.0, s.level - s.rounds - s.merge - s.wait);
+      std::printf("%4d %5d %9.2f %9.2f %7.2f %9.2f %9.2f %9.2f %9.2f %7.2f %9.2f %7.2f %9.1f %9.2f %9.2f\n",
+                  k.first, k.second, e, s.level, e > 0 ? s.level / e : 0.0, s.rounds, s.compute, s.queued, s.traffic,
+                  s.merge, s.wait, other, s.received_mib, s.busy, s.render);
+    }
+    std::printf("%4s %5s %9.1f %9.1f %7.3f %9.1f %9.1f %9.1f %9.1f %7.1f %9.1f %7.1f %9.0f %9.1f %9.1f\n", "all", "",
+                te, ts, te > 0 ? ts / te : 0.0, sum.rounds, sum.compute, sum.queued, sum.traffic, sum.merge, sum.wait,
+                std::max(0.0, ts - sum.rounds - sum.merge - sum.wait), sum.received_mib, sum.busy, sum.render);
+  }
+};
+
+/// --commands-only: the two commands as users run them on JOB, R pairs (alternating which runs
+/// first), forests compared byte for byte, per-level times both ways from their logs, wall and
+/// CPU ratios. For jobs far too big for the in-process runs (issue 13's 2,000-image job).
+int CommandsOnly(const std::string& job_path_in, const std::string& text, const std::string& cli, int n, int repeat,
+                 uint32_t domain, const std::string& keep_logs) {
+  const auto tmp = std::filesystem::temp_directory_path();
+  const std::string tag = "bench-" + std::to_string(::getpid());
+  std::string job_path = job_path_in;
+  if (job_path.empty()) {
+    job_path = (tmp / (tag + "-job.textproto")).string();
+    std::ofstream(job_path) << text;
+  }
+  const std::string out_e = (tmp / (tag + "-engine.pff")).string(), out_s = (tmp / (tag + "-service.pff")).string();
+  const std::string n_str = std::to_string(n);
+  std::vector<double> cpu_ratio, wall_ratio;
+  bool ok = true;
+  std::printf("\ncommands only, %d pair(s): `%s train JOB --threads %d` against `... train JOB --local-workers %d`, "
+              "fresh processes, one after the other\n",
+              repeat, cli.c_str(), n, n);
+  std::fflush(stdout);
+  for (int r = 0; r < repeat; ++r) {
+    const std::string log_e = (tmp / (tag + "-engine-" + std::to_string(r) + ".log")).string(),
+                      log_s = (tmp / (tag + "-service-" + std::to_string(r) + ".log")).string();
+    double ce = 0, we = 0, cs = 0, ws = 0;
+    const bool engine_first = r % 2 == 0;
+    bool a = false, b = false;
+    for (int which = 0; which < 2; ++which) {
+      const bool engine_now = (which == 0) == engine_first;
+      std::filesystem::remove(engine_now ? out_e : out_s);
+      const bool run_ok =
+          engine_now ? RunCommand({cli, "train", job_path, "--threads", n_str, "--out", out_e}, log_e, &ce, &we)
+                     : RunCommand({cli, "train", job_path, "--local-workers", n_str, "--domain",
+                                   std::to_string((domain + 101 + uint32_t(r)) % 233), "--http", "off", "--out", out_s},
+                                  log_s, &cs, &ws);
+      (which == 0 ? a : b) = run_ok;
+      std::printf("  %s: %.1f s wall, %.1f CPU s, load average %.1f\n", engine_now ? "engine " : "service",
+                  engine_now ? we : ws, engine_now ? ce : cs, LoadAverage());
+      std::fflush(stdout);
+    }
+    const bool same = a && b && ReadBytes(out_e) == ReadBytes(out_s);
+    if (!same) {
+      std::printf("pair %d: a command failed or the forests differ; logs: %s %s\n", r + 1, log_e.c_str(),
+                  log_s.c_str());
+      ok = false;
+      break;
+    }
+    cpu_ratio.push_back(ce / cs);
+    wall_ratio.push_back(ws / we);
+    std::printf("pair %d (%s first): forests identical; wall service / engine %.3f, per CPU-second %.3f\n", r + 1,
+                engine_first ? "engine" : "service", wall_ratio.back(), cpu_ratio.back());
+    LevelTimes times;
+    times.ReadEngine(log_e);
+    times.ReadService(log_s);
+    times.Print();
+    if (!keep_logs.empty()) {
+      std::filesystem::create_directories(keep_logs);
+      for (const std::string& f : {log_e, log_s})
+        std::filesystem::copy_file(f, std::filesystem::path(keep_logs) / std::filesystem::path(f).filename(),
+                                   std::filesystem::copy_options::overwrite_existing);
+    }
+    for (const std::string& f : {log_e, log_s}) std::filesystem::remove(f);
+    std::fflush(stdout);
+  }
+  for (const std::string& f : {out_e, out_s}) std::filesystem::remove(f);
+  if (job_path_in.empty()) std::filesystem::remove(job_path);
+  if (!ok || cpu_ratio.empty()) return 1;
+  std::sort(cpu_ratio.begin(), cpu_ratio.end());
+  std::sort(wall_ratio.begin(), wall_ratio.end());
+  std::printf("wall, service / engine: median %.3f over %zu pair(s) (goal: at most 1.10)\n",
+              wall_ratio[wall_ratio.size() / 2], wall_ratio.size());
+  std::printf("distributed/engine per core: %.3f ratio\n", cpu_ratio[cpu_ratio.size() / 2]);
+  return 0;
 }
 
 /// A worker's CPU breakdown as (name, value) pairs: what a worker process writes to its
@@ -335,6 +538,8 @@ int main(int argc, char** argv) {
   bool engine_only = false, sample_lists = true;
   int neighbour_test = 0;
   std::string cli_path;  // the poseforest program (default: ../bin/poseforest next to this bench)
+  bool commands_only = false;
+  std::string job_path, keep_logs;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--workers") && i + 1 < argc) {
       worker_counts.clear();
@@ -345,6 +550,10 @@ int main(int argc, char** argv) {
         if (n < 1 || n > 16) return std::fprintf(stderr, "distributed: --workers wants counts 1..16\n"), 2;
         worker_counts.push_back(n);
       }
+    } else if (!std::strcmp(argv[i], "--commands-only")) {
+      commands_only = true;
+    } else if (!std::strcmp(argv[i], "--keep-logs") && i + 1 < argc) {
+      keep_logs = argv[++i];
     } else if (!std::strcmp(argv[i], "--skip-off")) {
       skip_off = true;
     } else if (!std::strcmp(argv[i], "--engine-only")) {
@@ -370,11 +579,12 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] "
                    "[--workers N,N] [--skip-off] [--repeat R] [--engine-only] [--no-sample-lists] "
-                   "[--neighbour-test R] [--poseforest PATH]\n");
+                   "[--neighbour-test R] [--poseforest PATH] [--commands-only [--keep-logs DIR]]\n");
       return std::strcmp(argv[i], "--help") ? 2 : 0;
     } else {
       std::ifstream in(argv[i]);
       if (!in) return std::fprintf(stderr, "distributed: cannot read %s\n", argv[i]), 1;
+      job_path = std::filesystem::absolute(argv[i]).string();
       std::stringstream ss;
       ss << in.rdbuf();
       text = ss.str();
@@ -394,6 +604,21 @@ int main(int argc, char** argv) {
               std::getenv("OMP_WAIT_POLICY") == std::string("PASSIVE") ? "sleep: CPU seconds count work"
                                                                          : "may spin: CPU seconds include waiting");
   std::fflush(stdout);
+  if (commands_only) {
+    if (cli_path.empty()) {
+      std::error_code ec;
+      cli_path = (std::filesystem::read_symlink("/proc/self/exe", ec).parent_path() / ".." / "bin" / "poseforest")
+                     .string();
+    }
+    if (::access(cli_path.c_str(), X_OK) != 0)
+      return std::fprintf(stderr, "distributed: %s is not executable (build poseforest, or --poseforest PATH)\n",
+                          cli_path.c_str()),
+             1;
+    const int n = std::count(worker_counts.begin(), worker_counts.end(), 2)
+                      ? 2
+                      : *std::max_element(worker_counts.begin(), worker_counts.end());
+    return CommandsOnly(job_path, text, cli_path, n, repeat, domain, keep_logs);
+  }
 
   // 1. The engine.
   RunFigures engine;
@@ -778,22 +1003,9 @@ int main(int argc, char** argv) {
     // its forest is not the engine's.
     auto run_cli = [&](std::vector<std::string> a, const std::string& out, double* cpu) -> bool {
       a.insert(a.begin(), cli_path);
-      posix_spawn_file_actions_t fa;
-      ::posix_spawn_file_actions_init(&fa);
-      ::posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      ::posix_spawn_file_actions_adddup2(&fa, 1, 2);
       std::filesystem::remove(out);
-      const double c0 = CpuSeconds(RUSAGE_CHILDREN);
-      const pid_t pid = Spawn(a, &fa);
-      ::posix_spawn_file_actions_destroy(&fa);
-      if (pid < 0) return false;
-      int status = 0;
-      ::waitpid(pid, &status, 0);
-      *cpu = CpuSeconds(RUSAGE_CHILDREN) - c0;
-      if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return false;
-      std::ifstream in(out, std::ios::binary);
-      const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-      return bytes == ref_bytes;
+      double wall = 0;
+      return RunCommand(a, log, cpu, &wall) && ReadBytes(out) == ref_bytes;
     };
     std::printf("\nas users run them, %d pairs: `%s train JOB --threads %d` against `... train JOB "
                 "--local-workers %d`, fresh processes, CPU of each command and its worker processes\n",

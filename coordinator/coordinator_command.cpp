@@ -290,6 +290,14 @@ int CoordinatorMain(int argc, char** argv) {
         s.subtree_tasks ? (", " + std::to_string(s.subtree_tasks) + " subtrees handed off").c_str() : "",
         s.retries ? (", " + std::to_string(s.retries) + " retries").c_str() : "");
     std::printf("%s\n", line);
+    // Where the level's time went (docs/distributed/service.md, "Where the time goes").
+    const double other = s.level_seconds - s.round_seconds - s.merge_seconds - s.subtree_wait_seconds;
+    if (s.rounds > 0 || s.subtree_wait_seconds > 0 || s.subtree_busy_seconds > 0)  // else: decided by subtrees
+      std::printf("  time: %d rounds %.2f s (worker computing %.2f s, busy before it %.2f s, traffic %.2f s), merge "
+                "%.2f s, waiting for subtrees %.2f s, other %.2f s; workers: subtrees %.2f s, rendering %.2f s\n",
+                s.rounds, s.round_seconds, s.round_compute_seconds, s.round_queued_seconds, s.round_traffic_seconds,
+                s.merge_seconds, s.subtree_wait_seconds, std::max(0.0, other), s.subtree_busy_seconds,
+                s.render_seconds);
     std::fflush(stdout);
     if (!status_file.empty()) {
       const std::string j = nlohmann::ordered_json{{"tree", s.tree},

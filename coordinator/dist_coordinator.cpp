@@ -144,6 +144,12 @@ struct DistCoordinator::Impl {
   uint64_t level_subtree_evaluations = 0;
   // Level accounting.
   uint64_t level_bytes_received = 0, level_bytes_sent = 0;
+  /// Where the level's time went (DistLevelStats' round_*, subtree_*, render_seconds).
+  struct TimeSplit {
+    int rounds = 0;
+    double round_s = 0, compute_s = 0, queued_s = 0, traffic_s = 0, subtree_wait_s = 0, subtree_busy_s = 0,
+           render_s = 0;
+  } level_time;
   int level_retries = 0;
 
   // Checkpoint state.
@@ -435,6 +441,7 @@ struct DistCoordinator::Impl {
   /// handing lost workers' frames on) until every assigned worker has answered.
   Result<std::vector<Reply>> Round(v1::Phase phase, const std::vector<uint32_t>& node_ids,
                                    const std::vector<v1::NodeSpec>& specs, int level) {
+    const double t_round = NowSeconds();
     for (;;) {
       if (!orphan_frames.empty()) {
         auto frames = std::move(orphan_frames);
@@ -492,6 +499,19 @@ struct DistCoordinator::Impl {
           for (auto& [id, w] : workers)
             if (w.assigned && w.alive) out.push_back(std::move(replies[id]));
           if (out.empty()) break;
+          // The critical worker: the largest queued + compute (the reply that completed the round).
+          double crit = 0, crit_queued = 0, crit_compute = 0;
+          for (const Reply& r : out) {
+            const double q = double(r.body.queued_micros()) * 1e-6, c = double(r.body.compute_micros()) * 1e-6;
+            if (q + c >= crit) crit = q + c, crit_queued = q, crit_compute = c;
+            level_time.render_s += double(r.body.render_micros()) * 1e-6;
+          }
+          const double wall = NowSeconds() - t_round;
+          ++level_time.rounds;
+          level_time.round_s += wall;
+          level_time.queued_s += std::min(crit_queued, wall);
+          level_time.compute_s += std::min(crit_compute, std::max(0.0, wall - crit_queued));
+          level_time.traffic_s += std::max(0.0, wall - crit);
           return out;
         }
         Pump(std::chrono::milliseconds(20), want, &replies);
@@ -554,6 +574,8 @@ struct DistCoordinator::Impl {
     job->done = true;
     ReleaseLoad(*job);
     level_subtree_evaluations += res.evaluations();
+    level_time.subtree_busy_s += double(res.busy_micros()) * 1e-6;
+    level_time.render_s += double(res.render_micros()) * 1e-6;
   }
 
   /// Takes `job`'s samples off its worker's outstanding subtree load (done or handed on).
@@ -1031,7 +1053,13 @@ struct DistCoordinator::Impl {
       // Census of the root.
       engine::OpenNode root;
       root.position = worker::kRootPosition;
+      level_time = {};
       POSEFOREST_RETURN_IF_ERROR(shards.CountParts(0, &root.parts));
+      // The census waits for every worker's shard: its frames rendered (summed over workers).
+      char line[160];
+      std::snprintf(line, sizeof line, "tree %d: shards ready in %.2f s (workers rendered %.2f s in all)", tree,
+                    level_time.round_s, level_time.render_s);
+      Log(line);
       if (root.total() == 0)
         return Status(ErrorCode::kInvalidArgument, "tree " + std::to_string(tree) +
                                                        ": no body pixels in any of its " +
@@ -1058,6 +1086,7 @@ struct DistCoordinator::Impl {
       level_bytes_received = level_bytes_sent = 0;
       level_retries = 0;
       level_subtree_evaluations = 0;
+      level_time = {};
       shards.hist_s = shards.merge_s = 0;
       evaluations = level_samples = 0;
       from_subtrees = 0;
@@ -1086,6 +1115,7 @@ struct DistCoordinator::Impl {
         const double t_wait = NowSeconds();
         POSEFOREST_RETURN_IF_ERROR(WaitSubtrees());
         shards.hist_s += NowSeconds() - t_wait;
+        level_time.subtree_wait_s += NowSeconds() - t_wait;
         for (auto& [pos, job] : tasks)
           for (coordinator::SubtreeNode& n : job.nodes) delegated[n.position] = std::move(n);
         tasks.clear();
@@ -1199,6 +1229,14 @@ struct DistCoordinator::Impl {
       st.subtree_task_messages = level_task_messages;
       st.mean_entropy = done.samples > 0 ? entropy_sum / double(done.samples) : 0;
       st.mean_gain = done.split_nodes > 0 ? gain_sum / double(done.split_nodes) : 0;
+      st.rounds = level_time.rounds;
+      st.round_seconds = level_time.round_s;
+      st.round_compute_seconds = level_time.compute_s;
+      st.round_queued_seconds = level_time.queued_s;
+      st.round_traffic_seconds = level_time.traffic_s;
+      st.subtree_wait_seconds = level_time.subtree_wait_s;
+      st.subtree_busy_seconds = level_time.subtree_busy_s;
+      st.render_seconds = level_time.render_s;
       if (opt.progress) opt.progress(st);
       if (opt.observer) opt.observer->OnLevelDone(st);
       const double progress =

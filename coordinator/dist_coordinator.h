@@ -54,6 +54,17 @@ struct DistLevelStats {
   uint64_t subtree_task_messages = 0;    ///< SubtreeTasks messages that carried them (a few per worker)
   double mean_entropy = 0;      ///< bits: part entropy of the frontier nodes, weighted by samples
   double mean_gain = 0;         ///< bits: mean information gain of the splits chosen (0: none)
+  // Where the level's wall time went (issue 13 item 2). Per request/reply round the worker
+  // whose reply completed it (the largest queued + compute) is the critical one; the round's
+  // wall time = its queued + its compute + traffic.
+  int rounds = 0;                     ///< request/reply rounds (ranges, histograms, frames)
+  double round_seconds = 0;           ///< their wall time
+  double round_compute_seconds = 0;   ///< of which the critical worker computed the reply
+  double round_queued_seconds = 0;    ///< of which its request waited in its inbox (busy: subtree tasks)
+  double round_traffic_seconds = 0;   ///< the rest: on the wire, encoding, decoding, intake
+  double subtree_wait_seconds = 0;    ///< after the rounds, waiting for the level's SubtreeResults
+  double subtree_busy_seconds = 0;    ///< workers' wall time on the level's subtree tasks (summed over workers)
+  double render_seconds = 0;          ///< workers' wall time rendering frames for them (summed over workers)
 };
 
 /// Live view of the coordinator for monitoring (coordinator/monitoring/status_model.h,

@@ -214,6 +214,7 @@ struct DistWorker::Impl {
       }
       std::optional<dds::ReceivedSample> s = node->Receive(std::chrono::milliseconds(50));
       if (!s) continue;
+      s->received_s = NowSeconds();
       std::lock_guard<std::mutex> lock(inbox_mu);
       inbox_bytes += s->bytes.size();
       inbox.push_back(std::move(*s));
@@ -380,7 +381,9 @@ struct DistWorker::Impl {
     for (uint64_t i : wanted)
       if (!cache.count(i)) missing.push_back(i);
     std::vector<FrameData> loaded;
+    const double t_render = NowSeconds();
     POSEFOREST_RETURN_IF_ERROR(LoadFrames(missing, &loaded, &cpu.shard));
+    shard_render_unreported_s += NowSeconds() - t_render;
     for (size_t j = 0; j < missing.size(); ++j) cache[missing[j]] = std::move(loaded[j]);
     frames_rendered += missing.size();
     cpu.shard_frames += missing.size();
@@ -629,6 +632,10 @@ struct DistWorker::Impl {
     }
     cpu.level_encode += ThreadCpu() - cpu0 - (cpu.level_compute - compute0);
     reply->set_compute_micros(uint64_t((NowSeconds() - t0) * 1e6));
+    if (dispatch_received_s > 0 && t0 > dispatch_received_s)
+      reply->set_queued_micros(uint64_t((t0 - dispatch_received_s) * 1e6));
+    reply->set_render_micros(uint64_t(shard_render_unreported_s * 1e6));
+    shard_render_unreported_s = 0;
     uint64_t binned = 0;  // samples in the histograms (fused or pass 2), as the coordinator counts
     for (const auto& nh : reply->nodes()) binned += nh.samples();
     evaluations += binned * uint64_t(k);
@@ -748,6 +755,12 @@ struct DistWorker::Impl {
     tree_task_cached += wanted.size() - missing->size();
     {
       CpuTimer timer(&cpu.subtree_render);
+      const double t_render = NowSeconds();
+      struct Mark {  // the wall time, however it ends
+        double t0;
+        double* sum;
+        ~Mark() { *sum += NowSeconds() - t0; }
+      } mark{t_render, &task_render_unreported_s};
       Status st;
       if (missing->size() >= 4 * size_t(params.threads) && params.threads > 1) {
         const int saved_tree = tree;
@@ -889,8 +902,12 @@ struct DistWorker::Impl {
     // Wall seconds of subtree work: the tasks of a batch share one stretch of time, so each
     // adds only the time since the previous result (or its start), never the batch's whole.
     const double now = NowSeconds();
-    subtree_s += now - std::max(t0, subtree_mark);
+    const double busy_s = now - std::max(t0, subtree_mark);
+    subtree_s += busy_s;
     subtree_mark = now;
+    res->set_busy_micros(uint64_t(busy_s * 1e6));
+    res->set_render_micros(uint64_t(task_render_unreported_s * 1e6));
+    task_render_unreported_s = 0;
     if (subtree_done == 1)
       Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(task.position()) + " (" +
           std::to_string(num_samples) + " samples from " + std::to_string(num_frames) + " frames, " +
@@ -1054,6 +1071,7 @@ struct DistWorker::Impl {
     gate_timer.reset();
     if (out.verdict != dds::MessageGate::Verdict::kAccepted) return;
     if (s.topic == Topic::kControl && out.sender == coordinator_id) control_writer = s.writer_guid;
+    dispatch_received_s = s.received_s;
     Dispatch(out.envelope, out.sender);
   }
 
@@ -1081,8 +1099,14 @@ struct DistWorker::Impl {
     dds::ReceivedSample raw;
     v1::Envelope env;
     std::string sender;
+    double received_s = 0;  ///< when `env` was taken off DDS (checked ones)
   };
   std::deque<Pending> pending;
+  /// When the sample being dispatched was taken off DDS (for HistogramReply.queued_micros).
+  double dispatch_received_s = 0;
+  /// Wall seconds spent rendering shard frames not yet reported (HistogramReply.render_micros),
+  /// and task frames not yet reported (the next SubtreeResult's render_micros).
+  double shard_render_unreported_s = 0, task_render_unreported_s = 0;
 
   static bool Listed(const v1::SubtreeTask& t) { return t.sample_frames_size() > 0; }
 
@@ -1098,7 +1122,7 @@ struct DistWorker::Impl {
       }
       if (!more) return true;
       if (more->topic == Topic::kJob) {
-        pending.push_back({false, std::move(*more), {}, {}});
+        pending.push_back({false, std::move(*more), {}, {}, 0});
         return true;
       }
       std::optional<CpuTimer> gate_timer(&cpu.receive);
@@ -1121,7 +1145,7 @@ struct DistWorker::Impl {
           *batch->emplace_back().mutable_subtree_task() = task;
         continue;
       }
-      pending.push_back({true, {}, std::move(out.envelope), std::move(out.sender)});
+      pending.push_back({true, {}, std::move(out.envelope), std::move(out.sender), more->received_s});
       return true;
     }
   }
@@ -1285,8 +1309,10 @@ Status DistWorker::Run() {
     if (!impl.pending.empty()) {  // taken off DDS while a batch of subtree tasks was collected
       Impl::Pending p = std::move(impl.pending.front());
       impl.pending.pop_front();
-      if (p.checked)
+      if (p.checked) {
+        impl.dispatch_received_s = p.received_s;
         impl.Dispatch(p.env, p.sender);
+      }
       else
         impl.OnSample(p.raw);
       continue;

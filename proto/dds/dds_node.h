@@ -138,6 +138,7 @@ struct ReceivedSample {
   std::string writer_guid;
   std::string writer_participant;  ///< GUID prefix
   int64_t source_timestamp_ns = 0;
+  double received_s = 0;  ///< when the receiver took it off DDS (its own steady clock; 0: not set)
 };
 
 class DdsNode {

@@ -44,6 +44,27 @@ struct HandOff {
   }
 };
 
+/// The level's time split (issue 13 item 2) adds up: each round's critical worker computing +
+/// its request queued + traffic is the rounds' wall time, and rounds + merge + waiting for
+/// subtrees fit in the level's wall time. Summed over a run.
+struct TimeSplit {
+  double compute = 0, queued = 0, traffic = 0, subtree_wait = 0, subtree_busy = 0, render = 0, first_compute = 0;
+  int rounds = 0;
+  void Add(const DistLevelStats& s) {
+    INFO("tree " << s.tree << " level " << s.level);
+    CHECK(s.round_compute_seconds + s.round_queued_seconds + s.round_traffic_seconds ==
+          Approx(s.round_seconds).margin(1e-6));
+    CHECK(s.round_seconds + s.merge_seconds + s.subtree_wait_seconds <= s.level_seconds + 1e-6);
+    if (s.level == 0) {  // the root is split by histogram rounds
+      CHECK(s.rounds >= 1);
+      first_compute += s.round_compute_seconds;
+    }
+    compute += s.round_compute_seconds, queued += s.round_queued_seconds, traffic += s.round_traffic_seconds;
+    subtree_wait += s.subtree_wait_seconds, subtree_busy += s.subtree_busy_seconds, render += s.render_seconds;
+    rounds += s.rounds;
+  }
+};
+
 // Tiny job: 1800 samples at the root, ~900 at depth 1; 300 hands off nodes from depth ~2 on.
 constexpr uint64_t kSubtreeMax = 300;
 }  // namespace
@@ -73,12 +94,15 @@ TEST_CASE("with subtree hand-off the forest is byte-identical to LocalTrainer wi
       CoordinatorOptions o = Options(domain, n);
       o.job_id = job_id;
       HandOff h;
-      o.progress = [&](const DistLevelStats& s) { h.Add(s); };
+      TimeSplit time;
+      o.progress = [&](const DistLevelStats& s) { h.Add(s), time.Add(s); };
       DistCoordinator coordinator(job.config, job.params, o);
       auto forest = coordinator.Train();
       INFO(forest.status().ToString());
       REQUIRE(forest.ok());
       CHECK(core::SerializeForest(*forest) == reference);
+      CHECK(time.first_compute > 0);  // the workers' compute_micros arrived
+      CHECK(time.subtree_busy > 0);   // and the SubtreeResults' busy_micros
       CHECK(h.tasks >= 2);             // deep nodes were handed off ...
       CHECK(h.nodes > h.tasks);        // ... and their subtrees came back whole
       CHECK(h.histogram_levels >= 2);  // the shallow levels still ran histogram rounds
@@ -205,9 +229,14 @@ TEST_CASE("a worker busy in a subtree batch never fails the job (small control h
   o.job_id = job_id;
   o.transport_extras = small;
   HandOff h;
+  TimeSplit time;
+  double longest_subtree_wait = 0, most_queued = 0;
   uint64_t most_tasks = 0, most_messages = 0;
   o.progress = [&](const DistLevelStats& s) {
     h.Add(s);
+    time.Add(s);
+    longest_subtree_wait = std::max(longest_subtree_wait, s.subtree_wait_seconds);
+    most_queued = std::max(most_queued, s.round_queued_seconds);
     most_tasks = std::max<uint64_t>(most_tasks, s.subtree_tasks);
     most_messages = std::max<uint64_t>(most_messages, s.subtree_task_messages);
     // A level's tasks go as one SubtreeTasks message per worker (these are far below 4 MiB).
@@ -219,6 +248,10 @@ TEST_CASE("a worker busy in a subtree batch never fails the job (small control h
   INFO(forest.status().ToString());
   REQUIRE(forest.ok());
   CHECK(held >= 1);
+  // The held worker's 2.5 s show in the level's split: the coordinator waited for its subtree
+  // results after the rounds, or a round's request waited in its inbox.
+  INFO("longest subtree wait " << longest_subtree_wait << " s, most queued " << most_queued << " s");
+  CHECK(std::max(longest_subtree_wait, most_queued) >= 2.0);
   INFO("most tasks in a level " << most_tasks);
   CHECK(most_tasks >= 12);  // one sample each would be 3x the history
   CHECK(coordinator.workers_lost() == 0);
