@@ -354,6 +354,7 @@ std::vector<std::pair<std::string, double>> CpuFields(const dist::WorkerCpu& c) 
           {"task_frames_cached", double(c.task_frames_cached)},
           {"subtree_tasks", double(c.subtree_tasks)},
           {"subtree_batches", double(c.subtree_batches)},
+          {"rounds_in_batches", double(c.rounds_in_batches)},
           {"task_cache_peak_bytes", double(c.task_cache_peak_bytes)},
           {"task_cache_evictions", double(c.task_cache_evictions)}};
 }

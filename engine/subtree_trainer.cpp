@@ -28,11 +28,12 @@ uint64_t Total(std::span<const uint64_t> parts) {
 
 Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sample_node,
                                    const worker::TrainParams& params, int tree, uint64_t root_position,
-                                   std::span<const uint64_t> root_parts, worker::HistogramBuilder& builder) {
+                                   std::span<const uint64_t> root_parts, worker::HistogramBuilder& builder,
+                                   const std::function<void()>& between) {
   if (root_parts.size() != size_t(core::kNumParts))
     return Status(ErrorCode::kInvalidArgument, "subtree root: part counts of the wrong length");
   const SubtreeRoot root{root_sample_node, root_position, {root_parts.begin(), root_parts.end()}};
-  auto out = TrainSubtrees(samples, std::span<const SubtreeRoot>(&root, 1), params, tree, builder);
+  auto out = TrainSubtrees(samples, std::span<const SubtreeRoot>(&root, 1), params, tree, builder, between);
   if (!out.ok()) return out.status();
   return std::move((*out)[0]);
 }
@@ -40,7 +41,8 @@ Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sam
 Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
                                                  std::span<const SubtreeRoot> roots,
                                                  const worker::TrainParams& params, int tree,
-                                                 worker::HistogramBuilder& builder) {
+                                                 worker::HistogramBuilder& builder,
+                                                 const std::function<void()>& between) {
   uint32_t next_sample_node = 0;  // children get fresh sample node ids, increasing in frontier order
   std::vector<engine::OpenNode> frontier;
   for (size_t r = 0; r < roots.size(); ++r) {
@@ -70,6 +72,13 @@ Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
   engine::LocalShardSet shard_set(std::span<worker::SampleSet>(&samples, 1), params, builder,
                                   params.threads > 0 ? params.threads : 1);
   engine::FrontierLoopHooks hooks;
+  if (between) {
+    hooks.after_batch = [&](size_t, uint64_t) { between(); };
+    hooks.level_done = [&](const engine::LevelDone&) {
+      between();
+      return Status::Ok();
+    };
+  }
   // Each root's nodes in the loop's (breadth-first) order: its subtree's layout.
   hooks.place = [&](const engine::OpenNode& f, engine::NodeDecision& d) -> Result<uint32_t> {
     SubtreeOutput& o = out[f.owner];
@@ -88,9 +97,13 @@ Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
     return assemblers[f.owner].MakeSplit(f.local, d.offsets, d.choice.cut);
   };
   const int first_level = frontier.empty() ? 0 : frontier[0].depth;
+  // With `between`, histogram batches of at most 64 MiB (a few dense nodes; the batch size
+  // changes no decision): the caller gets control back every fraction of a second, not after
+  // a batch of a hundred roots' top level (seconds).
+  const uint64_t batch_bytes =
+      between ? std::min<uint64_t>(params.histogram_memory_bytes, uint64_t(64) << 20) : params.histogram_memory_bytes;
   POSEFOREST_RETURN_IF_ERROR(engine::RunFrontierLoop(shard_set, params, tree, first_level,
-                                                     std::move(frontier), next_sample_node,
-                                                     params.histogram_memory_bytes, hooks));
+                                                     std::move(frontier), next_sample_node, batch_bytes, hooks));
   uint64_t evaluations = 0;
   for (size_t r = 0; r < roots.size(); ++r)
     out[r].tree = assemblers[r].Finish(), evaluations += out[r].evaluations;

@@ -7,6 +7,7 @@
 // the same node.
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -41,10 +42,14 @@ struct SubtreeOutput {
 /// tree `tree`. Every sample of the root sits in node `root_sample_node` of `samples`; samples of
 /// other nodes are ignored (ApplySplits drops them). `root_parts`: kNumParts counts of the root,
 /// checked against the samples (InvalidArgument when they differ: the caller routed wrongly).
+/// `between`, if set, is called between histogram batches and between levels, when neither
+/// `samples` nor `builder` is in use (a worker answers the coordinator's rounds there instead of
+/// after the whole subtree); it must not touch either.
 core::Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sample_node,
                                          const worker::TrainParams& params, int tree, uint64_t root_position,
                                          std::span<const uint64_t> root_parts,
-                                         worker::HistogramBuilder& builder);
+                                         worker::HistogramBuilder& builder,
+                                         const std::function<void()>& between = {});
 
 /// One root of TrainSubtrees.
 struct SubtreeRoot {
@@ -57,10 +62,12 @@ struct SubtreeRoot {
 /// SubtreeTasks: one set of frames, histogram batches shared): outputs[r] is exactly
 /// TrainSubtree's for roots[r] alone. Roots in increasing sample_node order; samples of other
 /// nodes are ignored. InvalidArgument naming the root whose counts do not match its samples.
+/// `between`: as for TrainSubtree.
 core::Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
                                                        std::span<const SubtreeRoot> roots,
                                                        const worker::TrainParams& params, int tree,
-                                                       worker::HistogramBuilder& builder);
+                                                       worker::HistogramBuilder& builder,
+                                                       const std::function<void()>& between = {});
 
 /// Checks a subtree received from elsewhere: nodes[0] is `root_position` with `root_parts`;
 /// every split's children follow in TreeAssembler order at positions 2p + 1 / 2p + 2 with part

@@ -180,6 +180,9 @@ struct DistWorker::Impl {
   int corrupt_left = 0;
   worker::SampleSet samples;
   std::unique_ptr<worker::HistogramBuilder> builder;
+  /// Subtree tasks' own builder: a round answered in the middle of a batch (ServeRounds) uses
+  /// `builder` while the batch's TrainSubtrees counts its evaluations on this one.
+  std::unique_ptr<worker::HistogramBuilder> subtree_builder;
   int applied_levels = 0;
 
   Impl(WorkerOptions& o, std::atomic<bool>& s)
@@ -320,6 +323,7 @@ struct DistWorker::Impl {
     gate->set_coordinator_id(coordinator_id);
     gate->set_num_parts(uint32_t(core::kNumParts));
     builder = std::make_unique<worker::HistogramBuilder>(params.constants, params.threads);
+    subtree_builder = std::make_unique<worker::HistogramBuilder>(params.constants, params.threads);
     tree = -1;
     have_shard = false;
     cache.clear();
@@ -846,7 +850,9 @@ struct DistWorker::Impl {
     const worker::NodeRange routed = set.RangeOf(at);
     route_timer.reset();
     std::optional<CpuTimer> train_timer(&cpu.subtree_train);
-    auto out = coordinator::TrainSubtree(set, at, params, t, task.position(), parts, *builder);
+    served_in_batch_s = 0;
+    auto out = coordinator::TrainSubtree(set, at, params, t, task.position(), parts, *subtree_builder,
+                                         [this] { PauseInSubtrees(); });
     train_timer.reset();
     busy = false;
     if (!out.ok()) return out.status();
@@ -902,7 +908,9 @@ struct DistWorker::Impl {
     // Wall seconds of subtree work: the tasks of a batch share one stretch of time, so each
     // adds only the time since the previous result (or its start), never the batch's whole.
     const double now = NowSeconds();
-    const double busy_s = now - std::max(t0, subtree_mark);
+    // Rounds answered in the middle of the batch (ServeRounds) are not subtree work.
+    const double busy_s = std::max(0.0, now - std::max(t0, subtree_mark) - served_in_batch_s);
+    served_in_batch_s = 0;
     subtree_s += busy_s;
     subtree_mark = now;
     res->set_busy_micros(uint64_t(busy_s * 1e6));
@@ -918,7 +926,7 @@ struct DistWorker::Impl {
           std::to_string(subtree_nodes_done) + " nodes, " + std::to_string(subtree_s) +
           " s; task frame cache " + std::to_string(task_cache.bytes >> 20) + " of " +
           std::to_string(task_cache.cap_bytes >> 20) + " MiB, " + std::to_string(task_cache.evictions) +
-          " evicted)");
+          " evicted; queued rounds answered " + std::to_string(cpu.rounds_in_batches) + " times in between)");
     encode_timer.reset();
     (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
     return Publish(Topic::kReplies, env);
@@ -1047,7 +1055,8 @@ struct DistWorker::Impl {
     }
     route_timer.reset();
     std::optional<CpuTimer> train_timer(&cpu.subtree_train);
-    auto out = coordinator::TrainSubtrees(set, roots, params, t, *builder);
+    served_in_batch_s = 0;
+    auto out = coordinator::TrainSubtrees(set, roots, params, t, *subtree_builder, [this] { PauseInSubtrees(); });
     train_timer.reset();
     if (!out.ok()) return one_by_one(out.status());
     busy = false;
@@ -1057,6 +1066,65 @@ struct DistWorker::Impl {
       if (Status st = SendResult(*tasks[k], (*out)[k], t0, n, wanted_of[k].size(), missing.size()); !st.ok())
         drop(*tasks[k], st);
     }
+  }
+
+  /// Called by a subtree batch between its histogram batches and levels: answers the level
+  /// requests (and applies the decisions) of this worker's shard that are queued at the front,
+  /// so the coordinator's rounds do not wait for the whole batch (issue 13 item 2: in the run of
+  /// record, rounds waited 883 of 1,917 s for workers busy in subtree batches). Only those: the
+  /// first other message (an assignment, a task, a job) stops it and waits its turn in `pending`.
+  /// The batch uses its own sample set and subtree_builder, so answering from the shard's set
+  /// with `builder` is safe here; the answers and the subtrees are what they would be in order.
+  void PauseInSubtrees() {
+    if (opt.in_subtree_batch) opt.in_subtree_batch();
+    ServeRounds();
+  }
+
+  void ServeRounds() {
+    const double t_serve = NowSeconds(), cpu_serve = ThreadCpu();
+    const bool was_busy = busy;
+    auto is_round = [&](const v1::Envelope& env) {
+      if (!have_shard) return false;
+      if (env.body_case() == v1::Envelope::kLevelRequest)
+        return int(env.level_request().tree()) == tree && env.level_request().epoch() >= skip_below_epoch;
+      if (env.body_case() == v1::Envelope::kDecisions)
+        return int(env.decisions().tree()) == tree && env.decisions().epoch() >= skip_below_epoch;
+      return false;
+    };
+    int served = 0;
+    for (;;) {
+      if (!pending.empty()) {
+        if (!pending.front().checked || !is_round(pending.front().env)) break;
+        Pending p = std::move(pending.front());
+        pending.pop_front();
+        dispatch_received_s = p.received_s;
+        Dispatch(p.env, p.sender);
+        ++served;
+        continue;
+      }
+      std::optional<dds::ReceivedSample> s = Take(std::chrono::milliseconds(0));
+      if (!s) break;
+      if (s->topic == Topic::kJob || !gate) {
+        pending.push_back({false, std::move(*s), {}, {}, 0});
+        break;
+      }
+      auto out = gate->Check(s->topic, s->bytes, s->writer_guid);
+      if (out.verdict != dds::MessageGate::Verdict::kAccepted) continue;
+      if (!is_round(out.envelope)) {
+        pending.push_back({true, {}, std::move(out.envelope), std::move(out.sender), s->received_s});
+        break;
+      }
+      dispatch_received_s = s->received_s;
+      Dispatch(out.envelope, out.sender);
+      ++served;
+    }
+    busy = was_busy;
+    if (served == 0) return;
+    ++cpu.rounds_in_batches;
+    served_in_batch_s += NowSeconds() - t_serve;
+    // The subtree_train timer around the batch counts this thread's CPU; the answers counted
+    // theirs in their own phases.
+    cpu.subtree_train -= ThreadCpu() - cpu_serve;
   }
 
   void OnSample(const dds::ReceivedSample& s) {
@@ -1104,6 +1172,8 @@ struct DistWorker::Impl {
   std::deque<Pending> pending;
   /// When the sample being dispatched was taken off DDS (for HistogramReply.queued_micros).
   double dispatch_received_s = 0;
+  /// Wall seconds of rounds answered inside the current subtree batch (ServeRounds).
+  double served_in_batch_s = 0;
   /// Wall seconds spent rendering shard frames not yet reported (HistogramReply.render_micros),
   /// and task frames not yet reported (the next SubtreeResult's render_micros).
   double shard_render_unreported_s = 0, task_render_unreported_s = 0;

@@ -55,6 +55,9 @@ struct WorkerOptions {
   /// Tests: called on the training thread when subtree tasks arrive, before they are trained
   /// (a test sleeps in it: a worker busy in a long batch while the coordinator goes on sending).
   std::function<void()> hold_on_subtree_task;
+  /// Test hook: called at every pause of a subtree task or batch (between its histogram
+  /// batches and levels, where the worker answers queued rounds).
+  std::function<void()> in_subtree_batch;
   /// Tests: called on the training thread when a ShardAssignment is taken off the queue, before
   /// it counts as received (a test sleeps in it: a worker busy elsewhere while assignments queue).
   std::function<void()> hold_before_shard;
@@ -91,6 +94,7 @@ struct WorkerCpu {
   uint64_t task_frames_cached = 0;  ///< task frames found in the shard or the task cache
   uint64_t subtree_tasks = 0;
   uint64_t subtree_batches = 0;     ///< sets of several tasks trained together (one SampleSet)
+  uint64_t rounds_in_batches = 0;   ///< times a subtree task or batch stopped to answer queued rounds
   uint64_t task_cache_peak_bytes = 0;  ///< most bytes the task-frame cache held
   uint64_t task_cache_evictions = 0;   ///< frames dropped from it to stay under its cap
   /// The main thread's phases above (not process_at_start / run_total).
