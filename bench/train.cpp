@@ -303,22 +303,40 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "train bench: %s\n", source.status().ToString().c_str());
     return 1;
   }
-  worker::SampleSet set;
+  // As LocalTrainer loads a shard: frames compacted as they come, then added with exact room.
+  std::vector<worker::CompactFrame> compact(static_cast<size_t>(images));
+  std::vector<std::vector<worker::PixelSample>> picked(static_cast<size_t>(images));
+  size_t span_pixels = 0, rows = 0, samples = 0;
   for (int i = 0; i < images; ++i) {
     auto frame = (*source)->Frame(uint64_t(i));
     if (!frame.ok()) {
       std::fprintf(stderr, "train bench: %s\n", frame.status().ToString().c_str());
       return 1;
     }
-    worker::LabelledFrame f = std::move(*frame);
-    auto px =
-        worker::SamplePixels(f, pixels, 1.0, core::CounterRng(1, 0, uint64_t(i), worker::kSamplingStream));
-    set.AddFrame(uint64_t(i), std::move(f.depth), px, p.constants);
+    picked[size_t(i)] = worker::SamplePixels(*frame, pixels, 1.0,
+                                             core::CounterRng(1, 0, uint64_t(i), worker::kSamplingStream));
+    compact[size_t(i)] = worker::CompactFrame::Of(frame->depth, p.constants.background_mm);
+    span_pixels += compact[size_t(i)].pixels.size();
+    rows += compact[size_t(i)].rows.size();
+    samples += picked[size_t(i)].size();
   }
+  worker::SampleSet set;
+  set.Reserve(size_t(images), span_pixels, samples, rows);
+  for (int i = 0; i < images; ++i)
+    set.AddFrame(uint64_t(i), compact[size_t(i)], picked[size_t(i)], p.constants);
+  compact = {};
+  picked = {};
   set.StartTree(0);
   std::printf("train bench: %d %s frames 640x480, %zu samples, %d candidates x %d thresholds, %d thread(s)\n",
               images, rendered ? "rendered" : "procedural", set.num_samples(), candidates, thresholds,
               threads);
+  const uint64_t set_bytes = set.MemoryBytes();
+  std::printf(
+      "memory: frames+samples %.1f MiB for %d images: %llu bytes per image (frames %.0f span pixels, %zu "
+      "rows; "
+      "%.0f samples)\n",
+      double(set_bytes) / 1048576.0, images, static_cast<unsigned long long>(set_bytes / uint64_t(images)),
+      double(span_pixels) / images, rows / size_t(images), double(samples) / images);
 
   // The side by side runs on the pixels before the deep level's splits (a copy).
   std::string compare_skipped;

@@ -155,8 +155,10 @@ class OmpErrors {
 
 /// The shard's arrays the kernels read.
 struct KernelInput {
+  const SampleSet* set;
   const uint16_t* probe;
-  const uint32_t* base;
+  const CompactFrame::Row* rows;
+  const uint32_t* frame;
   const int16_t *x, *y;
   const float* scale;
   const uint8_t* part;
@@ -164,44 +166,59 @@ struct KernelInput {
   uint16_t background_mm;
 };
 
-/// Scalar kernel: counts of candidate f over samples [b, e) (also the reference for the
-/// vector kernel: same operations as core::FeatureResponse).
+/// Scalar kernel: counts of candidate f over samples [b, e) (SampleSet::Response, the
+/// reference for the vector kernels).
 void CountScalar(const KernelInput& in, uint64_t b, uint64_t e, const core::FeatureOffsets& f,
                  const int32_t* cuts, int stride, const uint8_t* slot_of, int slots, uint32_t* counts) {
   for (uint64_t i = b; i < e; ++i) {
-    const int32_t r = core::FeatureResponse(in.probe + in.base[i], in.width, in.height, in.x[i], in.y[i],
-                                            in.scale[i], f, in.background_mm);
+    const int32_t r = in.set->Response(i, f, in.background_mm);
     ++counts[BinOf(r, cuts, stride) * slots + slot_of[in.part[i]]];
   }
 }
 
 #if POSEFOREST_HIST_AVX512
+/// Probe values of 16 lanes at (px, py) of the frames whose rows start at `row0` (frame *
+/// height in rows()): exactly SampleSet::Probe per lane. A lane off the frame's rows reads
+/// background_mm; else its row (one 64-bit gather per 8 lanes: start | lo << 32 | len << 48),
+/// then the pixel if px lies in the row's span, else background_mm. Lanes outside `valid`
+/// read nothing.
+inline __m512i Probe16(const KernelInput& in, __mmask16 valid, __m512i row0, __m512i px, __m512i py) {
+  const __m512i low16 = _mm512_set1_epi32(0xFFFF);
+  const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+  const __m512i odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
+  const __mmask16 in_y = valid & _mm512_cmplt_epu32_mask(py, _mm512_set1_epi32(in.height));
+  const __m512i r = _mm512_add_epi32(row0, py);
+  const __m512i zero = _mm512_setzero_si512();
+  const __m512i g0 = _mm512_mask_i32gather_epi64(zero, __mmask8(in_y), _mm512_castsi512_si256(r), in.rows, 8);
+  const __m512i g1 =
+      _mm512_mask_i32gather_epi64(zero, __mmask8(in_y >> 8), _mm512_extracti64x4_epi64(r, 1), in.rows, 8);
+  const __m512i start = _mm512_permutex2var_epi32(g0, even, g1);
+  const __m512i span = _mm512_permutex2var_epi32(g0, odd, g1);  // lo | len << 16
+  const __m512i rel = _mm512_sub_epi32(px, _mm512_and_si512(span, low16));
+  const __mmask16 in_x = in_y & _mm512_cmplt_epu32_mask(rel, _mm512_srli_epi32(span, 16));
+  const __m512i bg = _mm512_set1_epi32(in.background_mm);
+  return _mm512_and_si512(_mm512_mask_i32gather_epi32(bg, in_x, _mm512_add_epi32(start, rel), in.probe, 2),
+                          low16);
+}
+
 /// Responses of 16 samples starting at i (lanes beyond `valid` are garbage, never read from
-/// memory out of bounds). Exactly core::FeatureResponse per lane: float(offset) * scale,
-/// + 32768.5f, truncate, - 32768 (no FMA), bounds test, probe.
+/// memory out of bounds). Exactly SampleSet::Response per lane: float(offset) * scale,
+/// + 32768.5f, truncate, - 32768 (no FMA), probe.
 inline __m512i Responses16(const KernelInput& in, uint64_t i, __mmask16 valid, __m512 fux, __m512 fuy,
                            __m512 fvx, __m512 fvy) {
   const __m512i x = _mm512_cvtepi16_epi32(_mm256_maskz_loadu_epi16(valid, in.x + i));
   const __m512i y = _mm512_cvtepi16_epi32(_mm256_maskz_loadu_epi16(valid, in.y + i));
   const __m512 s = _mm512_maskz_loadu_ps(valid, in.scale + i);
-  const __m512i base = _mm512_maskz_loadu_epi32(valid, in.base + i);
+  const __m512i row0 =
+      _mm512_mullo_epi32(_mm512_maskz_loadu_epi32(valid, in.frame + i), _mm512_set1_epi32(in.height));
   const __m512 half = _mm512_set1_ps(32768.5f);
   const __m512i bias = _mm512_set1_epi32(32768);
-  const __m512i w = _mm512_set1_epi32(in.width), h = _mm512_set1_epi32(in.height);
-  const __m512i bg = _mm512_set1_epi32(in.background_mm);
-  const __m512i low16 = _mm512_set1_epi32(0xFFFF);
   auto round_off = [&](__m512 fo) {
     return _mm512_sub_epi32(_mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(fo, s), half)), bias);
   };
   const __m512i ux = _mm512_add_epi32(x, round_off(fux)), uy = _mm512_add_epi32(y, round_off(fuy));
   const __m512i vx = _mm512_add_epi32(x, round_off(fvx)), vy = _mm512_add_epi32(y, round_off(fvy));
-  const __mmask16 in_u = valid & _mm512_cmplt_epu32_mask(ux, w) & _mm512_cmplt_epu32_mask(uy, h);
-  const __mmask16 in_v = valid & _mm512_cmplt_epu32_mask(vx, w) & _mm512_cmplt_epu32_mask(vy, h);
-  const __m512i iu = _mm512_add_epi32(base, _mm512_add_epi32(_mm512_mullo_epi32(uy, w), ux));
-  const __m512i iv = _mm512_add_epi32(base, _mm512_add_epi32(_mm512_mullo_epi32(vy, w), vx));
-  const __m512i du = _mm512_and_si512(_mm512_mask_i32gather_epi32(bg, in_u, iu, in.probe, 2), low16);
-  const __m512i dv = _mm512_and_si512(_mm512_mask_i32gather_epi32(bg, in_v, iv, in.probe, 2), low16);
-  return _mm512_sub_epi32(du, dv);
+  return _mm512_sub_epi32(Probe16(in, valid, row0, ux, uy), Probe16(in, valid, row0, vx, vy));
 }
 
 /// Vector kernel: 16 samples at a time; bins by a 7-step branch-free binary search over 64
@@ -406,16 +423,13 @@ inline void BinsTile(const __m512i* r, const int16_t* col, size_t pitch, int t, 
 /// Samples per tile in the 16-bit sample-major kernels.
 constexpr int kTile = 8;
 
-/// Responses of one sample to candidates [k, k+16) (exactly core::FeatureResponse per lane).
+/// Responses of one sample to candidates [k, k+16) (exactly SampleSet::Response per lane).
 inline __m512i SampleResponses16(const KernelInput& in, uint64_t i, const CandidateSoa& c, int k) {
   const __m512 s = _mm512_set1_ps(in.scale[i]);
   const __m512i x = _mm512_set1_epi32(in.x[i]), y = _mm512_set1_epi32(in.y[i]);
-  const __m512i base = _mm512_set1_epi32(int32_t(in.base[i]));
+  const __m512i row0 = _mm512_set1_epi32(int32_t(in.frame[i] * uint32_t(in.height)));
   const __m512 half = _mm512_set1_ps(32768.5f);
   const __m512i bias = _mm512_set1_epi32(32768);
-  const __m512i w = _mm512_set1_epi32(in.width), h = _mm512_set1_epi32(in.height);
-  const __m512i bg = _mm512_set1_epi32(in.background_mm);
-  const __m512i low16 = _mm512_set1_epi32(0xFFFF);
   auto round_off = [&](const float* fo) {
     return _mm512_sub_epi32(
         _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(_mm512_loadu_ps(fo + k), s), half)), bias);
@@ -424,13 +438,8 @@ inline __m512i SampleResponses16(const KernelInput& in, uint64_t i, const Candid
                 uy = _mm512_add_epi32(y, round_off(c.uy.data()));
   const __m512i vx = _mm512_add_epi32(x, round_off(c.vx.data())),
                 vy = _mm512_add_epi32(y, round_off(c.vy.data()));
-  const __mmask16 in_u = _mm512_cmplt_epu32_mask(ux, w) & _mm512_cmplt_epu32_mask(uy, h);
-  const __mmask16 in_v = _mm512_cmplt_epu32_mask(vx, w) & _mm512_cmplt_epu32_mask(vy, h);
-  const __m512i iu = _mm512_add_epi32(base, _mm512_add_epi32(_mm512_mullo_epi32(uy, w), ux));
-  const __m512i iv = _mm512_add_epi32(base, _mm512_add_epi32(_mm512_mullo_epi32(vy, w), vx));
-  const __m512i du = _mm512_and_si512(_mm512_mask_i32gather_epi32(bg, in_u, iu, in.probe, 2), low16);
-  const __m512i dv = _mm512_and_si512(_mm512_mask_i32gather_epi32(bg, in_v, iv, in.probe, 2), low16);
-  return _mm512_sub_epi32(du, dv);
+  const __mmask16 all = 0xFFFF;
+  return _mm512_sub_epi32(Probe16(in, all, row0, ux, uy), Probe16(in, all, row0, vx, vy));
 }
 
 /// Sample-major histogram kernel for a small node: counts of every candidate over [b, e).
@@ -553,7 +562,7 @@ bool SampleMajor([[maybe_unused]] bool whole, [[maybe_unused]] uint64_t n,
 }
 
 KernelInput InputOf(const SampleSet& s, uint16_t background_mm) {
-  KernelInput in{s.probe(), s.base(), s.x(), s.y(), s.scale(), s.part(), 0, 0, background_mm};
+  KernelInput in{&s, s.probe(), s.rows(), s.frame(), s.x(), s.y(), s.scale(), s.part(), 0, 0, background_mm};
   if (!s.frames().empty()) {
     in.width = s.frames()[0].width;
     in.height = s.frames()[0].height;

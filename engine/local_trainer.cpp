@@ -65,8 +65,10 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
   {
     // Plain threads, each with its own ImageSource created, used and destroyed on that thread
     // (a renderer's GL context is bound to one thread). Frame i goes to thread i % threads;
-    // results land in per-frame slots, so the outcome does not depend on timing.
-    std::vector<core::DepthImage> depth(static_cast<size_t>(ipt));
+    // results land in per-frame slots, so the outcome does not depend on timing. Each frame is
+    // compacted (CompactFrame: what features can read) and its labels dropped as soon as its
+    // pixels are sampled, so whole frames never pile up.
+    std::vector<worker::CompactFrame> compact(static_cast<size_t>(ipt));
     std::vector<std::vector<worker::PixelSample>> picked(static_cast<size_t>(ipt));
     std::vector<Status> errors(static_cast<size_t>(threads));
     std::vector<std::thread> pool;
@@ -88,7 +90,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
             picked[size_t(i)] = worker::SamplePixels(
                 *frame, params_.pixels_per_image, params_.part_balance,
                 core::CounterRng(params_.seed, uint64_t(tree), index, worker::kSamplingStream));
-            depth[size_t(i)] = std::move(frame->depth);
+            compact[size_t(i)] = worker::CompactFrame::Of(frame->depth, params_.constants.background_mm);
           }
         } catch (const std::exception& e) {
           errors[size_t(tid)] =
@@ -99,11 +101,26 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
     for (auto& t : pool) t.join();
     for (const Status& e : errors)
       if (!e.ok()) return e;
+    // Exact room first: a grown vector's slack would cost up to as much as its contents.
+    struct Room {
+      size_t frames = 0, pixels = 0, samples = 0, rows = 0;
+    };
+    std::vector<Room> room(static_cast<size_t>(num_shards));
+    for (int i = 0; i < ipt; ++i) {
+      if (picked[size_t(i)].empty()) continue;  // no body in view
+      Room& r = room[size_t(int64_t(i) * num_shards / ipt)];
+      ++r.frames;
+      r.pixels += compact[size_t(i)].pixels.size();
+      r.rows += compact[size_t(i)].rows.size();
+      r.samples += picked[size_t(i)].size();
+    }
+    for (size_t k = 0; k < shards.size(); ++k)
+      shards[k].Reserve(room[k].frames, room[k].pixels, room[k].samples, room[k].rows);
     for (int i = 0; i < ipt; ++i) {
       if (picked[size_t(i)].empty()) continue;  // no body in view
       const auto shard = size_t(int64_t(i) * num_shards / ipt);
-      shards[shard].AddFrame(uint64_t(i), std::move(depth[size_t(i)]), picked[size_t(i)], params_.constants);
-      depth[size_t(i)] = {};
+      shards[shard].AddFrame(uint64_t(i), compact[size_t(i)], picked[size_t(i)], params_.constants);
+      compact[size_t(i)] = {};
       picked[size_t(i)] = {};
     }
   }
@@ -123,7 +140,8 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
   if (options_.log) {
     std::ostringstream m;
     m << "tree " << tree << ": " << num_samples << " samples from " << ipt << " frames in " << num_shards
-      << " shard(s), " << (sample_bytes >> 20) << " MiB frames+samples, loaded in " << (Now() - t_load)
+      << " shard(s), " << (sample_bytes >> 20) << " MiB frames+samples ("
+      << sample_bytes / uint64_t(std::max(1, ipt)) << " bytes per image), loaded in " << (Now() - t_load)
       << " s";
     options_.log(m.str());
   }

@@ -14,23 +14,21 @@ namespace {
 /// New storage for a SampleSet's per-sample columns, filled in a new order (StartTree: by node;
 /// ApplySplits: left, then right, per node) and then swapped in.
 struct SampleColumns {
-  std::vector<uint32_t> frame, base;
+  std::vector<uint32_t> frame;
   std::vector<int16_t> x, y;
   std::vector<float> scale;
   std::vector<uint8_t> part;
-  explicit SampleColumns(size_t n) : frame(n), base(n), x(n), y(n), scale(n), part(n) {}
-  void Set(uint64_t o, uint32_t f, uint32_t b, int16_t px, int16_t py, float s, uint8_t p) {
+  explicit SampleColumns(size_t n) : frame(n), x(n), y(n), scale(n), part(n) {}
+  void Set(uint64_t o, uint32_t f, int16_t px, int16_t py, float s, uint8_t p) {
     frame[o] = f;
-    base[o] = b;
     x[o] = px;
     y[o] = py;
     scale[o] = s;
     part[o] = p;
   }
-  void SwapWith(std::vector<uint32_t>& f, std::vector<uint32_t>& b, std::vector<int16_t>& px,
-                std::vector<int16_t>& py, std::vector<float>& s, std::vector<uint8_t>& p) {
+  void SwapWith(std::vector<uint32_t>& f, std::vector<int16_t>& px, std::vector<int16_t>& py,
+                std::vector<float>& s, std::vector<uint8_t>& p) {
     f.swap(frame);
-    b.swap(base);
     px.swap(x);
     py.swap(y);
     s.swap(scale);
@@ -103,14 +101,45 @@ std::vector<PixelSample> SamplePixels(const LabelledFrame& frame, int count, dou
   return out;
 }
 
-void SampleSet::Reserve(size_t frames, size_t pixels, size_t samples) {
+CompactFrame CompactFrame::Of(const core::DepthImage& depth, uint16_t background_mm) {
+  POSEFOREST_CHECK(depth.width >= 0 && depth.height >= 0 && depth.width <= 32767 && depth.height <= 32767 &&
+                   depth.pixels.size() == size_t(depth.width) * size_t(depth.height));
+  CompactFrame f;
+  f.width = depth.width;
+  f.height = depth.height;
+  f.rows.resize(size_t(depth.height));
+  // A pixel reads background_mm when its depth is 0 or background_mm itself.
+  auto differs = [&](uint16_t d) { return d != 0 && d != background_mm; };
+  for (int y = 0; y < depth.height; ++y) {
+    const uint16_t* row = depth.data() + size_t(y) * size_t(depth.width);
+    int lo = 0, hi = depth.width;
+    while (lo < hi && !differs(row[lo])) ++lo;
+    while (hi > lo && !differs(row[hi - 1])) --hi;
+    if (lo == hi) continue;  // the whole row reads background_mm
+    Row& r = f.rows[size_t(y)];
+    r.start = uint32_t(f.pixels.size());
+    r.lo = uint16_t(lo);
+    r.len = uint16_t(hi - lo);
+    for (int x = lo; x < hi; ++x) f.pixels.push_back(row[x] != 0 ? row[x] : background_mm);
+  }
+  return f;
+}
+
+void SampleSet::Reserve(size_t frames, size_t pixels, size_t samples, size_t rows) {
   frames_.reserve(frames_.size() + frames);
   probe_.reserve(probe_.size() + pixels + 32);
-  for (auto* v : {&frame_, &base_}) v->reserve(v->size() + samples);
+  rows_.reserve(rows_.size() + rows);
+  frame_.reserve(frame_.size() + samples);
   x_.reserve(x_.size() + samples);
   y_.reserve(y_.size() + samples);
   scale_.reserve(scale_.size() + samples);
   part_.reserve(part_.size() + samples);
+}
+
+void SampleSet::AddFrame(uint64_t frame_index, const CompactFrame& frame, std::span<const PixelSample> pixels,
+                         const core::FeatureConstants& c) {
+  POSEFOREST_CHECK(frames_.empty() || frame_index > frames_.back().index);
+  AddSamples(AddFrameOnly(frame_index, frame, c), pixels, c);
 }
 
 void SampleSet::AddFrame(uint64_t frame_index, const core::DepthImage& depth,
@@ -121,45 +150,63 @@ void SampleSet::AddFrame(uint64_t frame_index, const core::DepthImage& depth,
 
 uint32_t SampleSet::AddFrameOnly(uint64_t frame_index, const core::DepthImage& depth,
                                  const core::FeatureConstants& c) {
+  return AddFrameOnly(frame_index, CompactFrame::Of(depth, c.background_mm), c);
+}
+
+uint32_t SampleSet::AddFrameOnly(uint64_t frame_index, const CompactFrame& frame,
+                                 const core::FeatureConstants& c) {
   POSEFOREST_CHECK(frames_.empty() || background_mm_ == c.background_mm);
-  POSEFOREST_CHECK(depth.width <= 32767 && depth.height <= 32767 &&
-                   size_t(depth.width) * size_t(depth.height) < (size_t(1) << 24));
+  POSEFOREST_CHECK(frame.width <= 32767 && frame.height <= 32767 &&
+                   frame.rows.size() == size_t(frame.height) &&
+                   size_t(frame.width) * size_t(frame.height) < (size_t(1) << 24));
   constexpr size_t kPad = 32;
   const size_t offset = probe_.empty() ? 0 : probe_.size() - kPad;
-  // 32-bit gather indices: a shard holds at most 2^31 pixels (about 7000 640x480 frames).
-  POSEFOREST_CHECK_MSG(offset + depth.pixels.size() < (size_t(1) << 31),
+  // 32-bit gather indices: a shard holds at most 2^31 span pixels, and 2^31 / 8 rows.
+  POSEFOREST_CHECK_MSG(offset + frame.pixels.size() < (size_t(1) << 31) &&
+                           rows_.size() + frame.rows.size() < (size_t(1) << 28),
                        "shard too large: split the frames over more shards");
   background_mm_ = c.background_mm;
-  if (!frames_.empty() && (frames_[0].width != depth.width || frames_[0].height != depth.height))
+  if (!frames_.empty() && (frames_[0].width != frame.width || frames_[0].height != frame.height))
     uniform_size_ = false;
-  frames_.push_back({frame_index, uint32_t(offset), depth.width, depth.height});
-  probe_.resize(offset + depth.pixels.size() + kPad, c.background_mm);
-  for (size_t i = 0; i < depth.pixels.size(); ++i) {
-    const uint16_t d = depth.pixels[i];
-    probe_[offset + i] = d != 0 ? d : c.background_mm;
+  frames_.push_back({frame_index, uint32_t(rows_.size()), frame.width, frame.height});
+  for (CompactFrame::Row r : frame.rows) {
+    POSEFOREST_CHECK(size_t(r.start) + r.len <= frame.pixels.size() &&
+                     size_t(r.lo) + r.len <= size_t(frame.width));
+    r.start += uint32_t(offset);
+    rows_.push_back(r);
   }
+  probe_.resize(offset + frame.pixels.size() + kPad, c.background_mm);
+  std::copy(frame.pixels.begin(), frame.pixels.end(), probe_.begin() + ptrdiff_t(offset));
   return uint32_t(frames_.size() - 1);
+}
+
+void SampleSet::AddSamples(uint32_t local, std::span<const PixelSample> pixels,
+                           const core::FeatureConstants& c) {
+  POSEFOREST_CHECK(local < frames_.size());
+  for (const PixelSample& p : pixels) {
+    // A body pixel (depth > 0) reads its depth: in its row's span unless it equals background_mm,
+    // which is then what Probe returns.
+    const int32_t d = Probe(local, p.x, p.y, c.background_mm);
+    POSEFOREST_CHECK(p.x >= 0 && p.x < frames_[local].width && p.y >= 0 && p.y < frames_[local].height &&
+                     d > 0);
+    frame_.push_back(local);
+    x_.push_back(int16_t(p.x));
+    y_.push_back(int16_t(p.y));
+    scale_.push_back(core::PixelScale(uint16_t(d), c.offset_unit));
+    part_.push_back(p.part);
+  }
 }
 
 void SampleSet::AddSamples(uint32_t local, const core::DepthImage& depth, std::span<const PixelSample> pixels,
                            const core::FeatureConstants& c) {
   POSEFOREST_CHECK(local < frames_.size() && frames_[local].width == depth.width &&
                    frames_[local].height == depth.height);
-  const uint32_t offset = frames_[local].offset;
-  for (const PixelSample& p : pixels) {
-    const uint16_t d = depth.at(p.x, p.y);
-    POSEFOREST_CHECK(d != 0);
-    frame_.push_back(local);
-    base_.push_back(offset);
-    x_.push_back(int16_t(p.x));
-    y_.push_back(int16_t(p.y));
-    scale_.push_back(core::PixelScale(d, c.offset_unit));
-    part_.push_back(p.part);
-  }
+  for (const PixelSample& p : pixels) POSEFOREST_CHECK(depth.at(p.x, p.y) != 0);
+  AddSamples(local, pixels, c);
 }
 
 void SampleSet::ClearSamples() {
-  for (auto* v : {&frame_, &base_}) v->clear();
+  frame_.clear();
   x_.clear();
   y_.clear();
   scale_.clear();
@@ -188,9 +235,9 @@ void SampleSet::StartTree(std::span<const uint32_t> node_of_sample) {
   for (size_t i = 0; i < x_.size(); ++i) {
     const size_t k = size_t(std::lower_bound(nodes.begin(), nodes.end(), node_of_sample[i]) - nodes.begin());
     const uint64_t o = start[k]++;
-    out.Set(o, frame_[i], base_[i], x_[i], y_[i], scale_[i], part_[i]);
+    out.Set(o, frame_[i], x_[i], y_[i], scale_[i], part_[i]);
   }
-  out.SwapWith(frame_, base_, x_, y_, scale_, part_);
+  out.SwapWith(frame_, x_, y_, scale_, part_);
 }
 
 NodeRange SampleSet::RangeOf(uint32_t node) const {
@@ -250,7 +297,7 @@ void SampleSet::ApplySplits(std::span<const Split> splits, const core::FeatureCo
       uint64_t li = out_begin[size_t(r)], ri = li + nl;
       for (uint64_t i = range.begin; i < range.end; ++i) {
         const uint64_t o = goes_left[i - range.begin] ? li++ : ri++;
-        out.Set(o, frame_[i], base_[i], x_[i], y_[i], scale_[i], part_[i]);
+        out.Set(o, frame_[i], x_[i], y_[i], scale_[i], part_[i]);
       }
       num_left[size_t(r)] = nl;
     }
@@ -263,14 +310,15 @@ void SampleSet::ApplySplits(std::span<const Split> splits, const core::FeatureCo
     if (m > b) ranges.push_back({s->left_child, b, m});
     if (e > m) ranges.push_back({s->left_child + 1, m, e});
   }
-  out.SwapWith(frame_, base_, x_, y_, scale_, part_);
+  out.SwapWith(frame_, x_, y_, scale_, part_);
   ranges_.swap(ranges);
 }
 
 uint64_t SampleSet::MemoryBytes() const {
-  uint64_t bytes = probe_.capacity() * sizeof(uint16_t) + frames_.capacity() * sizeof(FrameInfo);
-  bytes += frame_.capacity() * 4 + base_.capacity() * 4 + x_.capacity() * 2 + y_.capacity() * 2 +
-           scale_.capacity() * 4 + part_.capacity() + ranges_.capacity() * sizeof(NodeRange);
+  uint64_t bytes = probe_.capacity() * sizeof(uint16_t) + rows_.capacity() * sizeof(CompactFrame::Row) +
+                   frames_.capacity() * sizeof(FrameInfo);
+  bytes += frame_.capacity() * 4 + x_.capacity() * 2 + y_.capacity() * 2 + scale_.capacity() * 4 +
+           part_.capacity() + ranges_.capacity() * sizeof(NodeRange);
   return bytes;
 }
 

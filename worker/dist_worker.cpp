@@ -59,13 +59,12 @@ class CpuTimer {
   double t0_;
 };
 
+/// A frame as kept for training: what features can read of its depth (no labels: its sampled
+/// pixels carry their parts).
 struct FrameData {
-  core::DepthImage depth;
+  worker::CompactFrame frame;
   std::vector<worker::PixelSample> picked;
-  uint64_t Bytes() const {
-    return uint64_t(depth.width) * uint64_t(depth.height) * sizeof(uint16_t) +
-           picked.size() * sizeof(worker::PixelSample);
-  }
+  uint64_t Bytes() const { return frame.Bytes() + picked.size() * sizeof(worker::PixelSample); }
 };
 
 /// Frames of one tree rendered for SubtreeTasks, least recently used dropped first to stay
@@ -394,7 +393,7 @@ struct DistWorker::Impl {
     samples = worker::SampleSet{};
     for (const auto& [i, f] : cache) {
       if (f.picked.empty()) continue;  // no body in view (as LocalTrainer)
-      samples.AddFrame(i, f.depth, f.picked, params.constants);
+      samples.AddFrame(i, f.frame, f.picked, params.constants);
     }
     samples.StartTree(0);
     have_shard = true;
@@ -436,7 +435,7 @@ struct DistWorker::Impl {
             loaded[j].picked = worker::SamplePixels(
                 *frame, params.pixels_per_image, params.part_balance,
                 core::CounterRng(params.seed, uint64_t(tree), index, worker::kSamplingStream));
-            loaded[j].depth = std::move(frame->depth);
+            loaded[j].frame = worker::CompactFrame::Of(frame->depth, params.constants.background_mm);
           }
         } catch (const std::exception& e) {
           errors[size_t(tid)] = Status(ErrorCode::kInternal, std::string("loading frames: ") + e.what());
@@ -667,7 +666,7 @@ struct DistWorker::Impl {
         (*out)[j].picked =
             worker::SamplePixels(*frame, params.pixels_per_image, params.part_balance,
                                  core::CounterRng(params.seed, uint64_t(t), index, worker::kSamplingStream));
-        (*out)[j].depth = std::move(frame->depth);
+        (*out)[j].frame = worker::CompactFrame::Of(frame->depth, params.constants.background_mm);
       }
     } catch (const std::exception& e) {
       return Status(ErrorCode::kInternal, std::string("rendering frames: ") + e.what());
@@ -812,23 +811,24 @@ struct DistWorker::Impl {
     worker::SampleSet set;
     {
       size_t pixels = 0, picked = 0;
-      for (const FrameData* f : src) pixels += f->depth.pixels.size(), picked += f->picked.size();
-      set.Reserve(wanted.size(), pixels, listed ? size_t(task.expected_samples()) : picked);
+      for (const FrameData* f : src) pixels += f->frame.pixels.size(), picked += f->picked.size();
+      set.Reserve(wanted.size(), pixels, listed ? size_t(task.expected_samples()) : picked,
+                  wanted.size() * size_t(std::max(0, params.source.height)));
       size_t delta_at = 0;
       std::vector<worker::PixelSample> chosen;
       for (size_t e = 0; e < wanted.size(); ++e) {
         const uint64_t i = wanted[e];
         const FrameData* f = src[e];
         if (!listed) {
-          if (!f->picked.empty()) set.AddFrame(i, f->depth, f->picked, params.constants);
+          if (!f->picked.empty()) set.AddFrame(i, f->frame, f->picked, params.constants);
           continue;
         }
         const uint32_t count = task.sample_counts(int(e));
         POSEFOREST_RETURN_IF_ERROR(SelectListedSamples(
-            f->picked, f->depth.width, i,
+            f->picked, f->frame.width, i,
             std::span<const uint32_t>(task.sample_pixel_deltas().data() + delta_at, count), &chosen));
         delta_at += count;
-        if (!chosen.empty()) set.AddFrame(i, f->depth, chosen, params.constants);
+        if (!chosen.empty()) set.AddFrame(i, f->frame, chosen, params.constants);
       }
     }
     src.clear();
@@ -988,7 +988,7 @@ struct DistWorker::Impl {
     // lacks are added here); same samples in the same order as a fresh set, so same subtrees.
     size_t new_pixels = 0;
     for (size_t w = 0; w < wanted.size(); ++w)
-      if (!task_set_frames.count(wanted[w])) new_pixels += src[w]->depth.pixels.size();
+      if (!task_set_frames.count(wanted[w])) new_pixels += src[w]->frame.pixels.size();
     if (task_set_tree != t ||
         (task_set.probe_pixels() + new_pixels) * sizeof(uint16_t) >
             std::max<uint64_t>(task_cache.cap_bytes, 1) ||
@@ -997,7 +997,7 @@ struct DistWorker::Impl {
       task_set_frames.clear();
       task_set_tree = t;
       new_pixels = 0;
-      for (const FrameData* f : src) new_pixels += f->depth.pixels.size();
+      for (const FrameData* f : src) new_pixels += f->frame.pixels.size();
     }
     task_set.ClearSamples();
     worker::SampleSet& set = task_set;
@@ -1008,7 +1008,7 @@ struct DistWorker::Impl {
       set.Reserve(wanted.size(), new_pixels, samples_total);
       for (size_t w = 0; w < wanted.size(); ++w)
         if (!task_set_frames.count(wanted[w]))
-          task_set_frames[wanted[w]] = set.AddFrameOnly(wanted[w], src[w]->depth, params.constants);
+          task_set_frames[wanted[w]] = set.AddFrameOnly(wanted[w], src[w]->frame, params.constants);
       node_of_sample.reserve(samples_total);
       std::vector<worker::PixelSample> chosen, merged;
       std::vector<std::pair<uint64_t, uint32_t>> order;  // (pixel index, task) of `merged`
@@ -1019,7 +1019,7 @@ struct DistWorker::Impl {
         for (const auto& [k, e] : users[wanted[w]]) {
           const uint32_t count = tasks[k]->sample_counts(int(e));
           const Status st = SelectListedSamples(
-              f->picked, f->depth.width, wanted[w],
+              f->picked, f->frame.width, wanted[w],
               std::span<const uint32_t>(tasks[k]->sample_pixel_deltas().data() + delta_at[k][e], count),
               &chosen);
           if (!st.ok()) {
@@ -1029,7 +1029,7 @@ struct DistWorker::Impl {
             return one_by_one(st);
           }
           for (const worker::PixelSample& p : chosen) {
-            order.push_back({uint64_t(p.y) * uint64_t(f->depth.width) + uint64_t(p.x), uint32_t(k)});
+            order.push_back({uint64_t(p.y) * uint64_t(f->frame.width) + uint64_t(p.x), uint32_t(k)});
             merged.push_back(p);
           }
         }
@@ -1040,8 +1040,7 @@ struct DistWorker::Impl {
         std::vector<worker::PixelSample> sorted;
         sorted.reserve(merged.size());
         for (size_t j : idx) sorted.push_back(merged[j]), node_of_sample.push_back(order[j].second);
-        if (!sorted.empty())
-          set.AddSamples(task_set_frames.at(wanted[w]), f->depth, sorted, params.constants);
+        if (!sorted.empty()) set.AddSamples(task_set_frames.at(wanted[w]), sorted, params.constants);
       }
     }
     src.clear();

@@ -1,6 +1,7 @@
 // poseforest train: trains a forest from a job config with the single-process engine.
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -101,8 +102,11 @@ int TrainMain(int argc, char** argv) {
       static_cast<unsigned long long>(s.samples), double(s.evaluations), s.total_seconds, s.histogram_seconds,
       s.range_seconds, s.load_seconds, s.threads,
       s.histogram_seconds > 0 ? double(s.evaluations) / s.histogram_seconds / s.threads : 0.0);
-  std::printf("memory: frames+samples %.1f MiB peak, histograms %.1f MiB peak\n",
-              double(s.peak_sample_bytes) / 1048576.0, double(s.peak_histogram_bytes) / 1048576.0);
+  std::printf(
+      "memory: frames+samples %.1f MiB peak (%llu bytes per image), histograms %.1f MiB peak\n",
+      double(s.peak_sample_bytes) / 1048576.0,
+      static_cast<unsigned long long>(s.peak_sample_bytes / uint64_t(std::max(1, params->images_per_tree))),
+      double(s.peak_histogram_bytes) / 1048576.0);
   if (params->has_test_set) {
     coordinator::EvalOptions eo;
     eo.num_images = params->test_images;
