@@ -10,12 +10,21 @@
 // The forest: --forest F, else scripts/accuracy-recipe.sh's 4,000-image-per-tree forest
 // (out/accuracy-4000/forest_tuned.pff, then forest.pff); it says which it ran.
 //
-//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S]
+//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--checksum]
+//
+// --pixel-stride N: classify and propose from every N-th pixel in x and y (`live --pixel-stride`;
+// default 1, every pixel); the header says which ran.
+//
+// --checksum: no timing; runs the sequence once through a fresh pipeline and prints checksums of
+// the classification (labels, foreground sums), the proposals and the JSON Lines records, so
+// that a change meant to be exact can be checked bit-identical against an older build.
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -40,6 +49,19 @@ fs::path DataDir() {
   return POSEFOREST_DATA_DIR_DEFAULT;
 }
 
+double ProcessCpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+/// FNV-1a over bytes, chained.
+uint64_t Fnv(uint64_t h, const void* data, size_t bytes) {
+  const auto* b = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < bytes; ++i) h = (h ^ b[i]) * 1099511628211ull;
+  return h;
+}
+
 double Percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -49,12 +71,21 @@ double Percentile(std::vector<double> v, double q) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int threads = 2, num_frames = 30;
+  int threads = 2, num_frames = 30, pixel_stride = 1;
   double seconds = 5.0;
+  bool checksum = false;
   std::string forest_path;
-  for (int i = 1; i + 1 < argc; i += 2) {
+  for (int i = 1; i < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--checksum")) {
+      checksum = true;
+      --i;
+      continue;
+    }
+    if (i + 1 >= argc) break;
     if (!std::strcmp(argv[i], "--threads"))
       threads = std::atoi(argv[i + 1]);
+    else if (!std::strcmp(argv[i], "--pixel-stride"))
+      pixel_stride = std::max(1, std::atoi(argv[i + 1]));
     else if (!std::strcmp(argv[i], "--frames"))
       num_frames = std::atoi(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--seconds"))
@@ -121,9 +152,15 @@ int main(int argc, char** argv) {
               real_people.empty() ? "one synthetic person (no real frames found)"
                                   : "a real Kinect person and a synthetic one",
               threads);
+  if (pixel_stride == 1)
+    std::printf("pixel stride: 1 (every pixel classified)\n");
+  else
+    std::printf("pixel stride: %d (one pixel in %dx%d classified: 1/%d of the pixels)\n", pixel_stride,
+                pixel_stride, pixel_stride, pixel_stride * pixel_stride);
 
   runtime::SkeletonPipelineOptions options;
   options.num_threads = threads;
+  options.pixel_stride = pixel_stride;
   auto pipeline = runtime::SkeletonPipeline::Create(*forest, options);
   if (!pipeline.ok()) {
     std::fprintf(stderr, "bench/live: %s\n", pipeline.status().ToString().c_str());
@@ -143,6 +180,32 @@ int main(int argc, char** argv) {
   }
 #endif
   runtime::SkeletonFrame out;
+  if (checksum) {
+    uint64_t h_class = 1469598103934665603ull, h_prop = h_class, h_json = h_class;
+    size_t fg = 0, proposals = 0;
+    for (const auto& f : frames) {
+      (*pipeline)->Process(f, &out);
+      const auto& c = out.classification;
+      h_class = Fnv(h_class, c.labels.pixels.data(), c.labels.pixels.size());
+      h_class = Fnv(h_class, c.foreground.data(), c.foreground.size() * sizeof(uint32_t));
+      h_class = Fnv(h_class, c.foreground_sums.data(), c.foreground_sums.size() * sizeof(uint16_t));
+      fg += c.foreground.size();
+      for (const auto& joint : out.proposals)
+        for (const auto& p : joint) {
+          h_prop = Fnv(h_prop, p.position.data(), 3 * sizeof(float));
+          h_prop = Fnv(h_prop, p.pixel.data(), 2 * sizeof(float));
+          h_prop = Fnv(h_prop, &p.confidence, sizeof(float));
+          ++proposals;
+        }
+      const std::string line = runtime::SkeletonsJsonLine(f.index, f.timestamp_s, f.source, out.skeletons);
+      h_json = Fnv(h_json, line.data(), line.size());
+    }
+    std::printf("checksum: %d frames, %zu classified pixels, %zu proposals\n", num_frames, fg, proposals);
+    std::printf("checksum: classification %016llx proposals %016llx json %016llx\n",
+                static_cast<unsigned long long>(h_class), static_cast<unsigned long long>(h_prop),
+                static_cast<unsigned long long>(h_json));
+    return 0;
+  }
   // Warm-up: one pass over the sequence.
   for (const auto& f : frames) (*pipeline)->Process(f, &out);
   std::vector<double> latency;
@@ -150,6 +213,7 @@ int main(int argc, char** argv) {
   double json_ms = 0, dds_ms = 0;
   int64_t done = 0, people = 0, tracked = 0;
   const auto start = std::chrono::steady_clock::now();
+  const double cpu_start = ProcessCpuSeconds();
   double elapsed = 0;
   while (elapsed < seconds || done < num_frames) {
     // Played forwards then backwards, so the people never jump (ids stay).
@@ -180,6 +244,7 @@ int main(int argc, char** argv) {
     ++done;
     elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
+  const double cpu_s = ProcessCpuSeconds() - cpu_start;
   std::fclose(sink);
   const double n = double(done);
   std::printf("%lld frames in %.2f s; %.2f people per frame (%d ids), %.1f joints tracked per person\n",
@@ -201,6 +266,9 @@ int main(int argc, char** argv) {
 #ifndef POSEFOREST_HAS_SKELETON_DDS
   std::printf("(DDS publish: not in this build; it comes with -DPOSEFOREST_TRAINING=ON)\n");
 #endif
+  // CPU time of the whole process over the timed frames (all threads, OpenMP's waiting
+  // included): steadier than wall times when other jobs share the machine.
+  std::printf("cpu: %.3f ms/frame (all threads)\n", 1000.0 * cpu_s / n);
   std::printf("frames/s: %.1f frames/s\n", n / elapsed);
   return 0;
 }

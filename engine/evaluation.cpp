@@ -435,6 +435,7 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
   // The compact per-foreground-pixel sums (what the proposals read; the confusion matrix uses
   // the classifier's argmax labels, computed from the same sums).
   copt.want_foreground_distributions = e.has_joints;
+  copt.pixel_stride = options.pixel_stride;
   runtime::ProposalOptions ms;
   ms.params = e.params;
   ms.num_threads = options.threads;

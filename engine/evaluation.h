@@ -94,6 +94,9 @@ struct JointEvalOptions {
   uint64_t first_index = 0;
   int threads = 0;          ///< 0 = all cores
   int people = 0;           ///< see MakeEvalFrameSource
+  /// Classify and propose from every pixel_stride-th pixel in x and y only
+  /// (runtime::ClassifyOptions::pixel_stride, as `live --pixel-stride`); 1 = every pixel.
+  int pixel_stride = 1;
   bool fast = true;         ///< also the fast clustering
   bool upper_bound = true;  ///< also mean shift on the ground-truth parts
   /// Proposal parameters of mean shift (and the upper bound) and of the fast clustering; unset =

@@ -180,6 +180,45 @@ int ListRowPortable(const uint16_t* depth, int width, int y, uint16_t background
   return count;
 }
 
+/// One image row of a subsampled grid (ClassifyOptions::pixel_stride > 1): copies depth to
+/// `probe` as ListRowPortable, and lists only the row's foreground pixels with x % stride == 0
+/// when `listed` (a grid row). Returns how many were appended.
+int ListRowStrided(const uint16_t* depth, int width, int y, int stride, bool listed, uint16_t background,
+                   float unit_mm, uint16_t* probe, int32_t* xb, int32_t* yb, float* scale, uint32_t* pixel) {
+  for (int x = 0; x < width; ++x) probe[x] = depth[x] != 0 ? depth[x] : background;
+  if (!listed) return 0;
+  int count = 0;
+  for (int x = 0; x < width; x += stride) {
+    const uint16_t d = depth[x];
+    if (d == 0) continue;
+    xb[count] = x - 32768;
+    yb[count] = y - 32768;
+    scale[count] = unit_mm / float(d);  // == core::PixelScale(d, offset_unit)
+    pixel[count] = uint32_t(size_t(y) * size_t(width) + size_t(x));
+    ++count;
+  }
+  return count;
+}
+
+/// Labels of the pixels off the grid (pixel_stride > 1): a foreground pixel takes the label of
+/// its grid pixel (x - x % s, y - y % s), which is kBackgroundLabel when that one is not
+/// foreground. Grid pixels and background pixels keep theirs.
+void FillOffGridLabels(const core::DepthImage& depth, int stride, core::LabelImage* labels) {
+  const int width = depth.width, height = depth.height;
+  for (int y = 0; y < height; ++y) {
+    const int ya = y - y % stride;
+    const uint16_t* d = depth.pixels.data() + size_t(y) * size_t(width);
+    uint8_t* row = labels->pixels.data() + size_t(y) * size_t(width);
+    const uint8_t* grid = labels->pixels.data() + size_t(ya) * size_t(width);
+    for (int x0 = 0; x0 < width; x0 += stride) {
+      const uint8_t label = grid[x0];
+      const int x1 = std::min(width, x0 + stride);
+      for (int x = ya == y ? x0 + 1 : x0; x < x1; ++x)
+        if (d[x] != 0) row[x] = label;
+    }
+  }
+}
+
 /// Sums leaf rows over trees and takes the argmax for `count` foreground pixels whose leaf
 /// in tree t is leaves[t * leaves_stride + i] and whose linear index is pixel[i]. The sums
 /// also go to fg_sums[i * stride...] unless it is null (the compact foreground output).
@@ -583,6 +622,8 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
   out->num_parts = forest.num_parts;
   out->num_trees = num_trees;
   out->stride = stride;
+  const int pixel_stride = std::max(1, options.pixel_stride);
+  out->pixel_stride = pixel_stride;
   out->labels.width = width;
   out->labels.height = height;
   out->labels.pixels.resize(n);
@@ -617,6 +658,12 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
   for (int y = 0; y < height; ++y) {
     const size_t row = size_t(y) * size_t(width);
     const size_t i = size_t(total);
+    if (pixel_stride > 1) {
+      total +=
+          ListRowStrided(depth.pixels.data() + row, width, y, pixel_stride, y % pixel_stride == 0, background,
+                         unit_mm, s.probe.data() + row, &s.xb[i], &s.yb[i], &s.scale[i], &s.pixel[i]);
+      continue;
+    }
 #ifdef POSEFOREST_CLASSIFIER_AVX512
     if (use_avx512) {
       total += ListRowAvx512(depth.pixels.data() + row, width, y, background, unit_mm, s.probe.data() + row,
@@ -627,7 +674,7 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
     total += ListRowPortable(depth.pixels.data() + row, width, y, background, unit_mm, s.probe.data() + row,
                              &s.xb[i], &s.yb[i], &s.scale[i], &s.pixel[i]);
   }
-  if (total == 0) return;
+  if (total == 0) return;  // (off the grid: no grid pixel is foreground, so no label either)
   const bool want_foreground = options.want_foreground_distributions;
   if (want_foreground) {
     // No clearing: every entry is written below.
@@ -689,6 +736,7 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
       CombinePortable(forest, leaves, kChunk, pixel, count, fg_sums, out);
     }
   }
+  if (pixel_stride > 1) FillOffGridLabels(depth, pixel_stride, &out->labels);
   (void)use_avx512;
   (void)use_avx2;
 }

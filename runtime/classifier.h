@@ -18,6 +18,14 @@ struct ClassifyOptions {
   /// foreground pixels only (what the joint proposals need; ~10x less memory traffic than
   /// the dense array on a VGA frame with one person).
   bool want_foreground_distributions = false;
+  /// Classify only the pixels of a subsampled grid: x % pixel_stride == 0 and
+  /// y % pixel_stride == 0 (2: a quarter of the pixels, as Kinect's tracker ran at 320x240 from a
+  /// 640x480 sensor). The features still probe the full-resolution depth, so a grid pixel gets
+  /// exactly the result it gets at 1. Every other foreground pixel takes the label of its grid
+  /// pixel (x - x % s, y - y % s) when that one is foreground, else core::kBackgroundLabel;
+  /// the sums (dense and foreground) exist for the grid pixels only (the dense ones are zero
+  /// elsewhere). 1 (default) = every pixel; values below 1 count as 1.
+  int pixel_stride = 1;
 };
 
 /// Result for one depth image.
@@ -26,6 +34,9 @@ struct Classification {
   int num_parts = 0;
   int num_trees = 0;
   int stride = 0;  ///< entries per pixel in `sums` (Forest::leaf_stride())
+  /// ClassifyOptions::pixel_stride it was made with: each classified pixel stands for
+  /// pixel_stride^2 pixels (the joint proposals weight it so).
+  int pixel_stride = 1;
   /// Most likely part per pixel (ties: lowest part index); core::kBackgroundLabel where the
   /// depth is 0.
   core::LabelImage labels;
@@ -33,8 +44,9 @@ struct Classification {
   /// sums[pixel*stride + c] / (255 * num_trees). Zero for background pixels.
   std::vector<uint16_t> sums;
   /// If requested (want_foreground_distributions): raster indices y*width+x of the foreground
-  /// (depth != 0) pixels in raster order, and per foreground pixel k, `stride` sums at
-  /// foreground_sums[k*stride + c], equal to the dense sums of that pixel. Empty otherwise.
+  /// (depth != 0) pixels in raster order (only the grid's when pixel_stride > 1), and per
+  /// foreground pixel k, `stride` sums at foreground_sums[k*stride + c], equal to the dense sums
+  /// of that pixel. Empty otherwise.
   std::vector<uint32_t> foreground;
   std::vector<uint16_t> foreground_sums;
 

@@ -445,6 +445,28 @@ std::vector<Mode> MeanShift(const PointSet& pts, float bandwidth, int max_iterat
   return modes;
 }
 
+/// Pixels per block of the proposals' first pass.
+constexpr size_t kBlock = 256;
+/// Slack after the joint-major probabilities: a joint's scan reads whole vectors of 16.
+constexpr size_t kScanPad = 16;
+
+/// Calls f(k) for each k < n with p[k] >= min_p (false for NaN), in increasing k; p[n ..
+/// n + 15] must be readable. Vector compares skip the (many) pixels below the floor.
+template <typename F>
+inline void ForEachAtLeast(const float* p, size_t n, float min_p, F&& f) {
+#if defined(__AVX512F__)
+  const __m512 floor_v = _mm512_set1_ps(min_p);
+  for (size_t k0 = 0; k0 < n; k0 += 16) {
+    unsigned mask = _mm512_cmp_ps_mask(_mm512_loadu_ps(p + k0), floor_v, _CMP_GE_OQ);
+    if (n - k0 < 16) mask &= (1u << (n - k0)) - 1u;
+    for (; mask != 0; mask &= mask - 1) f(k0 + size_t(std::countr_zero(mask)));
+  }
+#else
+  for (size_t k = 0; k < n; ++k)
+    if (p[k] >= min_p) f(k);
+#endif
+}
+
 /// The reprojected foreground, structure of arrays: camera-frame metres and d^2 (m^2).
 struct Cloud {
   std::vector<float> x, y, z, d2;
@@ -469,6 +491,7 @@ JointProbabilities ProbabilitiesFromClassification(const core::DepthImage& depth
   JointProbabilities out;
   out.width = depth.width;
   out.height = depth.height;
+  out.pixel_stride = std::max(1, c.pixel_stride);
   if (c.num_parts != core::kNumParts || c.width != depth.width || c.height != depth.height) return out;
   // Parts pooled per joint: sum over joint_parts[j] of the part sums.
   std::array<std::vector<int>, core::kNumJoints> joint_parts;
@@ -495,8 +518,10 @@ JointProbabilities ProbabilitiesFromClassification(const core::DepthImage& depth
     return out;
   }
   if (c.sums.empty()) return out;
+  const uint32_t grid = uint32_t(out.pixel_stride), width = uint32_t(depth.width);
   for (uint32_t i = 0; i < uint32_t(depth.pixels.size()); ++i) {
     if (depth.pixels[i] == 0) continue;
+    if (grid > 1 && ((i % width) % grid != 0 || (i / width) % grid != 0)) continue;  // not classified
     std::array<float, core::kNumJoints> p{};
     pool(c.sums.data() + size_t(i) * stride, &p);
     out.pixel.push_back(i);
@@ -530,30 +555,39 @@ namespace {
 /// probability_row(k, float p[kNumJoints]) writes its P(joint | pixel) (any values: those
 /// that do not count are zeroed here). Both are called from the OpenMP team and must not throw.
 template <typename PixelOf, typename ProbabilityRow>
-FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of, ProbabilityRow probability_row,
-                       const ProposalOptions& options) {
+FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of,
+                       ProbabilityRow probability_row, int pixel_stride, const ProposalOptions& options) {
   FrameProposals out;
   if (n == 0) return out;
   const size_t num_pixels = depth.pixels.size();
   const int threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
   // Reproject once: 3D point and weight factor d^2 per pixel (0 depth: unusable, never read).
-  Cloud cloud;
+  // Reused across calls on the same thread (a plain reference, so that the OpenMP team
+  // shares the caller's): no allocation and no clearing per frame.
+  thread_local Cloud cloud_storage;
+  Cloud& cloud = cloud_storage;
   cloud.x.resize(n);
   cloud.y.resize(n);
   cloud.z.resize(n);
   cloud.d2.resize(n);
   // P(j | pixel k) at joint_prob[j * n + k], joint-major so that each joint's pass reads one
   // contiguous array; 0 where it does not count (not positive, not finite, no depth). Reused
-  // across calls on the same thread.
+  // across calls on the same thread; kScanPad entries of slack for the joints' vector scans.
   thread_local std::vector<float> joint_prob_storage;
-  joint_prob_storage.resize(n * size_t(core::kNumJoints));
+  joint_prob_storage.resize(n * size_t(core::kNumJoints) + kScanPad);
   float* const joint_prob = joint_prob_storage.data();
   const int team = int(std::min<size_t>(size_t(threads), std::max<size_t>(1, n / 4096)));
   std::vector<Eigen::Vector3f> lo(size_t(team), Eigen::Vector3f::Constant(std::numeric_limits<float>::max()));
   std::vector<Eigen::Vector3f> hi(size_t(team), Eigen::Vector3f::Constant(std::numeric_limits<float>::lowest()));
   // Per thread and joint, the pixels at or above min_probability (about the joint's work).
   const float min_p = std::max(options.min_probability, std::numeric_limits<float>::min());
+  // A pixel of a subsampled grid stands for pixel_stride^2 pixels (x 1.0f: exact at 1).
+  const float area = float(std::max(1, pixel_stride)) * float(std::max(1, pixel_stride));
   std::vector<std::array<uint32_t, core::kNumJoints>> listed(static_cast<size_t>(team));
+  const core::CameraIntrinsics& cam = options.camera;
+  const uint32_t width = uint32_t(std::max(1, depth.width));
+  const double inv_width = 1.0 / double(width);
+  const size_t num_blocks = (n + kBlock - 1) / kBlock;
   // Nothing in here allocates or throws.
 #pragma omp parallel num_threads(team)
   {
@@ -561,27 +595,43 @@ FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of
     // cache line, and updating them there per pixel made two threads slower than one.
     Eigen::Vector3f my_lo = lo[0], my_hi = hi[0];
     std::array<uint32_t, core::kNumJoints> my_listed{};
+    uint16_t dk[kBlock];
 #pragma omp for schedule(static) nowait
-    for (size_t k = 0; k < n; ++k) {
-      const uint32_t i = pixel_of(k);
-      const uint16_t d = i < num_pixels ? depth.pixels[i] : 0;
-      float row[core::kNumJoints];
-      probability_row(k, row);
-      for (int j = 0; j < core::kNumJoints; ++j) {
-        const float p = row[size_t(j)];
-        const float kept = d != 0 && p > 0 && std::isfinite(p) ? p : 0.0f;
-        joint_prob[size_t(j) * n + k] = kept;
-        my_listed[size_t(j)] += uint32_t(kept >= min_p);
+    for (size_t b = 0; b < num_blocks; ++b) {
+      const size_t k0 = b * kBlock, m = std::min(n - k0, kBlock);
+      // Geometry of the block, branch-free so that it vectorizes: the same double arithmetic
+      // as core::CameraIntrinsics::PixelToPoint (then cast to float); y = i / width through
+      // (i + 0.5) / width in double, exact for any 32-bit i (never within 0.5 / width of an
+      // integer). Pixels without depth get the point (0, 0, 0), never read.
+      for (size_t l = 0; l < m; ++l) {
+        const uint32_t i = pixel_of(k0 + l);
+        const uint16_t d = i < num_pixels ? depth.pixels[i] : 0;
+        dk[l] = d;
+        const uint32_t y = uint32_t((double(i) + 0.5) * inv_width), x = i - y * width;
+        const double z_m = double(d) * 1e-3;
+        cloud.x[k0 + l] = float((double(x) - cam.cx) * z_m / cam.fx);
+        cloud.y[k0 + l] = float((double(y) - cam.cy) * z_m / cam.fy);
+        cloud.z[k0 + l] = float(z_m);
+        cloud.d2[k0 + l] = float(d) * float(d) * 1e-6f * area;
       }
-      if (d == 0) continue;
-      const int x = int(i % uint32_t(depth.width)), y = int(i / uint32_t(depth.width));
-      const Eigen::Vector3f p = options.camera.PixelToPoint(x, y, d).cast<float>();
-      cloud.x[k] = p.x();
-      cloud.y[k] = p.y();
-      cloud.z[k] = p.z();
-      cloud.d2[k] = float(d) * float(d) * 1e-6f;
-      my_lo = my_lo.cwiseMin(p);
-      my_hi = my_hi.cwiseMax(p);
+      for (size_t l = 0; l < m; ++l) {
+        if (dk[l] == 0) continue;
+        const Eigen::Vector3f p(cloud.x[k0 + l], cloud.y[k0 + l], cloud.z[k0 + l]);
+        my_lo = my_lo.cwiseMin(p);
+        my_hi = my_hi.cwiseMax(p);
+      }
+      for (size_t l = 0; l < m; ++l) {
+        const size_t k = k0 + l;
+        const bool usable = dk[l] != 0;
+        float row[core::kNumJoints];
+        probability_row(k, row);
+        for (int j = 0; j < core::kNumJoints; ++j) {
+          const float p = row[size_t(j)];
+          const float kept = usable && p > 0 && std::isfinite(p) ? p : 0.0f;
+          joint_prob[size_t(j) * n + k] = kept;
+          my_listed[size_t(j)] += uint32_t(kept >= min_p);
+        }
+      }
     }
     const size_t t = size_t(omp_get_thread_num());
     lo[t] = my_lo;
@@ -634,9 +684,8 @@ FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of
           s.vx.clear();
           s.vy.clear();
           s.vz.clear();
-          for (size_t k = 0; k < n; ++k) {
+          ForEachAtLeast(pj, n, min_p, [&](size_t k) {
             const float p = pj[k];
-            if (!(p >= min_p)) continue;
             const float w = p * cloud.d2[k];
             const Eigen::Vector3f pt(cloud.x[k], cloud.y[k], cloud.z[k]);
             bool fresh = false;
@@ -653,7 +702,7 @@ FrameProposals Propose(const core::DepthImage& depth, size_t n, PixelOf pixel_of
             s.vy[id] += w * pt.y();
             s.vz[id] += w * pt.z();
             if (p > jp.prob_threshold) v.seed[id] += w;
-          }
+          });
           s.ids.Clear();
           for (size_t i = 0; i < v.size(); ++i) {
             v.x[i] = s.vx[i] / v.w[i];
@@ -741,7 +790,8 @@ FrameProposals ProposeJoints(const core::DepthImage& depth, const JointProbabili
   if (probs.prob.size() != probs.pixel.size() || depth.width != probs.width || depth.height != probs.height) return {};
   return Propose(
       depth, probs.pixel.size(), [&](size_t k) { return probs.pixel[k]; },
-      [&](size_t k, float* row) { std::copy(probs.prob[k].begin(), probs.prob[k].end(), row); }, options);
+      [&](size_t k, float* row) { std::copy(probs.prob[k].begin(), probs.prob[k].end(), row); },
+      probs.pixel_stride, options);
 }
 
 FrameProposals ProposeJointsFromClassification(const core::DepthImage& depth, const Classification& c,
@@ -752,20 +802,27 @@ FrameProposals ProposeJointsFromClassification(const core::DepthImage& depth, co
   if (c.num_parts != core::kNumParts || c.width != depth.width || c.height != depth.height) return {};
   // The parts of each joint (disjoint sets), and the same arithmetic as
   // ProbabilitiesFromClassification, so that both paths give identical probabilities.
-  std::array<std::vector<int>, core::kNumJoints> joint_parts;
-  for (int j = 0; j < core::kNumJoints; ++j) joint_parts[size_t(j)] = core::JointParts(j);
+  // As fixed tables: each joint's first part, then the further parts (the head's three
+  // others); the sums are integers, so any order gives the same value.
+  std::array<int, core::kNumJoints> first_part{};
+  std::vector<std::pair<int, int>> more;  // (joint, part)
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    const std::vector<int>& parts = core::JointParts(j);
+    POSEFOREST_CHECK(!parts.empty());
+    first_part[size_t(j)] = parts[0];
+    for (size_t q = 1; q < parts.size(); ++q) more.emplace_back(j, parts[q]);
+  }
   const float norm = 1.0f / float(core::kLeafTotal * c.num_trees);
   return Propose(
       depth, c.foreground.size(), [&](size_t k) { return c.foreground[k]; },
       [&](size_t k, float* row) {
         const uint16_t* sums = c.foreground_sums.data() + k * stride;
-        for (int j = 0; j < core::kNumJoints; ++j) {
-          int sum = 0;
-          for (int part : joint_parts[size_t(j)]) sum += sums[part];
-          row[j] = float(sum) * norm;
-        }
+        int sum[core::kNumJoints];
+        for (int j = 0; j < core::kNumJoints; ++j) sum[j] = sums[first_part[size_t(j)]];
+        for (const auto& [j, part] : more) sum[j] += sums[part];
+        for (int j = 0; j < core::kNumJoints; ++j) row[j] = float(sum[j]) * norm;
       },
-      options);
+      c.pixel_stride, options);
 }
 
 }  // namespace poseforest::runtime

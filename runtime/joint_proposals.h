@@ -68,6 +68,10 @@ struct JointProbabilities {
   int width = 0, height = 0;
   std::vector<uint32_t> pixel;                                ///< raster index y*width+x
   std::vector<std::array<float, core::kNumJoints>> prob;      ///< P(joint | pixel)
+  /// Each listed pixel stands for pixel_stride^2 pixels (a classification on a subsampled
+  /// grid, ClassifyOptions::pixel_stride): its weight in eq. 8 is multiplied by that, so the
+  /// densities and the confidences (support, m^2) keep their scale.
+  int pixel_stride = 1;
 };
 
 /// From an inferred classification: uses Classification::foreground_sums if present (classify
@@ -75,7 +79,7 @@ struct JointProbabilities {
 /// threads, 0 = all), else the dense Classification::sums (want_distributions). Parts are
 /// pooled per joint with core::JointParts. A forest with another part table (e.g. imported PCL
 /// trees) has no joint mapping: returns empty probabilities. Either way the pixels come in
-/// raster order with identical probabilities.
+/// raster order with identical probabilities. Carries the classification's pixel_stride.
 JointProbabilities ProbabilitiesFromClassification(const core::DepthImage& depth, const Classification& c,
                                                    int num_threads = 0);
 /// From ground-truth part labels: P = 1 for the joint whose parts contain the label.

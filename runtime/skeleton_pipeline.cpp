@@ -67,6 +67,7 @@ void SkeletonPipeline::Process(const Frame& frame, SkeletonFrame* out) {
   ClassifyOptions classify;
   classify.num_threads = options_.num_threads;
   classify.want_foreground_distributions = true;
+  classify.pixel_stride = options_.pixel_stride;
   Classifier(*forest).Classify(*out->depth, classify, &out->classification);
   out->times.classify_ms = MsSince(t0);
 

@@ -30,6 +30,9 @@ struct SkeletonPipelineOptions {
   ProposalMethod method = ProposalMethod::kMeanShift;
   SkeletonOptions skeleton;
   int num_threads = 0;  ///< OpenMP threads of the classifier and the proposals; 0 = all
+  /// Classify (and propose from) every pixel_stride-th pixel in x and y only
+  /// (ClassifyOptions::pixel_stride; 2: a quarter of the pixels). 1 = every pixel.
+  int pixel_stride = 1;
 };
 
 /// Milliseconds per stage of one frame.

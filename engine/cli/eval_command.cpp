@@ -47,6 +47,9 @@ options:
   --pr-png DIR      write precision-recall curves: DIR/pr_joints.png (each joint: mean shift,
                     fast, ground-truth parts) and DIR/pr_mean.png (mean over joints)
   --threads N       threads (0 = all cores, default)
+  --pixel-stride N  classify and propose from every N-th pixel in x and y only, as `live
+                    --pixel-stride N` (default 1: every pixel); the confusion matrix counts every
+                    body pixel (off the grid: its grid pixel's part)
   --png PATH        also write the confusion matrix as an RGB PNG
   --segment M       auto (default): on frames with ground-truth person masks (a folder rendered
                     with --clutter/--occluders/--masks), also score the runtime's people
@@ -62,9 +65,9 @@ options:
 }  // namespace
 
 int EvalMain(int argc, char** argv) {
-  Args args(
-      {"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png", "segment"},
-      {"help", "quiet", "per-person", "no-rescale"});
+  Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png",
+             "segment", "pixel-stride"},
+            {"help", "quiet", "per-person", "no-rescale"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -81,7 +84,8 @@ int EvalMain(int argc, char** argv) {
   auto first = args.GetInt("first", 0, 0, 1L << 40);
   auto threads = args.GetInt("threads", 0, 0, 1024);
   auto people = args.GetInt("people", 0, 1, 8);
-  for (const auto* r : {&images, &first, &threads, &people}) {
+  auto pixel_stride = args.GetInt("pixel-stride", 1, 1, 16);
+  for (const auto* r : {&images, &first, &threads, &people, &pixel_stride}) {
     if (!r->ok()) {
       std::fprintf(stderr, "poseforest eval: %s\n", r->status().message().c_str());
       return 2;
@@ -115,6 +119,7 @@ int EvalMain(int argc, char** argv) {
   eo.first_index = uint64_t(*first);
   eo.threads = int(*threads);
   eo.people = int(*people);
+  eo.pixel_stride = int(*pixel_stride);
   eo.fast = method == "both";
   eo.rescale = !args.Has("no-rescale");
   eo.segment = segment == "on"    ? coordinator::JointEvalOptions::Segment::kOn
@@ -130,7 +135,9 @@ int EvalMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest eval: %s\n", e.status().ToString().c_str());
     return e.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
   }
-  std::printf("forest %s on %s, %d frames\n\n", args.Get("forest")->c_str(), set.c_str(), num_images);
+  std::printf("forest %s on %s, %d frames", args.Get("forest")->c_str(), set.c_str(), num_images);
+  if (eo.pixel_stride > 1) std::printf(", pixel stride %d", eo.pixel_stride);
+  std::printf("\n\n");
   std::fputs(coordinator::FormatConfusionText(e->confusion).c_str(), stdout);
   std::printf("\n");
   std::fputs(coordinator::FormatAccuracyTable(e->confusion).c_str(), stdout);

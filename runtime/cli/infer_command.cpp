@@ -78,6 +78,9 @@ options:
                        fast clustering without a set of its own uses the mean-shift set), or the
                        paper's means
   --method M           joint proposals by `meanshift` (default) or `fast` (bottom-up clustering)
+  --pixel-stride N     classify every N-th pixel in x and y only (default 1: every pixel); the
+                       others take their grid pixel's part; the joints are proposed from the
+                       grid pixels, each weighted as N x N pixels
   --min-confidence C   joints drawn in the picture need this confidence (default 0.05)
   --raw-size WxH       size of raw depth frames (default: the camera's, 640x480)
   --fps N              deliver at most N frames per second (a folder played at camera rate)
@@ -177,8 +180,9 @@ std::string FrameStem(const runtime::Frame& f) {
 }  // namespace
 
 int InferMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"forest", "out", "out-dir", "threads", "method", "min-confidence",
-                                          "source", "segment", "floor", "near", "far"};
+  std::set<std::string> value_options = {"forest",  "out",          "out-dir",        "threads",
+                                         "method",  "pixel-stride", "min-confidence", "source",
+                                         "segment", "floor",        "near",           "far"};
   for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
   Args args(value_options, {"labels", "distributions", "joints", "quiet", "help", "masks"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
@@ -229,6 +233,11 @@ int InferMain(int argc, char** argv) {
   auto threads = args.GetInt("threads", 0, 0, 1024);
   if (!threads.ok()) {
     std::fprintf(stderr, "poseforest infer: %s\n", threads.status().message().c_str());
+    return 2;
+  }
+  auto pixel_stride = args.GetInt("pixel-stride", 1, 1, 16);
+  if (!pixel_stride.ok()) {
+    std::fprintf(stderr, "poseforest infer: %s\n", pixel_stride.status().message().c_str());
     return 2;
   }
   const bool quiet = args.Has("quiet");
@@ -289,6 +298,7 @@ int InferMain(int argc, char** argv) {
   // The compact per-foreground-pixel sums serve both the proposals and the .npy (no dense
   // W*H*stride array is cleared or written).
   options.want_foreground_distributions = args.Has("distributions") || joints;
+  options.pixel_stride = int(*pixel_stride);
   runtime::Classification result;
   runtime::SegmentationResult seg;
   int failures = 0, bad_frames = 0, frames_done = 0, segmented_frames = 0, bad_in_a_row = 0;

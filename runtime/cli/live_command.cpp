@@ -71,6 +71,9 @@ segmentation: --segment auto|on|off, --floor A,B,C,D, --near M, --far M (as `inf
 
 skeletons:
   --method M           joint proposals: meanshift (default) or fast
+  --pixel-stride N     classify and propose from every N-th pixel in x and y only (default 1:
+                       every pixel; 2: a quarter of the work, docs/runtime/live.md for its
+                       accuracy)
   --min-confidence C   a joint is tracked only with a confidence >= C (default 0.3)
   --min-support S      ... and a proposal support >= S m^2 (default 0.0001)
   --max-match M        a person moving more than M metres between frames gets a new id (0.5)
@@ -159,7 +162,8 @@ int LiveMain(int argc, char** argv) {
                                          "segment",        "floor",
                                          "near",           "far",
                                          "dds-domain",     "dds-topic",
-                                         "dds-frame-id",   "dds-wait"};
+                                         "dds-frame-id",   "dds-wait",
+                                         "pixel-stride"};
   for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
   Args args(value_options, {"help", "quiet", "smooth", "loop", "dds"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
@@ -238,7 +242,10 @@ int LiveMain(int argc, char** argv) {
   }
   auto threads = args.GetInt("threads", 0, 0, 1024);
   auto max_frames = args.GetInt("max-frames", -1, 1, 1L << 40);
+  auto pixel_stride = args.GetInt("pixel-stride", 1, 1, 16);
   if (!threads.ok()) return UsageError(threads.status().message());
+  if (!pixel_stride.ok()) return UsageError(pixel_stride.status().message());
+  options.pixel_stride = int(*pixel_stride);
   if (!max_frames.ok()) return UsageError(max_frames.status().message());
   options.num_threads = int(*threads);
   const bool quiet = args.Has("quiet"), loop = args.Has("loop");
@@ -415,6 +422,9 @@ int LiveMain(int argc, char** argv) {
                forest_path->c_str(), (*source)->Describe().c_str(),
                runtime::DescribeConfidence((*pipeline)->calibration()).c_str(),
                core::DescribeProposalParamsSource((*pipeline)->params_source()));
+  if (options.pixel_stride > 1)
+    std::fprintf(stderr, "poseforest live: pixel stride %d: one pixel in %dx%d classified\n",
+                 options.pixel_stride, options.pixel_stride, options.pixel_stride);
 
   runtime::Frame frame;
   runtime::SkeletonFrame result;

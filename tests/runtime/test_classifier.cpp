@@ -377,3 +377,64 @@ TEST_CASE("the feature is depth invariant in world units", "[classifier][feature
     CHECK(core::FeatureResponse(img, 9, 1, f, c) == 0);
   }
 }
+
+TEST_CASE("pixel_stride classifies the grid pixels exactly; the others take their grid pixel's part",
+          "[classifier]") {
+  testing::RandomForestSpec spec;
+  spec.seed = 51;
+  spec.num_trees = 3;
+  spec.max_depth = 14;
+  spec.nodes_per_tree = 5000;
+  const Forest forest = testing::MakeRandomForest(spec);
+  const int stride = forest.leaf_stride();
+  for (const DepthImage& depth :
+       {testing::MakePersonDepth(2.5, 160, 120), testing::MakeRandomDepth(61, 67, 45),
+        testing::MakePersonDepth(1.2, 97, 71, 0.1)}) {
+    const Reference want = Classify(forest, depth);
+    const int w = depth.width, h = depth.height;
+    for (int s : {2, 3}) {
+      // What the grid gives: the reference at grid pixels; off the grid, the grid pixel's
+      // label where both are foreground.
+      std::vector<uint32_t> fg;
+      std::vector<uint16_t> fg_sums, dense(want.sums.size(), 0);
+      core::LabelImage labels(w, h, core::kBackgroundLabel);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          const size_t i = size_t(y) * size_t(w) + size_t(x);
+          const int gx = x - x % s, gy = y - y % s;
+          if (depth.pixels[i] == 0 || depth.at(gx, gy) == 0) continue;
+          labels.pixels[i] = want.labels.at(gx, gy);
+          if (gx != x || gy != y) continue;
+          fg.push_back(uint32_t(i));
+          const auto row = want.sums.begin() + std::ptrdiff_t(i * size_t(stride));
+          fg_sums.insert(fg_sums.end(), row, row + stride);
+          std::copy(row, row + stride, dense.begin() + std::ptrdiff_t(i * size_t(stride)));
+        }
+      REQUIRE(fg.size() > 0);
+      REQUIRE(fg.size() * size_t(s * s) < size_t(core::CountForeground(depth)) * 2);  // about 1/s^2
+      for (Kernel kernel : Kernels())
+        for (int threads : {1, 2}) {
+          INFO("stride " << s << ", kernel " << int(kernel) << ", threads " << threads << ", " << w << "x"
+                         << h);
+          ClassifyOptions options;
+          options.num_threads = threads;
+          options.want_distributions = true;
+          options.want_foreground_distributions = true;
+          options.pixel_stride = s;
+          Classification got;
+          ClassifyWithKernel(forest, depth, options, kernel, &got);
+          REQUIRE(got.pixel_stride == s);
+          REQUIRE(got.labels.pixels == labels.pixels);
+          REQUIRE(got.foreground == fg);
+          REQUIRE(got.foreground_sums == fg_sums);
+          REQUIRE(got.sums == dense);
+          // And back to every pixel with the same output object.
+          options.pixel_stride = 1;
+          ClassifyWithKernel(forest, depth, options, kernel, &got);
+          REQUIRE(got.pixel_stride == 1);
+          REQUIRE(got.labels.pixels == want.labels.pixels);
+          REQUIRE(got.sums == want.sums);
+        }
+    }
+  }
+}

@@ -92,6 +92,40 @@ TEST_CASE("infer classifies a depth PNG and writes the part picture, labels and 
       }
   CHECK(mismatches == 0);
   CHECK(nonzero > 1000);
+
+  // --pixel-stride 2: the labels the library gives on the grid (every foreground pixel off it
+  // takes its grid pixel's part), probabilities only at grid pixels.
+  auto strided = RunPoseforest("infer --forest " + forest_path +
+                               " --labels --distributions --pixel-stride 2 --out-dir " +
+                               (dir / "s2").string() + " " + depth_path);
+  INFO(strided.output);
+  REQUIRE(strided.exit_code == 0);
+  runtime::ClassifyOptions grid;
+  grid.want_distributions = true;
+  grid.pixel_stride = 2;
+  runtime::Classification on_grid;
+  classifier.Classify(depth, grid, &on_grid);
+  auto s2_bytes = core::ReadFileBytes((dir / "s2" / "frame.labels.png").string());
+  REQUIRE(s2_bytes.ok());
+  auto s2_png = runtime::DecodePng(*s2_bytes, "frame.labels.png");
+  REQUIRE(s2_png.ok());
+  CHECK(s2_png->samples8 == on_grid.labels.pixels);
+  CHECK(s2_png->samples8 != expected.labels.pixels);
+  std::ifstream s2_in(dir / "s2" / "frame.probs.npy", std::ios::binary);
+  s2_in.read(head.data(), 128);
+  s2_in.read(reinterpret_cast<char*>(probs.data()), std::streamsize(probs.size() * 4));
+  REQUIRE(s2_in.good());
+  mismatches = 0;
+  size_t off_grid_nonzero = 0;
+  for (int y = 0; y < 480; ++y)
+    for (int x = 0; x < 640; ++x)
+      for (int c = 0; c < 31; ++c) {
+        const float v = probs[(size_t(y) * 640 + size_t(x)) * 31 + size_t(c)];
+        mismatches += v != on_grid.Probability(x, y, c);
+        off_grid_nonzero += (x % 2 || y % 2) && v != 0;
+      }
+  CHECK(mismatches == 0);
+  CHECK(off_grid_nonzero == 0);
   fs::remove_all(dir);
 }
 

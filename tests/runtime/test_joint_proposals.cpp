@@ -258,6 +258,81 @@ TEST_CASE("proposals are depth invariant: the same body at 2 m and 4 m", "[propo
   }
 }
 
+TEST_CASE("proposals from a subsampled grid (pixel_stride 2) keep positions and confidences", "[proposals]") {
+  const auto depth = testing::MakePersonDepth(2.5, 640, 480, 0.0, 0.62);
+  const auto labels = LabelFigure(depth, 0.0, 0.62);
+  const auto all = runtime::ProbabilitiesFromLabels(depth, labels);
+  // Every second pixel in x and y, each standing for 2 x 2 pixels.
+  runtime::JointProbabilities grid;
+  grid.width = all.width;
+  grid.height = all.height;
+  for (size_t k = 0; k < all.pixel.size(); ++k) {
+    const uint32_t x = all.pixel[k] % uint32_t(depth.width), y = all.pixel[k] / uint32_t(depth.width);
+    if (x % 2 || y % 2) continue;
+    grid.pixel.push_back(all.pixel[k]);
+    grid.prob.push_back(all.prob[k]);
+  }
+  REQUIRE(grid.pixel.size() * 5 < all.pixel.size() * 2);
+  for (auto method : {runtime::ProposalMethod::kMeanShift, runtime::ProposalMethod::kFastClustering}) {
+    INFO("method " << int(method));
+    runtime::ProposalOptions opt;
+    opt.method = method;
+    const auto want = runtime::ProposeJoints(depth, all, opt);
+    grid.pixel_stride = 1;
+    const auto unweighted = runtime::ProposeJoints(depth, grid, opt);
+    grid.pixel_stride = 2;
+    const auto got = runtime::ProposeJoints(depth, grid, opt);
+    for (int j : {kHead, kLHand}) {
+      REQUIRE(want[size_t(j)].size() == 1);
+      REQUIRE(got[size_t(j)].size() == 1);
+      REQUIRE(unweighted[size_t(j)].size() == 1);
+      const auto& a = want[size_t(j)][0];
+      const auto& b = got[size_t(j)][0];
+      CHECK((a.position - b.position).norm() < 0.01f);
+      // The confidence (summed P * d^2 of the seed pixels) keeps its scale: each grid pixel
+      // weighs 4; unweighted it would be about a quarter.
+      CHECK(std::abs(b.confidence / a.confidence - 1.0f) < 0.05f);
+      CHECK(std::abs(unweighted[size_t(j)][0].confidence / a.confidence - 0.25f) < 0.02f);
+      CHECK(unweighted[size_t(j)][0].position == b.position);
+    }
+  }
+  // From a classification on the grid: the stride travels with it.
+  testing::RandomForestSpec spec;
+  spec.seed = 43;
+  spec.nodes_per_tree = 2000;
+  spec.max_depth = 11;
+  const core::Forest forest = testing::MakeRandomForest(spec);
+  runtime::ClassifyOptions copt;
+  copt.want_foreground_distributions = true;
+  copt.pixel_stride = 2;
+  runtime::Classification c;
+  runtime::Classifier(forest).Classify(depth, copt, &c);
+  const auto probs = runtime::ProbabilitiesFromClassification(depth, c);
+  CHECK(probs.pixel_stride == 2);
+  CHECK(probs.pixel == c.foreground);
+  const auto fused = runtime::ProposeJointsFromClassification(depth, c, runtime::ProposalOptions{});
+  const auto split = runtime::ProposeJoints(depth, probs, runtime::ProposalOptions{});
+  size_t total = 0;
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    REQUIRE(fused[size_t(j)].size() == split[size_t(j)].size());
+    total += fused[size_t(j)].size();
+    for (size_t m = 0; m < fused[size_t(j)].size(); ++m) {
+      CHECK(fused[size_t(j)][m].position == split[size_t(j)][m].position);
+      CHECK(fused[size_t(j)][m].confidence == split[size_t(j)][m].confidence);
+    }
+  }
+  CHECK(total > 0);
+  // The dense output on the grid lists the same pixels.
+  copt.want_foreground_distributions = false;
+  copt.want_distributions = true;
+  runtime::Classification d;
+  runtime::Classifier(forest).Classify(depth, copt, &d);
+  const auto dense_probs = runtime::ProbabilitiesFromClassification(depth, d);
+  CHECK(dense_probs.pixel == probs.pixel);
+  CHECK(dense_probs.prob == probs.prob);
+  CHECK(dense_probs.pixel_stride == 2);
+}
+
 TEST_CASE("two people give two proposals per joint", "[proposals]") {
   // Two figures side by side: the union of two renders.
   auto left = testing::MakePersonDepth(3.0, 640, 480, -0.9), right = testing::MakePersonDepth(3.0, 640, 480, 0.9);

@@ -190,6 +190,40 @@ TEST_CASE(
   CHECK(Slurp(dir / "pcd.jsonl").find("\"id\":2") == std::string::npos);
 }
 
+TEST_CASE("live --pixel-stride 2: valid records, other positions than every pixel, said on stderr",
+          "[live][data]") {
+  const auto dir = testing::ScratchDir("live-stride");
+  const auto forest = Forest(dir).string();
+  std::string records[2];
+  for (int stride : {1, 2}) {
+    const fs::path jsonl = dir / ("s" + std::to_string(stride) + ".jsonl");
+    auto run = testing::RunPoseforest("live --forest " + forest + " --source " + RealFrames() +
+                                      " --threads 2 --pixel-stride " + std::to_string(stride) + " --jsonl " +
+                                      jsonl.string());
+    INFO(run.output);
+    REQUIRE(run.exit_code == 0);
+    CHECK_THAT(run.output, Catch::Contains("end of source: 9 frames"));
+    CHECK((run.output.find("pixel stride 2: one pixel in 2x2 classified") != std::string::npos) ==
+          (stride == 2));
+    CHECK_THAT(CheckJsonl(dir, jsonl), Catch::StartsWith("ok 9 9 "));
+    records[stride - 1] = std::regex_replace(Slurp(jsonl), std::regex("\"time_s\":[0-9.]+"), "");
+  }
+  // The same people (the masks come from the segmentation, at every pixel), other joints.
+  const std::regex pixels("\"pixels\":[0-9]+");
+  auto all = [](const std::string& s, const std::regex& re) {
+    std::string out;
+    for (auto it = std::sregex_iterator(s.begin(), s.end(), re); it != std::sregex_iterator(); ++it)
+      out += it->str();
+    return out;
+  };
+  CHECK(all(records[0], pixels) == all(records[1], pixels));
+  CHECK(records[0] != records[1]);
+  auto bad =
+      testing::RunPoseforest("live --forest " + forest + " --source " + RealFrames() + " --pixel-stride 0");
+  CHECK(bad.exit_code == 2);
+  CHECK_THAT(bad.output, Catch::Contains("pixel-stride"));
+}
+
 TEST_CASE("live stops cleanly on SIGTERM and SIGINT with a summary; every line written is whole",
           "[live][data]") {
   const auto dir = testing::ScratchDir("live-signal");
