@@ -97,11 +97,11 @@ Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
     return assemblers[f.owner].MakeSplit(f.local, d.offsets, d.choice.cut);
   };
   const int first_level = frontier.empty() ? 0 : frontier[0].depth;
-  // With `between`, histogram batches of at most 64 MiB (a few dense nodes; the batch size
+  // With `between`, histogram batches of at most 8 MiB (one dense node; the batch size
   // changes no decision): the caller gets control back every fraction of a second, not after
   // a batch of a hundred roots' top level (seconds).
   const uint64_t batch_bytes =
-      between ? std::min<uint64_t>(params.histogram_memory_bytes, uint64_t(64) << 20) : params.histogram_memory_bytes;
+      between ? std::min<uint64_t>(params.histogram_memory_bytes, uint64_t(8) << 20) : params.histogram_memory_bytes;
   POSEFOREST_RETURN_IF_ERROR(engine::RunFrontierLoop(shard_set, params, tree, first_level,
                                                      std::move(frontier), next_sample_node, batch_bytes, hooks));
   uint64_t evaluations = 0;
