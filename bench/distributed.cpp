@@ -181,8 +181,10 @@ struct LevelTimes {
     for (std::string line; std::getline(in, line);) {
       int t = 0, l = 0;
       double v = 0;
-      if (std::sscanf(line.c_str(), "tree %d: %*d samples from %*d frames in %*d shard(s), %*d MiB "
-                                    "frames+samples, loaded in %lf s", &t, &v) == 2) {
+      // "tree T: N samples from F frames in S shard(s), M MiB frames+samples (B bytes per image),
+      // loaded in X s": the tree's frames, before its first level.
+      if (const size_t at = line.find(", loaded in "); at != std::string::npos &&
+          std::sscanf(line.c_str(), "tree %d:", &t) == 1 && std::sscanf(line.c_str() + at, ", loaded in %lf s", &v) == 1) {
         last += v;
         continue;
       }
