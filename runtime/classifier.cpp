@@ -161,6 +161,16 @@ void TraversePortable(const Node* nodes, const FrameView& f, int end, uint32_t* 
   }
 }
 
+/// Appends foreground pixel (x, y) of depth d to the lists of ListRowPortable/ListRowStrided.
+inline void AppendPixel(int x, int y, uint16_t d, int width, float unit_mm, int32_t* xb, int32_t* yb, float* scale,
+                        uint32_t* pixel, int* count) {
+  xb[*count] = x - 32768;
+  yb[*count] = y - 32768;
+  scale[*count] = unit_mm / float(d);  // == core::PixelScale(d, offset_unit)
+  pixel[*count] = uint32_t(size_t(y) * size_t(width) + size_t(x));
+  ++*count;
+}
+
 /// One image row: copies depth to `probe` with 0 replaced by `background`, and appends the
 /// row's foreground pixels to the lists (x - 32768, y - 32768, PixelScale, linear index).
 /// Returns how many were appended.
@@ -171,11 +181,7 @@ int ListRowPortable(const uint16_t* depth, int width, int y, uint16_t background
     const uint16_t d = depth[x];
     probe[x] = d != 0 ? d : background;
     if (d == 0) continue;
-    xb[count] = x - 32768;
-    yb[count] = y - 32768;
-    scale[count] = unit_mm / float(d);  // == core::PixelScale(d, offset_unit)
-    pixel[count] = uint32_t(size_t(y) * size_t(width) + size_t(x));
-    ++count;
+    AppendPixel(x, y, d, width, unit_mm, xb, yb, scale, pixel, &count);
   }
   return count;
 }
@@ -191,11 +197,7 @@ int ListRowStrided(const uint16_t* depth, int width, int y, int stride, bool lis
   for (int x = 0; x < width; x += stride) {
     const uint16_t d = depth[x];
     if (d == 0) continue;
-    xb[count] = x - 32768;
-    yb[count] = y - 32768;
-    scale[count] = unit_mm / float(d);  // == core::PixelScale(d, offset_unit)
-    pixel[count] = uint32_t(size_t(y) * size_t(width) + size_t(x));
-    ++count;
+    AppendPixel(x, y, d, width, unit_mm, xb, yb, scale, pixel, &count);
   }
   return count;
 }
