@@ -153,6 +153,12 @@ Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
   scene->noise.enabled = spec.kinect_noise;
   scene->min_distance_m = spec.min_distance_m;
   scene->max_distance_m = spec.max_distance_m;
+  scene->framing.upper_body_share = spec.upper_body_share;
+  scene->framing.upper_body_min_distance_m = spec.upper_body_min_distance_m;
+  scene->framing.upper_body_max_distance_m = spec.upper_body_max_distance_m;
+  scene->arm_pose_share = spec.arm_pose_share;
+  scene->noise.projector_shadow = spec.projector_shadow;
+  scene->noise.min_range_m = spec.min_range_m;
   if (!spec.pose_library.empty()) {
     auto poses = SharedPoses(spec);
     if (!poses.ok()) return poses.status();

@@ -76,6 +76,39 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
           spec.max_distance_m > 8)
         return Bad(source, field + ".rendered.max_distance_m", Str(spec.max_distance_m),
                    "must be in min_distance_m..8 m");
+      {
+        const SourceSpec defaults;  // the documented defaults (job.proto)
+        auto share = [&](bool has, double v, double def, const char* name, double* out) -> Status {
+          *out = has ? v : def;
+          if (!std::isfinite(*out) || *out < 0 || *out > 1)
+            return Bad(source, field + ".rendered." + name, Str(*out), "must be in 0..1");
+          return Status::Ok();
+        };
+        if (auto st = share(r.has_upper_body_share(), r.upper_body_share(), defaults.upper_body_share,
+                            "upper_body_share", &spec.upper_body_share);
+            !st.ok())
+          return st;
+        if (auto st = share(r.has_arm_pose_share(), r.arm_pose_share(), defaults.arm_pose_share,
+                            "arm_pose_share", &spec.arm_pose_share);
+            !st.ok())
+          return st;
+        spec.upper_body_min_distance_m =
+            r.has_upper_body_min_distance_m() ? r.upper_body_min_distance_m() : defaults.upper_body_min_distance_m;
+        spec.upper_body_max_distance_m =
+            r.has_upper_body_max_distance_m() ? r.upper_body_max_distance_m() : defaults.upper_body_max_distance_m;
+        if (!std::isfinite(spec.upper_body_min_distance_m) || spec.upper_body_min_distance_m < 0.4 ||
+            spec.upper_body_min_distance_m > 8)
+          return Bad(source, field + ".rendered.upper_body_min_distance_m", Str(spec.upper_body_min_distance_m),
+                     "must be in 0.4..8 m");
+        if (!std::isfinite(spec.upper_body_max_distance_m) ||
+            spec.upper_body_max_distance_m < spec.upper_body_min_distance_m || spec.upper_body_max_distance_m > 8)
+          return Bad(source, field + ".rendered.upper_body_max_distance_m", Str(spec.upper_body_max_distance_m),
+                     "must be in upper_body_min_distance_m..8 m");
+        spec.projector_shadow = r.has_projector_shadow() ? r.projector_shadow() : defaults.projector_shadow;
+        spec.min_range_m = r.has_min_range_m() ? r.min_range_m() : defaults.min_range_m;
+        if (!std::isfinite(spec.min_range_m) || spec.min_range_m < 0 || spec.min_range_m > 2)
+          return Bad(source, field + ".rendered.min_range_m", Str(spec.min_range_m), "must be in 0..2 m");
+      }
       spec.width = 640;
       spec.height = 480;
       namespace fs = std::filesystem;

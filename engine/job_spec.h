@@ -30,6 +30,13 @@ struct SourceSpec {
   bool kinect_noise = true;         ///< rendered: the renderer's Kinect v1 noise model
   double min_distance_m = 1.5;      ///< rendered: metres
   double max_distance_m = 4.5;      ///< rendered: metres
+  /// rendered: realism (job.proto fields 14-19; defaults in job_spec.cpp, kRealism*)
+  double upper_body_share = 0.5;
+  double upper_body_min_distance_m = 0.6;
+  double upper_body_max_distance_m = 2.0;
+  double arm_pose_share = 0.5;
+  bool projector_shadow = true;
+  double min_range_m = 0.45;
   int width = 640, height = 480;    ///< rendered / procedural: pixels
   std::string folder;               ///< dataset
   uint32_t first_index = 0;         ///< dataset: first file index

@@ -150,4 +150,37 @@ Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig
   return pose;
 }
 
+void PerturbArms(uint64_t seed, uint64_t index, Pose* pose) {
+  core::RngStream rng(core::CounterRng(seed, 0xA4A5, index, 0x7E4C));
+  auto U = [&](double lo, double hi) { return rng.UniformIn(lo, hi); };
+  const double which = rng.Uniform01();  // both arms, the left only, or the right only
+  for (int s = 0; s < 2; ++s) {
+    if ((s == 0 && which >= 0.7) || (s == 1 && which < 0.3)) continue;
+    const double sx = s == 0 ? 1.0 : -1.0;
+    const J collar = s == 0 ? J::kLCollar : J::kRCollar;
+    const J sh = s == 0 ? J::kLShoulder : J::kRShoulder;
+    const J el = s == 0 ? J::kLElbow : J::kRElbow;
+    const J wr = s == 0 ? J::kLWrist : J::kRWrist;
+    const J tip = s == 0 ? J::kLHandTip : J::kRHandTip;
+    // Elevation e (up +) and azimuth a (0 = sideways as in the T-pose, 90 = straight forward,
+    // beyond 90 = across the body), as SampleProceduralPose draws them, narrowed to the front.
+    const bool reach = rng.Uniform01() < 0.5;
+    const double e = reach ? U(-35, 50) : U(-70, 10);
+    const double a = reach ? U(45, 110) : U(20, 100);
+    const double flex = reach ? U(0, 70) : U(90, 145);  // the hand comes back to the face or body
+    const Vector3d rest_dir(sx, 0, 0);
+    const Vector3d dir(sx * std::cos(e * kDeg) * std::cos(a * kDeg), std::sin(e * kDeg),
+                       std::cos(e * kDeg) * std::sin(a * kDeg));
+    auto& R = pose->rotation;
+    const Quaterniond tip_local = R[size_t(int(wr))].conjugate() * R[size_t(int(tip))];
+    R[size_t(int(sh))] = (R[size_t(int(collar))] * SwingTwist(rest_dir, dir, U(-40, 40))).normalized();
+    R[size_t(int(el))] =
+        (R[size_t(int(sh))] *
+         SwingTwist(rest_dir, Vector3d(sx * std::cos(flex * kDeg), 0, std::sin(flex * kDeg)), U(-30, 30)))
+            .normalized();
+    R[size_t(int(wr))] = (R[size_t(int(el))] * Ry(sx * U(-30, 30)) * Rz(U(-40, 40))).normalized();
+    R[size_t(int(tip))] = (R[size_t(int(wr))] * tip_local).normalized();
+  }
+}
+
 }  // namespace poseforest::renderer

@@ -24,4 +24,12 @@ struct PoseSamplerConfig {
 /// body-frame (see Pose); the person stays facing roughly +Z (the scene adds the yaw).
 Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig& config = {});
 
+/// Re-poses one or both arms of `pose` (body-frame rotations of a T-pose skeleton, as
+/// SampleProceduralPose makes and pose libraries hold) as a pure function of (seed, index): the
+/// upper arm reaching forward, toward or across the camera side of the body (the person faces
+/// +Z), or folded so the hand comes near the face, chest or other shoulder; elbow flexion and
+/// wrist within the procedural sampler's joint limits. The trunk, head and legs are kept; the arm
+/// follows its collar, so a twisted chest carries it along.
+void PerturbArms(uint64_t seed, uint64_t index, Pose* pose);
+
 }  // namespace poseforest::renderer

@@ -46,10 +46,46 @@ uint16_t QuantizeDepthMm(const NoiseConfig& noise, double depth_mm) {
   return uint16_t(std::clamp(std::round(fb / dq * 1e3), 0.0, 65535.0));
 }
 
+void ApplyProjectorShadow(const NoiseConfig& noise, core::DepthImage* depth, core::LabelImage* labels) {
+  const int w = depth->width, h = depth->height;
+  // The projector at x = side * b sees camera pixel u of depth z at its own column
+  // u_p = u - side * f * b / z (pixels). Along a row, a lit surface has u_p rising with u (side
+  // +1); a pixel whose u_p falls behind one already seen nearer the projector's side is hidden
+  // from the projector by that nearer surface. Scan from the projector's side inward.
+  const double fb_px_mm = noise.focal_px * noise.baseline_m * 1e3;  // pixels * mm
+  constexpr double kSlackPx = 0.5;  // depth is whole millimetres: keep sub-pixel rounding lit
+  const int side = noise.projector_side;
+  for (int y = 0; y < h; ++y) {
+    uint16_t* d = depth->data() + size_t(y) * size_t(w);
+    uint8_t* l = labels->data() + size_t(y) * size_t(w);
+    double edge = side > 0 ? 1e30 : -1e30;  // the lowest (side +1) / highest u_p seen so far
+    for (int k = 0; k < w; ++k) {
+      const int x = side > 0 ? w - 1 - k : k;
+      if (d[x] == 0) continue;
+      const double up = double(x) - double(side) * fb_px_mm / double(d[x]);
+      if (side > 0 ? up > edge + kSlackPx : up < edge - kSlackPx) {
+        d[x] = 0;
+        l[x] = core::kBackgroundLabel;
+      } else {
+        edge = side > 0 ? std::min(edge, up) : std::max(edge, up);
+      }
+    }
+  }
+}
+
 void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* depth,
                       core::LabelImage* labels) {
   if (!noise.enabled) return;
   const int w = depth->width, h = depth->height;
+  if (noise.min_range_m > 0) {
+    const uint16_t near = uint16_t(std::min(65535.0, noise.min_range_m * 1e3));
+    for (size_t i = 0; i < depth->pixels.size(); ++i)
+      if (depth->pixels[i] != 0 && depth->pixels[i] < near) {
+        depth->pixels[i] = 0;
+        labels->pixels[i] = core::kBackgroundLabel;
+      }
+  }
+  if (noise.projector_shadow) ApplyProjectorShadow(noise, depth, labels);
   // Only the rows holding foreground (plus one either side, for the neighbour test) are touched.
   int y_lo = h, y_hi = -1;
   for (int y = 0; y < h; ++y) {

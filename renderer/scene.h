@@ -35,6 +35,31 @@ struct NoiseConfig {
   double discontinuity_mm = 60.0;  ///< millimetres
   /// Probability of dropping any other foreground pixel (isolated speckle holes).
   double speckle_dropout = 0.002;
+  /// Structured light sees only what the projector lights: a surface hidden from the projector
+  /// (baseline_m to the camera's +x side on Kinect v1) by a nearer one gives no reading, a band
+  /// f*b*(1/z_near - 1/z_far) pixels wide on the side of each depth edge away from the projector
+  /// (the left of a hand held before the chest). Applied to the clean depth, before the rest.
+  bool projector_shadow = false;
+  /// +1: the projector is on the camera's +x side (Kinect v1: shadows fall left of near edges);
+  /// -1: on the -x side.
+  int projector_side = +1;
+  /// Surfaces nearer than this give no reading (Kinect v1's near limit), metres; 0 = none.
+  double min_range_m = 0.0;
+};
+
+/// How the camera frames the first person. By default (upper_body_share 0) the camera stands
+/// min..max_distance_m from the person and is aimed at their mid-height, so whole bodies fill
+/// the frame. A share of frames is instead framed on the upper body, as at desks, TVs and on
+/// robots: the camera upper_body_min..max_distance_m away, aimed at a point between the chest and
+/// the head, its height near that point, so the frame cuts the body at the waist or chest.
+/// Drawn from its own random stream: a share of 0 leaves every scene as it was.
+struct FramingConfig {
+  double upper_body_share = 0.0;
+  double upper_body_min_distance_m = 0.6;
+  double upper_body_max_distance_m = 2.0;
+  /// Camera height relative to the aimed point, metres (below: a desk or a robot; above: a TV).
+  double upper_body_camera_below_m = 0.4;
+  double upper_body_camera_above_m = 0.3;
 };
 
 /// Clutter around the people, for test frames of segmentation (docs/renderer/clutter.md). Off by
@@ -84,6 +109,12 @@ struct SceneConfig {
   /// Camera pitch: aimed at the person's mid-height, plus a uniform jitter of +- this (degrees).
   double tilt_jitter_deg = 8.0;
   double camera_roll_deg = 3.0;  ///< uniform in +- this, degrees
+
+  FramingConfig framing;
+  /// Share of people whose arms are re-posed (PerturbArms in pose_sampler.h: reaching toward or
+  /// across the camera, hands near the face or body) on top of their library or procedural pose.
+  /// Drawn from its own random stream: 0 leaves every scene as it was.
+  double arm_pose_share = 0.0;
 
   int min_people = 1;  ///< people per frame (each placed independently; they may occlude)
   int max_people = 1;
@@ -153,6 +184,10 @@ std::array<Eigen::Vector3d, core::kNumJoints> EvalJoints(const SkelPositions& po
 /// Applies NoiseConfig to a rendered frame in place, as a pure function of `key`.
 void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* depth,
                       core::LabelImage* labels);
+
+/// Kinect v1's projector shadow (NoiseConfig::projector_shadow) alone, in place: pixels the
+/// projector cannot light become 0 / background. ApplyKinectNoise calls it when enabled.
+void ApplyProjectorShadow(const NoiseConfig& noise, core::DepthImage* depth, core::LabelImage* labels);
 
 /// The depth (mm) the noise model's quantization maps `depth_mm` to (no random noise).
 uint16_t QuantizeDepthMm(const NoiseConfig& noise, double depth_mm);

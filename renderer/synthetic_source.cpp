@@ -53,6 +53,17 @@ Status ValidateConfig(const SceneConfig& c) {
   if (!(c.mirror_probability >= 0 && c.mirror_probability <= 1))
     return bad("mirror_probability must be in [0, 1]");
   if (!(c.height_jitter >= 0 && c.height_jitter < 0.5)) return bad("height_jitter must be in [0, 0.5)");
+  if (!(c.framing.upper_body_share >= 0 && c.framing.upper_body_share <= 1))
+    return bad("framing.upper_body_share must be in [0, 1]");
+  if (!(c.framing.upper_body_min_distance_m > 0.3) ||
+      !(c.framing.upper_body_max_distance_m >= c.framing.upper_body_min_distance_m) ||
+      c.framing.upper_body_max_distance_m > 60)
+    return bad("framing: 0.3 < upper_body_min_distance_m <= upper_body_max_distance_m <= 60");
+  if (!(c.framing.upper_body_camera_below_m >= 0) || !(c.framing.upper_body_camera_above_m >= 0))
+    return bad("framing: upper_body_camera_below_m and _above_m must be >= 0");
+  if (!(c.arm_pose_share >= 0 && c.arm_pose_share <= 1)) return bad("arm_pose_share must be in [0, 1]");
+  if (c.noise.projector_side != 1 && c.noise.projector_side != -1) return bad("noise.projector_side must be +1 or -1");
+  if (!(c.noise.min_range_m >= 0 && c.noise.min_range_m < 10)) return bad("noise.min_range_m must be in [0, 10)");
   if (!(c.min_camera_height_m <= c.max_camera_height_m)) return bad("camera height range is empty");
   if (c.clutter.occluders < 0 || c.clutter.occluders > 16) return bad("clutter.occluders must be in 0..16");
   if (!(c.clutter.max_depth_m > 0.5 && c.clutter.max_depth_m <= 60))
@@ -201,6 +212,14 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
   const double tilt_jitter = rng.UniformIn(-c.tilt_jitter_deg, c.tilt_jitter_deg);
   const double half_fov_tan = 0.5 * c.camera.width / c.camera.fx;
 
+  // Framing and arm re-posing draw from streams of their own, so with both off (share 0) every
+  // scene is what it was before they existed.
+  core::RngStream framing_rng(core::CounterRng(seed, 0xF4A3E, index, 0));
+  const bool upper_body =
+      c.framing.upper_body_share > 0 && framing_rng.Uniform01() < c.framing.upper_body_share;
+  core::RngStream arms_rng(core::CounterRng(seed, 0xA4A5, index, 1));
+  double cam_h_used = cam_h;
+
   double pitch = 0;
   std::vector<Eigen::Vector2d> floor_positions;  // (lateral, distance) of people placed so far
   for (int p = 0; p < people; ++p) {
@@ -214,6 +233,8 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
     } else {
       person.pose = SampleProceduralPose(pose_bits, 0);
     }
+    if (c.arm_pose_share > 0 && arms_rng.Uniform01() < c.arm_pose_share)
+      PerturbArms(seed, index * 8 + uint64_t(p), &person.pose);
     // Library and procedural poses are relative to the canonical T-pose; re-express them for a
     // body resting in another pose (MakeHuman's A-pose), or its arms would come out ~45 deg off.
     if (adapt_pose_[size_t(person.body)])
@@ -230,6 +251,10 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
       for (const Eigen::Vector2d& o : floor_positions)
         clear = clear && (o - Eigen::Vector2d(lateral, dist)).norm() >= 0.7;
       if (clear) break;
+    }
+    if (p == 0 && upper_body) {  // the first person framed on the upper body (FramingConfig)
+      dist = framing_rng.UniformIn(c.framing.upper_body_min_distance_m, c.framing.upper_body_max_distance_m);
+      lateral = framing_rng.UniformIn(-1.0, 1.0) * c.lateral_fraction * dist * half_fov_tan;
     }
     floor_positions.emplace_back(lateral, dist);
 
@@ -248,7 +273,14 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
     }
     person.pose.root_translation = Eigen::Vector3d(0, -lift, 0);
 
-    if (p == 0) {  // aim the camera at the first person's mid-height
+    if (p == 0 && upper_body) {  // aim between the chest and the head, the camera near that height
+      const double chest = posed[size_t(int(SkelJoint::kChest))].y() - lift;
+      const double head = posed[size_t(int(SkelJoint::kHead))].y() - lift;
+      const double aim = chest + framing_rng.Uniform01() * (head - chest);
+      cam_h_used = std::max(0.2, aim + framing_rng.UniformIn(-c.framing.upper_body_camera_below_m,
+                                                             c.framing.upper_body_camera_above_m));
+      pitch = std::atan2(cam_h_used - aim, dist) + tilt_jitter * kDeg;
+    } else if (p == 0) {  // aim the camera at the first person's mid-height
       double top = 0;
       for (const auto& j : posed) top = std::max(top, j.y() - lift);
       pitch = std::atan2(cam_h - 0.5 * top, dist) + tilt_jitter * kDeg;
@@ -265,7 +297,7 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
   camera_from_world.rotate(Eigen::AngleAxisd(roll * kDeg, Eigen::Vector3d::UnitZ()));
   camera_from_world.rotate(Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitX()));
   camera_from_world.rotate(Eigen::Matrix3d(Eigen::Vector3d(1, -1, -1).asDiagonal()));
-  camera_from_world.translate(Eigen::Vector3d(0, -cam_h, 0));
+  camera_from_world.translate(Eigen::Vector3d(0, -cam_h_used, 0));
   for (auto& person : scene.people) person.camera_from_body = camera_from_world * person.camera_from_body;
   scene.camera_from_world = camera_from_world;
   if (c.clutter.enabled())

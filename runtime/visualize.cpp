@@ -87,6 +87,10 @@ void Line(RgbImage& img, float x0, float y0, float x1, float y1, core::Rgb c, in
 
 }  // namespace
 
+void DrawLine(RgbImage& picture, float x0, float y0, float x1, float y1, core::Rgb colour, int thick) {
+  Line(picture, x0, y0, x1, y1, colour, thick);
+}
+
 RgbImage DepthPicture(const core::DepthImage& depth) {
   RgbImage img(depth.width, depth.height);
   uint16_t lo = 65535, hi = 0;

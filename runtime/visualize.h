@@ -59,6 +59,8 @@ void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, fl
 RgbImage SkeletonFigure(const core::DepthImage& depth, const core::LabelImage& labels,
                         const std::vector<Skeleton>& skeletons, int factor = 1);
 
+/// A line `thick` pixels wide (square pen), clipped to the picture.
+void DrawLine(RgbImage& picture, float x0, float y0, float x1, float y1, core::Rgb colour, int thick = 1);
 /// Writes `text` with the built-in 5x7 font (6 x 8 pixels per character at scale 1), top-left
 /// corner at (x, y). Letters are drawn upper case; characters outside A-Z 0-9 . , - _ : / ( ) = %
 /// + are drawn as blanks.

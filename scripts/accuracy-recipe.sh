@@ -53,4 +53,8 @@ echo "== learning b, lambda, zeta on 150 validation renders of the train clips"
 echo "== eval on 200 held-out test-clip frames"
 "$bin/poseforest" eval --forest "$out/forest_tuned.pff" --test-set "$out/job.textproto" --images 200 \
   --pr-png "$out/pr" 2>&1 | tee "$out/eval.txt"
+echo "== real Kinect v1 frames, joints labelled by hand (pictures: $out/real/)"
+"$bin/poseforest" eval --forest "$out/forest_tuned.pff" --real-labels "$data/real/skeltrack_kinect_depth/joint_labels.json" \
+  --png-dir "$out/real" --quiet 2>&1 | tee "$out/real.txt"
 echo "== done in $(( $(date +%s) - start )) s: $(grep '^eval: mAP' "$out/eval.txt")"
+echo "   $(grep '^eval: real frames' "$out/real.txt")"

@@ -1,7 +1,9 @@
 # Sourced by scripts/main-job.sh and scripts/accuracy-recipe.sh: the main job's embedded default
 # job (proto/poseforest/v1/job.proto), with the training images per tree and the test-set size as
 # parameters.
-#   write_default_job FILE IMAGES_PER_TREE TEST_IMAGES POSE_LIBRARY DATA_DIR
+#   write_default_job FILE IMAGES_PER_TREE TEST_IMAGES POSE_LIBRARY DATA_DIR [TRAIN_FIELDS]
+# TRAIN_FIELDS: extra fields of the training source's rendered { } (e.g. "upper_body_share: 0"),
+# for ablations (scripts/realism-ablation.sh); the held-out test set is never changed by them.
 # Sized (300 images per tree) to train in minutes on two cores; the paper used 300k per tree.
 write_default_job() {
   cat > "$1" <<JOB
@@ -22,6 +24,7 @@ source {
     test_fraction: 0.2
     split_seed: 1
     makehuman_kit: "$5/meshes/makehuman_hm08_kit"
+    ${6:-}
   }
 }
 test_set {
@@ -34,6 +37,12 @@ test_set {
       test_fraction: 0.2
       split_seed: 1
       makehuman_kit: "$5/meshes/makehuman_hm08_kit"
+      # The held-out renders stay the classic ones (whole bodies, mocap arms, no projector
+      # shadow), so mAP compares with every earlier forest; realism is scored on real frames.
+      upper_body_share: 0
+      arm_pose_share: 0
+      projector_shadow: false
+      min_range_m: 0
     }
   }
   num_images: $3

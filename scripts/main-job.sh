@@ -14,6 +14,7 @@
 #      the train clips and store them in the forest; report joint AP / mAP (mean shift, fast,
 #      the ground-truth-parts upper bound, also with two people per frame) and the average
 #      per-class accuracy on held-out renders of the test clips (section 4), with PR curves;
+#      and the skeletons on the hand-labelled real Kinect frames (eval --real-labels);
 #   4. run the runtime on a held-out render and on a real Kinect v1 frame: body parts and
 #      3D joint proposals (JSON + picture); and PCL's independently trained trees on that frame.
 # Outputs go to ./out (POSEFOREST_OUT); POSEFOREST_DATA_DIR points at the shared data.
@@ -62,6 +63,9 @@ echo "== 3. joint proposals: learn b, lambda, zeta per joint, for mean shift and
 echo "== 3b. joint AP / mAP and per-class accuracy on held-out renders (test clips)"
 "$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --png "$out/confusion.png" \
   --pr-png "$out/pr" --quiet | tee "$out/eval.txt"
+echo "== 3b'. real Kinect v1 frames, joints labelled by hand: the skeleton live gives, scored (pictures: $out/real/)"
+"$bin/poseforest" eval --forest "$out/forest.pff" --real-labels "$data/real/skeltrack_kinect_depth/joint_labels.json" \
+  --png-dir "$out/real" --quiet | tee "$out/real.txt"
 echo "== 3c. two people per frame: proposals counted against each person's joints"
 "$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --images 50 --people 2 \
   --method meanshift --quiet | sed -n '/^joint average precision/,$p'
@@ -78,3 +82,4 @@ echo "== done in $(( $(date +%s) - start )) s. In $out: forest.pff, confusion.pn
 echo "   infer/*.pose.png (depth | parts | joints; front/side/top views), infer/*.joints.json, pcl/,"
 echo "   pr/pr_joints.png + pr/pr_mean.png (precision-recall curves)"
 tail -n 1 "$out/eval.txt"
+tail -n 1 "$out/real.txt"

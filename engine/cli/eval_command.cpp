@@ -4,16 +4,23 @@
 #include <cstdio>
 #include <string>
 
+#include <filesystem>
+
 #include "engine/evaluation.h"
+#include "engine/real_frames.h"
 #include "engine/job_spec.h"
 #include "runtime/camera_model.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
 #include "runtime/core/forest_format.h"
+#include "runtime/frame_source.h"
+#include "runtime/image_io.h"
+#include "runtime/skeleton_pipeline.h"
 
 namespace poseforest::cli {
 namespace {
 constexpr const char* kUsage = R"(usage: poseforest eval --forest FOREST.pff --test-set SET [options]
+       poseforest eval --forest FOREST.pff --real-labels LABELS.json [--png-dir DIR] [options]
 
 Reports the paper's two metrics (section 4) on held-out labelled frames:
   * joint average precision: the forest's joint proposals (mean shift, and the fast bottom-up
@@ -27,6 +34,20 @@ Reports the paper's two metrics (section 4) on held-out labelled frames:
   * the average per-class accuracy: the mean of the diagonal of the row-normalized confusion
     matrix between ground-truth and most likely inferred part; the per-part table and the
     confusion matrix as text (and as a picture with --png).
+
+With --real-labels, the skeletons `live` would give on hand-labelled real depth frames are
+scored instead: LABELS.json names the camera and, per frame, a depth file beside it (anything
+`poseforest frames` reads: raw uint16 mm of the camera's size, a depth PNG, .npy) and the labelled
+joints (the format of the shared data's real/skeltrack_kinect_depth/joint_labels.json; its
+JOINT_LABELS.md says how they were made). A joint is right when the skeleton tracks it within
+0.10 m of the labelled surface point moved 0.04 m along the camera ray. Per joint and per group:
+labelled, tracked, tracked within 0.10 m, the median 2D error of tracked joints (pixels), and
+"any within 0.10 m": the skeleton's position or any of the joint's proposals on the person within
+0.10 m, tracked or not (did the forest find it at all). The same pipeline as `live`: people
+segmentation, the forest's tuned proposal parameters and calibration, the skeleton's rules, and
+live's pixel stride 2 unless --pixel-stride says otherwise. --png-dir DIR writes one picture per
+frame (depth | parts | skeleton, each label a cross: green when right, red otherwise, with a line
+to where the skeleton put the joint).
 
 SET is one of:
   DIR                a folder written by `poseforest render` (depth/labels/joints_%06d.*; its
@@ -59,14 +80,118 @@ options:
   --per-person      list each person's segmentation IoU
   --no-rescale      keep the forest's offsets as trained even when the frames' camera (camera.txt)
                     has another focal length (to measure what the rescaling buys)
+  --real-labels F   score skeletons on hand-labelled real frames (above) instead of --test-set
+  --png-dir DIR     with --real-labels: a picture per frame, DIR/<frame file>.png
   --quiet           no progress lines
   --help            this text
 )";
+// eval --real-labels: the skeletons of `live` scored on hand-labelled frames (engine/real_frames.h).
+int EvalRealMain(const Args& args) {
+  if (!args.Has("forest") || !args.positional().empty()) {
+    std::fprintf(stderr, "poseforest eval: --real-labels needs --forest\n\n%s", kUsage);
+    return 2;
+  }
+  for (const char* o : {"test-set", "images", "first", "people", "pr-png", "png", "segment"})
+    if (args.Has(o)) {
+      std::fprintf(stderr, "poseforest eval: --%s does not go with --real-labels\n", o);
+      return 2;
+    }
+  const std::string method = args.GetOr("method", "meanshift");
+  if (method != "meanshift" && method != "fast") {
+    std::fprintf(stderr, "poseforest eval: with --real-labels, --method must be meanshift or fast (got '%s')\n",
+                 method.c_str());
+    return 2;
+  }
+  auto threads = args.GetInt("threads", 0, 0, 1024);
+  auto pixel_stride = args.GetInt("pixel-stride", 2, 1, 16);  // live's default
+  for (const auto* r : {&threads, &pixel_stride})
+    if (!r->ok()) {
+      std::fprintf(stderr, "poseforest eval: %s\n", r->status().message().c_str());
+      return 2;
+    }
+  const std::string labels_path = *args.Get("real-labels");
+  auto labels = engine::ReadRealLabels(labels_path);
+  if (!labels.ok()) {
+    std::fprintf(stderr, "poseforest eval: %s\n", labels.status().ToString().c_str());
+    return 1;
+  }
+  const auto png_dir = args.Get("png-dir");
+  if (png_dir) {
+    std::error_code ec;
+    std::filesystem::create_directories(*png_dir, ec);
+    if (ec) {
+      std::fprintf(stderr, "poseforest eval: %s: cannot create folder: %s\n", png_dir->c_str(), ec.message().c_str());
+      return 1;
+    }
+  }
+  auto forest = core::LoadForest(*args.Get("forest"));
+  if (!forest.ok()) {
+    std::fprintf(stderr, "poseforest eval: %s\n", forest.status().ToString().c_str());
+    return 1;
+  }
+  runtime::SkeletonPipelineOptions options;
+  options.segment = runtime::SegmentMode::kAuto;
+  options.method =
+      method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
+  options.num_threads = int(*threads);
+  options.pixel_stride = int(*pixel_stride);
+  runtime::FrameSourceOptions source_options;
+  source_options.camera = labels->camera;
+  source_options.camera_given = true;
+  std::vector<engine::RealFrameOutcome> outcomes;
+  for (const engine::RealFrameLabels& f : labels->frames) {
+    // A pipeline per frame: the frames are independent stills, not a sequence.
+    auto pipeline = runtime::SkeletonPipeline::Create(*forest, options);
+    if (!pipeline.ok()) {
+      std::fprintf(stderr, "poseforest eval: %s: %s\n", args.Get("forest")->c_str(),
+                   pipeline.status().message().c_str());
+      return 1;
+    }
+    auto source = runtime::OpenFrameSource(f.path, source_options);
+    runtime::Frame frame;
+    core::Result<bool> got = source.ok() ? (*source)->Next(&frame) : core::Result<bool>(source.status());
+    if (!got.ok() || !*got) {
+      std::fprintf(stderr, "poseforest eval: %s: frame %s: %s\n", labels_path.c_str(), f.file.c_str(),
+                   got.ok() ? "no frame in the file" : got.status().ToString().c_str());
+      return 1;
+    }
+    runtime::SkeletonFrame result;
+    (*pipeline)->Process(frame, &result);
+    const int which = engine::PickLabelledSkeleton(f, result);
+    outcomes.push_back(engine::ScoreRealFrame(f, result, which));
+    const auto& o = outcomes.back();
+    int right = 0, labelled = 0;
+    for (const auto& j : o.joints) right += j.right, labelled += j.labelled;
+    if (!args.Has("quiet"))
+      std::fprintf(stderr, "eval: %s: %zu people, %d of %d labelled joints right\n", f.file.c_str(),
+                   result.skeletons.size(), right, labelled);
+    if (png_dir) {
+      const std::string png = (std::filesystem::path(*png_dir) /
+                               (std::filesystem::path(f.file).filename().string() + ".png")).string();
+      const runtime::RgbImage fig = engine::RealFramePicture(f, result, o);
+      if (auto st = runtime::WriteRgbPng(png, fig.width, fig.height, fig.rgb); !st.ok()) {
+        std::fprintf(stderr, "poseforest eval: %s\n", st.ToString().c_str());
+        return 1;
+      }
+    }
+  }
+  const engine::RealScore score = engine::SummarizeReal(outcomes);
+  std::printf("forest %s on %zu real frames (%s), pixel stride %d, %s\n\n", args.Get("forest")->c_str(),
+              labels->frames.size(), labels_path.c_str(), options.pixel_stride,
+              method == "fast" ? "fast clustering" : "mean shift");
+  std::fputs(engine::FormatRealScore(score).c_str(), stdout);
+  if (png_dir) std::printf("pictures: %s/<frame>.png\n", png_dir->c_str());
+  const auto& all = score.all();
+  std::printf("eval: real frames: %d of %d labelled joints tracked within 0.10 m (%.3f), any within 0.10 m %.3f\n",
+              all.right, all.labelled, all.right_fraction(), all.any_fraction());
+  return 0;
+}
+
 }  // namespace
 
 int EvalMain(int argc, char** argv) {
   Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png",
-             "segment", "pixel-stride"},
+             "segment", "pixel-stride", "real-labels", "png-dir"},
             {"help", "quiet", "per-person", "no-rescale"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
@@ -76,8 +201,13 @@ int EvalMain(int argc, char** argv) {
     std::fputs(kUsage, stdout);
     return 0;
   }
+  if (args.Has("real-labels")) return EvalRealMain(args);
+  if (args.Has("png-dir")) {
+    std::fprintf(stderr, "poseforest eval: --png-dir needs --real-labels\n");
+    return 2;
+  }
   if (!args.Has("forest") || !args.Has("test-set") || !args.positional().empty()) {
-    std::fprintf(stderr, "poseforest eval: need --forest and --test-set\n\n%s", kUsage);
+    std::fprintf(stderr, "poseforest eval: need --forest and --test-set (or --real-labels)\n\n%s", kUsage);
     return 2;
   }
   auto images = args.GetInt("images", -1, 1, 10'000'000);

@@ -60,6 +60,11 @@ constexpr const char* kUsage =
     "                     boxes on the floor); a pure function of (seed, frame) like the rest\n"
     "  --occluders N      N boxes per frame between the camera and the people (default 0)\n"
     "  --masks            write mask_%06d.png also without clutter\n"
+    "  --realism          render as a training job does by default: half the frames framed on the\n"
+    "                     upper body (camera 0.6-2 m, aimed between chest and head), half the\n"
+    "                     people's arms re-posed toward the camera or near the body, Kinect v1's\n"
+    "                     projector shadow and 0.45 m near limit (renderer/README.md, \"Framing,\n"
+    "                     arms and the sensor\"); default: the classic renders\n"
     "  --montage FILE.png preview of the first 8 frames: depth grey | part colours, 4x2 grid\n"
     "  --poses FILE.pfposes  draw poses from this mocap pose library (poseforest-poselib build)\n"
     "                     instead of the procedural pose sampler\n"
@@ -119,7 +124,7 @@ int RenderMain(int argc, char** argv) {
       {"out",           "count",      "seed",   "threads", "rotation", "people", "montage", "poses", "clips",
        "test-fraction", "split-seed", "bodies", "data",    "camera",   "fx",     "fy",      "cx",    "cy",
        "clutter",       "occluders"},
-      {"no-noise", "masks", "help"});
+      {"no-noise", "masks", "help", "realism"});
   if (core::Status st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest render: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -280,6 +285,12 @@ int RenderMain(int argc, char** argv) {
   config.rotation_range_deg = *rotation == 360 ? 180.0 : 120.0;
   config.min_people = config.max_people = int(*people);
   config.noise.enabled = !args.Has("no-noise");
+  if (args.Has("realism")) {  // the job defaults (engine/job_spec.h SourceSpec)
+    config.framing.upper_body_share = 0.5;
+    config.arm_pose_share = 0.5;
+    config.noise.projector_shadow = true;
+    config.noise.min_range_m = 0.45;
+  }
 
   // llvmpipe: rasterize on each worker thread itself (no helper threads), since we run one
   // context per worker thread. An LP_NUM_THREADS already set by the user wins.

@@ -1,6 +1,7 @@
 // The Kinect-like noise model: quantization steps, noise statistics, dropout, determinism.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <algorithm>
 #include <set>
 
 #include "renderer/scene.h"
@@ -100,5 +101,59 @@ TEST_CASE("the image border is not a depth discontinuity", "[noise]") {
       INFO("pixel " << x << ", " << y);
       REQUIRE((depth.at(x, y) == 0) == silhouette);
     }
+  }
+}
+
+TEST_CASE("projector shadow: a band beside a near object, on the side away from the projector", "[noise]") {
+  NoiseConfig noise;
+  noise.projector_shadow = true;
+  const int w = 300, h = 20;
+  const double z_near = 0.9, z_far = 1.3;  // a hand before the chest
+  core::DepthImage depth(w, h, uint16_t(z_far * 1000));
+  core::LabelImage labels(w, h, 3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 120; x < 180; ++x) depth.at(x, y) = uint16_t(z_near * 1000), labels.at(x, y) = 9;
+  const double band = noise.focal_px * noise.baseline_m * (1 / z_near - 1 / z_far);  // ~14.8 px
+  for (int side : {+1, -1}) {
+    noise.projector_side = side;
+    core::DepthImage d = depth;
+    core::LabelImage l = labels;
+    ApplyProjectorShadow(noise, &d, &l);
+    for (int y = 0; y < h; ++y) {
+      int left = 0, right = 0, near_lost = 0;
+      for (int x = 0; x < 120; ++x) left += d.at(x, y) == 0;
+      for (int x = 180; x < w; ++x) right += d.at(x, y) == 0;
+      for (int x = 120; x < 180; ++x) near_lost += d.at(x, y) == 0;
+      INFO("side " << side << " row " << y << ": shadow left " << left << " right " << right << ", band " << band);
+      CHECK(near_lost == 0);  // the near surface is lit
+      const int shadowed = side > 0 ? left : right, lit = side > 0 ? right : left;
+      CHECK(std::abs(shadowed - band) <= 1.0);
+      CHECK(lit == 0);
+      // The band is contiguous and touches the near object; shadowed pixels are background.
+      for (int k = 1; k <= shadowed; ++k) {
+        const int x = side > 0 ? 120 - k : 179 + k;
+        CHECK(d.at(x, y) == 0);
+        CHECK(l.at(x, y) == core::kBackgroundLabel);
+      }
+    }
+  }
+  // A plane facing the camera, however far, casts nothing on itself.
+  core::DepthImage flat(w, h, 1500);
+  core::LabelImage flat_l(w, h, 1);
+  ApplyProjectorShadow(noise, &flat, &flat_l);
+  CHECK(std::count(flat.pixels.begin(), flat.pixels.end(), uint16_t(0)) == 0);
+}
+
+TEST_CASE("min range: surfaces nearer than the sensor's limit give no reading", "[noise]") {
+  NoiseConfig noise;
+  noise.min_range_m = 0.45;
+  core::DepthImage depth(40, 10, 1000);
+  core::LabelImage labels(40, 10, 2);
+  for (int y = 0; y < 10; ++y)
+    for (int x = 0; x < 10; ++x) depth.at(x, y) = 400;
+  ApplyKinectNoise(noise, 7, &depth, &labels);
+  for (int y = 0; y < 10; ++y) {
+    for (int x = 0; x < 10; ++x) CHECK((depth.at(x, y) == 0 && labels.at(x, y) == core::kBackgroundLabel));
+    CHECK(depth.at(30, y) != 0);
   }
 }

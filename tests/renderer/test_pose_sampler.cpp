@@ -85,3 +85,48 @@ TEST_CASE("FaceForward removes a pose's heading", "[pose]") {
       CHECK(p[size_t(j)].y() == Approx(before[size_t(j)].y()).margin(1e-9));
   }
 }
+
+TEST_CASE("PerturbArms: arms toward the camera or near the body, the rest kept, deterministic", "[pose]") {
+  const SkelPositions rest = ProceduralSkeleton(ProceduralBaseShape(11));
+  const double shoulder_width = (J(rest, SkelJoint::kLShoulder) - J(rest, SkelJoint::kRShoulder)).norm();
+  int changed_arms = 0, hands_forward = 0, hands_near_body = 0, arms = 0;
+  const int n = 1000;
+  for (int i = 0; i < n; ++i) {
+    const Pose base = SampleProceduralPose(99, uint64_t(i));
+    Pose pose = base, again = base;
+    PerturbArms(3, uint64_t(i), &pose);
+    PerturbArms(3, uint64_t(i), &again);
+    for (int j = 0; j < kNumSkelJoints; ++j) REQUIRE(pose.rotation[size_t(j)].coeffs() == again.rotation[size_t(j)].coeffs());
+    const SkelPositions b = PoseJoints(rest, base), p = PoseJoints(rest, pose);
+    // Bone lengths kept; trunk, head, legs and collars untouched.
+    for (int j = 1; j < kNumSkelJoints; ++j) {
+      const int par = kSkelParent[size_t(j)];
+      REQUIRE((p[size_t(j)] - p[size_t(par)]).norm() ==
+              Approx((rest[size_t(j)] - rest[size_t(par)]).norm()).margin(1e-9));
+    }
+    for (SkelJoint j : {SkelJoint::kPelvis, SkelJoint::kChest, SkelJoint::kHeadTop, SkelJoint::kLShoulder,
+                        SkelJoint::kRShoulder, SkelJoint::kLAnkle, SkelJoint::kRToe})
+      REQUIRE((J(p, j) - J(b, j)).norm() < 1e-9);
+    for (int side = 0; side < 2; ++side) {
+      const SkelJoint sh = side ? SkelJoint::kRShoulder : SkelJoint::kLShoulder;
+      const SkelJoint el = side ? SkelJoint::kRElbow : SkelJoint::kLElbow;
+      const SkelJoint wr = side ? SkelJoint::kRWrist : SkelJoint::kLWrist;
+      const SkelJoint tip = side ? SkelJoint::kRHandTip : SkelJoint::kLHandTip;
+      if ((J(p, wr) - J(b, wr)).norm() < 1e-9) continue;  // this arm was left alone
+      ++changed_arms;
+      ++arms;
+      REQUIRE(AngleDeg(J(p, el) - J(p, sh), J(p, wr) - J(p, el)) <= 150.0);
+      // The hand ends in front of the shoulder (the person faces +Z) ...
+      hands_forward += J(p, tip).z() > J(p, sh).z() + 0.15;
+      // ... or near the face / chest: within a shoulder width of the chest-head line.
+      const Eigen::Vector3d chest = J(p, SkelJoint::kChest), head = J(p, SkelJoint::kHead);
+      const Eigen::Vector3d axis = (head - chest).normalized(), hand = J(p, tip) - chest;
+      hands_near_body += (hand - hand.dot(axis) * axis).norm() < shoulder_width;
+    }
+  }
+  INFO(changed_arms << " arms changed; hands forward " << hands_forward << ", near the body " << hands_near_body);
+  CHECK(changed_arms > n * 1.2);  // both arms in 40 % of the poses, one in the others
+  CHECK(changed_arms < n * 2);
+  CHECK(hands_forward > arms * 0.6);
+  CHECK(hands_near_body > arms * 0.3);
+}

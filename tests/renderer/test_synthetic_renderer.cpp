@@ -293,3 +293,64 @@ TEST_CASE("people in one frame stand apart on the floor", "[egl]") {
   }
   CHECK(close <= 3);  // only when 8 retries all failed
 }
+
+TEST_CASE("upper-body framing: close camera, the frame cuts the body; off frames unchanged", "[egl]") {
+  SceneConfig classic = SmallConfig();
+  SceneConfig upper = classic;
+  upper.framing.upper_body_share = 1.0;
+  SceneConfig half = classic;
+  half.framing.upper_body_share = 0.5;
+  auto rc = Make(classic), ru = Make(upper), rh = Make(half);
+  const int n = 24;
+  int head_seen = 0, knees_out = 0, classic_knees_out = 0, same_as_classic = 0;
+  for (uint64_t i = 0; i < n; ++i) {
+    const SceneSample su = ru->Sample(5, i);
+    const Eigen::Vector3d pelvis = su.people[0].camera_from_body.translation();
+    const double ground = std::hypot(pelvis.x(), pelvis.z());  // roughly the distance drawn
+    CHECK(ground > upper.framing.upper_body_min_distance_m - 0.3);
+    CHECK(ground < upper.framing.upper_body_max_distance_m + 0.6);
+    auto fu = ru->Render(5, i), fc = rc->Render(5, i), fh = rh->Render(5, i);
+    REQUIRE(fu.ok());
+    REQUIRE(fc.ok());
+    REQUIRE(fh.ok());
+    const auto& vis = fu->visible[0];
+    head_seen += vis[size_t(core::Joint::kHead)] || vis[size_t(core::Joint::kNeck)];
+    knees_out += !vis[size_t(core::Joint::kLKnee)] && !vis[size_t(core::Joint::kRKnee)];
+    classic_knees_out += !fc->visible[0][size_t(core::Joint::kLKnee)] && !fc->visible[0][size_t(core::Joint::kRKnee)];
+    // A frame the 0.5 share did not frame on the upper body is the classic frame, byte for byte.
+    same_as_classic += fh->depth.pixels == fc->depth.pixels && fh->labels.pixels == fc->labels.pixels;
+  }
+  INFO("head seen " << head_seen << ", knees out " << knees_out << " (classic " << classic_knees_out
+                    << "), half-share frames identical to classic " << same_as_classic);
+  CHECK(head_seen >= n * 3 / 4);
+  CHECK(knees_out >= n / 2);
+  CHECK(classic_knees_out <= n / 4);
+  CHECK(same_as_classic >= n / 4);
+  CHECK(same_as_classic <= n * 3 / 4);
+}
+
+TEST_CASE("arm re-posing: a share of people; the others render as before", "[egl]") {
+  SceneConfig classic = SmallConfig();
+  SceneConfig arms = classic;
+  arms.arm_pose_share = 0.5;
+  auto rc = Make(classic), ra = Make(arms);
+  int same = 0;
+  const int n = 20;
+  for (uint64_t i = 0; i < n; ++i) {
+    auto fa = ra->Render(8, i), fc = rc->Render(8, i);
+    REQUIRE(fa.ok());
+    REQUIRE(fc.ok());
+    same += fa->depth.pixels == fc->depth.pixels;
+    // The trunk and the legs keep their pose (the camera may aim differently: raised hands
+    // change the person's top, which sets the pitch): distances among them are unchanged.
+    auto apart = [](const auto& joints, core::Joint a, core::Joint b) {
+      return (joints[size_t(a)] - joints[size_t(b)]).norm();
+    };
+    for (auto [a, b] : {std::pair{core::Joint::kNeck, core::Joint::kLKnee}, std::pair{core::Joint::kHead, core::Joint::kRFoot},
+                        std::pair{core::Joint::kLShoulder, core::Joint::kRAnkle}})
+      CHECK(apart(fa->joints[0], a, b) == Approx(apart(fc->joints[0], a, b)).margin(1e-4));
+  }
+  INFO(same << " of " << n << " frames unchanged");
+  CHECK(same >= n / 5);
+  CHECK(same <= n * 4 / 5);
+}

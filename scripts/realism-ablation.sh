@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# The ablation behind the rendering realism defaults (job.proto RenderedSource fields 14-19,
+# docs/training/realism.md): the main job's job, one variant per line of VARIANTS below, each
+# trained at the same images per tree, tuned on validation renders of its own training source,
+# then scored on the held-out classic renders (mAP, average per-class accuracy) and on the
+# hand-labelled real Kinect frames (eval --real-labels). Prints one table row per variant.
+#
+#   scripts/realism-ablation.sh [IMAGES_PER_TREE [TEST_IMAGES]]   (default 300 and 200)
+#
+# Needs a build (scripts/build.sh) and the shared data (POSEFOREST_DATA_DIR, default
+# ../shared/data). Outputs in $POSEFOREST_OUT/ablation-N (default ./out/ablation-N), one folder per
+# variant; a variant whose eval files exist is not trained again (delete its folder to redo it).
+# ~7 minutes per variant at 300 images per tree on two cores.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+# shellcheck source=scripts/default-job.sh
+source "$root/scripts/default-job.sh"
+per_tree=${1:-300}
+test_images=${2:-200}
+[[ "$per_tree" =~ ^[1-9][0-9]*$ && "$test_images" =~ ^[1-9][0-9]*$ ]] ||
+  { echo "realism-ablation: IMAGES_PER_TREE and TEST_IMAGES must be positive integers" >&2; exit 2; }
+data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
+  { echo "realism-ablation: no shared data at ${POSEFOREST_DATA_DIR:-$root/../shared/data} (set POSEFOREST_DATA_DIR)" >&2; exit 1; }
+bin=$root/build/bin
+[[ -x "$bin/poseforest" ]] || { echo "realism-ablation: $bin/poseforest not built (run scripts/build.sh)" >&2; exit 1; }
+out=${POSEFOREST_OUT:-$root/out}/ablation-$per_tree
+mkdir -p "$out"
+out=$(cd "$out" && pwd)
+labels=$data/real/skeltrack_kinect_depth/joint_labels.json
+
+# name | training source fields (on top of the defaults: everything on)
+VARIANTS=(
+  "classic|upper_body_share: 0 arm_pose_share: 0 projector_shadow: false min_range_m: 0"
+  "all on (defaults)|"
+  "no upper-body framing|upper_body_share: 0"
+  "no arm re-posing|arm_pose_share: 0"
+  "no projector shadow, no near limit|projector_shadow: false min_range_m: 0"
+)
+[[ -n "${POSEFOREST_ABLATION_ONLY:-}" ]] && echo "(only variants matching '$POSEFOREST_ABLATION_ONLY')"
+
+[[ -f "$out/mocap.pfposes" ]] || "$bin/poseforest-poselib" build --out "$out/mocap.pfposes" "$data/mocap"
+rows=()
+for v in "${VARIANTS[@]}"; do
+  name=${v%%|*}
+  fields=${v#*|}
+  [[ -n "${POSEFOREST_ABLATION_ONLY:-}" && "$name" != *"$POSEFOREST_ABLATION_ONLY"* ]] && continue
+  dir=$out/$(echo "$name" | tr -c 'a-zA-Z0-9\n' '-' | tr -s '-')
+  mkdir -p "$dir"
+  if [[ ! -s "$dir/real.txt" ]]; then
+    echo "== $name: training ($dir)"
+    write_default_job "$dir/job.textproto" "$per_tree" "$test_images" "$out/mocap.pfposes" "$data" "$fields"
+    t0=$(date +%s)
+    "$bin/poseforest" train "$dir/job.textproto" --out "$dir/forest.pff" --quiet
+    echo "train: $(( $(date +%s) - t0 )) s" > "$dir/time.txt"
+    "$bin/poseforest" tune-joints --forest "$dir/forest.pff" --validation "$dir/job.textproto" --frames 60 \
+      --out "$dir/forest.pff" > "$dir/tune.log" 2>&1
+    "$bin/poseforest" eval --forest "$dir/forest.pff" --test-set "$dir/job.textproto" --method meanshift --quiet \
+      > "$dir/eval.txt"
+    "$bin/poseforest" eval --forest "$dir/forest.pff" --real-labels "$labels" --png-dir "$dir/real" --quiet \
+      > "$dir/real.txt"
+  fi
+  map=$(grep '^eval: mAP' "$dir/eval.txt" | sed -E 's/.*mAP ([0-9.]+).*accuracy ([0-9.]+)%.*/\1 \2/')
+  real=$(grep '^eval: real frames' "$dir/real.txt" | sed -E 's/.*\(([0-9.]+)\), any within 0.10 m ([0-9.]+)/\1 \2/')
+  arms=$(grep '^elbows, wrists, hands' "$dir/real.txt" | sed -E 's/.* [0-9]+ +[0-9]+ +[0-9]+ \(([0-9.]+)\).*/\1/')
+  rows+=("$(printf '| %-36s | %s | %s | %s | %s | %s |' "$name" ${map:-- -} ${real:-- -} "${arms:--}")")
+done
+echo
+echo "images per tree: $per_tree; mAP and accuracy on $test_images held-out classic renders; real: 9 frames, 90 joints"
+echo "| variant | mAP (renders) | per-class accuracy % | real: tracked within 0.10 m | real: any within 0.10 m | real: elbows, wrists, hands |"
+echo "|---|---:|---:|---:|---:|---:|"
+printf '%s\n' "${rows[@]}"
