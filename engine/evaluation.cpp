@@ -479,8 +479,10 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
         core::LabelImage mask(frame->depth.width, frame->depth.height, 0);
         for (size_t k = 0; k < mask.pixels.size(); ++k)
           mask.pixels[k] = has_mask ? (frame->person_masks.pixels[k] == 1) : (frame->depth.pixels[k] ? 1 : 0);
-        const auto skeletons = runtime::BuildSkeletons(proposals, mask, 1, frame->depth, ms.camera,
-                                                       calibration, runtime::SkeletonOptions{});
+        runtime::SkeletonOptions so;
+        so.fit = options.skeleton_fit;
+        const auto skeletons =
+            runtime::BuildSkeletons(proposals, mask, 1, frame->depth, ms.camera, calibration, so);
         if (!skeletons.empty()) {
           auto& acc = e.skeleton;
           ++acc.frames;

@@ -17,6 +17,7 @@
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 #include "runtime/joint_metrics.h"
+#include "runtime/skeleton.h"
 #include "runtime/proposal_tuning.h"
 
 namespace poseforest::coordinator {
@@ -97,6 +98,8 @@ struct JointEvalOptions {
   /// Classify and propose from every pixel_stride-th pixel in x and y only
   /// (runtime::ClassifyOptions::pixel_stride, as `live --pixel-stride`); 1 = every pixel.
   int pixel_stride = 1;
+  /// How the skeleton (the `skeleton accuracy` table) picks its joints (runtime::SkeletonFit).
+  runtime::SkeletonFit skeleton_fit = runtime::SkeletonFit::kGreedy;
   bool fast = true;         ///< also the fast clustering
   bool upper_bound = true;  ///< also mean shift on the ground-truth parts
   /// Proposal parameters of mean shift (and the upper bound) and of the fast clustering; unset =

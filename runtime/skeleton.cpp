@@ -1,6 +1,7 @@
 #include "runtime/skeleton.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -41,6 +42,91 @@ std::pair<float, float> BoneLengthRange(int parent, int child) {
   return {0.0f, 1e9f};
 }
 
+float TypicalBoneLength(int parent, int child) {
+  using J = core::Joint;
+  const auto p = J(parent), c = J(child);
+  auto is = [&](J a, J b) { return (p == a && c == b); };
+  // Evaluation joints (renderer EvalJoints): neck = middle of the neck, head = centre of the head,
+  // hand = middle of wrist..hand tip, foot = middle of ankle..toe.
+  if (is(J::kNeck, J::kHead)) return 0.17f;
+  if (is(J::kNeck, J::kLShoulder) || is(J::kNeck, J::kRShoulder)) return 0.19f;
+  if (is(J::kLShoulder, J::kLElbow) || is(J::kRShoulder, J::kRElbow)) return 0.28f;
+  if (is(J::kLElbow, J::kLWrist) || is(J::kRElbow, J::kRWrist)) return 0.25f;
+  if (is(J::kLWrist, J::kLHand) || is(J::kRWrist, J::kRHand)) return 0.08f;
+  if (is(J::kLShoulder, J::kLKnee) || is(J::kRShoulder, J::kRKnee)) return 0.90f;
+  if (is(J::kLKnee, J::kLAnkle) || is(J::kRKnee, J::kRAnkle)) return 0.42f;
+  if (is(J::kLAnkle, J::kLFoot) || is(J::kRAnkle, J::kRFoot)) return 0.09f;
+  return 0.0f;
+}
+
+namespace {
+
+constexpr double kImpossible = -1e30;
+constexpr double kMinConfidence = 1e-3;  // log of a calibrated 0 would end the fit
+constexpr double kMissing = -20.0;       // below any candidate's log confidence (log 1e-3 = -6.9)
+
+double Unary(const FitCandidates& cands, int j, int state) {
+  // The fit chooses WHICH proposal (the tracked state is the candidate's own calibrated
+  // confidence, as for the greedy pick): "missing" only where no candidate fits the bones.
+  return state == 0 ? kMissing
+                    : std::log(std::max(kMinConfidence, double(cands[size_t(j)][size_t(state - 1)].confidence)));
+}
+
+double Pair(const FitCandidates& cands, const SkeletonOptions& options, int a, int sa, int b, int sb) {
+  if (sb == 0) return 0.0;  // a missing child costs nothing here (its unary says how likely)
+  if (sa == 0)              // below the shoulders a joint hangs from a present parent
+    return options.require_tracked_parent && a != int(core::Joint::kNeck) ? kImpossible : 0.0;
+  const float len = (cands[size_t(a)][size_t(sa - 1)].position - cands[size_t(b)][size_t(sb - 1)].position).norm();
+  if (options.check_bone_lengths) {
+    const auto [lo, hi] = BoneLengthRange(a, b);
+    if (len < lo || len > hi) return kImpossible;
+  }
+  const double mu = TypicalBoneLength(a, b), sigma = 0.3 * mu + 0.03;
+  return mu > 0 ? -0.5 * ((len - mu) / sigma) * ((len - mu) / sigma) : 0.0;
+}
+
+}  // namespace
+
+double FitScore(const FitCandidates& cands, const std::array<int, core::kNumJoints>& choice,
+                const SkeletonOptions& options) {
+  double score = 0;
+  for (int j = 0; j < core::kNumJoints; ++j) score += Unary(cands, j, choice[size_t(j)] + 1);
+  for (const auto& [a, b] : SkeletonBones())
+    score += Pair(cands, options, a, choice[size_t(a)] + 1, b, choice[size_t(b)] + 1);
+  return score;
+}
+
+std::array<int, core::kNumJoints> FitSkeleton(const FitCandidates& cands, const SkeletonOptions& options) {
+  // best[j][s]: the best score of j's subtree with j in state s (0 missing, i + 1 candidate i).
+  std::array<std::vector<double>, core::kNumJoints> best;
+  for (int j = 0; j < core::kNumJoints; ++j)
+    for (size_t st = 0; st <= cands[size_t(j)].size(); ++st) best[size_t(j)].push_back(Unary(cands, j, int(st)));
+  // Leaves first (SkeletonBones lists parents before children): fold each child into its parent.
+  std::array<std::vector<int>, core::kNumJoints> arg;  // [child][parent state] -> child state
+  const auto& bones = SkeletonBones();
+  for (auto it = bones.rbegin(); it != bones.rend(); ++it) {
+    const int a = it->first, b = it->second;
+    std::vector<int>& pick = arg[size_t(b)];
+    pick.assign(best[size_t(a)].size(), 0);
+    for (size_t sa = 0; sa < best[size_t(a)].size(); ++sa) {
+      double top = kImpossible * 2;
+      for (size_t sb = 0; sb < best[size_t(b)].size(); ++sb) {
+        const double v = best[size_t(b)][sb] + Pair(cands, options, a, int(sa), b, int(sb));
+        if (v > top) top = v, pick[sa] = int(sb);  // ties: the earlier state (missing, then the more confident)
+      }
+      best[size_t(a)][sa] += top;
+    }
+  }
+  std::array<int, core::kNumJoints> state;
+  state.fill(0);
+  const int root = int(core::Joint::kNeck);
+  const auto& rb = best[size_t(root)];
+  state[size_t(root)] = int(std::max_element(rb.begin(), rb.end()) - rb.begin());
+  for (const auto& [a, b] : bones) state[size_t(b)] = arg[size_t(b)][size_t(state[size_t(a)])];
+  for (int& st : state) st -= 1;
+  return state;
+}
+
 std::string DescribeConfidence(const core::ConfidenceCalibration* calibration) {
   if (!calibration)
     return "uncalibrated fallback 1 - exp(-support / 0.002 m^2) (the forest has no calibration table: run "
@@ -79,31 +165,70 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
     s.mask_label = label;
     s.pixels = count[size_t(label)];
     s.centroid_m = (sum[size_t(label)] / count[size_t(label)]).cast<float>();
-    for (int j = 0; j < core::kNumJoints; ++j) {
+    // The mask's depth at a proposal's pixel (nearest mask pixel within the margin), 0 = off it.
+    auto mask_depth_at = [&](const JointProposal& p) {
+      const int px = int(std::lround(p.pixel.x())), py = int(std::lround(p.pixel.y()));
+      int mask_depth = 0, best = 1 << 30;
+      for (int dy = -m; dy <= m; ++dy)
+        for (int dx = -m; dx <= m; ++dx) {
+          const int x = px + dx, y = py + dy;
+          if (x < 0 || y < 0 || x >= masks.width || y >= masks.height || masks.at(x, y) != label) continue;
+          const int d2 = dx * dx + dy * dy;
+          if (d2 < best && depth.at(x, y)) best = d2, mask_depth = depth.at(x, y);
+        }
+      return mask_depth;
+    };
+    auto place = [&](int j, const JointProposal& p, int mask_depth) {
       SkeletonJoint& joint = s.joints[size_t(j)];
+      joint.found = true;
+      joint.position_m = p.position;
+      joint.pixel = p.pixel;
+      joint.support_m2 = float(double(p.confidence) / area);
+      joint.confidence =
+          calibration ? calibration->Confidence(j, joint.support_m2) : core::FallbackConfidence(joint.support_m2);
+      const float gap = p.position.z() - float(mask_depth) * 1e-3f;
+      joint.tracked = joint.support_m2 >= options.min_support_m2 && joint.confidence >= options.min_confidence &&
+                      std::abs(gap) <= options.max_depth_gap_m;
+    };
+    if (options.fit == SkeletonFit::kGreedy) {
       // Proposals come most confident first: the first one on this person's mask wins.
-      for (const JointProposal& p : proposals[size_t(j)]) {
-        const int px = int(std::lround(p.pixel.x())), py = int(std::lround(p.pixel.y()));
-        int mask_depth = 0, best = 1 << 30;
-        for (int dy = -m; dy <= m; ++dy)
-          for (int dx = -m; dx <= m; ++dx) {
-            const int x = px + dx, y = py + dy;
-            if (x < 0 || y < 0 || x >= masks.width || y >= masks.height || masks.at(x, y) != label) continue;
-            const int d2 = dx * dx + dy * dy;
-            if (d2 < best && depth.at(x, y)) best = d2, mask_depth = depth.at(x, y);
+      for (int j = 0; j < core::kNumJoints; ++j)
+        for (const JointProposal& p : proposals[size_t(j)])
+          if (const int d = mask_depth_at(p); d != 0) {
+            place(j, p, d);
+            break;
           }
-        if (mask_depth == 0) continue;
-        joint.found = true;
-        joint.position_m = p.position;
-        joint.pixel = p.pixel;
-        joint.support_m2 = float(double(p.confidence) / area);
-        joint.confidence = calibration ? calibration->Confidence(j, joint.support_m2)
-                                       : core::FallbackConfidence(joint.support_m2);
-        const float gap = p.position.z() - float(mask_depth) * 1e-3f;
-        joint.tracked = joint.support_m2 >= options.min_support_m2 &&
-                        joint.confidence >= options.min_confidence &&
-                        std::abs(gap) <= options.max_depth_gap_m;
-        break;
+    } else {
+      // Candidates: the most confident proposals on the mask whose depth agrees with it.
+      FitCandidates cands;
+      std::array<std::vector<const JointProposal*>, core::kNumJoints> cand_proposal;
+      std::array<const JointProposal*, core::kNumJoints> first_on_mask{};
+      std::array<int, core::kNumJoints> first_depth{};
+      std::array<std::vector<int>, core::kNumJoints> cand_depth;
+      for (int j = 0; j < core::kNumJoints; ++j)
+        for (const JointProposal& p : proposals[size_t(j)]) {
+          if (int(cands[size_t(j)].size()) >= std::max(1, options.fit_candidates)) break;
+          const int d = mask_depth_at(p);
+          if (d == 0) continue;
+          if (!first_on_mask[size_t(j)]) first_on_mask[size_t(j)] = &p, first_depth[size_t(j)] = d;
+          if (std::abs(p.position.z() - float(d) * 1e-3f) > options.max_depth_gap_m) continue;
+          FitCandidate c;
+          c.position = p.position;
+          const float support = float(double(p.confidence) / area);
+          c.confidence = calibration ? calibration->Confidence(j, support) : core::FallbackConfidence(support);
+          if (support < options.min_support_m2) continue;
+          cands[size_t(j)].push_back(c);
+          cand_proposal[size_t(j)].push_back(&p);
+          cand_depth[size_t(j)].push_back(d);
+        }
+      const auto chosen = FitSkeleton(cands, options);
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        if (chosen[size_t(j)] >= 0) {
+          place(j, *cand_proposal[size_t(j)][size_t(chosen[size_t(j)])], cand_depth[size_t(j)][size_t(chosen[size_t(j)])]);
+        } else if (first_on_mask[size_t(j)]) {  // found, but the fit leaves it out: not tracked
+          place(j, *first_on_mask[size_t(j)], first_depth[size_t(j)]);
+          s.joints[size_t(j)].tracked = false;
+        }
       }
     }
     // Cut by the image border: which sides the mask touches.

@@ -26,7 +26,25 @@
 
 namespace poseforest::runtime {
 
+/// How a person's joints are chosen among the proposals on their mask.
+enum class SkeletonFit {
+  /// Each joint alone: its most confident proposal on the mask.
+  kGreedy,
+  /// One exact fit per person (pictorial structures, Felzenszwalb & Huttenlocher 2005) choosing
+  /// WHICH proposal each joint takes: per joint up to fit_candidates proposals on the mask (depth
+  /// agreeing, support enough), the choice maximizing the sum of log calibrated confidences and
+  /// of bone terms along SkeletonBones (FitScore), by dynamic programming on the tree. A bone
+  /// outside BoneLengthRange is impossible, so a confident left wrist on the right arm gives way
+  /// to a less confident one that the left elbow can reach. A joint is "missing" only where no
+  /// candidate fits; whether a chosen joint is tracked is decided as for kGreedy (its own
+  /// confidence, support, depth, the image border, a tracked parent). Measured against kGreedy
+  /// in docs/runtime/live.md ("Skeleton fit"): it has not beaten it yet, so it is not the default.
+  kKinematic,
+};
+
 struct SkeletonOptions {
+  SkeletonFit fit = SkeletonFit::kGreedy;
+  int fit_candidates = 8;  ///< kKinematic: proposals per joint considered (most confident first)
   float min_confidence = 0.3f;   ///< calibrated confidence below this: not tracked
   float min_support_m2 = 1e-4f;  ///< proposal support (raw confidence / (fx fy)) below this: not tracked
   int mask_margin_px = 2;        ///< a proposal's pixel may miss the mask by this many pixels
@@ -79,6 +97,26 @@ const std::vector<std::pair<int, int>>& SkeletonBones();
 /// Plausible length range of bone (parent, child) in metres (generous: children to tall adults,
 /// joint positions being proposals, not anatomy).
 std::pair<float, float> BoneLengthRange(int parent, int child);
+
+/// A typical adult length of bone (parent, child), metres: the centre of the soft preference of
+/// SkeletonFit::kKinematic (tests/runtime/test_skeleton.cpp checks these against the renderer's
+/// body family). 0 for a pair that is not a bone.
+float TypicalBoneLength(int parent, int child);
+
+/// SkeletonFit::kKinematic's inputs for one person: per joint, its candidate proposals' positions
+/// (camera frame, metres) and calibrated confidences, most confident first.
+struct FitCandidate {
+  Eigen::Vector3f position{0, 0, 0};
+  float confidence = 0;
+};
+using FitCandidates = std::array<std::vector<FitCandidate>, core::kNumJoints>;
+/// The fit's objective for `choice` (per joint a candidate index, -1 = missing): the sum of log
+/// confidences (missing: a constant below any candidate's) and of the bones' terms (BoneLengthRange
+/// outside: impossible, -1e30; within: a Gaussian about TypicalBoneLength, sigma 0.3 mu + 3 cm).
+double FitScore(const FitCandidates& candidates, const std::array<int, core::kNumJoints>& choice,
+                const SkeletonOptions& options);
+/// The choice maximizing FitScore, exactly (dynamic programming on SkeletonBones' tree).
+std::array<int, core::kNumJoints> FitSkeleton(const FitCandidates& candidates, const SkeletonOptions& options);
 
 /// Which confidence a table gives: "calibrated (tune-joints, N validation proposals)" or the
 /// fallback's name, for messages.

@@ -2,14 +2,16 @@
 # The ablation behind the rendering realism defaults (job.proto RenderedSource fields 14-19,
 # docs/training/realism.md): the main job's job, one variant per line of VARIANTS below, each
 # trained at the same images per tree, tuned on validation renders of its own training source,
-# then scored on the held-out classic renders (mAP, average per-class accuracy) and on the
-# hand-labelled real Kinect frames (eval --real-labels). Prints one table row per variant.
+# then scored on the held-out classic renders (mAP, average per-class accuracy), on the same
+# test clips rendered with the realism defaults (mAP), and on the hand-labelled real Kinect frames
+# (eval --real-labels). Prints one table row per variant.
 #
 #   scripts/realism-ablation.sh [IMAGES_PER_TREE [TEST_IMAGES]]   (default 300 and 200)
 #
 # Needs a build (scripts/build.sh) and the shared data (POSEFOREST_DATA_DIR, default
 # ../shared/data). Outputs in $POSEFOREST_OUT/ablation-N (default ./out/ablation-N), one folder per
-# variant; a variant whose eval files exist is not trained again (delete its folder to redo it).
+# variant; a variant already trained (tune.log) is not trained again, and a score file that exists
+# is kept (delete it to score again; delete the folder to train again).
 # ~7 minutes per variant at 300 images per tree on two cores.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -47,7 +49,7 @@ for v in "${VARIANTS[@]}"; do
   [[ -n "${POSEFOREST_ABLATION_ONLY:-}" && "$name" != *"$POSEFOREST_ABLATION_ONLY"* ]] && continue
   dir=$out/$(echo "$name" | tr -c 'a-zA-Z0-9\n' '-' | tr -s '-')
   mkdir -p "$dir"
-  if [[ ! -s "$dir/real.txt" ]]; then
+  if [[ ! -s "$dir/tune.log" ]]; then
     echo "== $name: training ($dir)"
     write_default_job "$dir/job.textproto" "$per_tree" "$test_images" "$out/mocap.pfposes" "$data" "$fields"
     t0=$(date +%s)
@@ -55,18 +57,28 @@ for v in "${VARIANTS[@]}"; do
     echo "train: $(( $(date +%s) - t0 )) s" > "$dir/time.txt"
     "$bin/poseforest" tune-joints --forest "$dir/forest.pff" --validation "$dir/job.textproto" --frames 60 \
       --out "$dir/forest.pff" > "$dir/tune.log" 2>&1
-    "$bin/poseforest" eval --forest "$dir/forest.pff" --test-set "$dir/job.textproto" --method meanshift --quiet \
-      > "$dir/eval.txt"
-    "$bin/poseforest" eval --forest "$dir/forest.pff" --real-labels "$labels" --png-dir "$dir/real" --quiet \
-      > "$dir/real.txt"
+  fi
+  # Scores (delete them to score again, e.g. after a change to the runtime).
+  [[ -s "$dir/eval.txt" ]] || "$bin/poseforest" eval --forest "$dir/forest.pff" --test-set "$dir/job.textproto" \
+    --method meanshift --quiet > "$dir/eval.txt"
+  [[ -s "$dir/real.txt" ]] || "$bin/poseforest" eval --forest "$dir/forest.pff" --real-labels "$labels" \
+    --png-dir "$dir/real" --quiet > "$dir/real.txt"
+  if [[ ! -s "$dir/eval_realistic.txt" ]]; then
+    # The same held-out test clips rendered with the realism defaults (upper-body framings, arms,
+    # projector shadow): the job without its test-set pins.
+    sed '/^      upper_body_share: 0$/d; /^      arm_pose_share: 0$/d; /^      projector_shadow: false$/d; /^      min_range_m: 0$/d' \
+      "$dir/job.textproto" > "$dir/job_realistic_test.textproto"
+    "$bin/poseforest" eval --forest "$dir/forest.pff" --test-set "$dir/job_realistic_test.textproto" --method meanshift \
+      --quiet > "$dir/eval_realistic.txt"
   fi
   map=$(grep '^eval: mAP' "$dir/eval.txt" | sed -E 's/.*mAP ([0-9.]+).*accuracy ([0-9.]+)%.*/\1 \2/')
+  map_r=$(grep '^eval: mAP' "$dir/eval_realistic.txt" | sed -E 's/.*mAP ([0-9.]+).*/\1/')
   real=$(grep '^eval: real frames' "$dir/real.txt" | sed -E 's/.*\(([0-9.]+)\), any within 0.10 m ([0-9.]+)/\1 \2/')
   arms=$(grep '^elbows, wrists, hands' "$dir/real.txt" | sed -E 's/.* [0-9]+ +[0-9]+ +[0-9]+ \(([0-9.]+)\).*/\1/')
-  rows+=("$(printf '| %-36s | %s | %s | %s | %s | %s |' "$name" ${map:-- -} ${real:-- -} "${arms:--}")")
+  rows+=("$(printf '| %-36s | %s | %s | %s | %s | %s | %s |' "$name" ${map:-- -} "${map_r:--}" ${real:-- -} "${arms:--}")")
 done
 echo
 echo "images per tree: $per_tree; mAP and accuracy on $test_images held-out classic renders; real: 9 frames, 90 joints"
-echo "| variant | mAP (renders) | per-class accuracy % | real: tracked within 0.10 m | real: any within 0.10 m | real: elbows, wrists, hands |"
-echo "|---|---:|---:|---:|---:|---:|"
+echo "| variant | mAP, classic renders | per-class accuracy %, classic | mAP, realistic renders | real: tracked within 0.10 m | real: any within 0.10 m | real: elbows, wrists, hands |"
+echo "|---|---:|---:|---:|---:|---:|---:|"
 printf '%s\n' "${rows[@]}"

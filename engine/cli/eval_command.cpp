@@ -80,11 +80,25 @@ options:
   --per-person      list each person's segmentation IoU
   --no-rescale      keep the forest's offsets as trained even when the frames' camera (camera.txt)
                     has another focal length (to measure what the rescaling buys)
+  --fit F           how the skeleton picks its joints: greedy (default: each joint's most
+                    confident proposal on the person) or kinematic (one fit per person choosing
+                    among each joint's proposals with bone lengths; runtime/skeleton.h)
   --real-labels F   score skeletons on hand-labelled real frames (above) instead of --test-set
   --png-dir DIR     with --real-labels: a picture per frame, DIR/<frame file>.png
   --quiet           no progress lines
   --help            this text
 )";
+// --fit: how skeletons pick their joints.
+bool ParseFit(const Args& args, runtime::SkeletonFit* fit) {
+  const std::string f = args.GetOr("fit", "greedy");
+  if (f != "kinematic" && f != "greedy") {
+    std::fprintf(stderr, "poseforest eval: --fit must be kinematic or greedy (got '%s')\n", f.c_str());
+    return false;
+  }
+  *fit = f == "greedy" ? runtime::SkeletonFit::kGreedy : runtime::SkeletonFit::kKinematic;
+  return true;
+}
+
 // eval --real-labels: the skeletons of `live` scored on hand-labelled frames (engine/real_frames.h).
 int EvalRealMain(const Args& args) {
   if (!args.Has("forest") || !args.positional().empty()) {
@@ -135,6 +149,7 @@ int EvalRealMain(const Args& args) {
       method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
   options.num_threads = int(*threads);
   options.pixel_stride = int(*pixel_stride);
+  if (!ParseFit(args, &options.skeleton.fit)) return 2;
   runtime::FrameSourceOptions source_options;
   source_options.camera = labels->camera;
   source_options.camera_given = true;
@@ -191,7 +206,7 @@ int EvalRealMain(const Args& args) {
 
 int EvalMain(int argc, char** argv) {
   Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png",
-             "segment", "pixel-stride", "real-labels", "png-dir"},
+             "segment", "pixel-stride", "real-labels", "png-dir", "fit"},
             {"help", "quiet", "per-person", "no-rescale"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
@@ -250,6 +265,7 @@ int EvalMain(int argc, char** argv) {
   eo.threads = int(*threads);
   eo.people = int(*people);
   eo.pixel_stride = int(*pixel_stride);
+  if (!ParseFit(args, &eo.skeleton_fit)) return 2;
   eo.fast = method == "both";
   eo.rescale = !args.Has("no-rescale");
   eo.segment = segment == "on"    ? coordinator::JointEvalOptions::Segment::kOn

@@ -74,6 +74,9 @@ skeletons:
   --pixel-stride N     classify and propose from every N-th pixel in x and y only (default 2:
                        one pixel in 2x2, as Kinect's tracker ran at 320x240; 2.1x the frames/s
                        of 1 for 0.003 mAP: docs/runtime/live.md; 1: every pixel)
+  --fit F              greedy (default): each joint's most confident proposal on the person;
+                       kinematic: one fit per person choosing among each joint's proposals with
+                       bone lengths (runtime/skeleton.h)
   --min-confidence C   a joint is tracked only with a confidence >= C (default 0.3)
   --min-support S      ... and a proposal support >= S m^2 (default 0.0001)
   --max-match M        a person moving more than M metres between frames gets a new id (0.5)
@@ -163,7 +166,7 @@ int LiveMain(int argc, char** argv) {
                                          "near",           "far",
                                          "dds-domain",     "dds-topic",
                                          "dds-frame-id",   "dds-wait",
-                                         "pixel-stride"};
+                                         "pixel-stride",   "fit"};
   for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
   Args args(value_options, {"help", "quiet", "smooth", "loop", "dds"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
@@ -223,6 +226,11 @@ int LiveMain(int argc, char** argv) {
   options.method =
       method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
   auto& sk = options.skeleton;
+  {
+    const std::string fit = args.GetOr("fit", "greedy");
+    if (fit != "kinematic" && fit != "greedy") return UsageError("--fit must be kinematic or greedy (got '" + fit + "')");
+    sk.fit = fit == "greedy" ? runtime::SkeletonFit::kGreedy : runtime::SkeletonFit::kKinematic;
+  }
   {
     auto min_conf = GetDouble(args, "min-confidence", sk.min_confidence, 0.0, 1.0);
     auto min_support = GetDouble(args, "min-support", sk.min_support_m2, 0.0, 10.0);

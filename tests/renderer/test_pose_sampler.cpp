@@ -1,10 +1,13 @@
 // Procedural pose sampler: deterministic, bone lengths kept, joints within limits.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
+#include <map>
 
 #include "renderer/pose_sampler.h"
 #include "renderer/procedural_body.h"
 #include "renderer/synthetic_source.h"
+#include "runtime/skeleton.h"
 
 using namespace poseforest::renderer;
 
@@ -129,4 +132,27 @@ TEST_CASE("PerturbArms: arms toward the camera or near the body, the rest kept, 
   CHECK(changed_arms < n * 2);
   CHECK(hands_forward > arms * 0.6);
   CHECK(hands_near_body > arms * 0.3);
+}
+
+TEST_CASE("the skeleton fit's typical bone lengths match the body family's", "[pose]") {
+  // runtime::TypicalBoneLength centres the kinematic fit's bone preference; here against the
+  // evaluation joints of every procedural base shape (children to tall adults) in the rest pose.
+  std::map<std::pair<int, int>, std::vector<double>> lengths;
+  for (int s = 0; s < kNumProceduralShapes; ++s) {
+    const auto joints = EvalJoints(ProceduralSkeleton(ProceduralBaseShape(s)));
+    for (const auto& [a, b] : poseforest::runtime::SkeletonBones())
+      lengths[{a, b}].push_back((joints[size_t(a)] - joints[size_t(b)]).norm());
+  }
+  for (const auto& [bone, v] : lengths) {
+    std::vector<double> sorted = v;
+    std::sort(sorted.begin(), sorted.end());
+    const double median = sorted[sorted.size() / 2];
+    const double typical = poseforest::runtime::TypicalBoneLength(bone.first, bone.second);
+    INFO(poseforest::core::JointName(bone.first) << " - " << poseforest::core::JointName(bone.second) << ": family median "
+                                                 << median << " m, typical " << typical << " m");
+    CHECK(typical == Approx(median).epsilon(0.3));
+    const auto [lo, hi] = poseforest::runtime::BoneLengthRange(bone.first, bone.second);
+    CHECK(sorted.front() >= lo);  // every body of the family is possible
+    CHECK(sorted.back() <= hi);
+  }
 }

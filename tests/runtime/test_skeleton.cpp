@@ -3,6 +3,7 @@
 // sequence, One Euro smoothing and the JSON Lines record.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <functional>
 #include <random>
 
 #include "runtime/core/forest_format.h"
@@ -350,4 +351,75 @@ TEST_CASE("the JSON Lines record: one line, people, 16 named joints, null for jo
                   "false}]}]}") != std::string::npos);
   CHECK(runtime::SkeletonsJsonLine(0, 0, "x", {}) ==
         "{\"index\":0,\"time_s\":0.000000,\"source\":\"x\",\"people\":[]}");
+}
+
+TEST_CASE("the kinematic fit is exact: dynamic programming equals brute force", "[skeleton][fit]") {
+  using J = core::Joint;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-0.35f, 0.35f), conf(0.01f, 1.0f);
+  std::uniform_int_distribution<int> count(0, 3);
+  // The neck, the left shoulder and arm, and the head: 3-4 candidates each, brute-forced.
+  const std::vector<int> joints = {int(J::kNeck), int(J::kHead), int(J::kLShoulder), int(J::kLElbow),
+                                   int(J::kLWrist), int(J::kLHand)};
+  for (const bool parent_rule : {true, false})
+    for (int trial = 0; trial < 200; ++trial) {
+      runtime::SkeletonOptions opt;
+      opt.require_tracked_parent = parent_rule;
+      runtime::FitCandidates cands;
+      Eigen::Vector3f at(0, 0, 1.5f);
+      for (int j : joints) {
+        const int n = count(rng);
+        for (int k = 0; k < n; ++k) {
+          runtime::FitCandidate c;
+          c.position = at + Eigen::Vector3f(u(rng), u(rng), u(rng));
+          c.confidence = conf(rng);
+          cands[size_t(j)].push_back(c);
+        }
+        if (n) at = cands[size_t(j)][0].position;
+      }
+      const auto fit = runtime::FitSkeleton(cands, opt);
+      const double fit_score = runtime::FitScore(cands, fit, opt);
+      // Every combination.
+      std::array<int, core::kNumJoints> choice;
+      choice.fill(-1);
+      double best = -1e300;
+      std::function<void(size_t)> all = [&](size_t k) {
+        if (k == joints.size()) {
+          best = std::max(best, runtime::FitScore(cands, choice, opt));
+          return;
+        }
+        const int j = joints[k];
+        for (int s = -1; s < int(cands[size_t(j)].size()); ++s) {
+          choice[size_t(j)] = s;
+          all(k + 1);
+        }
+        choice[size_t(j)] = -1;
+      };
+      all(0);
+      INFO("trial " << trial << (parent_rule ? " with" : " without") << " the parent rule");
+      REQUIRE(fit_score == Approx(best).margin(1e-9));
+      for (int j = 0; j < core::kNumJoints; ++j) REQUIRE(fit[size_t(j)] < int(cands[size_t(j)].size()));
+    }
+}
+
+TEST_CASE("the kinematic fit prefers a reachable wrist to a confident one on the other arm", "[skeleton][fit]") {
+  using J = core::Joint;
+  runtime::SkeletonOptions opt;
+  runtime::FitCandidates c;
+  auto add = [&](J j, Eigen::Vector3f p, float conf) { c[size_t(int(j))].push_back({p, conf}); };
+  add(J::kNeck, {0, 0, 1.5f}, 0.9f);
+  add(J::kLShoulder, {0.19f, 0.05f, 1.5f}, 0.9f);
+  add(J::kRShoulder, {-0.19f, 0.05f, 1.5f}, 0.9f);
+  add(J::kLElbow, {0.45f, 0.1f, 1.45f}, 0.6f);
+  add(J::kLWrist, {-0.65f, 0.1f, 1.4f}, 0.5f);  // beyond the right elbow: the other arm
+  add(J::kLWrist, {0.68f, 0.05f, 1.35f}, 0.2f);
+  const auto fit = runtime::FitSkeleton(c, opt);
+  CHECK(fit[size_t(int(J::kLWrist))] == 1);
+  CHECK(fit[size_t(int(J::kLElbow))] == 0);
+  // The greedy choice would be candidate 0; with it the forearm would be 1.1 m long: impossible.
+  std::array<int, core::kNumJoints> greedy = fit;
+  greedy[size_t(int(J::kLWrist))] = 0;
+  CHECK(runtime::FitScore(c, greedy, opt) < -1e29);
+  // No candidate: missing.
+  CHECK(fit[size_t(int(J::kRElbow))] == -1);
 }
