@@ -31,7 +31,7 @@ struct SourceSpec {
   double min_distance_m = 1.5;      ///< rendered: metres
   double max_distance_m = 4.5;      ///< rendered: metres
   /// rendered: realism (job.proto fields 14-19; defaults in job_spec.cpp, kRealism*)
-  double upper_body_share = 0.5;
+  double upper_body_share = 0.25;
   double upper_body_min_distance_m = 0.6;
   double upper_body_max_distance_m = 2.0;
   double arm_pose_share = 0.5;

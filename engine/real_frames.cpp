@@ -165,7 +165,7 @@ RealFrameOutcome ScoreRealFrame(const RealFrameLabels& labels, const runtime::Sk
     if (!sk) continue;
     const Eigen::Vector3d target = label->Target();
     const runtime::SkeletonJoint& j = sk->joints[size_t(q)];
-    if (j.found && (j.position_m.cast<double>() - target).norm() <= kRealHitRadiusM) o.any_right = true;
+    if (j.found && (j.position_m.cast<double>() - target).norm() <= kRealHitRadiusM) o.found_right = o.any_right = true;
     if (j.tracked) {
       o.tracked = true;
       o.error_m = (j.position_m.cast<double>() - target).norm();
@@ -192,7 +192,7 @@ RealScore SummarizeReal(const std::vector<RealFrameOutcome>& frames) {
         const RealJointOutcome& o = f.joints[size_t(q)];
         if (!o.labelled) continue;
         ++r.labelled;
-        r.tracked += o.tracked, r.right += o.right, r.any_right += o.any_right;
+        r.tracked += o.tracked, r.right += o.right, r.found_right += o.found_right, r.any_right += o.any_right;
         if (o.tracked) px.push_back(o.error_px);
       }
     r.median_error_px = Median(px);
@@ -228,19 +228,22 @@ RealScore SummarizeReal(const std::vector<RealFrameOutcome>& frames) {
 std::string FormatRealScore(const RealScore& score) {
   std::ostringstream s;
   char line[256];
-  std::snprintf(line, sizeof line, "%-24s %9s %8s %14s %12s %18s\n", "joint", "labelled", "tracked",
-                "within 0.10 m", "median px", "any within 0.10 m");
+  std::snprintf(line, sizeof line, "%-24s %9s %8s %14s %10s %15s %18s\n", "joint", "labelled", "tracked",
+                "within 0.10 m", "median px", "found within", "any within 0.10 m");
   s << line;
   auto put = [&](const RealScoreRow& r) {
     char px[32] = "-";
     if (r.median_error_px >= 0) std::snprintf(px, sizeof px, "%.1f", r.median_error_px);
-    std::snprintf(line, sizeof line, "%-24s %9d %8d %6d (%.3f) %12s %9d (%.3f)\n", r.name.c_str(), r.labelled,
-                  r.tracked, r.right, r.right_fraction(), px, r.any_right, r.any_fraction());
+    std::snprintf(line, sizeof line, "%-24s %9d %8d %6d (%.3f) %10s %7d (%.3f) %9d (%.3f)\n", r.name.c_str(),
+                  r.labelled, r.tracked, r.right, r.right_fraction(), px, r.found_right,
+                  r.labelled ? double(r.found_right) / r.labelled : 0.0, r.any_right, r.any_fraction());
     s << line;
   };
   for (const RealScoreRow& r : score.joints) put(r);
   s << "\n";
   for (const RealScoreRow& r : score.groups) put(r);
+  s << "(found within: the skeleton's position of the joint, tracked or not; any within: that or any of the\n"
+       " joint's proposals on the person: what the forest found, before the skeleton's rules)\n";
   return s.str();
 }
 

@@ -57,6 +57,7 @@ struct RealJointOutcome {
   bool labelled = false;
   bool tracked = false;     ///< the skeleton tracks the joint
   bool right = false;       ///< tracked, within kRealHitRadiusM of the target
+  bool found_right = false;  ///< the skeleton's position (tracked or not) within kRealHitRadiusM
   bool any_right = false;   ///< the skeleton's position or any proposal on the person within kRealHitRadiusM
   double error_m = -1;      ///< tracked: 3D distance to the target
   double error_px = -1;     ///< tracked: 2D distance of its pixel to uv
@@ -80,7 +81,7 @@ RealFrameOutcome ScoreRealFrame(const RealFrameLabels& labels, const runtime::Sk
 /// Per joint and per group (head-neck-shoulders, elbows, wrists, hands, all labelled joints).
 struct RealScoreRow {
   std::string name;
-  int labelled = 0, tracked = 0, right = 0, any_right = 0;
+  int labelled = 0, tracked = 0, right = 0, found_right = 0, any_right = 0;
   double median_error_px = -1;  ///< over tracked joints; -1 when none
   double right_fraction() const { return labelled ? double(right) / labelled : 0.0; }
   double any_fraction() const { return labelled ? double(any_right) / labelled : 0.0; }

@@ -34,10 +34,12 @@ labels=$data/real/skeltrack_kinect_depth/joint_labels.json
 # name | training source fields (on top of the defaults: everything on)
 VARIANTS=(
   "classic|upper_body_share: 0 arm_pose_share: 0 projector_shadow: false min_range_m: 0"
-  "all on (defaults)|"
+  "defaults (upper-body share 0.25)|"
+  "upper-body share 0.5|upper_body_share: 0.5"
+  "share 0.5, no arm re-posing|upper_body_share: 0.5 arm_pose_share: 0"
+  "share 0.5, no shadow, no near limit|upper_body_share: 0.5 projector_shadow: false min_range_m: 0"
   "no upper-body framing|upper_body_share: 0"
-  "no arm re-posing|arm_pose_share: 0"
-  "no projector shadow, no near limit|projector_shadow: false min_range_m: 0"
+  "arms only|upper_body_share: 0 projector_shadow: false min_range_m: 0"
 )
 [[ -n "${POSEFOREST_ABLATION_ONLY:-}" ]] && echo "(only variants matching '$POSEFOREST_ABLATION_ONLY')"
 
@@ -73,12 +75,12 @@ for v in "${VARIANTS[@]}"; do
   fi
   map=$(grep '^eval: mAP' "$dir/eval.txt" | sed -E 's/.*mAP ([0-9.]+).*accuracy ([0-9.]+)%.*/\1 \2/')
   map_r=$(grep '^eval: mAP' "$dir/eval_realistic.txt" | sed -E 's/.*mAP ([0-9.]+).*/\1/')
-  real=$(grep '^eval: real frames' "$dir/real.txt" | sed -E 's/.*\(([0-9.]+)\), any within 0.10 m ([0-9.]+)/\1 \2/')
+  real=$(grep '^eval: real frames' "$dir/real.txt" | sed -E 's/.*\(([0-9.]+)\), found within ([0-9.]+), any within 0.10 m ([0-9.]+)/\1 \2 \3/')
   arms=$(grep '^elbows, wrists, hands' "$dir/real.txt" | sed -E 's/.* [0-9]+ +[0-9]+ +[0-9]+ \(([0-9.]+)\).*/\1/')
-  rows+=("$(printf '| %-36s | %s | %s | %s | %s | %s | %s |' "$name" ${map:-- -} "${map_r:--}" ${real:-- -} "${arms:--}")")
+  rows+=("$(printf '| %-36s | %s | %s | %s | %s | %s | %s | %s |' "$name" ${map:-- -} "${map_r:--}" ${real:-- - -} "${arms:--}")")
 done
 echo
 echo "images per tree: $per_tree; mAP and accuracy on $test_images held-out classic renders; real: 9 frames, 90 joints"
-echo "| variant | mAP, classic renders | per-class accuracy %, classic | mAP, realistic renders | real: tracked within 0.10 m | real: any within 0.10 m | real: elbows, wrists, hands |"
-echo "|---|---:|---:|---:|---:|---:|---:|"
+echo "| variant | mAP, classic renders | per-class accuracy %, classic | mAP, realistic renders | real: tracked within 0.10 m | real: found within | real: any within 0.10 m | real: elbows, wrists, hands tracked within |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
 printf '%s\n' "${rows[@]}"

@@ -41,9 +41,10 @@ scored instead: LABELS.json names the camera and, per frame, a depth file beside
 joints (the format of the shared data's real/skeltrack_kinect_depth/joint_labels.json; its
 JOINT_LABELS.md says how they were made). A joint is right when the skeleton tracks it within
 0.10 m of the labelled surface point moved 0.04 m along the camera ray. Per joint and per group:
-labelled, tracked, tracked within 0.10 m, the median 2D error of tracked joints (pixels), and
-"any within 0.10 m": the skeleton's position or any of the joint's proposals on the person within
-0.10 m, tracked or not (did the forest find it at all). The same pipeline as `live`: people
+labelled, tracked, tracked within 0.10 m, the median 2D error of tracked joints (pixels), "found
+within": the skeleton's position within 0.10 m, tracked or not (the confidence rules aside), and
+"any within 0.10 m": that or any of the joint's proposals on the person within 0.10 m (did the
+forest find it at all). The same pipeline as `live`: people
 segmentation, the forest's tuned proposal parameters and calibration, the skeleton's rules, and
 live's pixel stride 2 unless --pixel-stride says otherwise. --png-dir DIR writes one picture per
 frame (depth | parts | skeleton, each label a cross: green when right, red otherwise, with a line
@@ -197,8 +198,11 @@ int EvalRealMain(const Args& args) {
   std::fputs(engine::FormatRealScore(score).c_str(), stdout);
   if (png_dir) std::printf("pictures: %s/<frame>.png\n", png_dir->c_str());
   const auto& all = score.all();
-  std::printf("eval: real frames: %d of %d labelled joints tracked within 0.10 m (%.3f), any within 0.10 m %.3f\n",
-              all.right, all.labelled, all.right_fraction(), all.any_fraction());
+  std::printf(
+      "eval: real frames: %d of %d labelled joints tracked within 0.10 m (%.3f), found within %.3f, any within "
+      "0.10 m %.3f\n",
+      all.right, all.labelled, all.right_fraction(), all.labelled ? double(all.found_right) / all.labelled : 0.0,
+      all.any_fraction());
   return 0;
 }
 

@@ -60,7 +60,7 @@ constexpr const char* kUsage =
     "                     boxes on the floor); a pure function of (seed, frame) like the rest\n"
     "  --occluders N      N boxes per frame between the camera and the people (default 0)\n"
     "  --masks            write mask_%06d.png also without clutter\n"
-    "  --realism          render as a training job does by default: half the frames framed on the\n"
+    "  --realism          render as a training job does by default: a quarter of the frames on the\n"
     "                     upper body (camera 0.6-2 m, aimed between chest and head), half the\n"
     "                     people's arms re-posed toward the camera or near the body, Kinect v1's\n"
     "                     projector shadow and 0.45 m near limit (renderer/README.md, \"Framing,\n"
@@ -286,7 +286,7 @@ int RenderMain(int argc, char** argv) {
   config.min_people = config.max_people = int(*people);
   config.noise.enabled = !args.Has("no-noise");
   if (args.Has("realism")) {  // the job defaults (engine/job_spec.h SourceSpec)
-    config.framing.upper_body_share = 0.5;
+    config.framing.upper_body_share = 0.25;
     config.arm_pose_share = 0.5;
     config.noise.projector_shadow = true;
     config.noise.min_range_m = 0.45;
