@@ -12,6 +12,8 @@
 
 #if defined(__AVX2__) || defined(__AVX512F__)
 #include <immintrin.h>
+#elif defined(__ARM_NEON) && defined(__aarch64__)
+#include <arm_neon.h>
 #endif
 
 namespace poseforest::runtime {
@@ -61,8 +63,8 @@ inline float ExpNonPositive(float a) {
 
 /// Sum over the points k in the runs ranges[r][0] <= k < ranges[r][1] of the Gaussian kernel
 /// weight kw = w[k] * exp(-|p_k - q|^2 / b^2), cut at |p_k - q|^2 <= cutoff2: adds sum kw * p_k
-/// to (sx, sy, sz) and sum kw to sw. Vector kernels for AVX-512 and AVX2, scalar otherwise;
-/// they differ only in the order of the float sums.
+/// to (sx, sy, sz) and sum kw to sw. Vector kernels for AVX-512, AVX2 and 64-bit ARM (NEON),
+/// scalar otherwise; they differ only in the order of the float sums (NEON's is AVX-512's).
 #if defined(__AVX512F__)
 // GCC 12's AVX-512 intrinsics start from _mm512_undefined_*(), which its -Wmaybe-uninitialized
 // wrongly reports when inlined (GCC bug 105593, fixed in 12.3/13), as in classifier.cpp.
@@ -162,6 +164,79 @@ void KernelSums(const float* px, const float* py, const float* pz, const float* 
   *sy = HorizontalSum(ay);
   *sz = HorizontalSum(az);
   *sw = HorizontalSum(aw);
+}
+#elif defined(__ARM_NEON) && defined(__aarch64__)
+// 64-bit ARM (Raspberry Pi 4/5, Jetson, Rockchip): NEON, 4 floats per register. The kernel
+// keeps the AVX-512 kernel's 16 lanes (four registers per sum) and adds them up in the order
+// _mm512_reduce_add_ps does, so an aarch64 board's sums, hence its joints, are bit-identical
+// to an AVX-512 machine's. Multiplies and adds stay separate (vmulq + vaddq, never vfmaq), as
+// everywhere in the project (-ffp-contract=off).
+inline float32x4_t ExpNonPositive(float32x4_t a) {
+  const float32x4_t t = vmaxq_f32(vmulq_f32(a, vdupq_n_f32(1.44269504f)), vdupq_n_f32(-120.0f));
+  const int32x4_t n = vcvtq_s32_f32(vsubq_f32(t, vdupq_n_f32(0.5f)));  // truncates, as cvttps
+  const float32x4_t f = vsubq_f32(t, vcvtq_f32_s32(n));
+  float32x4_t p = vdupq_n_f32(1.5403530e-4f);
+  p = vaddq_f32(vmulq_f32(p, f), vdupq_n_f32(1.3333558e-3f));
+  p = vaddq_f32(vmulq_f32(p, f), vdupq_n_f32(9.6181291e-3f));
+  p = vaddq_f32(vmulq_f32(p, f), vdupq_n_f32(5.5504109e-2f));
+  p = vaddq_f32(vmulq_f32(p, f), vdupq_n_f32(2.4022651e-1f));
+  p = vaddq_f32(vmulq_f32(p, f), vdupq_n_f32(6.9314718e-1f));
+  p = vaddq_f32(vmulq_f32(p, f), vdupq_n_f32(1.0f));
+  return vmulq_f32(p, vreinterpretq_f32_s32(vshlq_n_s32(vaddq_s32(n, vdupq_n_s32(127)), 23)));
+}
+
+/// The sum of 16 lanes a[0..3] (lanes 0-3, 4-7, 8-11, 12-15) in _mm512_reduce_add_ps's order:
+/// halves (8 + 8), quarters (4 + 4), then lanes (0 + 2, 1 + 3), then the last two.
+inline float ReduceAdd16(const float32x4_t a[4]) {
+  const float32x4_t q = vaddq_f32(vaddq_f32(a[3], a[1]), vaddq_f32(a[2], a[0]));
+  return (vgetq_lane_f32(q, 0) + vgetq_lane_f32(q, 2)) + (vgetq_lane_f32(q, 1) + vgetq_lane_f32(q, 3));
+}
+
+void KernelSums(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
+                int num_ranges, const float q[3], float cutoff2, float inv_b2, float* sx, float* sy, float* sz,
+                float* sw) {
+  const float32x4_t qx = vdupq_n_f32(q[0]), qy = vdupq_n_f32(q[1]), qz = vdupq_n_f32(q[2]);
+  const float32x4_t cut = vdupq_n_f32(cutoff2), neg_inv = vdupq_n_f32(-inv_b2);
+  float32x4_t ax[4], ay[4], az[4], aw[4];
+  for (int g = 0; g < 4; ++g) ax[g] = ay[g] = az[g] = aw[g] = vdupq_n_f32(0.0f);
+  // The last (partial) block of a run is copied into zero-filled buffers: the loads stay within
+  // the arrays, and the lanes past the end add kw = 0, as the AVX-512 kernel's masked lanes do.
+  alignas(16) float tail[4][16];
+  for (int r = 0; r < num_ranges; ++r) {
+    const uint32_t e = ranges[r][1];
+    for (uint32_t k = ranges[r][0]; k < e; k += 16) {
+      const float *x16 = px + k, *y16 = py + k, *z16 = pz + k, *w16 = pw + k;
+      if (e - k < 16) {
+        const uint32_t m = e - k;
+        for (uint32_t i = 0; i < 16; ++i) {
+          tail[0][i] = i < m ? px[k + i] : 0.0f;
+          tail[1][i] = i < m ? py[k + i] : 0.0f;
+          tail[2][i] = i < m ? pz[k + i] : 0.0f;
+          tail[3][i] = i < m ? pw[k + i] : 0.0f;
+        }
+        x16 = tail[0], y16 = tail[1], z16 = tail[2], w16 = tail[3];
+      }
+      const uint32_t valid = std::min(e - k, 16u);
+      for (int g = 0; g < 4; ++g) {
+        const float32x4_t x = vld1q_f32(x16 + 4 * g), y = vld1q_f32(y16 + 4 * g);
+        const float32x4_t z = vld1q_f32(z16 + 4 * g), w = vld1q_f32(w16 + 4 * g);
+        const float32x4_t ex = vsubq_f32(x, qx), ey = vsubq_f32(y, qy), ez = vsubq_f32(z, qz);
+        const float32x4_t d2 = vaddq_f32(vaddq_f32(vmulq_f32(ex, ex), vmulq_f32(ey, ey)), vmulq_f32(ez, ez));
+        const uint32x4_t lane = vaddq_u32(vdupq_n_u32(uint32_t(4 * g)), uint32x4_t{0, 1, 2, 3});
+        const uint32x4_t near = vandq_u32(vcleq_f32(d2, cut), vcltq_u32(lane, vdupq_n_u32(valid)));
+        const float32x4_t kw = vreinterpretq_f32_u32(
+            vandq_u32(near, vreinterpretq_u32_f32(vmulq_f32(w, ExpNonPositive(vmulq_f32(d2, neg_inv))))));
+        ax[g] = vaddq_f32(ax[g], vmulq_f32(kw, x));
+        ay[g] = vaddq_f32(ay[g], vmulq_f32(kw, y));
+        az[g] = vaddq_f32(az[g], vmulq_f32(kw, z));
+        aw[g] = vaddq_f32(aw[g], kw);
+      }
+    }
+  }
+  *sx = ReduceAdd16(ax);
+  *sy = ReduceAdd16(ay);
+  *sz = ReduceAdd16(az);
+  *sw = ReduceAdd16(aw);
 }
 #else
 void KernelSums(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],

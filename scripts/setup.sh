@@ -24,6 +24,7 @@ training_pkgs=(
   python3-sklearn python3-matplotlib        # bench/train's side-by-side learner, docs plots (/usr/bin/python3)
   libfreenect-dev libfreenect-bin           # optional Kinect v1 back end + fakenect (its replay library) for test_freenect
   libopenni2-dev                            # optional OpenNI2 back end (test_openni2 uses its Dummy driver)
+  g++-aarch64-linux-gnu qemu-user           # scripts/cross-arm64.sh: the runtime for 64-bit ARM, tested under qemu
 )
 
 pkgs=("${runtime_pkgs[@]}")

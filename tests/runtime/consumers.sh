@@ -10,6 +10,9 @@
 #   pkgconfig  examples/ built by a plain Makefile with pkg-config, C and C++
 #   python     the Python module imported from the prefix: examples/classify.py and
 #              tests/runtime/python_api_check.py (results equal the CLI's byte for byte)
+# A cross build (cmake/toolchains/) also sets PF_EMULATOR (e.g. "qemu-aarch64 -L SYSROOT": the
+# built programs run through it), PF_NM (the target's nm) and PF_TOOLCHAIN_FILE (for the
+# examples' CMake project).
 set -euo pipefail
 step=${1:?usage: consumers.sh install|symbols|cmake|pkgconfig|python}
 for v in PF_CMAKE PF_BUILD_DIR PF_SOURCE_DIR PF_WORK PF_VERSION PF_SOVERSION PF_LIBDIR PF_BINDIR PF_INCLUDEDIR \
@@ -23,6 +26,14 @@ lib=$prefix/$PF_LIBDIR
 fail() {
   echo "FAIL: $*" >&2
   exit 1
+}
+# run PROGRAM ARGS...: a program built for the target (through PF_EMULATOR in a cross build).
+read -r -a emulator <<<"${PF_EMULATOR:-}"
+run() { "${emulator[@]}" "$@"; }
+# libs PROGRAM: the shared libraries it loads, as ldd lists them (the target's loader, asked
+# through the emulator, in a cross build).
+libs() {
+  if ((${#emulator[@]})); then run -E LD_TRACE_LOADED_OBJECTS=1 "$1"; else ldd "$1"; fi
 }
 # same FILE_A FILE_B WHAT: byte-identical files
 same() {
@@ -49,16 +60,16 @@ install)
   if [[ ${PF_WITH_PYTHON:-OFF} == ON ]]; then
     compgen -G "$prefix/$PF_PYDIR/poseforest/_poseforest*.so" >/dev/null || fail "no Python module in $prefix/$PF_PYDIR"
   fi
-  "$prefix/$PF_BINDIR/poseforest" --version | grep -qx "poseforest $PF_VERSION" || fail "installed poseforest --version"
-  "$PF_MAKE_INPUTS" "$inputs"
-  "$prefix/$PF_BINDIR/poseforest" infer --quiet --labels --distributions --joints --forest "$inputs/forest.pff" \
+  run "$prefix/$PF_BINDIR/poseforest" --version | grep -qx "poseforest $PF_VERSION" || fail "installed poseforest --version"
+  run "$PF_MAKE_INPUTS" "$inputs"
+  run "$prefix/$PF_BINDIR/poseforest" infer --quiet --labels --distributions --joints --forest "$inputs/forest.pff" \
     --out-dir "$inputs/cli" "$inputs/person.raw"
   echo "ok: installed $(find "$prefix" -type f | wc -l) files into $prefix"
   ;;
 
 symbols)
   so=$lib/libposeforest.so.$PF_VERSION
-  exported=$(nm -D --defined-only "$so" | awk '{print $NF}' | sort)
+  exported=$("${PF_NM:-nm}" -D --defined-only "$so" | awk '{print $NF}' | sort)
   [[ -n $exported ]] || fail "nm found no exported symbols in $so"
   outside=$(grep -v '^pf_' <<<"$exported" || true)
   [[ -z $outside ]] || fail "$so exports symbols outside the public API (pf_*): $(tr '\n' ' ' <<<"$outside")"
@@ -91,21 +102,22 @@ cmake)
   build=$PF_WORK/cmake-build
   rm -rf "$build"
   "$PF_CMAKE" -S "$PF_SOURCE_DIR/examples" -B "$build" -DCMAKE_PREFIX_PATH="$prefix" -DEXAMPLES_STATIC=ON \
-    -DCMAKE_C_COMPILER="$PF_CC" -DCMAKE_CXX_COMPILER="$PF_CXX" -DCMAKE_BUILD_TYPE=Release >"$PF_WORK/cmake-configure.log"
+    -DCMAKE_C_COMPILER="$PF_CC" -DCMAKE_CXX_COMPILER="$PF_CXX" -DCMAKE_BUILD_TYPE=Release \
+    ${PF_TOOLCHAIN_FILE:+-DCMAKE_TOOLCHAIN_FILE="$PF_TOOLCHAIN_FILE"} >"$PF_WORK/cmake-configure.log"
   "$PF_CMAKE" --build "$build" -j1
-  "$build/classify_c" "$inputs/forest.pff" "$inputs/person.raw" "$build/c.labels" | tee "$build/c.out"
+  run "$build/classify_c" "$inputs/forest.pff" "$inputs/person.raw" "$build/c.labels" | tee "$build/c.out"
   same "$build/c.labels" "$inputs/person.labels" "C program (CMake) labels = runtime's"
   grep -q "poseforest $PF_VERSION (headers $PF_VERSION)" "$build/c.out" || fail "C program: version line"
-  "$build/classify_cpp" "$inputs/forest.pff" "$inputs/person.raw" "$build/cpp.labels" "$build/cpp.probs"
+  run "$build/classify_cpp" "$inputs/forest.pff" "$inputs/person.raw" "$build/cpp.labels" "$build/cpp.probs"
   same "$build/cpp.labels" "$inputs/person.labels" "C++ program (CMake) labels = runtime's"
   same "$build/cpp.probs" <(cli_probs) "C++ program (CMake) distributions = poseforest infer --distributions"
-  "$build/classify_cpp_static" "$inputs/forest.pff" "$inputs/person.raw" "$build/static.labels"
+  run "$build/classify_cpp_static" "$inputs/forest.pff" "$inputs/person.raw" "$build/static.labels"
   same "$build/static.labels" "$inputs/person.labels" "C++ program (CMake, static) labels = runtime's"
-  ! ldd "$build/classify_cpp_static" | grep -q libposeforest || fail "classify_cpp_static loads libposeforest.so"
+  ! libs "$build/classify_cpp_static" | grep -q libposeforest || fail "classify_cpp_static loads libposeforest.so"
   # Compare real paths: CMake may record the prefix through a resolved symlink (CI's /check/work).
-  resolved=$(ldd "$build/classify_c" | awk -v so="libposeforest.so.$PF_SOVERSION" '$1 == so { print $3 }')
+  resolved=$(libs "$build/classify_c" | awk -v so="libposeforest.so.$PF_SOVERSION" '$1 == so { print $3 }')
   [[ -n $resolved && $(realpath "$resolved") == "$(realpath "$lib")"/* ]] ||
-    fail "classify_c: not linked to $lib: ldd says '$(ldd "$build/classify_c" | grep poseforest)'," \
+    fail "classify_c: not linked to $lib: ldd says '$(libs "$build/classify_c" | grep poseforest)'," \
       "RUNPATH '$(readelf -d "$build/classify_c" | grep -E 'R(UN)?PATH')'"
   echo "ok: classify_c loads $resolved"
   # find_package's version rule: same major.minor (0.x), any patch; not another minor.
@@ -139,16 +151,16 @@ pkgconfig)
   export PKG_CONFIG_PATH=$lib/pkgconfig
   [[ $(pkg-config --modversion poseforest) == "$PF_VERSION" ]] || fail "pkg-config --modversion poseforest"
   (cd "$build" && make -f "$PF_SOURCE_DIR/examples/Makefile" CC="$PF_CC" CXX="$PF_CXX")
-  "$build/classify_c" "$inputs/forest.pff" "$inputs/person.raw" "$build/c.labels"
+  run "$build/classify_c" "$inputs/forest.pff" "$inputs/person.raw" "$build/c.labels"
   same "$build/c.labels" "$inputs/person.labels" "C program (Makefile + pkg-config) labels = runtime's"
-  "$build/classify_cpp" "$inputs/forest.pff" "$inputs/person.raw" "$build/cpp.labels" "$build/cpp.probs"
+  run "$build/classify_cpp" "$inputs/forest.pff" "$inputs/person.raw" "$build/cpp.labels" "$build/cpp.probs"
   same "$build/cpp.labels" "$inputs/person.labels" "C++ program (Makefile + pkg-config) labels = runtime's"
   same "$build/cpp.probs" <(cli_probs) "C++ program (Makefile + pkg-config) distributions = poseforest infer"
   # A corrupt forest: the example reports the library's message, which is the CLI's.
-  if "$build/classify_c" "$inputs/corrupt.pff" "$inputs/person.raw" 2>"$build/corrupt.err"; then
+  if run "$build/classify_c" "$inputs/corrupt.pff" "$inputs/person.raw" 2>"$build/corrupt.err"; then
     fail "classify_c accepted a corrupt forest"
   fi
-  cli_err=$("$prefix/$PF_BINDIR/poseforest" infer --quiet --forest "$inputs/corrupt.pff" "$inputs/person.raw" 2>&1 || true)
+  cli_err=$(run "$prefix/$PF_BINDIR/poseforest" infer --quiet --forest "$inputs/corrupt.pff" "$inputs/person.raw" 2>&1 || true)
   [[ "classify_c: load: ${cli_err#poseforest infer: }" == "$(cat "$build/corrupt.err")" ]] ||
     fail "corrupt forest: C program said '$(cat "$build/corrupt.err")', the CLI '$cli_err'"
   echo "ok: corrupt forest: $(cat "$build/corrupt.err")"
