@@ -263,3 +263,38 @@ TEST_CASE("body_meshes that cannot be bodies are refused naming the field and th
 #endif
   fs::remove_all(dir);
 }
+
+TEST_CASE("the rendering realism fields: defaults, values, the scene they make, bad values named",
+          "[training][config][realism]") {
+  auto d = Parse("images_per_tree: 5 source { rendered { } }");
+  REQUIRE(d.ok());
+  CHECK(d->source.upper_body_share == 0.25);
+  CHECK(d->source.upper_body_min_distance_m == 0.6);
+  CHECK(d->source.upper_body_max_distance_m == 2.0);
+  CHECK(d->source.arm_pose_share == 0.5);
+  CHECK(d->source.projector_shadow);
+  CHECK(d->source.min_range_m == 0.45);
+  auto c = Parse(
+      "images_per_tree: 5 source { rendered { upper_body_share: 0 arm_pose_share: 1 projector_shadow: false "
+      "min_range_m: 0 upper_body_min_distance_m: 0.8 upper_body_max_distance_m: 1.5 } }");
+  REQUIRE(c.ok());
+  CHECK(c->source.upper_body_share == 0);
+  CHECK(c->source.arm_pose_share == 1);
+  CHECK_FALSE(c->source.projector_shadow);
+  CHECK(c->source.min_range_m == 0);
+  CHECK(c->source.upper_body_min_distance_m == 0.8);
+  CHECK(c->source.upper_body_max_distance_m == 1.5);
+  const std::string r = "images_per_tree: 5 source { rendered { ";
+  CHECK_THAT(ErrorOf(r + "upper_body_share: 1.5 } }"), Catch::Contains("source.rendered.upper_body_share = 1.5"));
+  CHECK_THAT(ErrorOf(r + "arm_pose_share: -0.1 } }"), Catch::Contains("source.rendered.arm_pose_share"));
+  CHECK_THAT(ErrorOf(r + "upper_body_min_distance_m: 0.2 } }"),
+             Catch::Contains("source.rendered.upper_body_min_distance_m"));
+  CHECK_THAT(ErrorOf(r + "upper_body_min_distance_m: 1.5 upper_body_max_distance_m: 1 } }"),
+             Catch::Contains("source.rendered.upper_body_max_distance_m"));
+  CHECK_THAT(ErrorOf(r + "min_range_m: 3 } }"), Catch::Contains("source.rendered.min_range_m"));
+  // The test set has its own fields (the default job pins it to the classic renders).
+  auto t = Parse("images_per_tree: 5 source { rendered { } } test_set { source { rendered { upper_body_share: 0 } } }");
+  REQUIRE(t.ok());
+  CHECK(t->source.upper_body_share == 0.25);
+  CHECK(t->test_source.upper_body_share == 0);
+}
