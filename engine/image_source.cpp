@@ -131,10 +131,19 @@ Result<std::shared_ptr<const std::vector<renderer::BodyMesh>>> SharedMakeHumanBo
 
 /// Rigged meshes, each labelled once here (as MakeHumanPresetBodies labels its presets) so the
 /// renderer of every thread does not label it again. Room for the meshes of a few jobs.
-Result<std::shared_ptr<const renderer::BodyMesh>> SharedBodyMesh(const std::string& path) {
+Result<std::shared_ptr<const renderer::BodyMesh>> SharedBodyMesh(
+    const std::string& path, const std::vector<std::pair<std::string, std::string>>& bone_map) {
   static AssetCache<renderer::BodyMesh> cache(32);
-  return cache.Get(FileKey(path), [&]() -> Result<std::shared_ptr<const renderer::BodyMesh>> {
-    auto body = renderer::assets::LoadRiggedMesh(path);
+  std::string key = FileKey(path);  // a mesh loaded with another bone map is another body
+  for (const auto& [joint, bone] : bone_map) key += "|" + joint + "=" + bone;
+  return cache.Get(key, [&]() -> Result<std::shared_ptr<const renderer::BodyMesh>> {
+    renderer::assets::MeshLoadOptions options;
+    if (!bone_map.empty()) {
+      auto map = renderer::assets::BoneMapFromPairs(bone_map, "job body_bone_map");
+      if (!map.ok()) return map.status();
+      options.bone_maps.push_back(std::move(map).value());
+    }
+    auto body = renderer::assets::LoadRiggedMesh(path, options);
     if (!body.ok()) return body.status();
     renderer::LabelBodyParts(*body);
     renderer::RefinePartBoundaries(*body, 2);
@@ -171,7 +180,7 @@ Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
     scene->bodies = **bodies;  // the renderer keeps its own copy (uploaded to its GL context)
   }
   for (const std::string& path : spec.body_meshes) {  // after the presets, in job order
-    auto body = SharedBodyMesh(path);
+    auto body = SharedBodyMesh(path, spec.body_bone_map);
     if (!body.ok()) return body.status();
     scene->bodies.push_back(**body);
   }
@@ -179,12 +188,22 @@ Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
 }
 #endif
 
-Status PreloadBodyMesh(const std::string& path) {
+Status PreloadBodyMesh(const std::string& path, const std::vector<std::pair<std::string, std::string>>& bone_map) {
 #if POSEFOREST_HAS_RENDERER
-  auto body = SharedBodyMesh(path);
+  auto body = SharedBodyMesh(path, bone_map);
   return body.ok() ? Status::Ok() : body.status();
 #else
-  (void)path;
+  (void)path, (void)bone_map;
+  return Status::Ok();
+#endif
+}
+
+Status CheckBoneMap(const std::vector<std::pair<std::string, std::string>>& bone_map) {
+#if POSEFOREST_HAS_RENDERER
+  auto map = renderer::assets::BoneMapFromPairs(bone_map, "job body_bone_map");
+  return map.ok() ? Status::Ok() : map.status();
+#else
+  (void)bone_map;
   return Status::Ok();
 #endif
 }

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "engine/job_spec.h"
 #include "runtime/core/depth_image.h"
@@ -42,7 +44,10 @@ core::Result<std::unique_ptr<ImageSource>> MakeImageSource(const SourceSpec& spe
 /// a body; else the loader's error, which names the file: kNotFound, kIo (Assimp cannot read it),
 /// kInvalidArgument (no bones, bones that do not map to the canonical skeleton). Builds without
 /// the renderer cannot load meshes and return Ok (their rendered sources fail in MakeImageSource).
-core::Status PreloadBodyMesh(const std::string& path);
+core::Status PreloadBodyMesh(const std::string& path,
+                             const std::vector<std::pair<std::string, std::string>>& bone_map = {});
+/// Checks a job's body_bone_map (canonical joint names, non-empty bones); OK without the renderer.
+core::Status CheckBoneMap(const std::vector<std::pair<std::string, std::string>>& bone_map);
 
 /// Procedural frame `index` (see ProceduralSource in job.proto): a blocky figure of
 /// spec.num_parts labelled cells at 1.5..4 m, randomly placed and deformed per frame.

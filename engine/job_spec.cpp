@@ -144,6 +144,16 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
       if (!spec.makehuman_kit.empty() && !fs::is_directory(spec.makehuman_kit, ec))
         return Bad(source, field + ".rendered.makehuman_kit", "\"" + spec.makehuman_kit + "\"",
                    "no such folder (expected the MakeHuman hm08 kit, e.g. <data>/meshes/makehuman_hm08_kit)");
+      for (int i = 0; i < r.body_bone_map_size(); ++i) {
+        const auto& e = r.body_bone_map(i);
+        spec.body_bone_map.emplace_back(e.joint(), e.bone());
+      }
+      if (!spec.body_bone_map.empty()) {
+        if (r.body_meshes_size() == 0)
+          return Bad(source, field + ".rendered.body_bone_map", "", "is only for body_meshes, and there are none");
+        if (const Status st = CheckBoneMap(spec.body_bone_map); !st.ok())
+          return Bad(source, field + ".rendered.body_bone_map", "", st.message());
+      }
       for (int i = 0; i < r.body_meshes_size(); ++i) {
         const std::string& mesh = r.body_meshes(i);
         const std::string name = field + ".rendered.body_meshes[" + Str(i) + "]";
@@ -154,7 +164,7 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
                                           : "no such file (expected a rigged mesh: glTF, FBX, ...)");
         // Loaded now (and kept for the renderers), so a mesh that cannot be a body fails the job
         // when it is read, not in every worker's first frame. The loader's message names the file.
-        const Status loaded = PreloadBodyMesh(mesh);
+        const Status loaded = PreloadBodyMesh(mesh, spec.body_bone_map);
         if (!loaded.ok())
           return Bad(source, name, "\"" + mesh + "\"", "cannot be a body: " + loaded.message());
         spec.body_meshes.push_back(mesh);

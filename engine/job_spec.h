@@ -54,6 +54,9 @@ struct SourceSpec {
   /// MakeHuman presets, in this order (the order is part of the job: body i of a scene). Paths
   /// as pose_library; ParamsFromConfig has loaded each once (PreloadBodyMesh), so they are known good.
   std::vector<std::string> body_meshes;
+  /// rendered: (canonical joint, bone) pairs for body meshes no built-in name map knows
+  /// (job.proto body_bone_map), in job order.
+  std::vector<std::pair<std::string, std::string>> body_bone_map;
 };
 
 /// Everything the trainer needs, validated: see job.proto for meanings and defaults.

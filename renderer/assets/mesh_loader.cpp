@@ -181,7 +181,7 @@ Result<BodyMesh> LoadRiggedMesh(const std::filesystem::path& path, const MeshLoa
       if (child_count[i] == 1)
         rig_bones[i].has_tail = true, rig_bones[i].tail = rig_bones[size_t(only_child[i])].head;
   }
-  auto folded = FoldRig(rig_bones, file);
+  auto folded = FoldRig(rig_bones, file, options.bone_maps);
   if (!folded.ok()) return folded.status();
   FoldedRig rig = std::move(*folded);
 

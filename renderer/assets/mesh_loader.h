@@ -19,6 +19,7 @@
 
 #include <filesystem>
 
+#include "renderer/assets/retarget.h"
 #include "renderer/body.h"
 #include "runtime/core/result.h"
 
@@ -27,6 +28,9 @@ namespace poseforest::renderer::assets {
 struct MeshLoadOptions {
   bool include_unskinned = false;  ///< also keep meshes without bones (rigidly on the nearest joint)
   double fallback_height_m = 1.7;  ///< height (m) for files in no metric unit; <= 0: error instead
+  /// Name maps tried with MeshRigNameMaps() (winning ties): a job's bone map for a rig no built-in
+  /// map knows (BoneMapFromPairs in retarget.h).
+  std::vector<RigNameMap> bone_maps;
 };
 
 /// Loads a rigged mesh. Errors (all naming the file): kNotFound / kIo (Assimp's message

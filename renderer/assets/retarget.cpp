@@ -253,6 +253,25 @@ bool IsRequiredJoint(int joint) {
   }
 }
 
+Result<RigNameMap> BoneMapFromPairs(const std::vector<std::pair<std::string, std::string>>& pairs,
+                                    const std::string& family) {
+  RigNameMap map;
+  map.family = family;
+  for (const auto& [joint, bone] : pairs) {
+    int j = -1;
+    for (int k = 0; k < kNumSkelJoints; ++k)
+      if (SkelJointName(k) == joint) j = k;
+    if (j < 0) {
+      std::string known;
+      for (int k = 0; k < kNumSkelJoints; ++k) known += (k ? ", " : "") + std::string(SkelJointName(k));
+      return Status(ErrorCode::kInvalidArgument, "unknown canonical joint '" + joint + "' (known: " + known + ")");
+    }
+    if (bone.empty()) return Status(ErrorCode::kInvalidArgument, "joint '" + joint + "': empty bone name");
+    map.names[size_t(j)].push_back(bone);
+  }
+  return map;
+}
+
 Result<std::array<int, kNumSkelJoints>> ResolveJoints(const std::vector<std::string>& names,
                                                       const std::vector<RigNameMap>& maps,
                                                       const std::string& source, std::string* family) {

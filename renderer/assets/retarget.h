@@ -51,6 +51,13 @@ const std::vector<RigNameMap>& MocapNameMaps();
 /// the canonical joint at its head; see mesh_loader.h).
 const std::vector<RigNameMap>& MeshRigNameMaps();
 
+/// A name map from (canonical joint name as SkelJointName gives it, source bone name) pairs, for
+/// a rig no built-in map knows (Blender's Rigify: {"L_elbow", "forearm.L"}, ...; "bone@tail"
+/// names a bone's tail). Several bones for one joint: the first present wins. Errors
+/// (kInvalidArgument) name an unknown joint or an empty bone name.
+core::Result<RigNameMap> BoneMapFromPairs(const std::vector<std::pair<std::string, std::string>>& pairs,
+                                          const std::string& family);
+
 /// Strips a namespace prefix ("mixamorig:Hips" -> "Hips", "Armature|Hips" -> "Hips").
 std::string_view StripRigPrefix(std::string_view name);
 

@@ -22,7 +22,8 @@ int Dominant(const SkinInfluence& s) {
 
 }  // namespace
 
-core::Result<FoldedRig> FoldRig(const std::vector<RigBone>& bones, const std::string& source) {
+core::Result<FoldedRig> FoldRig(const std::vector<RigBone>& bones, const std::string& source,
+                                const std::vector<RigNameMap>& extra_maps) {
   // Candidate names: every bone's name (its head) and "name@tail" (its tail).
   std::vector<std::string> names;
   std::vector<std::pair<int, bool>> what;  // (bone, is_tail)
@@ -35,7 +36,9 @@ core::Result<FoldedRig> FoldRig(const std::vector<RigBone>& bones, const std::st
     }
   }
   FoldedRig rig;
-  auto resolved = ResolveJoints(names, MeshRigNameMaps(), source, &rig.family);
+  std::vector<RigNameMap> maps = extra_maps;  // first: they win ties
+  maps.insert(maps.end(), MeshRigNameMaps().begin(), MeshRigNameMaps().end());
+  auto resolved = ResolveJoints(names, maps, source, &rig.family);
   if (!resolved.ok()) {
     std::string list;
     size_t shown = 0;

@@ -36,7 +36,10 @@ struct FoldedRig {
 /// A bone folds onto the canonical joint of itself or of its nearest mapped ancestor (pelvis if
 /// none); leaf joints (head top, hand tips) are never fold targets. Errors list the missing
 /// canonical joints and the rig's bone names, naming `source`.
-core::Result<FoldedRig> FoldRig(const std::vector<RigBone>& bones, const std::string& source);
+/// `extra_maps` (e.g. a job's bone map for a rig no built-in map knows) are tried with the built-in
+/// ones and win ties.
+core::Result<FoldedRig> FoldRig(const std::vector<RigBone>& bones, const std::string& source,
+                                const std::vector<RigNameMap>& extra_maps = {});
 
 /// Per-vertex rig weights: (bone index, weight) pairs.
 using RigWeights = std::vector<std::vector<std::pair<int, float>>>;

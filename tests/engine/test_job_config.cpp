@@ -1,6 +1,7 @@
 // Job configs: text format parsing, defaults, and clear errors naming the field.
 #include <catch2/catch.hpp>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "engine/job_spec.h"
 #include "poseforest/v1/job.pb.h"
@@ -298,3 +299,74 @@ TEST_CASE("the rendering realism fields: defaults, values, the scene they make, 
   CHECK(t->source.upper_body_share == 0.25);
   CHECK(t->test_source.upper_body_share == 0);
 }
+
+#if POSEFOREST_HAS_RENDERER
+TEST_CASE("body_bone_map: a rig no built-in name map knows (Rigify names) becomes a body",
+          "[training][config][mesh][data]") {
+  namespace fs = std::filesystem;
+  const auto dir = testing::ScratchDir("job-config-bone-map");
+  // Quaternius' Casual_Female with its bones renamed as Blender's Rigify names them.
+  const std::vector<std::pair<std::string, std::string>> rigify = {
+      {"Hips", "spine"},           {"Abdomen", "spine.001"},    {"Torso", "spine.003"},
+      {"Neck", "spine.004"},       {"Head", "spine.006"},       {"Shoulder.L", "shoulder.L"},
+      {"UpperArm.L", "upper_arm.L"}, {"LowerArm.L", "forearm.L"}, {"Fist.L", "hand.L"},
+      {"UpperLeg.L", "thigh.L"},   {"LowerLeg.L", "shin.L"},    {"Foot.L", "foot.L"}};
+  nlohmann::json gltf;
+  std::ifstream(testing::DataDir() / "meshes" / "quaternius_casual_female" / "Casual_Female.gltf") >> gltf;
+  int renamed = 0;
+  for (auto& node : gltf["nodes"]) {
+    if (!node.contains("name")) continue;
+    std::string name = node["name"];
+    for (const auto& [from, to] : rigify) {
+      for (const char* side : {"", "R"}) {
+        std::string f = from, t = to;
+        if (*side) {
+          if (f.size() < 2 || f.substr(f.size() - 2) != ".L") continue;
+          f.back() = 'R', t.back() = 'R';
+        }
+        if (name == f) node["name"] = t, ++renamed;
+      }
+    }
+  }
+  REQUIRE(renamed == 19);  // 5 trunk bones + 7 bones per side
+  const fs::path mesh = dir / "rigify_female.gltf";
+  std::ofstream(mesh) << gltf.dump();
+  auto job = [&](const std::string& map) {
+    const auto path = (dir / "job.textproto").string();
+    std::ofstream(path) << "images_per_tree: 3 source { rendered { body_meshes: \"rigify_female.gltf\" " << map
+                        << " } }\n";
+    return worker::LoadJob(path);
+  };
+  // Without a map: refused, naming the rig's bones and the missing joints.
+  auto refused = job("");
+  REQUIRE_FALSE(refused.ok());
+  CHECK_THAT(refused.status().message(), Catch::Contains("body_meshes[0]") && Catch::Contains("unknown skeleton") &&
+                                             Catch::Contains("forearm.L"));
+  // With the job's bone map: a body.
+  std::string map;
+  for (const auto& [joint, bone] :
+       std::vector<std::pair<std::string, std::string>>{{"pelvis", "spine"},       {"spine", "spine.001"},
+                                                        {"chest", "spine.003"},    {"neck", "spine.004"},
+                                                        {"head", "spine.006"},     {"L_collar", "shoulder.L"},
+                                                        {"L_shoulder", "upper_arm.L"}, {"L_elbow", "forearm.L"},
+                                                        {"L_wrist", "hand.L"},     {"L_hip", "thigh.L"},
+                                                        {"L_knee", "shin.L"},      {"L_ankle", "foot.L"}}) {
+    map += "body_bone_map { joint: \"" + joint + "\" bone: \"" + bone + "\" } ";
+    if (joint.rfind("L_", 0) == 0) {
+      std::string rj = joint, rb = bone;
+      rj[0] = 'R', rb.back() = 'R';
+      map += "body_bone_map { joint: \"" + rj + "\" bone: \"" + rb + "\" } ";
+    }
+  }
+  auto ok = job(map);
+  INFO(ok.status().ToString());
+  REQUIRE(ok.ok());
+  CHECK(ok->source.body_bone_map.size() == 19);
+  // An unknown joint name in the map is refused naming the field.
+  auto bad = job(map + "body_bone_map { joint: \"L_elbo\" bone: \"forearm.L\" }");
+  REQUIRE_FALSE(bad.ok());
+  CHECK_THAT(bad.status().message(),
+             Catch::Contains("source.rendered.body_bone_map") && Catch::Contains("unknown canonical joint 'L_elbo'"));
+  fs::remove_all(dir);
+}
+#endif
