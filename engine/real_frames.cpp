@@ -17,7 +17,7 @@ using core::Status;
 using nlohmann::json;
 
 constexpr int kLabelMarginPx = 3;  // a labelled pixel this close to a mask counts as on it
-constexpr int kMaskMarginPx = 2;   // SkeletonOptions::mask_margin_px's default
+const int kMaskMarginPx = runtime::SkeletonOptions{}.mask_margin_px;  // as the skeleton's mask test
 
 Status Bad(const std::string& path, const std::string& what) {
   return Status(ErrorCode::kDataLoss, path + ": " + what);

@@ -42,6 +42,12 @@ std::pair<float, float> BoneLengthRange(int parent, int child) {
   return {0.0f, 1e9f};
 }
 
+std::optional<SkeletonFit> SkeletonFitFromName(std::string_view name) {
+  if (name == "greedy") return SkeletonFit::kGreedy;
+  if (name == "kinematic") return SkeletonFit::kKinematic;
+  return std::nullopt;
+}
+
 float TypicalBoneLength(int parent, int child) {
   using J = core::Joint;
   const auto p = J(parent), c = J(child);
@@ -178,14 +184,16 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
         }
       return mask_depth;
     };
+    auto calibrated = [&](int j, float support_m2) {
+      return calibration ? calibration->Confidence(j, support_m2) : core::FallbackConfidence(support_m2);
+    };
     auto place = [&](int j, const JointProposal& p, int mask_depth) {
       SkeletonJoint& joint = s.joints[size_t(j)];
       joint.found = true;
       joint.position_m = p.position;
       joint.pixel = p.pixel;
       joint.support_m2 = float(double(p.confidence) / area);
-      joint.confidence =
-          calibration ? calibration->Confidence(j, joint.support_m2) : core::FallbackConfidence(joint.support_m2);
+      joint.confidence = calibrated(j, joint.support_m2);
       const float gap = p.position.z() - float(mask_depth) * 1e-3f;
       joint.tracked = joint.support_m2 >= options.min_support_m2 && joint.confidence >= options.min_confidence &&
                       std::abs(gap) <= options.max_depth_gap_m;
@@ -212,12 +220,9 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
           if (d == 0) continue;
           if (!first_on_mask[size_t(j)]) first_on_mask[size_t(j)] = &p, first_depth[size_t(j)] = d;
           if (std::abs(p.position.z() - float(d) * 1e-3f) > options.max_depth_gap_m) continue;
-          FitCandidate c;
-          c.position = p.position;
           const float support = float(double(p.confidence) / area);
-          c.confidence = calibration ? calibration->Confidence(j, support) : core::FallbackConfidence(support);
           if (support < options.min_support_m2) continue;
-          cands[size_t(j)].push_back(c);
+          cands[size_t(j)].push_back({p.position, calibrated(j, support)});
           cand_proposal[size_t(j)].push_back(&p);
           cand_depth[size_t(j)].push_back(d);
         }

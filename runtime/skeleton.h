@@ -15,7 +15,9 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "runtime/core/body_parts.h"
@@ -41,6 +43,9 @@ enum class SkeletonFit {
   /// in docs/runtime/live.md ("Skeleton fit"): it has not beaten it yet, so it is not the default.
   kKinematic,
 };
+
+/// "greedy" or "kinematic" (the `--fit` flag of live and eval); nullopt for any other name.
+std::optional<SkeletonFit> SkeletonFitFromName(std::string_view name);
 
 struct SkeletonOptions {
   SkeletonFit fit = SkeletonFit::kGreedy;

@@ -1,9 +1,12 @@
 # Sourced by scripts/main-job.sh and scripts/accuracy-recipe.sh: the main job's embedded default
 # job (proto/poseforest/v1/job.proto), with the training images per tree and the test-set size as
 # parameters.
-#   write_default_job FILE IMAGES_PER_TREE TEST_IMAGES POSE_LIBRARY DATA_DIR [TRAIN_FIELDS]
+#   write_default_job FILE IMAGES_PER_TREE TEST_IMAGES POSE_LIBRARY DATA_DIR [TRAIN_FIELDS [TEST_FIELDS]]
 # TRAIN_FIELDS: extra fields of the training source's rendered { } (e.g. "upper_body_share: 0"),
 # for ablations (scripts/realism-ablation.sh); the held-out test set is never changed by them.
+# TEST_FIELDS: the test set's realism fields; default: the classic renders (classic_test_fields),
+# so mAP compares with every earlier forest; "" renders the test clips with the realism defaults.
+classic_test_fields="upper_body_share: 0 arm_pose_share: 0 projector_shadow: false min_range_m: 0"
 # Sized (300 images per tree) to train in minutes on two cores; the paper used 300k per tree.
 write_default_job() {
   cat > "$1" <<JOB
@@ -37,12 +40,9 @@ test_set {
       test_fraction: 0.2
       split_seed: 1
       makehuman_kit: "$5/meshes/makehuman_hm08_kit"
-      # The held-out renders stay the classic ones (whole bodies, mocap arms, no projector
-      # shadow), so mAP compares with every earlier forest; realism is scored on real frames.
-      upper_body_share: 0
-      arm_pose_share: 0
-      projector_shadow: false
-      min_range_m: 0
+      # By default the held-out renders stay the classic ones (whole bodies, mocap arms, no
+      # projector shadow), so mAP compares with every earlier forest; realism is scored on real frames.
+      ${7-$classic_test_fields}
     }
   }
   num_images: $3

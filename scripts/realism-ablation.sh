@@ -68,8 +68,8 @@ for v in "${VARIANTS[@]}"; do
   if [[ ! -s "$dir/eval_realistic.txt" ]]; then
     # The same held-out test clips rendered with the realism defaults (upper-body framings, arms,
     # projector shadow): the job without its test-set pins.
-    sed '/^      upper_body_share: 0$/d; /^      arm_pose_share: 0$/d; /^      projector_shadow: false$/d; /^      min_range_m: 0$/d' \
-      "$dir/job.textproto" > "$dir/job_realistic_test.textproto"
+    write_default_job "$dir/job_realistic_test.textproto" "$per_tree" "$test_images" "$out/mocap.pfposes" "$data" \
+      "$fields" ""
     "$bin/poseforest" eval --forest "$dir/forest.pff" --test-set "$dir/job_realistic_test.textproto" --method meanshift \
       --quiet > "$dir/eval_realistic.txt"
   fi

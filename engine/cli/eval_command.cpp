@@ -92,11 +92,12 @@ options:
 // --fit: how skeletons pick their joints.
 bool ParseFit(const Args& args, runtime::SkeletonFit* fit) {
   const std::string f = args.GetOr("fit", "greedy");
-  if (f != "kinematic" && f != "greedy") {
+  const auto parsed = runtime::SkeletonFitFromName(f);
+  if (!parsed) {
     std::fprintf(stderr, "poseforest eval: --fit must be kinematic or greedy (got '%s')\n", f.c_str());
     return false;
   }
-  *fit = f == "greedy" ? runtime::SkeletonFit::kGreedy : runtime::SkeletonFit::kKinematic;
+  *fit = *parsed;
   return true;
 }
 

@@ -228,8 +228,9 @@ int LiveMain(int argc, char** argv) {
   auto& sk = options.skeleton;
   {
     const std::string fit = args.GetOr("fit", "greedy");
-    if (fit != "kinematic" && fit != "greedy") return UsageError("--fit must be kinematic or greedy (got '" + fit + "')");
-    sk.fit = fit == "greedy" ? runtime::SkeletonFit::kGreedy : runtime::SkeletonFit::kKinematic;
+    const auto parsed = runtime::SkeletonFitFromName(fit);
+    if (!parsed) return UsageError("--fit must be kinematic or greedy (got '" + fit + "')");
+    sk.fit = *parsed;
   }
   {
     auto min_conf = GetDouble(args, "min-confidence", sk.min_confidence, 0.0, 1.0);
