@@ -110,6 +110,7 @@ bool FitsInt16(int32_t v) { return v >= INT16_MIN && v <= INT16_MAX; }
 
 struct DistCoordinator::Impl {
   v1::TrainerConfig config;
+  v1::Envelope job_announcement;  ///< the job as announced (sent again while workers are missing)
   worker::TrainParams params;
   CoordinatorOptions opt;
   std::string job_id, self_id;
@@ -344,11 +345,24 @@ struct DistCoordinator::Impl {
 
   Status WaitForWorkers(int n) {
     const double deadline = NowSeconds() + std::chrono::duration<double>(opt.worker_wait).count();
+    double announced = NowSeconds();
     while (AliveCount() < n) {
       if (NowSeconds() > deadline)
-        return Status(ErrorCode::kNotFound, "job " + job_id + ": " + std::to_string(AliveCount()) + " of " +
-                                                std::to_string(n) + " workers after " +
-                                                std::to_string(opt.worker_wait.count()) + " ms");
+        return Status(ErrorCode::kNotFound,
+                      "job " + job_id + ": " + std::to_string(AliveCount()) + " of " + std::to_string(n) +
+                          " workers after " + std::to_string(opt.worker_wait.count()) + " ms (DDS: " +
+                          std::to_string(node->MatchedReaders(Topic::kJob)) + " readers of the job matched, " +
+                          std::to_string(node->MatchedWriters(Topic::kPresence)) +
+                          " presence writers; a worker matched but not joined did not get the job or was "
+                          "not heard)");
+      // The announcement again every 2 s while workers are missing: the job topic is transient-
+      // local, but a worker whose reader missed it (a CI run saw 3 of 5 workers never join)
+      // would otherwise wait for ever. A worker that has the job ignores it.
+      if (NowSeconds() - announced >= 2.0) {
+        announced = NowSeconds();
+        v1::Envelope again = job_announcement;
+        POSEFOREST_RETURN_IF_ERROR(Send(Topic::kJob, again));
+      }
       Pump(std::chrono::milliseconds(50), 0, nullptr);
     }
     // Control messages to a worker whose reader has not matched yet would be lost.
@@ -1326,6 +1340,7 @@ struct DistCoordinator::Impl {
     job->set_coordinator_id(self_id);
     job->set_num_parts(uint32_t(kParts));
     job->set_thresholds_per_feature(uint32_t(params.thresholds_per_feature + 1));
+    job_announcement = job_env;
     POSEFOREST_RETURN_IF_ERROR(Send(Topic::kJob, job_env));
     Log("announced " + job_id + " as " + self_id + " on domain " + std::to_string(opt.domain) + ": " +
         worker::DescribeParams(params));

@@ -110,6 +110,10 @@ TEST_CASE("5 worker processes: the forest of `poseforest train`, byte for byte",
                       &error));
   auto rc = coord.Wait(120s);
   INFO(coord.output());
+  // The workers' side, for a failure (one CI run saw "2 of 5 workers after 60000 ms" here).
+  std::string workers_said;
+  for (int i = 0; i < 5; ++i) workers_said += "worker fw-" + std::to_string(i) + ":\n" + w[i].OutputNow() + "\n";
+  INFO(workers_said);
   REQUIRE(rc.has_value());
   REQUIRE(*rc == 0);
   CHECK(coord.output().find("5 workers alive") != std::string::npos);
@@ -264,7 +268,7 @@ TEST_CASE("SIGKILL of the coordinator, restart with --resume: same forest",
   auto rc = second.Wait(120s);
   INFO(second.output());
   // The workers' side, for a failure (one CI run saw "0 of 2 workers after 60000 ms" here).
-  INFO("worker rw-0:\n" << w[0].output() << "\nworker rw-1:\n" << w[1].output());
+  INFO("worker rw-0:\n" << w[0].OutputNow() << "\nworker rw-1:\n" << w[1].OutputNow());
   REQUIRE(rc.has_value());
   REQUIRE(*rc == 0);
   CHECK(second.output().find("tree 0 level 0:") == std::string::npos);  // resumed, not restarted

@@ -177,6 +177,13 @@ class Child {
   pid_t pid() const { return pid_; }
   /// Every line read so far (for failure messages).
   const std::string& output() const { return output_; }
+  /// Reads what a running child has written by now (waiting at most ~1 ms a line), then every
+  /// line so far: for failure messages about children still running.
+  const std::string& OutputNow() {
+    while (ReadLine(std::chrono::milliseconds(1))) {
+    }
+    return output_;
+  }
 
  private:
   void DrainOutput() {
