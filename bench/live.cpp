@@ -10,7 +10,8 @@
 // The forest: --forest F, else scripts/accuracy-recipe.sh's 4,000-image-per-tree forest
 // (out/accuracy-4000/forest_tuned.pff, then forest.pff); it says which it ran.
 //
-//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--checksum]
+//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--no-votes]
+//                    [--checksum]
 //
 // --pixel-stride N: classify and propose from every N-th pixel in x and y (`live --pixel-stride`;
 // default 2, as `live`'s default; 1: every pixel); the header says which ran.
@@ -73,11 +74,16 @@ double Percentile(std::vector<double> v, double q) {
 int main(int argc, char** argv) {
   int threads = 2, num_frames = 30, pixel_stride = 2;  // pixel stride: `poseforest live`'s default
   double seconds = 5.0;
-  bool checksum = false;
+  bool checksum = false, votes = true;
   std::string forest_path;
   for (int i = 1; i < argc; i += 2) {
     if (!std::strcmp(argv[i], "--checksum")) {
       checksum = true;
+      --i;
+      continue;
+    }
+    if (!std::strcmp(argv[i], "--no-votes")) {
+      votes = false;
       --i;
       continue;
     }
@@ -161,6 +167,10 @@ int main(int argc, char** argv) {
   runtime::SkeletonPipelineOptions options;
   options.num_threads = threads;
   options.pixel_stride = pixel_stride;
+  options.votes = votes;
+  std::printf("offset votes: %s\n", !forest->offset_votes ? "none in the forest"
+                                     : votes            ? "on (the forest's, format 1.5)"
+                                                        : "off (--no-votes)");
   auto pipeline = runtime::SkeletonPipeline::Create(*forest, options);
   if (!pipeline.ok()) {
     std::fprintf(stderr, "bench/live: %s\n", pipeline.status().ToString().c_str());
@@ -239,6 +249,7 @@ int main(int argc, char** argv) {
     json_ms += std::chrono::duration<double, std::milli>(t2 - t1).count();
     sum.segment_ms += out.times.segment_ms, sum.classify_ms += out.times.classify_ms;
     sum.proposals_ms += out.times.proposals_ms, sum.skeletons_ms += out.times.skeletons_ms;
+    sum.votes_ms += out.times.votes_ms;
     people += int64_t(out.skeletons.size());
     for (const auto& s : out.skeletons) tracked += s.tracked_joints();
     ++done;
@@ -259,6 +270,7 @@ int main(int argc, char** argv) {
   for (const auto& [name, ms] : {std::pair<const char*, double>{"segmentation", sum.segment_ms},
                                  {"classify", sum.classify_ms},
                                  {"proposals", sum.proposals_ms},
+                                 {"votes", sum.votes_ms},
                                  {"skeletons", sum.skeletons_ms},
                                  {"json lines", json_ms},
                                  {"dds publish", dds_ms}})

@@ -98,6 +98,8 @@ struct JointEvalOptions {
   /// Classify and propose from every pixel_stride-th pixel in x and y only
   /// (runtime::ClassifyOptions::pixel_stride, as `live --pixel-stride`); 1 = every pixel.
   int pixel_stride = 1;
+  /// The skeleton uses the forest's offset votes (format 1.5) when it has them.
+  bool votes = true;
   /// How the skeleton (the `skeleton accuracy` table) picks its joints (runtime::SkeletonFit).
   runtime::SkeletonFit skeleton_fit = runtime::SkeletonFit::kGreedy;
   bool fast = true;         ///< also the fast clustering
@@ -132,6 +134,9 @@ struct SkeletonAccuracy {
   int frames = 0;  ///< one-person frames scored
   std::array<int, core::kNumJoints> visible{}, tracked_within{}, tracked{}, tracked_right{}, untracked{},
       untracked_invisible{};
+  /// Visible and the skeleton's position (tracked or not) within D: what a better tracked
+  /// decision could reach.
+  std::array<int, core::kNumJoints> found_within{};
 };
 
 struct Evaluation {

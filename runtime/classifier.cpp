@@ -636,6 +636,7 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
   }
   out->foreground.clear();
   out->foreground_sums.clear();
+  out->foreground_leaves.clear();
   if (n == 0) return;
 
   // All allocation happens here, before the parallel region: nothing inside can throw.
@@ -682,7 +683,9 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
     // No clearing: every entry is written below.
     out->foreground.assign(s.pixel.begin(), s.pixel.begin() + total);
     out->foreground_sums.resize(size_t(total) * size_t(stride));
+    if (options.want_foreground_leaves) out->foreground_leaves.resize(size_t(total) * size_t(num_trees));
   }
+  uint32_t* const fg_leaves = out->foreground_leaves.empty() ? nullptr : out->foreground_leaves.data();
 
   const int num_chunks = (total + kChunk - 1) / kChunk;
   int threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
@@ -727,6 +730,11 @@ void ClassifyWithKernel(const core::Forest& forest, const core::DepthImage& dept
 #endif
         TraversePortable<kPortableLanes>(tree.nodes.data(), view, count, tree_leaves);
       }
+      if (fg_leaves)
+        for (int t = 0; t < num_trees; ++t) {
+          const uint32_t* tree_leaves = leaves + size_t(t) * size_t(kChunk);
+          for (int i = 0; i < count; ++i) fg_leaves[size_t(begin + i) * size_t(num_trees) + size_t(t)] = tree_leaves[i];
+        }
       const uint32_t* pixel = s.pixel.data() + begin;
       uint16_t* fg_sums = want_foreground ? out->foreground_sums.data() + size_t(begin) * size_t(stride) : nullptr;
 #ifdef POSEFOREST_CLASSIFIER_AVX512

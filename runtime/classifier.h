@@ -18,6 +18,9 @@ struct ClassifyOptions {
   /// foreground pixels only (what the joint proposals need; ~10x less memory traffic than
   /// the dense array on a VGA frame with one person).
   bool want_foreground_distributions = false;
+  /// With want_foreground_distributions: also fill Classification::foreground_leaves (each
+  /// foreground pixel's leaf in every tree: what the offset votes read, runtime/joint_votes.h).
+  bool want_foreground_leaves = false;
   /// Classify only the pixels of a subsampled grid: x % pixel_stride == 0 and
   /// y % pixel_stride == 0 (2: a quarter of the pixels, as Kinect's tracker ran at 320x240 from a
   /// 640x480 sensor). The features still probe the full-resolution depth, so a grid pixel gets
@@ -49,6 +52,9 @@ struct Classification {
   /// of that pixel. Empty otherwise.
   std::vector<uint32_t> foreground;
   std::vector<uint16_t> foreground_sums;
+  /// If requested (want_foreground_leaves): per foreground pixel k, its leaf index in tree t at
+  /// foreground_leaves[k * num_trees + t]. Empty otherwise.
+  std::vector<uint32_t> foreground_leaves;
 
   float Probability(int x, int y, int part) const {
     return float(sums[(size_t(y) * size_t(width) + size_t(x)) * size_t(stride) + size_t(part)]) /

@@ -148,7 +148,7 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
                                      int num_people, const core::DepthImage& depth,
                                      const core::CameraIntrinsics& camera,
                                      const core::ConfidenceCalibration* calibration,
-                                     const SkeletonOptions& options) {
+                                     const SkeletonOptions& options, const std::vector<PersonVotes>* votes) {
   std::vector<Skeleton> out;
   if (num_people <= 0 || masks.empty() || masks.width != depth.width || masks.height != depth.height)
     return out;
@@ -171,9 +171,9 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
     s.mask_label = label;
     s.pixels = count[size_t(label)];
     s.centroid_m = (sum[size_t(label)] / count[size_t(label)]).cast<float>();
-    // The mask's depth at a proposal's pixel (nearest mask pixel within the margin), 0 = off it.
-    auto mask_depth_at = [&](const JointProposal& p) {
-      const int px = int(std::lround(p.pixel.x())), py = int(std::lround(p.pixel.y()));
+    // The mask's depth at a pixel (nearest mask pixel within the margin), 0 = off it.
+    auto mask_depth_px = [&](const Eigen::Vector2f& pixel) {
+      const int px = int(std::lround(pixel.x())), py = int(std::lround(pixel.y()));
       int mask_depth = 0, best = 1 << 30;
       for (int dy = -m; dy <= m; ++dy)
         for (int dx = -m; dx <= m; ++dx) {
@@ -184,11 +184,48 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
         }
       return mask_depth;
     };
+    auto mask_depth_at = [&](const JointProposal& p) { return mask_depth_px(p.pixel); };
+    // Vote candidates (offset votes, format 1.5) of this person: usable where they project onto
+    // the mask and lie at most max_depth_gap_m in front of its surface and max_vote_behind_m
+    // behind it (a hidden joint lies behind what the camera sees).
+    const PersonVotes* person_votes =
+        votes && size_t(label - 1) < votes->size() ? &(*votes)[size_t(label - 1)] : nullptr;
+    struct UsableVote {
+      const VoteCandidate* vote;
+      Eigen::Vector2f pixel;
+      int mask_depth;
+    };
+    auto usable_votes = [&](int j) {
+      std::vector<UsableVote> v;
+      if (!person_votes) return v;
+      for (const VoteCandidate& c : (*person_votes)[size_t(j)]) {
+        if (!(c.position.z() > 0)) continue;
+        const Eigen::Vector2f pixel = camera.Project(c.position.cast<double>()).cast<float>();
+        const int d = mask_depth_px(pixel);
+        if (d == 0) continue;
+        const float gap = c.position.z() - float(d) * 1e-3f;
+        if (gap < -options.max_depth_gap_m || gap > options.max_vote_behind_m) continue;
+        v.push_back({&c, pixel, d});
+      }
+      return v;
+    };
+    auto place_vote = [&](int j, const UsableVote& u) {
+      SkeletonJoint& joint = s.joints[size_t(j)];
+      joint = SkeletonJoint();
+      joint.found = true;
+      joint.voted = true;
+      joint.position_m = u.vote->position;
+      joint.pixel = u.pixel;
+      joint.confidence = u.vote->confidence;
+      const float gap = u.vote->position.z() - float(u.mask_depth) * 1e-3f;
+      joint.tracked = joint.confidence >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
+    };
     auto calibrated = [&](int j, float support_m2) {
       return calibration ? calibration->Confidence(j, support_m2) : core::FallbackConfidence(support_m2);
     };
     auto place = [&](int j, const JointProposal& p, int mask_depth) {
       SkeletonJoint& joint = s.joints[size_t(j)];
+      joint = SkeletonJoint();
       joint.found = true;
       joint.position_m = p.position;
       joint.pixel = p.pixel;
@@ -199,13 +236,18 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
                       std::abs(gap) <= options.max_depth_gap_m;
     };
     if (options.fit == SkeletonFit::kGreedy) {
-      // Proposals come most confident first: the first one on this person's mask wins.
-      for (int j = 0; j < core::kNumJoints; ++j)
+      // Proposals come most confident first: the first one on this person's mask wins, unless
+      // a vote candidate is more confident.
+      for (int j = 0; j < core::kNumJoints; ++j) {
         for (const JointProposal& p : proposals[size_t(j)])
           if (const int d = mask_depth_at(p); d != 0) {
             place(j, p, d);
             break;
           }
+        const auto v = usable_votes(j);
+        if (!v.empty() && (!s.joints[size_t(j)].found || v[0].vote->confidence > s.joints[size_t(j)].confidence))
+          place_vote(j, v[0]);
+      }
     } else {
       // Candidates: the most confident proposals on the mask whose depth agrees with it.
       FitCandidates cands;
@@ -226,10 +268,22 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
           cand_proposal[size_t(j)].push_back(&p);
           cand_depth[size_t(j)].push_back(d);
         }
+      // The vote candidates after the proposals (cand_proposal null for them).
+      std::array<std::vector<UsableVote>, core::kNumJoints> vote_of;
+      for (int j = 0; j < core::kNumJoints; ++j)
+        for (const UsableVote& u : usable_votes(j)) {
+          cands[size_t(j)].push_back({u.vote->position, u.vote->confidence});
+          cand_proposal[size_t(j)].push_back(nullptr);
+          cand_depth[size_t(j)].push_back(u.mask_depth);
+          vote_of[size_t(j)].push_back(u);
+        }
       const auto chosen = FitSkeleton(cands, options);
       for (int j = 0; j < core::kNumJoints; ++j) {
-        if (chosen[size_t(j)] >= 0) {
-          place(j, *cand_proposal[size_t(j)][size_t(chosen[size_t(j)])], cand_depth[size_t(j)][size_t(chosen[size_t(j)])]);
+        const int c = chosen[size_t(j)];
+        if (c >= 0 && !cand_proposal[size_t(j)][size_t(c)]) {
+          place_vote(j, vote_of[size_t(j)][size_t(c) - (cand_proposal[size_t(j)].size() - vote_of[size_t(j)].size())]);
+        } else if (c >= 0) {
+          place(j, *cand_proposal[size_t(j)][size_t(c)], cand_depth[size_t(j)][size_t(c)]);
         } else if (first_on_mask[size_t(j)]) {  // found, but the fit leaves it out: not tracked
           place(j, *first_on_mask[size_t(j)], first_depth[size_t(j)]);
           s.joints[size_t(j)].tracked = false;

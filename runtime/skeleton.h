@@ -25,6 +25,7 @@
 #include "runtime/core/confidence_calibration.h"
 #include "runtime/core/depth_image.h"
 #include "runtime/joint_proposals.h"
+#include "runtime/joint_votes.h"
 
 namespace poseforest::runtime {
 
@@ -56,6 +57,9 @@ struct SkeletonOptions {
   /// The proposal lies at most this far behind or in front of the mask's depth at its pixel
   /// (the z offset zeta pushes it behind the surface; 0.25 m leaves room for it).
   float max_depth_gap_m = 0.25f;
+  /// A vote candidate may lie up to this far behind the mask's surface at its pixel (a hidden
+  /// joint: found, not tracked); in front of it, max_depth_gap_m as for proposals.
+  float max_vote_behind_m = 0.6f;
   /// Where a person's mask is cut by the image border, joints within this distance of that
   /// border are not tracked: on an upper-body frame the thighs at the bottom edge are read as
   /// knees, and the real knees lie below the picture. 0 disables.
@@ -82,7 +86,8 @@ struct SkeletonJoint {
   Eigen::Vector3f position_m{0, 0, 0};  ///< camera frame, metres (smoothed when smoothing is on)
   Eigen::Vector2f pixel{0, 0};          ///< position_m projected, pixels
   float confidence = 0;                 ///< 0..1 (calibrated, or the fallback); 0 when not found
-  float support_m2 = 0;                 ///< the proposal's raw confidence / (fx fy), m^2
+  float support_m2 = 0;                 ///< the proposal's raw confidence / (fx fy), m^2 (0 for votes)
+  bool voted = false;                   ///< the position is a vote candidate's (runtime/joint_votes.h)
 };
 
 struct Skeleton {
@@ -129,12 +134,17 @@ std::string DescribeConfidence(const core::ConfidenceCalibration* calibration);
 
 /// One skeleton per person label 1..num_people of `masks` (0 = background) with at least one
 /// pixel; `depth` (mm) is the frame the proposals were made on. `calibration` may be null (the
-/// fallback). Skeletons come in label order with id 0.
+/// fallback). Skeletons come in label order with id 0. `votes` (CastVotes: per person, label - 1),
+/// when given, adds vote candidates: greedy takes one over the proposals when it is more
+/// confident; kinematic weighs them with the proposals in the fit. A joint placed by a vote is
+/// tracked only if its calibrated confidence reaches min_confidence and it lies at the mask's
+/// depth (a hidden joint's vote is found, not tracked).
 std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks,
                                      int num_people, const core::DepthImage& depth,
                                      const core::CameraIntrinsics& camera,
                                      const core::ConfidenceCalibration* calibration,
-                                     const SkeletonOptions& options);
+                                     const SkeletonOptions& options,
+                                     const std::vector<PersonVotes>* votes = nullptr);
 
 /// Person ids over a sequence and the optional smoothing. Not thread-safe; one per stream.
 class SkeletonTracker {

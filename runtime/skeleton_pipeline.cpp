@@ -67,6 +67,7 @@ void SkeletonPipeline::Process(const Frame& frame, SkeletonFrame* out) {
   ClassifyOptions classify;
   classify.num_threads = options_.num_threads;
   classify.want_foreground_distributions = true;
+  classify.want_foreground_leaves = options_.votes && forest->offset_votes.has_value();
   classify.pixel_stride = options_.pixel_stride;
   Classifier(*forest).Classify(*out->depth, classify, &out->classification);
   out->times.classify_ms = MsSince(t0);
@@ -89,10 +90,20 @@ void SkeletonPipeline::Process(const Frame& frame, SkeletonFrame* out) {
       if (d.pixels[i]) out->masks.pixels[i] = 1, any = true;
     out->num_people = any ? 1 : 0;
   }
-  auto skeletons = BuildSkeletons(out->proposals, out->masks, out->num_people, *out->depth, cam, calibration_,
-                                  options_.skeleton);
-  out->skeletons = tracker_.Update(std::move(skeletons), frame.timestamp_s, cam);
   out->times.skeletons_ms = MsSince(t0);
+  t0 = std::chrono::steady_clock::now();
+  out->votes.clear();
+  if (options_.votes && forest->offset_votes) {
+    VoteOptions vo = options_.vote_options;
+    if (vo.threads <= 0) vo.threads = options_.num_threads;
+    out->votes = CastVotes(*forest, *out->depth, out->masks, out->num_people, cam, vo, &out->classification);
+  }
+  out->times.votes_ms = MsSince(t0);
+  t0 = std::chrono::steady_clock::now();
+  auto skeletons = BuildSkeletons(out->proposals, out->masks, out->num_people, *out->depth, cam, calibration_,
+                                  options_.skeleton, out->votes.empty() ? nullptr : &out->votes);
+  out->skeletons = tracker_.Update(std::move(skeletons), frame.timestamp_s, cam);
+  out->times.skeletons_ms += MsSince(t0);
 }
 
 }  // namespace poseforest::runtime

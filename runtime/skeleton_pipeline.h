@@ -33,12 +33,15 @@ struct SkeletonPipelineOptions {
   /// Classify (and propose from) every pixel_stride-th pixel in x and y only
   /// (ClassifyOptions::pixel_stride; 2: a quarter of the pixels). 1 = every pixel.
   int pixel_stride = 1;
+  /// Cast the forest's offset votes (format 1.5) when it has them (runtime/joint_votes.h).
+  bool votes = true;
+  VoteOptions vote_options;
 };
 
 /// Milliseconds per stage of one frame.
 struct StageTimes {
-  double segment_ms = 0, classify_ms = 0, proposals_ms = 0, skeletons_ms = 0;
-  double total() const { return segment_ms + classify_ms + proposals_ms + skeletons_ms; }
+  double segment_ms = 0, classify_ms = 0, proposals_ms = 0, votes_ms = 0, skeletons_ms = 0;
+  double total() const { return segment_ms + classify_ms + proposals_ms + votes_ms + skeletons_ms; }
 };
 
 struct SkeletonFrame {
@@ -48,6 +51,9 @@ struct SkeletonFrame {
   const core::DepthImage* depth = nullptr;
   Classification classification;
   FrameProposals proposals;
+  /// Vote candidates per person (index mask label - 1); empty when the forest has no votes or
+  /// SkeletonPipelineOptions::votes is off.
+  std::vector<PersonVotes> votes;
   core::LabelImage masks;  ///< 0 background, k = person k (what skeletons are built from)
   int num_people = 0;
   std::vector<Skeleton> skeletons;  ///< ordered by id

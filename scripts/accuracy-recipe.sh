@@ -50,6 +50,9 @@ set -o pipefail
 echo "== learning b, lambda, zeta on 150 validation renders of the train clips"
 "$bin/poseforest" tune-joints --forest "$out/forest.pff" --validation "$out/job.textproto" --frames 150 \
   --out "$out/forest_tuned.pff" 2>&1 | tee "$out/tune.log"
+echo "== offset votes: per leaf, the offsets to the joints its training pixels agree on (learn-votes)"
+"$bin/poseforest" learn-votes --forest "$out/forest_tuned.pff" --job "$out/job.textproto" \
+  --out "$out/forest_tuned.pff" --quiet 2>&1 | tee "$out/votes.log"
 echo "== eval on 200 held-out test-clip frames"
 "$bin/poseforest" eval --forest "$out/forest_tuned.pff" --test-set "$out/job.textproto" --images 200 \
   --pr-png "$out/pr" 2>&1 | tee "$out/eval.txt"

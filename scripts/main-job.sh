@@ -11,7 +11,8 @@
 #      (`poseforest export`) and check it equals the coordinator's file; then train a small job
 #      both ways and check the service writes the single-process engine's forest, byte for byte;
 #   3. learn the joint-proposal parameters (b, lambda, zeta per joint) on validation renders of
-#      the train clips and store them in the forest; report joint AP / mAP (mean shift, fast,
+#      the train clips and store them in the forest, and its offset votes (learn-votes: per leaf,
+#      the offsets to the joints, from the training frames); report joint AP / mAP (mean shift, fast,
 #      the ground-truth-parts upper bound, also with two people per frame) and the average
 #      per-class accuracy on held-out renders of the test clips (section 4), with PR curves;
 #      and the skeletons on the hand-labelled real Kinect frames (eval --real-labels);
@@ -60,6 +61,8 @@ echo "distributed forest == single-process forest, byte for byte"
 
 echo "== 3. joint proposals: learn b, lambda, zeta per joint, for mean shift and for the fast clustering, on validation renders (train clips, unseen frames)"
 "$bin/poseforest" tune-joints --forest "$out/forest.pff" --validation "$out/job.textproto" --frames 60 --out "$out/forest.pff"
+echo "== 3'. offset votes: per leaf, the offsets to the joints its training pixels agree on (the skeleton's second source of joint candidates)"
+"$bin/poseforest" learn-votes --forest "$out/forest.pff" --job "$out/job.textproto" --out "$out/forest.pff" --quiet
 echo "== 3b. joint AP / mAP and per-class accuracy on held-out renders (test clips)"
 "$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --png "$out/confusion.png" \
   --pr-png "$out/pr" --quiet | tee "$out/eval.txt"

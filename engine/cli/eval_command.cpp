@@ -84,6 +84,7 @@ options:
   --fit F           how the skeleton picks its joints: greedy (default: each joint's most
                     confident proposal on the person) or kinematic (one fit per person choosing
                     among each joint's proposals with bone lengths; runtime/skeleton.h)
+  --no-votes        the skeleton ignores the forest's offset votes (format 1.5, `learn-votes`)
   --real-labels F   score skeletons on hand-labelled real frames (above) instead of --test-set
   --png-dir DIR     with --real-labels: a picture per frame, DIR/<frame file>.png
   --quiet           no progress lines
@@ -152,6 +153,7 @@ int EvalRealMain(const Args& args) {
   options.num_threads = int(*threads);
   options.pixel_stride = int(*pixel_stride);
   if (!ParseFit(args, &options.skeleton.fit)) return 2;
+  options.votes = !args.Has("no-votes");
   runtime::FrameSourceOptions source_options;
   source_options.camera = labels->camera;
   source_options.camera_given = true;
@@ -212,7 +214,7 @@ int EvalRealMain(const Args& args) {
 int EvalMain(int argc, char** argv) {
   Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png",
              "segment", "pixel-stride", "real-labels", "png-dir", "fit"},
-            {"help", "quiet", "per-person", "no-rescale"});
+            {"help", "quiet", "per-person", "no-rescale", "no-votes"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -271,6 +273,7 @@ int EvalMain(int argc, char** argv) {
   eo.people = int(*people);
   eo.pixel_stride = int(*pixel_stride);
   if (!ParseFit(args, &eo.skeleton_fit)) return 2;
+  eo.votes = !args.Has("no-votes");
   eo.fast = method == "both";
   eo.rescale = !args.Has("no-rescale");
   eo.segment = segment == "on"    ? coordinator::JointEvalOptions::Segment::kOn

@@ -15,6 +15,7 @@ int RenderMain(int argc, char** argv);   ///< renderer: write a synthetic datase
 int TrainMain(int argc, char** argv);    ///< coordinator: train a forest from a job config
 int EvalMain(int argc, char** argv);     ///< coordinator: per-class accuracy on a test set
 int TuneJointsMain(int argc, char** argv);  ///< coordinator: learn joint-proposal parameters
+int LearnVotesMain(int argc, char** argv);  ///< engine/cli: offset votes of a trained forest
 int CoordinatorMain(int argc, char** argv);  ///< coordinator/: train over Fast DDS
 int WorkerMain(int argc, char** argv);       ///< worker/: join a job over Fast DDS
 int MonitorMain(int argc, char** argv);      ///< coordinator/monitoring/: live status of a job

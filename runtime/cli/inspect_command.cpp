@@ -1,4 +1,5 @@
 // poseforest inspect: print and validate a forest file.
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -14,7 +15,8 @@ Loads each forest file, runs every validity check of the loader (sizes, checksum
 indices, thresholds, leaf sums), and prints its format version, trees, depth, node and leaf counts,
 bytes, feature constants and the joint-proposal parameters stored by `poseforest tune-joints`,
 one set per method (JPAR: mean shift, JPFC: the fast clustering; means over joints) and which
-set each method runs with. Exit status 1 if any file is invalid.
+set each method runs with, and the offset votes stored by `poseforest learn-votes` (JVOT: votes,
+trees, max offset, bandwidths, calibration bins). Exit status 1 if any file is invalid.
 
 options:
   --parts   also list the part table
@@ -92,6 +94,21 @@ int InspectMain(int argc, char** argv) {
                       method);
           break;
       }
+    }
+    if (const auto& votes = f.offset_votes) {
+      size_t leaves = 0;
+      for (const auto& tree : f.trees) leaves += tree.num_leaves;
+      const auto [b_min, b_max] = std::minmax_element(votes->bandwidth_m.begin(), votes->bandwidth_m.end());
+      const size_t bins = votes->share_edges.size();
+      std::printf(
+          "  offset votes (JVOT): %zu votes over %zu trees (%.1f per leaf), max offset %.2f m, "
+          "bandwidths %.2f..%.2f m, %s\n",
+          votes->total_votes(), votes->trees.size(),
+          leaves ? double(votes->total_votes()) / double(leaves) : 0.0, double(votes->max_offset_m),
+          double(*b_min), double(*b_max),
+          bins ? ("calibration " + std::to_string(bins) + " bins").c_str() : "no calibration");
+    } else {
+      std::printf("  offset votes: none (the skeleton uses part proposals only)\n");
     }
     if (args.Has("joints")) {
       std::printf("  %-17s %26s   %26s\n", "", "mean shift: b, lambda, zeta",

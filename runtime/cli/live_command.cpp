@@ -77,6 +77,8 @@ skeletons:
   --fit F              greedy (default): each joint's most confident proposal on the person;
                        kinematic: one fit per person choosing among each joint's proposals with
                        bone lengths (runtime/skeleton.h)
+  --no-votes           ignore the forest's offset votes (format 1.5, `learn-votes`); by default
+                       a forest with votes gives every joint vote candidates too
   --min-confidence C   a joint is tracked only with a confidence >= C (default 0.3)
   --min-support S      ... and a proposal support >= S m^2 (default 0.0001)
   --max-match M        a person moving more than M metres between frames gets a new id (0.5)
@@ -168,7 +170,7 @@ int LiveMain(int argc, char** argv) {
                                          "dds-frame-id",   "dds-wait",
                                          "pixel-stride",   "fit"};
   for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
-  Args args(value_options, {"help", "quiet", "smooth", "loop", "dds"});
+  Args args(value_options, {"help", "quiet", "smooth", "loop", "dds", "no-votes"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest live: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -232,6 +234,7 @@ int LiveMain(int argc, char** argv) {
     if (!parsed) return UsageError("--fit must be kinematic or greedy (got '" + fit + "')");
     sk.fit = *parsed;
   }
+  options.votes = !args.Has("no-votes");
   {
     auto min_conf = GetDouble(args, "min-confidence", sk.min_confidence, 0.0, 1.0);
     auto min_support = GetDouble(args, "min-support", sk.min_support_m2, 0.0, 10.0);
@@ -547,6 +550,7 @@ int LiveMain(int argc, char** argv) {
     stage_sum.classify_ms += result.times.classify_ms;
     stage_sum.proposals_ms += result.times.proposals_ms;
     stage_sum.skeletons_ms += result.times.skeletons_ms;
+    stage_sum.votes_ms += result.times.votes_ms;
     people_frames += int64_t(result.skeletons.size());
 
     const auto now = std::chrono::steady_clock::now();
@@ -582,10 +586,11 @@ int LiveMain(int argc, char** argv) {
     std::fprintf(stderr,
                  "poseforest live: latency p50 %.2f ms, p99 %.2f ms (frame in to JSON line out and "
                  "published); per frame: segment "
-                 "%.2f ms, classify %.2f ms, proposals %.2f ms, skeletons %.2f ms, pictures/page %.2f ms\n",
+                 "%.2f ms, classify %.2f ms, proposals %.2f ms, votes %.2f ms, skeletons %.2f ms, pictures/page "
+                 "%.2f ms\n",
                  Percentile(latencies, 0.5), Percentile(latencies, 0.99), stage_sum.segment_ms / n,
-                 stage_sum.classify_ms / n, stage_sum.proposals_ms / n, stage_sum.skeletons_ms / n,
-                 output_ms_sum / n);
+                 stage_sum.classify_ms / n, stage_sum.proposals_ms / n, stage_sum.votes_ms / n,
+                 stage_sum.skeletons_ms / n, output_ms_sum / n);
     std::fprintf(stderr, "poseforest live: %d people seen (ids 1..%d), %.2f people per frame\n",
                  (*pipeline)->tracker().people_seen(), (*pipeline)->tracker().people_seen(),
                  double(people_frames) / n);

@@ -34,6 +34,7 @@ const Command kCommands[] = {
     {"train", poseforest::cli::TrainMain, "train a forest from a job config (protobuf text format)"},
     {"eval", poseforest::cli::EvalMain, "joint AP / mAP and per-class accuracy of a forest on a held-out test set"},
     {"tune-joints", poseforest::cli::TuneJointsMain, "learn the joint-proposal parameters on validation renders"},
+    {"learn-votes", poseforest::cli::LearnVotesMain, "add offset votes (joint positions per leaf) to a trained forest"},
 #endif
 #ifdef POSEFOREST_HAS_DISTRIBUTED
     {"coordinator", poseforest::cli::CoordinatorMain, "run a distributed training job (Fast DDS), optionally with local workers"},

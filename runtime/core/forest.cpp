@@ -68,6 +68,11 @@ Status ValidateForest(const Forest& forest, const std::string& source) {
       return fail("training focal length " + std::to_string(f) + " px is not in [1, 100000] (FOCL)");
   if (forest.confidence_calibration)
     POSEFOREST_RETURN_IF_ERROR(ValidateCalibration(*forest.confidence_calibration, source + ": JCAL"));
+  if (forest.offset_votes) {
+    std::vector<uint32_t> num_leaves;
+    for (const Tree& t : forest.trees) num_leaves.push_back(t.num_leaves);
+    POSEFOREST_RETURN_IF_ERROR(ValidateOffsetVotes(*forest.offset_votes, num_leaves, source + ": JVOT"));
+  }
   for (const bool fast : {false, true}) {
     const auto& params = fast ? forest.fast_proposal_params : forest.proposal_params;
     if (!params) continue;

@@ -14,6 +14,7 @@
 #include "runtime/core/body_parts.h"
 #include "runtime/core/confidence_calibration.h"
 #include "runtime/core/feature.h"
+#include "runtime/core/offset_votes.h"
 #include "runtime/core/proposal_params.h"
 #include "runtime/core/result.h"
 
@@ -105,6 +106,9 @@ struct Forest {
   /// Joint confidence calibration measured by `tune-joints` (format >= 1.4, section JCAL):
   /// proposal support (m^2) -> precision on validation renders. Absent: FallbackConfidence.
   std::optional<ConfidenceCalibration> confidence_calibration;
+  /// Offset votes learned by `learn-votes` (format >= 1.5, section JVOT): per leaf, offsets to
+  /// the joints (runtime/joint_votes.h casts them). Absent: the skeleton uses part proposals only.
+  std::optional<OffsetVotes> offset_votes;
 
   int leaf_stride() const { return LeafStride(num_parts); }
   /// Maximum depth over trees.

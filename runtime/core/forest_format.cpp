@@ -38,6 +38,10 @@ constexpr uint32_t kTagJointParams = Tag("JPAR");      // mean shift (1.1: both 
 constexpr uint32_t kTagFastJointParams = Tag("JPFC");  // the fast clustering (1.2)
 constexpr uint32_t kTagFocal = Tag("FOCL");            // training camera's focal lengths (1.3)
 constexpr uint32_t kTagCalibration = Tag("JCAL");      // joint confidence calibration (1.4)
+constexpr uint32_t kTagOffsetVotes = Tag("JVOT");      // offset votes (1.5)
+// JVOT: u32 trees, u32 joints, f32 max offset, joints x f32 bandwidth, u32 calibration bins.
+constexpr uint32_t kVotesHeadSize = 16 + 4 * uint32_t(kNumJoints);
+constexpr uint32_t kVoteSize = 8;  // i16 dx, dy, dz (mm), u8 joint, u8 weight
 
 std::string TagName(uint32_t tag) {
   std::string s;
@@ -136,7 +140,7 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   w.U32(kHeaderSize);
   const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
                                  (forest.fast_proposal_params ? 1 : 0) + 1 +
-                                 (forest.confidence_calibration ? 1 : 0);
+                                 (forest.confidence_calibration ? 1 : 0) + (forest.offset_votes ? 1 : 0);
   w.U32(section_count);
   while (w.size() < kHeaderSize) w.U8(0);
 
@@ -209,6 +213,31 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
     EndSection(w, at);
   }
 
+  // JVOT (1.5): the offset votes learn-votes built; older readers skip it.
+  if (const auto& votes = forest.offset_votes) {
+    at = BeginSection(w, kTagOffsetVotes, 0);
+    w.U32(uint32_t(votes->trees.size()));
+    w.U32(uint32_t(kNumJoints));
+    w.F32(votes->max_offset_m);
+    for (float b : votes->bandwidth_m) w.F32(b);
+    w.U32(uint32_t(votes->share_edges.size()));
+    for (float e : votes->share_edges) w.F32(e);
+    for (float p : votes->precision) w.F32(p);
+    for (const TreeVotes& tree : votes->trees) {
+      w.U32(tree.first.empty() ? 0 : uint32_t(tree.first.size() - 1));  // valid: num_leaves
+      w.U32(uint32_t(tree.votes.size()));
+      for (uint32_t f : tree.first) w.U32(f);
+      for (const JointVote& v : tree.votes) {
+        w.I16(v.dx_mm);
+        w.I16(v.dy_mm);
+        w.I16(v.dz_mm);
+        w.U8(v.joint);
+        w.U8(v.weight);
+      }
+    }
+    EndSection(w, at);
+  }
+
   const uint64_t file_size = w.size() + kTrailerSize;
   w.PatchU64(16, file_size);
   const uint32_t crc = Crc32(w.bytes().data(), w.size());
@@ -255,7 +284,7 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
 
   Forest forest;
   forest.part_names.clear();
-  bool have_meta = false, have_focal = false, have_calibration = false;
+  bool have_meta = false, have_focal = false, have_calibration = false, have_votes = false;
   uint32_t tree_count = 0, stride = 0;
   const auto body = bytes.subspan(header_size, bytes.size() - kTrailerSize - header_size);
   Reader r(body);
@@ -378,6 +407,62 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       }
       forest.confidence_calibration = std::move(cal);
       have_calibration = true;
+    } else if (tag == kTagOffsetVotes) {
+      // Sizes only here; ValidateForest (below) checks the table against the trees.
+      if (have_votes) return loss(where + "second JVOT section");
+      if (!have_meta) return loss(where + "JVOT before META");
+      if (!p.Has(kVotesHeadSize))
+        return loss(where + "JVOT section too short (" + std::to_string(p.remaining()) +
+                    " bytes, its head is " + std::to_string(kVotesHeadSize) + ")");
+      OffsetVotes votes;
+      const uint32_t trees = p.U32();
+      const uint32_t joints = p.U32();
+      if (joints != uint32_t(kNumJoints))
+        return loss(where + "JVOT holds " + std::to_string(joints) + " joints, expected " +
+                    std::to_string(kNumJoints));
+      if (trees != tree_count)
+        return loss(where + "JVOT holds votes for " + std::to_string(trees) + " trees, the forest declares " +
+                    std::to_string(tree_count));
+      votes.max_offset_m = p.F32();
+      for (float& b : votes.bandwidth_m) b = p.F32();
+      const uint32_t bins = p.U32();
+      if (uint64_t(bins) * 4 * (1 + kNumJoints) > p.remaining())
+        return loss(where + "JVOT calibration of " + std::to_string(bins) + " bins needs " +
+                    std::to_string(uint64_t(bins) * 4 * (1 + kNumJoints)) + " bytes, the section holds " +
+                    std::to_string(p.remaining()) + " more (truncated?)");
+      votes.share_edges.resize(bins);
+      for (float& e : votes.share_edges) e = p.F32();
+      votes.precision.resize(size_t(bins) * kNumJoints);
+      for (float& v : votes.precision) v = p.F32();
+      votes.trees.resize(trees);
+      for (uint32_t t = 0; t < trees; ++t) {
+        const std::string tree_name = "JVOT tree " + std::to_string(t);
+        if (!p.Has(8))
+          return loss(where + tree_name + ": head truncated (" + std::to_string(p.remaining()) + " bytes)");
+        const uint32_t leaves = p.U32();
+        const uint32_t count = p.U32();
+        // At most (2^32) * 4 + (2^32 - 1) * 8 bytes: no overflow in 64 bits.
+        const uint64_t need = (uint64_t(leaves) + 1) * 4 + uint64_t(count) * kVoteSize;
+        if (need > p.remaining())
+          return loss(where + tree_name + ": " + std::to_string(leaves) + " leaves and " +
+                      std::to_string(count) + " votes need " + std::to_string(need) +
+                      " bytes, the section holds " + std::to_string(p.remaining()) + " more (truncated?)");
+        TreeVotes& tv = votes.trees[t];
+        tv.first.resize(size_t(leaves) + 1);
+        for (uint32_t& f : tv.first) f = p.U32();
+        tv.votes.resize(count);
+        for (JointVote& v : tv.votes) {
+          v.dx_mm = p.I16();
+          v.dy_mm = p.I16();
+          v.dz_mm = p.I16();
+          v.joint = p.U8();
+          v.weight = p.U8();
+        }
+      }
+      if (p.remaining() != 0)
+        return loss(where + "JVOT has " + std::to_string(p.remaining()) + " bytes after its last tree");
+      forest.offset_votes = std::move(votes);
+      have_votes = true;
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");

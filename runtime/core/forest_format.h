@@ -1,5 +1,5 @@
 #pragma once
-// Forest file format v1 (.pff, "poseforest forest"), minor version 3: reading and writing. The layout is
+// Forest file format v1 (.pff, "poseforest forest"), minor version 5: reading and writing. The layout is
 // documented in runtime/FORMAT.md; keep the two in step.
 
 #include <cstdint>
@@ -18,7 +18,10 @@ inline constexpr uint16_t kFormatMajor = 1;
 /// shift's); 1.1 readers skip it and run both methods with JPAR, as they did.
 /// 1.3 added the optional FOCL section (the training camera's focal lengths, pixels); older files
 /// mean the Kinect v1 (575.8 px), older readers skip it.
-inline constexpr uint16_t kFormatMinor = 4;
+/// 1.4 added the optional JCAL section (joint confidence calibration); older readers skip it.
+/// 1.5 added the optional JVOT section (per-leaf offset votes to the joints); older readers skip it.
+/// Every file is written with the newest minor version, whichever optional sections it holds.
+inline constexpr uint16_t kFormatMinor = 5;
 
 /// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
 std::vector<uint8_t> SerializeForest(const Forest& forest);

@@ -10,6 +10,7 @@
 
 #include "runtime/classifier.h"
 #include "runtime/classifier_internal.h"
+#include "runtime/joint_votes.h"
 #include "runtime/core/feature.h"
 #include "runtime/core/forest.h"
 #include "tests/support/synthetic.h"
@@ -102,6 +103,7 @@ void ExpectMatches(const Forest& forest, const DepthImage& depth, const std::str
         options.num_threads = threads;
         options.want_distributions = dist;
         options.want_foreground_distributions = fg;
+        options.want_foreground_leaves = fg && threads != 3;  // the leaves (offset votes), and not
         Classification got;
         ClassifyWithKernel(forest, depth, options, kernel, &got);
         REQUIRE(got.width == depth.width);
@@ -118,6 +120,19 @@ void ExpectMatches(const Forest& forest, const DepthImage& depth, const std::str
         }
         if (fg) {
           ExpectForeground(got, depth, want, forest.leaf_stride());
+          if (options.want_foreground_leaves) {
+            // Each foreground pixel's leaf in each tree: the scalar walk's (runtime/joint_votes.h).
+            REQUIRE(got.foreground_leaves.size() == got.foreground.size() * forest.trees.size());
+            for (size_t k = 0; k < got.foreground.size(); ++k) {
+              const int x = int(got.foreground[k] % uint32_t(depth.width)),
+                        y = int(got.foreground[k] / uint32_t(depth.width));
+              for (size_t t = 0; t < forest.trees.size(); ++t)
+                REQUIRE(got.foreground_leaves[k * forest.trees.size() + t] ==
+                        poseforest::runtime::LeafOf(forest.trees[t], forest.constants, depth, x, y));
+            }
+          } else {
+            REQUIRE(got.foreground_leaves.empty());
+          }
         } else {
           REQUIRE(got.foreground.empty());
           REQUIRE(got.foreground_sums.empty());

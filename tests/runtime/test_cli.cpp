@@ -284,3 +284,32 @@ TEST_CASE("infer and inspect give clear errors on bad input and lose nothing", "
   }
   fs::remove_all(dir);
 }
+
+TEST_CASE("inspect shows the offset votes (format 1.5, JVOT), or says there are none", "[cli]") {
+  const auto dir = testing::ScratchDir("cli-votes");
+  core::Forest forest = testing::MakeRandomForest({.num_trees = 2, .max_depth = 6, .nodes_per_tree = 200});
+  const std::string plain = (dir / "plain.pff").string();
+  REQUIRE(core::SaveForest(forest, plain).ok());
+  forest.offset_votes = testing::MakeRandomOffsetVotes(forest, 5);
+  const std::string votes = (dir / "votes.pff").string();
+  REQUIRE(core::SaveForest(forest, votes).ok());
+
+  size_t leaves = 0;
+  for (const auto& tree : forest.trees) leaves += tree.num_leaves;
+  const size_t total = forest.offset_votes->total_votes();
+  char per_leaf[32];
+  std::snprintf(per_leaf, sizeof per_leaf, "(%.1f per leaf)", double(total) / double(leaves));
+  auto run = RunPoseforest("inspect " + votes);
+  INFO(run.output);
+  CHECK(run.exit_code == 0);
+  CHECK_THAT(run.output, Catch::Contains("format 1.5") &&
+                             Catch::Contains("offset votes (JVOT): " + std::to_string(total) +
+                                             " votes over 2 trees " + per_leaf +
+                                             ", max offset 0.60 m, bandwidths 0.05..0.08 m, "
+                                             "calibration 3 bins"));
+  auto none = RunPoseforest("inspect " + plain);
+  INFO(none.output);
+  CHECK(none.exit_code == 0);
+  CHECK_THAT(none.output, Catch::Contains("offset votes: none"));
+  fs::remove_all(dir);
+}

@@ -545,3 +545,299 @@ TEST_CASE("the confidence calibration (format 1.4, JCAL): every byte of it rewri
   REQUIRE_FALSE(r.ok());
   CHECK(r.status().message().find("second JCAL") != std::string::npos);
 }
+
+namespace {
+
+// The JVOT payload of `with` (a forest serialized with offset votes) given the same forest's
+// bytes without them: JVOT is the last section, right before the trailer.
+std::vector<uint8_t> VotesPayload(const std::vector<uint8_t>& with, const std::vector<uint8_t>& without) {
+  const size_t start = without.size() - 8;
+  REQUIRE(std::memcmp(with.data() + start, "JVOT", 4) == 0);
+  uint64_t size = 0;
+  for (int i = 0; i < 8; ++i) size |= uint64_t(with[start + 8 + size_t(i)]) << (8 * i);
+  REQUIRE(start + 16 + size <= with.size() - 8);
+  return {with.begin() + long(start + 16), with.begin() + long(start + 16 + size)};
+}
+
+// Parses `bytes` and expects a DataLoss error naming `source`, the section and `text`.
+void ExpectVotesRefused(const std::vector<uint8_t>& bytes, const std::string& source,
+                        const std::string& text) {
+  auto r = core::ParseForest(bytes, source);
+  REQUIRE_FALSE(r.ok());
+  INFO(r.status().ToString());
+  CHECK(r.status().code() == ErrorCode::kDataLoss);
+  CHECK_THAT(r.status().message(),
+             Catch::StartsWith(source + ": ") && Catch::Contains("JVOT") && Catch::Contains(text));
+}
+
+}  // namespace
+
+TEST_CASE(
+    "offset votes (format 1.5, JVOT) round trip through memory and a file; files without them have none",
+    "[format][votes]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(31));
+  const auto without = core::SerializeForest(forest);
+  CHECK(without[10] == 5);  // every file is written as the newest minor version
+  auto plain = core::ParseForest(without, "plain.pff");
+  REQUIRE(plain.ok());
+  CHECK_FALSE(plain->offset_votes.has_value());
+
+  const core::OffsetVotes votes = testing::MakeRandomOffsetVotes(forest, 31);
+  REQUIRE(votes.total_votes() > 0);
+  forest.offset_votes = votes;
+  REQUIRE(core::ValidateForest(forest, "mem").ok());
+  const auto bytes = core::SerializeForest(forest);
+  CHECK(bytes[10] == core::kFormatMinor);
+  CHECK(core::kFormatMinor == 5);
+  // Head (16 + 16 x 4 bytes), calibration (3 x 8), per tree (8 + (L + 1) x 4 + V x 8), padding.
+  size_t payload = 16 + 16 * 4 + 3 * 4 * 17;
+  for (size_t t = 0; t < forest.trees.size(); ++t)
+    payload += 8 + (size_t(forest.trees[t].num_leaves) + 1) * 4 + votes.trees[t].votes.size() * 8;
+  CHECK(bytes.size() == without.size() + 16 + (payload + 7) / 8 * 8);
+  CHECK(VotesPayload(bytes, without).size() == payload);
+
+  auto parsed = core::ParseForest(bytes, "votes.pff");
+  REQUIRE(parsed.ok());
+  CHECK(SameForest(forest, *parsed));
+  REQUIRE(parsed->offset_votes.has_value());
+  CHECK(*parsed->offset_votes == votes);
+  CHECK(core::SerializeForest(*parsed) == bytes);  // deterministic
+
+  const auto dir = testing::ScratchDir("format-votes");
+  const std::string path = (dir / "votes.pff").string();
+  REQUIRE(core::SaveForest(forest, path).ok());
+  auto loaded = core::LoadForest(path);
+  REQUIRE(loaded.ok());
+  CHECK(SameForest(forest, *loaded));
+  REQUIRE(loaded->offset_votes.has_value());
+  CHECK(*loaded->offset_votes == votes);
+  std::filesystem::remove_all(dir);
+
+  // A 1.1 file from before votes loads with none.
+  const auto old_path =
+      std::filesystem::path(POSEFOREST_SOURCE_DIR) / "tests/runtime/data/forest_v1_1_jpar.pff";
+  auto old = core::LoadForest(old_path.string());
+  REQUIRE(old.ok());
+  CHECK_FALSE(old->offset_votes.has_value());
+}
+
+TEST_CASE("offset votes: confidence from the calibration table, vote count", "[format][votes]") {
+  core::OffsetVotes votes;
+  CHECK(votes.Confidence(0, 0.5f) == 0);  // no table
+  CHECK(votes.total_votes() == 0);
+  votes.share_edges = {0.05f, 0.1f, 0.3f};
+  votes.precision = {0.2f, 0.5f, 0.9f};
+  CHECK(votes.Confidence(0, 0.5f) == 0);  // one row for 16 joints: not a table
+  for (int j = 1; j < core::kNumJoints; ++j) votes.precision.insert(votes.precision.end(), {0.1f, 0.4f, 0.8f});
+  CHECK(votes.Confidence(1, 0.0f) == 0.1f);  // joint 1's row
+  CHECK(votes.Confidence(15, 0.35f) == 0.8f);
+  CHECK(votes.Confidence(16, 0.35f) == 0);  // no such joint
+  CHECK(votes.Confidence(0, 0.0f) == 0.2f);  // below the first edge: the first bin
+  CHECK(votes.Confidence(0, 0.05f) == 0.2f);
+  CHECK(votes.Confidence(0, 0.0999f) == 0.2f);
+  CHECK(votes.Confidence(0, 0.1f) == 0.5f);  // on an edge: the bin it opens
+  CHECK(votes.Confidence(0, 0.2f) == 0.5f);
+  CHECK(votes.Confidence(0, 0.3f) == 0.9f);
+  CHECK(votes.Confidence(0, 1.0f) == 0.9f);  // the last bin is open above
+  votes.trees.resize(2);
+  votes.trees[0].votes.resize(3);
+  votes.trees[1].votes.resize(4);
+  CHECK(votes.total_votes() == 7);
+}
+
+TEST_CASE("corrupt or truncated JVOT sections give errors naming the file and the section",
+          "[format][votes][hostile]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(32));
+  const auto plain = core::SerializeForest(forest);
+  const core::OffsetVotes votes = testing::MakeRandomOffsetVotes(forest, 32);
+  forest.offset_votes = votes;
+  const auto good = core::SerializeForest(forest);
+  const auto payload = VotesPayload(good, plain);
+  // Sanity: the payload alone, added to the plain file, loads as the same votes.
+  auto ok = core::ParseForest(WithSection(plain, "JVOT", 0, payload), "ok.pff");
+  REQUIRE(ok.ok());
+  REQUIRE(ok->offset_votes.has_value());
+  CHECK(*ok->offset_votes == votes);
+
+  SECTION("every shorter (truncated) payload") {
+    for (size_t n = 0; n < payload.size(); ++n) {
+      INFO("payload of " << n << " bytes");
+      std::vector<uint8_t> cut(payload.begin(), payload.begin() + std::ptrdiff_t(n));
+      auto r = core::ParseForest(WithSection(plain, "JVOT", 0, cut), "cut.pff");
+      REQUIRE_FALSE(r.ok());
+      CHECK(r.status().code() == ErrorCode::kDataLoss);
+      CHECK_THAT(r.status().message(), Catch::StartsWith("cut.pff: ") && Catch::Contains("JVOT"));
+    }
+    // The messages say what is missing.
+    ExpectVotesRefused(WithSection(plain, "JVOT", 0, {payload.begin(), payload.begin() + 40}), "cut.pff",
+                       "JVOT section too short (40 bytes, its head is 80)");
+    ExpectVotesRefused(WithSection(plain, "JVOT", 0, {payload.begin(), payload.end() - 1}), "cut.pff",
+                       "truncated?");
+  }
+  SECTION("trailing bytes after the last tree") {
+    auto longer = payload;
+    longer.resize(longer.size() + 8);
+    ExpectVotesRefused(WithSection(plain, "JVOT", 0, longer), "long.pff",
+                       "JVOT has 8 bytes after its last tree");
+  }
+  SECTION("sizes that would overflow or run past the section") {
+    auto bins = payload;
+    const uint8_t all[4] = {0xFF, 0xFF, 0xFF, 0xFF};
+    std::memcpy(bins.data() + 76, all, 4);  // calibration bin count 2^32 - 1
+    ExpectVotesRefused(WithSection(plain, "JVOT", 0, bins), "bins.pff", "calibration of 4294967295 bins");
+    auto leaves = payload;
+    std::memcpy(leaves.data() + 80 + 3 * 4 * 17, all, 4);  // tree 0's leaf count 2^32 - 1
+    ExpectVotesRefused(WithSection(plain, "JVOT", 0, leaves), "leaves.pff", "JVOT tree 0: 4294967295 leaves");
+    auto count = payload;
+    std::memcpy(count.data() + 80 + 3 * 4 * 17 + 4, all, 4);  // tree 0's vote count 2^32 - 1
+    ExpectVotesRefused(WithSection(plain, "JVOT", 0, count), "count.pff", "4294967295 votes need");
+    auto joints = payload;
+    joints[4] = 15;
+    ExpectVotesRefused(WithSection(plain, "JVOT", 0, joints), "joints.pff",
+                       "JVOT holds 15 joints, expected 16");
+  }
+  SECTION("a tree count not matching the forest") {
+    auto more = forest;
+    more.offset_votes->trees.push_back(more.offset_votes->trees[0]);
+    ExpectVotesRefused(core::SerializeForest(more), "trees.pff",
+                       "JVOT holds votes for 3 trees, the forest declares 2");
+    auto fewer = payload;
+    fewer[0] = 1;
+    ExpectVotesRefused(WithSection(plain, "JVOT", 0, fewer), "trees.pff",
+                       "JVOT holds votes for 1 trees, the forest declares 2");
+  }
+  SECTION("a leaf count not matching the tree's") {
+    auto f = forest;
+    auto& tree = f.offset_votes->trees[1];
+    tree.first.push_back(tree.first.back());  // one leaf too many, still a well-formed table
+    const uint32_t leaves = forest.trees[1].num_leaves;
+    ExpectVotesRefused(core::SerializeForest(f), "leafcount.pff",
+                       "JVOT: tree 1: " + std::to_string(leaves + 2) + " leaf offsets (first), expected " +
+                           std::to_string(leaves + 1));
+  }
+  SECTION("first not ending at the vote count") {
+    auto f = forest;
+    auto& tree = f.offset_votes->trees[0];
+    const size_t v = tree.votes.size();
+    REQUIRE(v > 0);
+    tree.first.back() = uint32_t(v - 1);
+    ExpectVotesRefused(core::SerializeForest(f), "first.pff",
+                       "JVOT: tree 0: first ends at " + std::to_string(v - 1) + " but the tree holds " +
+                           std::to_string(v) + " votes");
+    // Past the votes: caught before any vote is read beyond them.
+    tree.first.back() = uint32_t(v + 5);
+    ExpectVotesRefused(core::SerializeForest(f), "first.pff", "first ends at " + std::to_string(v + 5));
+    tree.first.back() = uint32_t(v);
+    tree.first[1] = uint32_t(v + 5);  // leaf 0 ends past the votes, then first decreases
+    ExpectVotesRefused(core::SerializeForest(f), "first.pff", "JVOT: tree 0 leaf 0: votes end at");
+  }
+  SECTION("a joint out of range, joints out of order, a zero weight") {
+    auto f = forest;
+    auto& tree = f.offset_votes->trees[1];
+    uint32_t leaf = 0;
+    while (leaf + 1 < tree.first.size() && tree.first[leaf + 1] - tree.first[leaf] < 2) ++leaf;
+    REQUIRE(leaf + 1 < tree.first.size());  // a leaf with two votes or more
+    const uint32_t at = tree.first[leaf];
+    const std::string name = "JVOT: tree 1 leaf " + std::to_string(leaf) + ": ";
+    tree.votes[at].joint = 19;
+    ExpectVotesRefused(core::SerializeForest(f), "wild.pff", name + "vote joint 19 out of range (16 joints)");
+    tree.votes[at].joint = tree.votes[at + 1].joint;
+    ExpectVotesRefused(core::SerializeForest(f), "wild.pff", name + "vote joints not increasing");
+    tree.votes[at] = votes.trees[1].votes[at];
+    tree.votes[at + 1].weight = 0;
+    ExpectVotesRefused(core::SerializeForest(f), "wild.pff", name + "vote for joint");
+  }
+  SECTION("bad constants and calibration") {
+    auto f = forest;
+    f.offset_votes->max_offset_m = std::numeric_limits<float>::quiet_NaN();
+    ExpectVotesRefused(core::SerializeForest(f), "c.pff", "max offset");
+    f.offset_votes = votes;
+    f.offset_votes->bandwidth_m[4] = 0;
+    ExpectVotesRefused(core::SerializeForest(f), "c.pff",
+                       "joint " + std::string(core::JointName(4)) + ": bandwidth");
+    f.offset_votes = votes;
+    f.offset_votes->share_edges[2] = 0.05f;
+    ExpectVotesRefused(core::SerializeForest(f), "c.pff", "share edge 2");
+    f.offset_votes = votes;
+    f.offset_votes->share_edges[2] = 1.0f;
+    ExpectVotesRefused(core::SerializeForest(f), "c.pff", "share edge 2");
+    f.offset_votes = votes;
+    f.offset_votes->precision[1] = 1.5f;
+    ExpectVotesRefused(core::SerializeForest(f), "c.pff", "precision 1");
+  }
+  SECTION("a second JVOT") {
+    ExpectVotesRefused(WithSection(good, "JVOT", 0, payload), "twice.pff", "second JVOT section");
+  }
+  SECTION("JVOT before META") {
+    // JVOT as the first section: refused naming it, not read against a tree count of 0.
+    std::vector<uint8_t> out(plain.begin(), plain.begin() + 64);
+    const uint8_t head[8] = {'J', 'V', 'O', 'T', 0, 0, 0, 0};
+    out.insert(out.end(), head, head + 8);
+    for (int i = 0; i < 8; ++i) out.push_back(uint8_t(uint64_t(payload.size()) >> (8 * i)));
+    out.insert(out.end(), payload.begin(), payload.end());
+    while (out.size() % 8) out.push_back(0);
+    out.insert(out.end(), plain.begin() + 64, plain.end());
+    const uint64_t size = out.size();
+    for (int i = 0; i < 8; ++i) out[16 + size_t(i)] = uint8_t(size >> (8 * i));
+    out[28] += 1;  // section count
+    RepairChecksum(out);
+    ExpectVotesRefused(out, "early.pff", "section 0: JVOT before META");
+  }
+}
+
+TEST_CASE("an in-memory forest with bad offset votes is refused before saving", "[format][votes]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(33));
+  forest.offset_votes = testing::MakeRandomOffsetVotes(forest, 33);
+  auto& tree = forest.offset_votes->trees[0];
+  uint32_t leaf = 0;
+  while (tree.first[leaf + 1] == tree.first[leaf]) ++leaf;
+  tree.votes[tree.first[leaf]].joint = 16;
+  const std::string expected =
+      "f.pff: JVOT: tree 0 leaf " + std::to_string(leaf) + ": vote joint 16 out of range (16 joints)";
+  const auto st = core::ValidateForest(forest, "f.pff");
+  CHECK(st.code() == ErrorCode::kDataLoss);
+  CHECK(st.message() == expected);
+  const auto dir = testing::ScratchDir("format-votes-bad");
+  const std::string path = (dir / "bad.pff").string();
+  const auto saved = core::SaveForest(forest, path);
+  CHECK(saved.code() == ErrorCode::kDataLoss);
+  CHECK_THAT(saved.message(), Catch::Contains(path + " (in memory): JVOT: tree 0 leaf"));
+  CHECK_FALSE(std::filesystem::exists(path));
+  // One table per tree.
+  forest.offset_votes->trees.pop_back();
+  CHECK_THAT(core::ValidateForest(forest, "f.pff").message(),
+             Catch::Contains("f.pff: JVOT: votes for 1 trees, the forest has 2"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("offset votes (format 1.5, JVOT): every byte of them rewritten behind a valid checksum",
+          "[format][votes][hostile]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(34));
+  const auto without = core::SerializeForest(forest);
+  forest.offset_votes = testing::MakeRandomOffsetVotes(forest, 34, 1.5);
+  const auto bytes = core::SerializeForest(forest);
+  const size_t start = without.size() - 8;
+  int rejected = 0, accepted = 0;
+  for (size_t i = start; i < bytes.size() - 8; ++i) {
+    for (uint8_t value : {uint8_t(0x00), uint8_t(0x7F), uint8_t(0x80), uint8_t(0xFF)}) {
+      auto bad = bytes;
+      if (bad[i] == value) continue;
+      bad[i] = value;
+      RepairChecksum(bad);
+      auto r = core::ParseForest(bad, "jvot.pff");
+      if (r.ok()) {
+        ++accepted;
+        REQUIRE(core::ValidateForest(*r, "jvot.pff").ok());
+      } else {
+        ++rejected;
+        CHECK(r.status().code() == ErrorCode::kDataLoss);
+        CHECK_THAT(r.status().message(), Catch::StartsWith("jvot.pff: "));
+      }
+    }
+  }
+  CHECK(rejected > 0);
+  CHECK(accepted > 0);  // offsets and weights may legitimately change
+  // Truncating the file anywhere inside the section is an error too.
+  for (size_t len = start; len < bytes.size(); ++len)
+    CHECK_FALSE(core::ParseForest(std::span(bytes.data(), len), "cut.pff").ok());
+}

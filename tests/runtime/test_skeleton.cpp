@@ -88,7 +88,7 @@ TEST_CASE("the calibration table round trips in the forest (format 1.4, JCAL); o
   forest.confidence_calibration = RampCalibration();
   forest.confidence_calibration->method = core::ConfidenceCalibration::Method::kFastClustering;
   const auto bytes = core::SerializeForest(forest);
-  CHECK(bytes[10] == 4);  // minor version
+  CHECK(bytes[10] >= 4);  // minor version: JCAL since 1.4
   CHECK(bytes.size() == plain.size() + 16 + 16 + 3 * 4 + 16 * 3 * 4 + 4 /* padding to 8 */);
   auto again = core::ParseForest(bytes, "mem");
   REQUIRE(again.ok());
@@ -422,4 +422,115 @@ TEST_CASE("the kinematic fit prefers a reachable wrist to a confident one on the
   CHECK(runtime::FitScore(c, greedy, opt) < -1e29);
   // No candidate: missing.
   CHECK(fit[size_t(int(J::kRElbow))] == -1);
+}
+
+TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hidden one is found not tracked",
+          "[skeleton][votes]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 100, 100, 250, 479, 2000);  // a person at 2 m
+  runtime::FrameProposals proposals{};
+  const float big = 0.01f * float(cam.fx * cam.fy);
+  proposals[kHead] = {At(cam, 170, 120, 2.04f, big)};  // calibrated 0.9 (RampCalibration)
+  const auto cal = RampCalibration();
+  auto vote = [&](int x, int y, float z, float confidence) {
+    runtime::VoteCandidate v;
+    v.position = cam.Unproject(x, y, z).cast<float>();
+    v.share = 0.5f;
+    v.confidence = confidence;
+    return v;
+  };
+  std::vector<runtime::PersonVotes> votes(1);
+  votes[0][kHead] = {vote(175, 125, 2.06f, 0.5f)};         // less confident than the proposal
+  votes[0][kLHand] = {vote(130, 250, 2.05f, 0.8f)};        // on the mask, at its depth
+  votes[0][kLKnee] = {vote(150, 380, 2.4f, 0.8f)};         // 0.4 m behind the surface: hidden
+  votes[0][int(core::Joint::kRHand)] = {vote(400, 250, 2.05f, 0.9f)};  // off the mask
+  for (const auto fit : {runtime::SkeletonFit::kGreedy, runtime::SkeletonFit::kKinematic}) {
+    DYNAMIC_SECTION("fit " << int(fit)) {
+      runtime::SkeletonOptions opt;
+      opt.fit = fit;
+      opt.require_tracked_parent = false;
+      opt.check_bone_lengths = false;
+      const auto plain = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
+      const auto s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &votes);
+      REQUIRE(s.size() == 1);
+      REQUIRE(plain.size() == 1);
+      CHECK_FALSE(plain[0].joints[kLHand].found);  // no proposal: nothing without the votes
+      // The head keeps its more confident proposal (greedy; the fit has no bones to weigh here).
+      CHECK_FALSE(s[0].joints[kHead].voted);
+      CHECK(s[0].joints[kHead].pixel.x() == 170);
+      // The hand: the vote, tracked (confident, at the mask's depth).
+      CHECK(s[0].joints[kLHand].found);
+      CHECK(s[0].joints[kLHand].voted);
+      CHECK(s[0].joints[kLHand].tracked);
+      CHECK(s[0].joints[kLHand].confidence == Approx(0.8f));
+      CHECK(s[0].joints[kLHand].pixel.x() == Approx(130).margin(0.01));
+      CHECK(s[0].joints[kLHand].support_m2 == 0.0f);
+      // The knee: placed behind the surface - found, not tracked.
+      CHECK(s[0].joints[kLKnee].found);
+      CHECK(s[0].joints[kLKnee].voted);
+      CHECK_FALSE(s[0].joints[kLKnee].tracked);
+      CHECK(s[0].joints[kLKnee].position_m.z() == Approx(2.4f));
+      // Off the person: not used.
+      CHECK_FALSE(s[0].joints[int(core::Joint::kRHand)].found);
+      // A vote more than max_vote_behind_m behind the surface is not used either.
+      auto far = votes;
+      far[0][kLKnee] = {vote(150, 380, 2.7f, 0.8f)};
+      const auto f = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &far);
+      CHECK_FALSE(f[0].joints[kLKnee].found);
+      // A vote more confident than the proposal takes the joint.
+      auto sure = votes;
+      sure[0][kHead] = {vote(175, 125, 2.06f, 0.95f)};
+      const auto h = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &sure);
+      CHECK(h[0].joints[kHead].voted);
+      CHECK(h[0].joints[kHead].tracked);
+    }
+  }
+}
+
+TEST_CASE("CastVotes: every pixel votes its leaf's offset; mean shift finds the mode; confidence from the table",
+          "[skeleton][votes]") {
+  // One tree that is a single leaf: every pixel of the patch casts the same offsets.
+  core::Forest forest;
+  forest.num_parts = core::kNumParts;
+  forest.part_names = core::Forest::DefaultPartNames();
+  core::Tree tree;
+  tree.nodes.push_back(core::Node::Leaf(0));
+  tree.num_leaves = 1;
+  tree.leaves.assign(size_t(forest.leaf_stride()), 0);
+  tree.leaves[0] = 255;
+  forest.trees.push_back(tree);
+  core::OffsetVotes table;
+  table.bandwidth_m.fill(0.06f);
+  table.share_edges = {0.0f, 0.5f};
+  for (int j = 0; j < core::kNumJoints; ++j) table.precision.insert(table.precision.end(), {0.2f, 0.7f});
+  core::TreeVotes tv;
+  tv.first = {0, 2};
+  tv.votes = {{0, -300, 100, uint8_t(kHead), 255}, {50, 0, 80, uint8_t(kLHand), 128}};
+  table.trees.push_back(tv);
+  forest.offset_votes = table;
+  REQUIRE(core::ValidateForest(forest, "votes").ok());
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 300, 200, 309, 209, 2000);  // a 10 x 10 pixel patch at 2 m (3.5 cm wide)
+  const auto votes = runtime::CastVotes(forest, scene.depth, scene.masks, 1, cam);
+  REQUIRE(votes.size() == 1);
+  Eigen::Vector3f centre(0, 0, 0);
+  for (int y = 200; y <= 209; ++y)
+    for (int x = 300; x <= 309; ++x) centre += cam.Unproject(x, y, 2.0).cast<float>();
+  centre /= 100.0f;
+  REQUIRE(votes[0][kHead].size() == 1);  // one mode: the patch is narrower than the bandwidth
+  const auto& head = votes[0][kHead][0];
+  CHECK((head.position - (centre + Eigen::Vector3f(0, -0.3f, 0.1f))).norm() < 0.01f);
+  CHECK(head.share > 0.8f);
+  CHECK(head.confidence == 0.7f);
+  REQUIRE(votes[0][kLHand].size() == 1);
+  CHECK((votes[0][kLHand][0].position - (centre + Eigen::Vector3f(0.05f, 0, 0.08f))).norm() < 0.01f);
+  CHECK(votes[0][kLKnee].empty());  // no leaf votes for it
+  // A person elsewhere in the frame, another label: its own candidates; none for an empty label.
+  const auto none = runtime::CastVotes(forest, scene.depth, scene.masks, 2, cam);
+  REQUIRE(none.size() == 2);
+  CHECK(none[1][kHead].empty());
+  // The leaf walk: a root leaf is leaf 0 for any pixel.
+  CHECK(runtime::LeafOf(forest.trees[0], forest.constants, scene.depth, 305, 205) == 0);
 }

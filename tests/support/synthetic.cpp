@@ -14,6 +14,36 @@ using core::Forest;
 using core::Node;
 using core::RngStream;
 
+core::OffsetVotes MakeRandomOffsetVotes(const core::Forest& forest, uint64_t seed, double votes_per_leaf) {
+  core::OffsetVotes votes;
+  votes.max_offset_m = 0.6f;
+  for (int j = 0; j < core::kNumJoints; ++j) votes.bandwidth_m[size_t(j)] = 0.05f + 0.002f * float(j);
+  votes.share_edges = {0.0f, 0.1f, 0.3f};
+  for (int j = 0; j < core::kNumJoints; ++j) votes.precision.insert(votes.precision.end(), {0.2f, 0.5f, 0.9f});
+  const double p_vote = std::clamp(votes_per_leaf / core::kNumJoints, 0.0, 1.0);
+  const int max_mm = int(votes.max_offset_m * 1000);
+  for (size_t t = 0; t < forest.trees.size(); ++t) {
+    RngStream rng(CounterRng(seed, uint64_t(t), 0, 0xF1));
+    core::TreeVotes tree;
+    tree.first.push_back(0);
+    for (uint32_t l = 0; l < forest.trees[t].num_leaves; ++l) {
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        if (rng.Uniform01() >= p_vote) continue;
+        core::JointVote v;
+        v.dx_mm = int16_t(rng.UniformIntIn(-max_mm, max_mm));
+        v.dy_mm = int16_t(rng.UniformIntIn(-max_mm, max_mm));
+        v.dz_mm = int16_t(rng.UniformIntIn(-max_mm, max_mm));
+        v.joint = uint8_t(j);
+        v.weight = uint8_t(rng.UniformIntIn(1, 255));
+        tree.votes.push_back(v);
+      }
+      tree.first.push_back(uint32_t(tree.votes.size()));
+    }
+    votes.trees.push_back(std::move(tree));
+  }
+  return votes;
+}
+
 core::Forest MakeRandomForest(const RandomForestSpec& spec) {
   Forest forest;
   forest.num_parts = spec.num_parts;

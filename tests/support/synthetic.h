@@ -23,6 +23,12 @@ struct RandomForestSpec {
 /// with depth so that the node budget is spread over levels; every tree reaches max_depth.
 core::Forest MakeRandomForest(const RandomForestSpec& spec);
 
+/// Random but valid offset votes (format 1.5, JVOT) for `forest`'s trees: each leaf votes for a
+/// random subset of the joints (about `votes_per_leaf` of them, some leaves none), offsets within
+/// max_offset_m = 0.6 m, weights 1..255; bandwidths 0.05..0.08 m (0.05 + 0.002 * joint); a
+/// 3-bin calibration (edges 0, 0.1, 0.3; precisions 0.2, 0.5, 0.9). Passes ValidateOffsetVotes.
+core::OffsetVotes MakeRandomOffsetVotes(const core::Forest& forest, uint64_t seed, double votes_per_leaf = 3);
+
 /// A 640x480 frame (by default) with one standing person-like figure about `distance_m` away,
 /// arms out, ~40k foreground pixels at 2.5 m; background 0.
 /// `lateral_m` / `vertical_m` move the figure right / down (metres, on its plane).

@@ -1,0 +1,57 @@
+#pragma once
+// `learn-votes`: the offset votes of a trained forest (core::OffsetVotes, format 1.5).
+//
+// For each tree it renders the tree's training frames again - frame tree * images_per_tree + i
+// of the job's source, the pixels SamplePixels drew for it in training - so every leaf gets the
+// very pixels that reached it in training, whether the forest came from `train` or from the
+// distributed service (both draw the same frames and pixels; the forest does not depend on the
+// number of workers, nor does this). Per (leaf, joint), the offsets from the pixels'
+// back-projected points to the joint (hidden joints too) shorter than max_offset_m are
+// clustered by mean shift; the main mode is kept if it holds at least min_weight of the leaf's
+// pixels. Then vote candidates (runtime/joint_votes.h) are made on validation frames and the
+// precision of a candidate per bin of its share of the joint's vote weight is measured: the
+// table's calibration. Deterministic: same forest, job and options, same table, whatever the
+// number of threads.
+
+#include <functional>
+#include <string>
+
+#include "engine/job_spec.h"
+#include "runtime/core/forest.h"
+#include "runtime/core/result.h"
+
+namespace poseforest::coordinator {
+
+struct VoteLearningOptions {
+  float max_offset_m = 0.3f;       ///< longer training offsets are not kept (docs/runtime/votes.md)
+  float leaf_bandwidth_m = 0.05f;  ///< mean shift over a leaf's offsets to one joint
+  float vote_bandwidth_m = 0.06f;  ///< stored: run-time mean shift over the votes, every joint
+  int max_pixels_per_leaf = 64;    ///< a leaf's pixels beyond this are thinned evenly
+  float min_weight = 0.1f;         ///< a mode holding less of the leaf's pixels is not kept
+  int validation_frames = 60;      ///< 0: no calibration (every candidate's confidence is 0)
+  worker::SourceSpec validation;   ///< frames with joints, one person each (others skipped)
+  int threads = 0;                 ///< 0 = all cores
+  /// Progress lines ("tree 1: rendered 200 / 300 frames (12 s)"); may be empty.
+  std::function<void(const std::string&)> progress;
+};
+
+struct VoteLearningReport {
+  uint64_t pixels = 0;             ///< training pixels walked, over trees
+  uint64_t leaves = 0;             ///< leaves over trees
+  uint64_t leaves_with_votes = 0;  ///< leaves that kept at least one vote
+  uint64_t votes = 0;
+  int validation_frames = 0;       ///< one-person validation frames scored
+  uint64_t candidates = 0;         ///< vote candidates scored on them
+  /// Per joint, on the validation frames: the joint's most confident vote candidate within 0.1 m.
+  std::array<int, core::kNumJoints> top_within{}, scored{};
+  double seconds = 0;
+};
+
+/// The votes of `forest`, trained by `job`. Errors: a source without joints (procedural) or
+/// whose frames are not the training frames (kInvalidArgument), rendering failures, a forest of
+/// another tree count or a part set other than the paper's.
+core::Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const worker::TrainParams& job,
+                                                 const VoteLearningOptions& options,
+                                                 VoteLearningReport* report = nullptr);
+
+}  // namespace poseforest::coordinator

@@ -1,0 +1,198 @@
+#include "runtime/joint_votes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include <omp.h>
+
+#include "runtime/core/feature.h"
+
+namespace poseforest::runtime {
+
+uint32_t LeafOf(const core::Tree& tree, const core::FeatureConstants& constants, const core::DepthImage& depth,
+                int x, int y) {
+  const float scale = core::PixelScale(depth.at(x, y), constants.offset_unit);
+  uint32_t n = 0;
+  for (;;) {
+    const core::Node& node = tree.nodes[n];
+    if (node.is_leaf()) return node.leaf_index();
+    const int32_t r = core::FeatureResponse(depth.data(), depth.width, depth.height, x, y, scale, node.offsets,
+                                            constants.background_mm);
+    // As the classifier: left if f < threshold, else right.
+    n = node.child + uint32_t(!(float(r) < node.threshold));
+  }
+}
+
+namespace {
+
+struct Vote {
+  Eigen::Vector3f p;
+  float w;
+};
+
+// Weighted mean shift (Gaussian kernel) over `votes` from the heaviest `seeds`; modes merged
+// within half a bandwidth; each mode's score is its kernel-weighted sum of vote weights.
+std::vector<std::pair<Eigen::Vector3f, float>> Modes(const std::vector<Vote>& votes, float bandwidth, int seeds,
+                                                     int iterations) {
+  std::vector<std::pair<Eigen::Vector3f, float>> modes;
+  if (votes.empty() || !(bandwidth > 0)) return modes;
+  const float inv = 1.0f / (bandwidth * bandwidth);
+  // Beyond 3 bandwidths the kernel is below 1e-4: those votes are skipped (no exp).
+  const float cut2 = 9.0f * bandwidth * bandwidth;
+  auto density = [&](const Eigen::Vector3f& x, Eigen::Vector3f* mean) {
+    Eigen::Vector3f s(0, 0, 0);
+    float sw = 0;
+    for (const Vote& v : votes) {
+      const float d2 = (v.p - x).squaredNorm();
+      if (d2 > cut2) continue;
+      const float k = v.w * std::exp(-d2 * inv);
+      s += k * v.p;
+      sw += k;
+    }
+    if (mean && sw > 0) *mean = s / sw;
+    return sw;
+  };
+  const int n = std::min<int>(seeds, int(votes.size()));  // votes come heaviest first
+  for (int i = 0; i < n; ++i) {
+    Eigen::Vector3f x = votes[size_t(i)].p;
+    for (int it = 0; it < iterations; ++it) {
+      Eigen::Vector3f next = x;
+      if (!(density(x, &next) > 0)) break;
+      const float step = (next - x).norm();
+      x = next;
+      if (step < 1e-3f) break;
+    }
+    const float score = density(x, nullptr);
+    bool merged = false;
+    for (auto& [m, s] : modes)
+      if ((m - x).norm() < 0.5f * bandwidth) {
+        if (score > s) m = x, s = score;
+        merged = true;
+        break;
+      }
+    if (!merged) modes.emplace_back(x, score);
+  }
+  std::stable_sort(modes.begin(), modes.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+  return modes;
+}
+
+}  // namespace
+
+namespace {
+
+// `leaves`, when not null, holds each pixel's leaf per tree (pixels.size() x trees); else the
+// trees are walked.
+PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& table, const core::DepthImage& depth,
+                       const std::vector<uint32_t>& pixels, const std::vector<uint32_t>* leaves,
+                       const core::CameraIntrinsics& camera, const VoteOptions& options) {
+  PersonVotes out;
+  if (table.trees.size() != forest.trees.size()) return out;
+  std::array<std::vector<Vote>, core::kNumJoints> votes;
+  const size_t num_trees = forest.trees.size();
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    const uint32_t idx = pixels[i];
+    const int x = int(idx % uint32_t(depth.width)), y = int(idx / uint32_t(depth.width));
+    const uint16_t d = depth.pixels[idx];
+    if (d == 0) continue;
+    const Eigen::Vector3f point = camera.Unproject(x, y, d * 1e-3).cast<float>();
+    const float area = float(d) * float(d) * 1e-6f;  // the pixel's surface, up to fx fy
+    for (size_t t = 0; t < forest.trees.size(); ++t) {
+      const uint32_t leaf = leaves ? (*leaves)[i * num_trees + t] : LeafOf(forest.trees[t], forest.constants, depth, x, y);
+      const core::TreeVotes& tv = table.trees[t];
+      for (uint32_t k = tv.first[leaf]; k < tv.first[leaf + 1]; ++k) {
+        const core::JointVote& v = tv.votes[k];
+        votes[v.joint].push_back(
+            {point + Eigen::Vector3f(float(v.dx_mm), float(v.dy_mm), float(v.dz_mm)) * 1e-3f,
+             float(v.weight) * (1.0f / 255.0f) * area});
+      }
+    }
+  }
+  // Joints are independent: one per thread (the result does not depend on how many).
+#pragma omp parallel for schedule(dynamic, 1) num_threads(options.threads > 0 ? options.threads : omp_get_max_threads())
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    std::vector<Vote>& vj = votes[size_t(j)];
+    if (vj.empty()) continue;
+    float total = 0;
+    for (const Vote& v : vj) total += v.w;
+    // Heaviest first (ties: cast order), the lightest dropped past the cap.
+    std::stable_sort(vj.begin(), vj.end(), [](const Vote& a, const Vote& b) { return a.w > b.w; });
+    if (int(vj.size()) > options.max_votes_per_joint) vj.resize(size_t(std::max(1, options.max_votes_per_joint)));
+    const float bandwidth = table.bandwidth_m[size_t(j)] * options.bandwidth_scale;
+    for (const auto& [m, score] : Modes(vj, bandwidth, options.seeds, options.iterations)) {
+      if (int(out[size_t(j)].size()) >= options.max_candidates) break;
+      VoteCandidate c;
+      c.position = m;
+      c.share = total > 0 ? std::clamp(score / total, 0.0f, 1.0f) : 0.0f;
+      c.confidence = table.Confidence(j, c.share);
+      out[size_t(j)].push_back(c);
+    }
+    std::stable_sort(out[size_t(j)].begin(), out[size_t(j)].end(),
+                     [](const VoteCandidate& a, const VoteCandidate& b) { return a.confidence > b.confidence; });
+  }
+  return out;
+}
+
+}  // namespace
+
+PersonVotes VoteCandidatesFromPixels(const core::Forest& forest, const core::OffsetVotes& table,
+                                     const core::DepthImage& depth, const std::vector<uint32_t>& pixels,
+                                     const core::CameraIntrinsics& camera, const VoteOptions& options) {
+  return Candidates(forest, table, depth, pixels, nullptr, camera, options);
+}
+
+std::vector<PersonVotes> CastVotes(const core::Forest& forest, const core::DepthImage& depth,
+                                   const core::LabelImage& masks, int num_people,
+                                   const core::CameraIntrinsics& camera, const VoteOptions& options,
+                                   const Classification* classification) {
+  std::vector<PersonVotes> out(size_t(std::max(0, num_people)));
+  if (!forest.offset_votes || num_people <= 0 || masks.width != depth.width || masks.height != depth.height)
+    return out;
+  const size_t num_trees = forest.trees.size();
+  if (classification && classification->width == depth.width && classification->height == depth.height &&
+      !classification->foreground_leaves.empty() &&
+      classification->foreground_leaves.size() == classification->foreground.size() * num_trees) {
+    // The classifier's leaves: each person's foreground pixels, every step-th of them.
+    std::vector<std::vector<uint32_t>> of(static_cast<size_t>(num_people));
+    for (size_t k = 0; k < classification->foreground.size(); ++k) {
+      const uint32_t idx = classification->foreground[k];
+      const int l = masks.pixels[idx];
+      if (l > 0 && l <= num_people && depth.pixels[idx]) of[size_t(l - 1)].push_back(uint32_t(k));
+    }
+    for (int p = 0; p < num_people; ++p) {
+      const auto& ks = of[size_t(p)];
+      if (ks.empty()) continue;
+      const size_t step = std::max<size_t>(1, ks.size() / size_t(std::max(1, options.target_pixels)));
+      std::vector<uint32_t> pixels;
+      std::vector<uint32_t> leaves;
+      for (size_t i = step / 2; i < ks.size(); i += step) {
+        pixels.push_back(classification->foreground[ks[i]]);
+        const uint32_t* l = classification->foreground_leaves.data() + size_t(ks[i]) * num_trees;
+        leaves.insert(leaves.end(), l, l + num_trees);
+      }
+      out[size_t(p)] = Candidates(forest, *forest.offset_votes, depth, pixels, &leaves, camera, options);
+    }
+    return out;
+  }
+  std::vector<int> count(size_t(num_people) + 1, 0);
+  for (size_t i = 0; i < masks.pixels.size(); ++i) {
+    const int l = masks.pixels[i];
+    if (l > 0 && l <= num_people && depth.pixels[i]) ++count[size_t(l)];
+  }
+  for (int label = 1; label <= num_people; ++label) {
+    if (count[size_t(label)] == 0) continue;
+    // A regular grid of about target_pixels pixels over the person.
+    const int step = std::max(
+        1, int(std::lround(std::sqrt(double(count[size_t(label)]) / std::max(1, options.target_pixels)))));
+    std::vector<uint32_t> pixels;
+    for (int y = step / 2; y < depth.height; y += step)
+      for (int x = step / 2; x < depth.width; x += step) {
+        const size_t i = size_t(y) * size_t(depth.width) + size_t(x);
+        if (masks.pixels[i] == label && depth.pixels[i]) pixels.push_back(uint32_t(i));
+      }
+    out[size_t(label - 1)] = Candidates(forest, *forest.offset_votes, depth, pixels, nullptr, camera, options);
+  }
+  return out;
+}
+
+}  // namespace poseforest::runtime

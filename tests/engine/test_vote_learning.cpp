@@ -1,0 +1,188 @@
+// Offset votes (format 1.5): `learn-votes` on a tiny rendered job (real EGL rendering) - the
+// votes put the joints of the frames they were learned from where they are, the table does not
+// depend on the number of threads, bad inputs are refused - and the command end to end (the
+// forest keeps its trees, `inspect` shows the votes, `eval` uses them or not).
+#include <catch2/catch.hpp>
+#include <cstring>
+#include <fstream>
+#include <string>
+
+#include "engine/evaluation.h"
+#include "engine/job_spec.h"
+#include "engine/local_trainer.h"
+#include "engine/vote_learning.h"
+#include "poseforest/v1/job.pb.h"
+#include "runtime/core/forest_format.h"
+#include "runtime/joint_votes.h"
+#include "tests/support/paths.h"
+#include "tests/support/process.h"
+
+using namespace poseforest;
+using testing::RunPoseforest;
+
+namespace {
+
+const char* kJob =
+    "seed: 3 num_trees: 2 max_depth: 12 images_per_tree: 16 pixels_per_image: 600\n"
+    "candidate_features: 60 thresholds_per_feature: 10\n"
+    "source { rendered { seed: 1 } }\n"
+    "test_set { source { rendered { seed: 99 } } num_images: 4 }\n";
+
+worker::TrainParams Job() {
+  auto c = worker::ParseJobText(kJob, "job.textproto");
+  REQUIRE(c.ok());
+  auto p = worker::ParamsFromConfig(*c, "job.textproto");
+  REQUIRE(p.ok());
+  return *p;
+}
+
+core::Forest Train(const worker::TrainParams& job) {
+  auto forest = coordinator::LocalTrainer(job, coordinator::LocalTrainerOptions{}).Train();
+  REQUIRE(forest.ok());
+  return std::move(*forest);
+}
+
+}  // namespace
+
+TEST_CASE("learn-votes: the votes place the joints of the frames they were learned from; same table on 1 and 2 threads",
+          "[votes][egl]") {
+  const worker::TrainParams job = Job();
+  const core::Forest forest = Train(job);
+  coordinator::VoteLearningOptions opt;
+  opt.validation = job.source;  // the training frames themselves: tree 0's first frames
+  opt.validation_frames = 8;
+  opt.threads = 1;
+  coordinator::VoteLearningReport rep;
+  auto one = coordinator::LearnOffsetVotes(forest, job, opt, &rep);
+  REQUIRE(one.ok());
+  REQUIRE(one->trees.size() == 2);
+  CHECK(rep.pixels > 0);
+  CHECK(rep.votes == one->total_votes());
+  CHECK(rep.leaves_with_votes > rep.leaves / 2);
+  CHECK(core::ValidateOffsetVotes(*one, {forest.trees[0].num_leaves, forest.trees[1].num_leaves}, "votes").ok());
+  for (const core::JointVote& v : one->trees[0].votes) {
+    CHECK(v.weight >= 1);
+    // Stored offsets are the modes of offsets shorter than max_offset_m.
+    CHECK(std::sqrt(double(v.dx_mm) * v.dx_mm + double(v.dy_mm) * v.dy_mm + double(v.dz_mm) * v.dz_mm) <=
+          1000.0 * opt.max_offset_m + 1);
+  }
+  // On frames the tree was grown from, the votes know where the joints are (a sign or frame
+  // error in the offsets puts them nowhere near).
+  double within = 0;
+  int joints = 0;
+  for (int j = 0; j < core::kNumJoints; ++j)
+    if (rep.scored[size_t(j)]) within += double(rep.top_within[size_t(j)]) / rep.scored[size_t(j)], ++joints;
+  REQUIRE(joints == core::kNumJoints);
+  INFO("top vote candidate within 0.1 m on the training frames: " << within / joints);
+  CHECK(within / joints > 0.6);
+  // The calibration: one row per joint, non-decreasing in share.
+  const size_t bins = one->share_edges.size();
+  REQUIRE(bins > 0);
+  REQUIRE(one->precision.size() == bins * core::kNumJoints);
+  for (int j = 0; j < core::kNumJoints; ++j)
+    for (size_t b = 1; b < bins; ++b)
+      CHECK(one->precision[size_t(j) * bins + b] >= one->precision[size_t(j) * bins + b - 1]);
+
+  opt.threads = 2;
+  auto two = coordinator::LearnOffsetVotes(forest, job, opt);
+  REQUIRE(two.ok());
+  CHECK(*two == *one);
+
+  // The candidates of a training frame: the head's most confident one is near the head.
+  auto src = coordinator::MakeEvalFrameSource(job.source);
+  REQUIRE(src.ok());
+  auto frame = (*src)->Frame(0);
+  REQUIRE(frame.ok());
+  REQUIRE(frame->people.size() == 1);
+  core::Forest with = forest;
+  with.offset_votes = *one;
+  core::LabelImage mask(frame->depth.width, frame->depth.height, 0);
+  for (size_t k = 0; k < mask.pixels.size(); ++k) mask.pixels[k] = frame->depth.pixels[k] ? 1 : 0;
+  const auto cands = runtime::CastVotes(with, frame->depth, mask, 1, (*src)->camera());
+  REQUIRE(cands.size() == 1);
+  const auto& head = cands[0][size_t(core::Joint::kHead)];
+  REQUIRE_FALSE(head.empty());
+  CHECK((head[0].position - frame->people[0].position[size_t(core::Joint::kHead)]).norm() < 0.1f);
+  CHECK(head[0].share > 0);
+  CHECK(head[0].confidence == one->Confidence(int(core::Joint::kHead), head[0].share));
+  // A forest without votes casts none.
+  const auto none = runtime::CastVotes(forest, frame->depth, mask, 1, (*src)->camera());
+  REQUIRE(none.size() == 1);
+  for (const auto& c : none[0]) CHECK(c.empty());
+}
+
+TEST_CASE("learn-votes refuses a procedural job and a forest of another job", "[votes][egl]") {
+  worker::TrainParams job = Job();
+  const core::Forest forest = Train(job);
+  coordinator::VoteLearningOptions opt;
+  opt.validation = job.source;
+  opt.validation_frames = 0;
+  worker::TrainParams other = job;
+  other.num_trees = 3;
+  auto wrong = coordinator::LearnOffsetVotes(forest, other, opt);
+  REQUIRE_FALSE(wrong.ok());
+  CHECK(wrong.status().code() == core::ErrorCode::kInvalidArgument);
+  CHECK_THAT(wrong.status().message(), Catch::Contains("not the forest of this job"));
+  worker::TrainParams procedural = job;
+  procedural.source = worker::SourceSpec{};
+  procedural.source.kind = worker::SourceKind::kProcedural;
+  auto proc = coordinator::LearnOffsetVotes(forest, procedural, opt);
+  REQUIRE_FALSE(proc.ok());
+  CHECK(proc.status().code() == core::ErrorCode::kInvalidArgument);
+  CHECK_THAT(proc.status().message(), Catch::Contains("no joints"));
+}
+
+TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect and eval", "[votes][cli][egl]") {
+  const auto dir = testing::ScratchDir("cli-learn-votes");
+  const std::string job = (dir / "job.textproto").string(), forest = (dir / "forest.pff").string(),
+                    voted = (dir / "voted.pff").string();
+  std::ofstream(job) << kJob;
+  auto train = RunPoseforest("train " + job + " --out " + forest + " --quiet");
+  INFO(train.output);
+  REQUIRE(train.exit_code == 0);
+  auto learn = RunPoseforest("learn-votes --forest " + forest + " --job " + job + " --out " + voted +
+                             " --validation-frames 4");
+  INFO(learn.output);
+  REQUIRE(learn.exit_code == 0);
+  CHECK_THAT(learn.output, Catch::Contains("learn-votes: tree 1: 16 / 16 training frames") &&
+                               Catch::Contains("votes: ") && Catch::Contains("calibration (4 validation frames") &&
+                               Catch::Contains("learn-votes: wrote " + voted));
+  auto before = core::LoadForest(forest);
+  auto after = core::LoadForest(voted);
+  REQUIRE(before.ok());
+  REQUIRE(after.ok());
+  CHECK_FALSE(before->offset_votes.has_value());
+  REQUIRE(after->offset_votes.has_value());
+  REQUIRE(after->trees.size() == before->trees.size());
+  for (size_t t = 0; t < after->trees.size(); ++t) {
+    const auto& a = after->trees[t].nodes;
+    const auto& b = before->trees[t].nodes;
+    REQUIRE(a.size() == b.size());
+    CHECK(std::memcmp(a.data(), b.data(), a.size() * sizeof(core::Node)) == 0);
+    CHECK(after->trees[t].leaves == before->trees[t].leaves);
+  }
+  auto inspect = RunPoseforest("inspect " + voted);
+  CHECK(inspect.exit_code == 0);
+  CHECK_THAT(inspect.output, Catch::Contains("offset votes (JVOT): "));
+  // eval's skeleton table with and without the votes (both run; the numbers are the figures'
+  // business, not this test's).
+  for (const std::string extra : {"", " --no-votes"}) {
+    auto eval = RunPoseforest("eval --forest " + voted + " --test-set " + job + " --images 3 --quiet" + extra);
+    INFO(eval.output);
+    CHECK(eval.exit_code == 0);
+    CHECK_THAT(eval.output, Catch::Contains("found within"));
+  }
+  // Errors: a usage error names what is missing; a procedural job has no joints.
+  auto usage = RunPoseforest("learn-votes --forest " + forest + " --out " + voted);
+  CHECK(usage.exit_code == 2);
+  CHECK_THAT(usage.output, Catch::Contains("need --forest, --job and --out"));
+  const std::string proc = (dir / "proc.textproto").string();
+  std::ofstream(proc) << "seed: 3 num_trees: 2 images_per_tree: 4 source { procedural { seed: 1 } }\n";
+  auto no_joints = RunPoseforest("learn-votes --forest " + forest + " --job " + proc + " --out " + voted);
+  CHECK(no_joints.exit_code == 2);
+  CHECK_THAT(no_joints.output, Catch::Contains("procedural frames have no joints"));
+  auto bad = RunPoseforest("learn-votes --forest " + forest + " --job " + job + " --out " + voted +
+                           " --max-offset-m 9");
+  CHECK(bad.exit_code == 2);
+  CHECK_THAT(bad.output, Catch::Contains("--max-offset-m must be a number in"));
+}
