@@ -500,27 +500,9 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
             acc.visible[size_t(j)] += visible;
             acc.tracked_within[size_t(j)] += visible && joint.tracked && near;
             acc.found_within[size_t(j)] += visible && near;
-            if (std::getenv("PF_SKEL_DUMP")) {
-              static FILE* dump = std::fopen(std::getenv("PF_SKEL_DUMP"), "w");
-              const auto& bones = runtime::SkeletonBones();
-              int parent = -1;
-              for (auto [a, b] : bones) if (b == j) parent = a;
-              const auto& pj = parent >= 0 ? skeletons[0].joints[size_t(parent)] : joint;
-              float len = parent >= 0 && pj.found && joint.found ? (joint.position_m - pj.position_m).norm() : -1;
-              float best_child_z = 99;
-              for (auto [a, b] : bones) if (a == j) {
-                const auto& cj = skeletons[0].joints[size_t(b)];
-                if (cj.found && joint.found) {
-                  float t = runtime::TypicalBoneLength(a, b);
-                  best_child_z = std::min(best_child_z, std::abs((cj.position_m - joint.position_m).norm() - t) / (0.3f * t + 0.03f));
-                }
-              }
-              float t = parent >= 0 ? runtime::TypicalBoneLength(parent, j) : 0;
-              std::fprintf(dump, "%d %d %d %d %d %d %.4f %.6f %d %d %.4f %.4f %.4f %.3f\n", i, j, int(visible),
-                           int(joint.found), int(joint.tracked), int(near), joint.confidence, joint.support_m2,
-                           int(pj.found), int(pj.tracked), pj.confidence, len, t, best_child_z);
-              std::fflush(dump);
-            }
+            acc.hidden[size_t(j)] += !visible;
+            acc.hidden_within[size_t(j)] +=
+                !visible && joint.found && (joint.position_m - truth.position[size_t(j)]).norm() <= 0.15f;
             acc.tracked[size_t(j)] += joint.tracked;
             acc.tracked_right[size_t(j)] += joint.tracked && near;
             acc.untracked[size_t(j)] += !joint.tracked;
@@ -548,19 +530,19 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
 std::string FormatSkeletonTable(const Evaluation& e) {
   const auto& a = e.skeleton;
   std::string out;
-  char buf[256];
+  char buf[640];
   std::snprintf(
       buf, sizeof buf,
       "skeleton accuracy (what `live` reports: per joint one position, tracked or not; %d one-person "
       "frames, D = %.2f m, confidence %s):\n",
       a.frames, double(e.distance_m), e.calibrated ? "calibrated (JCAL)" : "the uncalibrated fallback");
   out += buf;
-  std::snprintf(buf, sizeof buf, "%-11s %8s %16s %16s %18s %14s\n", "joint", "visible", "tracked within D",
-                "tracked & right", "not tracked right", "found within");
+  std::snprintf(buf, sizeof buf, "%-11s %8s %16s %16s %18s %14s %18s\n", "joint", "visible", "tracked within D",
+                "tracked & right", "not tracked right", "found within", "hidden: in 0.15 m");
   out += buf;
   auto ratio = [](int n, int d) { return d ? double(n) / d : 0.0; };
-  double within = 0, right = 0, untracked = 0, found = 0;
-  int joints = 0, untracked_joints = 0, tracked_joints = 0;
+  double within = 0, right = 0, untracked = 0, found = 0, hidden = 0;
+  int joints = 0, untracked_joints = 0, tracked_joints = 0, hidden_joints = 0;
   for (int j = 0; j < core::kNumJoints; ++j) {
     const size_t k = size_t(j);
     auto cell = [&](int n, int d) {
@@ -571,10 +553,12 @@ std::string FormatSkeletonTable(const Evaluation& e) {
         std::snprintf(c, sizeof c, "- (0)");
       return std::string(c);
     };
-    std::snprintf(buf, sizeof buf, "%-11s %8d %16s %16s %18s %14.3f\n", std::string(core::JointName(j)).c_str(),
+    std::snprintf(buf, sizeof buf, "%-11s %8d %16s %16s %18s %14.3f %18s\n", std::string(core::JointName(j)).c_str(),
                   a.visible[k], cell(a.tracked_within[k], a.visible[k]).c_str(),
                   cell(a.tracked_right[k], a.tracked[k]).c_str(),
-                  cell(a.untracked_invisible[k], a.untracked[k]).c_str(), ratio(a.found_within[k], a.visible[k]));
+                  cell(a.untracked_invisible[k], a.untracked[k]).c_str(), ratio(a.found_within[k], a.visible[k]),
+                  cell(a.hidden_within[k], a.hidden[k]).c_str());
+    if (a.hidden[k]) hidden += ratio(a.hidden_within[k], a.hidden[k]), ++hidden_joints;
     out += buf;
     if (a.visible[k]) within += ratio(a.tracked_within[k], a.visible[k]), found += ratio(a.found_within[k], a.visible[k]), ++joints;
     if (a.tracked[k]) right += ratio(a.tracked_right[k], a.tracked[k]), ++tracked_joints;
@@ -583,10 +567,12 @@ std::string FormatSkeletonTable(const Evaluation& e) {
   std::snprintf(
       buf, sizeof buf,
       "mean over joints: tracked within %.2f m when visible %.3f, tracked & right %.3f, not tracked right "
-      "%.3f, found within %.3f\n(columns: fraction (count): of the frames where the joint is visible / tracked / "
-      "not tracked; found within: visible and the position, tracked or not, within D)\n",
+      "%.3f, found within %.3f, hidden placed within 0.15 m %.3f\n(columns: fraction (count): of the frames where the "
+      "joint is visible / tracked / not tracked / hidden; found within: visible and the position, tracked or not, "
+      "within D)\n",
       double(e.distance_m), joints ? within / joints : 0.0, tracked_joints ? right / tracked_joints : 0.0,
-      untracked_joints ? untracked / untracked_joints : 0.0, joints ? found / joints : 0.0);
+      untracked_joints ? untracked / untracked_joints : 0.0, joints ? found / joints : 0.0,
+      hidden_joints ? hidden / hidden_joints : 0.0);
   out += buf;
   return out;
 }

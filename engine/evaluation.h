@@ -137,6 +137,9 @@ struct SkeletonAccuracy {
   /// Visible and the skeleton's position (tracked or not) within D: what a better tracked
   /// decision could reach.
   std::array<int, core::kNumJoints> found_within{};
+  /// Hidden (not visible: occluded or out of the picture) and the position within 0.15 m: a
+  /// joint placed where the camera cannot see it (offset votes).
+  std::array<int, core::kNumJoints> hidden{}, hidden_within{};
 };
 
 struct Evaluation {

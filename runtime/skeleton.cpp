@@ -219,6 +219,8 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
       joint.confidence = u.vote->confidence;
       const float gap = u.vote->position.z() - float(u.mask_depth) * 1e-3f;
       joint.tracked = joint.confidence >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
+      // Confident, but behind what the camera sees there: a hidden joint, placed by the votes.
+      joint.inferred = joint.confidence >= options.min_confidence && gap > options.max_depth_gap_m;
     };
     auto calibrated = [&](int j, float support_m2) {
       return calibration ? calibration->Confidence(j, support_m2) : core::FallbackConfidence(support_m2);

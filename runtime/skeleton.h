@@ -88,6 +88,10 @@ struct SkeletonJoint {
   float confidence = 0;                 ///< 0..1 (calibrated, or the fallback); 0 when not found
   float support_m2 = 0;                 ///< the proposal's raw confidence / (fx fy), m^2 (0 for votes)
   bool voted = false;                   ///< the position is a vote candidate's (runtime/joint_votes.h)
+  /// Not tracked, but placed by a confident vote candidate behind the person's visible surface:
+  /// a hidden joint the body model puts there (Azure Kinect's "LOW: predicted"). Never with
+  /// `tracked`.
+  bool inferred = false;
 };
 
 struct Skeleton {

@@ -470,6 +470,9 @@ TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hid
       CHECK(s[0].joints[kLKnee].found);
       CHECK(s[0].joints[kLKnee].voted);
       CHECK_FALSE(s[0].joints[kLKnee].tracked);
+      CHECK(s[0].joints[kLKnee].inferred);  // confident, hidden: placed by the body model
+      CHECK_FALSE(s[0].joints[kLHand].inferred);  // tracked joints are not "inferred"
+      CHECK_FALSE(s[0].joints[kHead].inferred);
       CHECK(s[0].joints[kLKnee].position_m.z() == Approx(2.4f));
       // Off the person: not used.
       CHECK_FALSE(s[0].joints[int(core::Joint::kRHand)].found);
