@@ -280,21 +280,72 @@ Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const wor
                                       0.16f, 0.2f,  0.25f, 0.3f,  0.4f,  0.5f};
     const size_t bins = edges.size();
     std::vector<double> hits(bins * core::kNumJoints, 0), count(bins * core::kNumJoints, 0);
-    core::Forest with = forest;
-    with.offset_votes = table;
+    // The one-person validation frames, their masks and joints, kept for the bandwidth search.
+    struct Valid {
+      core::DepthImage depth;
+      core::LabelImage mask;
+      Joints truth;
+    };
+    std::vector<Valid> valid;
     for (int i = 0; i < options.validation_frames; ++i) {
       auto frame = (*src)->Frame(uint64_t(i));
       if (!frame.ok()) return frame.status();
       if (frame->people.size() != 1) continue;
-      ++rep.validation_frames;
       const bool has_mask = frame->person_masks.pixels.size() == frame->depth.pixels.size();
-      core::LabelImage mask(frame->depth.width, frame->depth.height, 0);
-      for (size_t k = 0; k < mask.pixels.size(); ++k)
-        mask.pixels[k] = has_mask ? (frame->person_masks.pixels[k] == 1) : (frame->depth.pixels[k] ? 1 : 0);
-      const auto cands = runtime::CastVotes(with, frame->depth, mask, 1, cam);
+      Valid v{std::move(frame->depth), core::LabelImage(frame->depth.width, frame->depth.height, 0), {}};
+      for (size_t k = 0; k < v.mask.pixels.size(); ++k)
+        v.mask.pixels[k] = has_mask ? (frame->person_masks.pixels[k] == 1) : (v.depth.pixels[k] ? 1 : 0);
+      for (int j = 0; j < core::kNumJoints; ++j) v.truth[size_t(j)] = frame->people[0].position[size_t(j)];
+      valid.push_back(std::move(v));
+      if (options.progress && ((i + 1) % 20 == 0 || i + 1 == options.validation_frames)) {
+        char line[120];
+        std::snprintf(line, sizeof line, "validation: %d / %d frames rendered", i + 1, options.validation_frames);
+        options.progress(line);
+      }
+    }
+    rep.validation_frames = int(valid.size());
+    core::Forest with = forest;
+    // Per joint, the run-time bandwidth whose most weighted candidate is right most often on
+    // these frames (the grid's first value wins ties).
+    const std::vector<float> grid =
+        options.bandwidth_grid.empty() ? std::vector<float>{options.vote_bandwidth_m} : options.bandwidth_grid;
+    if (grid.size() > 1) {
+      std::array<int, core::kNumJoints> best_hits{};
+      best_hits.fill(-1);
+      for (const float b : grid) {
+        table.bandwidth_m.fill(b);
+        with.offset_votes = table;
+        std::array<int, core::kNumJoints> hits_b{};
+        for (const Valid& v : valid) {
+          const auto cands = runtime::CastVotes(with, v.depth, v.mask, 1, cam);
+          for (int j = 0; j < core::kNumJoints; ++j) {
+            const auto& cj = cands[0][size_t(j)];
+            if (cj.empty()) continue;
+            size_t top = 0;
+            for (size_t k = 1; k < cj.size(); ++k)
+              if (cj[k].share > cj[top].share) top = k;
+            hits_b[size_t(j)] += (cj[top].position - v.truth[size_t(j)]).norm() <= 0.1f;
+          }
+        }
+        for (int j = 0; j < core::kNumJoints; ++j)
+          if (hits_b[size_t(j)] > best_hits[size_t(j)]) best_hits[size_t(j)] = hits_b[size_t(j)], rep.bandwidth_m[size_t(j)] = b;
+        if (options.progress) {
+          char line[120];
+          std::snprintf(line, sizeof line, "bandwidth %.3f m tried on %zu frames", double(b), valid.size());
+          options.progress(line);
+        }
+      }
+      table.bandwidth_m = rep.bandwidth_m;
+    } else {
+      table.bandwidth_m.fill(grid[0]);
+      rep.bandwidth_m = table.bandwidth_m;
+    }
+    with.offset_votes = table;
+    for (const Valid& v : valid) {
+      const auto cands = runtime::CastVotes(with, v.depth, v.mask, 1, cam);
       for (int j = 0; j < core::kNumJoints; ++j) {
         const auto& cj = cands[0][size_t(j)];
-        const Eigen::Vector3f truth = frame->people[0].position[size_t(j)];
+        const Eigen::Vector3f truth = v.truth[size_t(j)];
         ++rep.scored[size_t(j)];
         if (!cj.empty()) {
           // Candidates come most confident first; without a table, most weight first.
@@ -310,12 +361,6 @@ Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const wor
           hits[size_t(j) * bins + bin] += (c.position - truth).norm() <= 0.1f;
           ++rep.candidates;
         }
-      }
-      if (options.progress && ((i + 1) % 20 == 0 || i + 1 == options.validation_frames)) {
-        char line[120];
-        std::snprintf(line, sizeof line, "calibration: %d / %d validation frames", i + 1,
-                      options.validation_frames);
-        options.progress(line);
       }
     }
     // Per joint, each bin's precision, pulled towards the joint's overall rate by two pseudo-

@@ -15,6 +15,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "engine/job_spec.h"
 #include "runtime/core/forest.h"
@@ -25,7 +26,10 @@ namespace poseforest::coordinator {
 struct VoteLearningOptions {
   float max_offset_m = 0.3f;       ///< longer training offsets are not kept (docs/runtime/votes.md)
   float leaf_bandwidth_m = 0.05f;  ///< mean shift over a leaf's offsets to one joint
-  float vote_bandwidth_m = 0.06f;  ///< stored: run-time mean shift over the votes, every joint
+  float vote_bandwidth_m = 0.06f;  ///< run-time mean shift over the votes, without a search (below)
+  /// Run-time bandwidths tried per joint on the validation frames (the best placed candidate
+  /// wins; the first value wins ties); empty or one value: vote_bandwidth_m for every joint.
+  std::vector<float> bandwidth_grid = {0.06f, 0.04f, 0.09f, 0.13f, 0.18f};
   int max_pixels_per_leaf = 64;    ///< a leaf's pixels beyond this are thinned evenly
   float min_weight = 0.1f;         ///< a mode holding less of the leaf's pixels is not kept
   int validation_frames = 60;      ///< 0: no calibration (every candidate's confidence is 0)
@@ -44,6 +48,7 @@ struct VoteLearningReport {
   uint64_t candidates = 0;         ///< vote candidates scored on them
   /// Per joint, on the validation frames: the joint's most confident vote candidate within 0.1 m.
   std::array<int, core::kNumJoints> top_within{}, scored{};
+  std::array<float, core::kNumJoints> bandwidth_m{};  ///< the run-time bandwidths chosen
   double seconds = 0;
 };
 
