@@ -460,12 +460,32 @@ std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& s
         out += "null";
       out += ",\"confidence\":";
       AppendF(out, "%.4f", double(joint.confidence));
-      out += joint.tracked ? ",\"tracked\":true}" : ",\"tracked\":false}";
+      out += joint.tracked ? ",\"tracked\":true" : ",\"tracked\":false";
+      out += ",\"state\":\"";
+      out += JointStateName(StateOf(joint));
+      out += "\"}";
     }
     out += "]}";
   }
   out += "]}";
   return out;
+}
+
+JointState StateOf(const SkeletonJoint& joint) {
+  if (joint.tracked) return JointState::kTracked;
+  return joint.found && joint.inferred ? JointState::kInferred : JointState::kNotTracked;
+}
+
+std::string_view JointStateName(JointState state) {
+  switch (state) {
+    case JointState::kTracked:
+      return "tracked";
+    case JointState::kInferred:
+      return "inferred";
+    case JointState::kNotTracked:
+      break;
+  }
+  return "not_tracked";
 }
 
 }  // namespace poseforest::runtime

@@ -94,6 +94,17 @@ struct SkeletonJoint {
   bool inferred = false;
 };
 
+/// A joint's state as every output names it (Azure Kinect Body Tracking's confidence levels):
+/// tracked (MEDIUM), inferred (LOW: predicted, placed behind the visible surface by the votes)
+/// or not tracked (NONE: not found, or found but failing a tracking rule). The numbers are the
+/// C API's PF_JOINT_* values and the ROS 2 message's constants: never renumber them.
+enum class JointState : uint8_t { kNotTracked = 0, kInferred = 1, kTracked = 2 };
+
+/// kTracked if `tracked`; kInferred if found and `inferred` (and not tracked); else kNotTracked.
+JointState StateOf(const SkeletonJoint& joint);
+/// "tracked", "inferred" or "not_tracked" (the JSON Lines and Python `state` strings).
+std::string_view JointStateName(JointState state);
+
 struct Skeleton {
   int id = 0;                           ///< stable over a sequence (SkeletonTracker); 0 before tracking
   int mask_label = 0;                   ///< the person's value in the segmentation's label image

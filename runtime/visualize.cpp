@@ -22,6 +22,17 @@ void Ring(RgbImage& img, float cx, float cy, float r, core::Rgb c) {
     }
 }
 
+// A hollow circle: only the rim (2 pixels wide) in `c`; what lies inside stays visible.
+void Circle(RgbImage& img, float cx, float cy, float r, core::Rgb c) {
+  const int x0 = int(std::floor(cx - r - 1)), x1 = int(std::ceil(cx + r + 1));
+  const int y0 = int(std::floor(cy - r - 1)), y1 = int(std::ceil(cy + r + 1));
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) {
+      const float d = std::hypot(float(x) - cx, float(y) - cy);
+      if (d <= r + 0.5f && d >= r - 1.5f) img.Set(x, y, c);
+    }
+}
+
 // Copies `src` into `dst` at (ox, oy), shrunk by an integer factor (nearest).
 void Blit(RgbImage& dst, const RgbImage& src, int ox, int oy, int factor) {
   for (int y = 0; y < src.height / factor; ++y)
@@ -284,11 +295,17 @@ void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, fl
       const SkeletonJoint& joint = s.joints[size_t(j)];
       if (!joint.found) continue;
       const auto p = at(j);
-      if (joint.tracked) {
-        Ring(picture, p.x(), p.y(), std::max(2.5f, 5.0f * scale), JointColour(j));
-        if (p.y() < top_y) top_y = p.y(), top_x = p.x();
-      } else {
-        Ring(picture, p.x(), p.y(), std::max(1.5f, 3.0f * scale), {110, 110, 110});
+      switch (StateOf(joint)) {
+        case JointState::kTracked:
+          Ring(picture, p.x(), p.y(), std::max(2.5f, 5.0f * scale), JointColour(j));
+          if (p.y() < top_y) top_y = p.y(), top_x = p.x();
+          break;
+        case JointState::kInferred:  // hidden, placed by the votes: hollow, no bones
+          Circle(picture, p.x(), p.y(), std::max(2.5f, 5.0f * scale), JointColour(j));
+          break;
+        case JointState::kNotTracked:
+          Ring(picture, p.x(), p.y(), std::max(1.5f, 3.0f * scale), {110, 110, 110});
+          break;
       }
     }
     if (top_y < 1e9f) {

@@ -50,8 +50,10 @@ RgbImage PoseFigure(const core::DepthImage& depth, const core::LabelImage& label
 core::Rgb PersonColour(int id);
 /// Skeletons drawn on a picture of the frame (pixel coordinates x `scale`, then + (ox, oy)):
 /// bones (SkeletonBones) between tracked joints as lines in the person's colour, tracked joints
-/// as discs in the joint's colour ringed white, joints found but not tracked as small grey
-/// rings, and "ID n" above the person's highest tracked joint.
+/// as discs in the joint's colour ringed white, inferred joints (JointState::kInferred) as hollow
+/// circles of the same size in the joint's colour with no bones to them, other joints found but
+/// not tracked as small grey discs ringed white, and "ID n" above the person's highest tracked
+/// joint.
 void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, float scale = 1.0f, int ox = 0,
                    int oy = 0);
 /// `live`'s picture: depth | parts | depth with the skeletons, side by side, each panel the

@@ -33,6 +33,9 @@ if [[ "${1:-}" != "--runtime" ]]; then
   # test_live_dds decodes `live --dds` with Foxglove's npm packages: Debian's Node.js and npm,
   # unless a node and an npm are already there (another Node.js install conflicts with them).
   if ! command -v node >/dev/null || ! command -v npm >/dev/null; then pkgs+=(nodejs npm); fi
+  # test_deploy renders deploy/k8s with `kubectl kustomize`: Debian's kubectl, unless a kubectl
+  # is already there (another kubectl package owns /usr/bin/kubectl too).
+  if ! command -v kubectl >/dev/null; then pkgs+=(kubernetes-client); fi
 fi
 
 missing=()

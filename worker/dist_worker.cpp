@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <condition_variable>
 #include <cstdio>
 #include <deque>
@@ -126,15 +127,32 @@ v1::RendererKind RendererOf(const worker::TrainParams& p) {
 }
 }  // namespace
 
+struct DistWorker::Live {
+  std::atomic<bool> stopped{false};  ///< Run() returned
+  std::atomic<bool> busy{false};  ///< Impl::busy
+  std::array<std::atomic<uint64_t>, 4> rounds{};
+  std::atomic<uint64_t> histograms{0}, subtrees{0}, subtree_nodes{0}, evaluations{0};
+  std::atomic<uint64_t> shard_rendered{0}, shard_render_us{0}, shard_hits{0};
+  std::atomic<uint64_t> task_rendered{0}, task_render_us{0}, task_hits{0};
+  std::atomic<uint64_t> cache_evictions{0}, cache_bytes{0}, cache_capacity{0};
+  std::array<std::atomic<uint64_t>, dds::kNumTopics> sent{}, sent_bytes{}, received{};
+  std::atomic<uint64_t> rejected{0}, stale{0}, inbox_bytes{0};
+  mutable std::mutex mu;  ///< guards the job's ids and `cpu`
+  std::string job_id, coordinator_id;
+  WorkerCpu cpu;  ///< Impl::cpu as of the last message handled
+};
+
 struct DistWorker::Impl {
   WorkerOptions& opt;
   std::atomic<bool>& stop;
+  DistWorker::Live& live;  ///< what Stats() reads (the /metrics of `worker --http`)
   std::unique_ptr<dds::DdsNode> node;
   WorkerCpu cpu;  ///< written by the receiving (Run's) thread only
 
   std::mutex send_mu;  // guards stamper + job identity used by the heartbeat thread
   dds::EnvelopeStamper stamper;
-  std::atomic<bool> has_job{false}, assigned_any{false}, busy{false};
+  std::atomic<bool> has_job{false}, assigned_any{false};
+  std::atomic<bool>& busy;  ///< live.busy: heartbeats and Stats() say how many threads are busy
   /// Marks the worker busy (its heartbeats say so) while a subtree task or batch runs.
   struct BusyScope {
     explicit BusyScope(std::atomic<bool>& f) : flag(f) { flag = true; }
@@ -167,6 +185,7 @@ struct DistWorker::Impl {
   std::atomic<uint32_t> task_tree{0};
   std::atomic<uint64_t> tree_task_rendered{0}, tree_task_cached{0}, tree_task_evictions{0};
   uint64_t tree_evictions_at_start = 0;
+  uint64_t evictions_counted = 0;  ///< task_cache.evictions already in live.cache_evictions
   /// The frames batches of SubtreeTasks of tree `task_set_tree` trained on, each copied into
   /// the set's probe buffer once (not once per batch); its samples are a batch's. Dropped and
   /// started again when the tree changes or its frames would pass task_cache_bytes.
@@ -184,13 +203,29 @@ struct DistWorker::Impl {
   std::unique_ptr<worker::HistogramBuilder> subtree_builder;
   int applied_levels = 0;
 
-  Impl(WorkerOptions& o, std::atomic<bool>& s)
+  Impl(WorkerOptions& o, std::atomic<bool>& s, DistWorker::Live& l)
       : opt(o),
         stop(s),
+        live(l),
         stamper("", o.worker_id, v1::SENDER_KIND_WORKER),
+        busy(l.busy),
         job_gate(dds::GateConfig{o.worker_id, "", 16, o.log}) {}
 
   void Log(const std::string& m) { opt.log(m); }
+
+  /// Copies `cpu` for Stats() (called between messages, when no phase timer is open).
+  void SaveCpu() {
+    std::lock_guard<std::mutex> lock(live.mu);
+    live.cpu = cpu;
+  }
+
+  /// Counts a message the gate dropped (Stats()).
+  void CountDropped(const dds::MessageGate::Outcome& out) {
+    if (out.verdict == dds::MessageGate::Verdict::kRejected)
+      ++live.rejected;
+    else if (out.verdict == dds::MessageGate::Verdict::kStale)
+      ++live.stale;
+  }
 
   // DDS intake (issue 13): a thread of its own takes every sample off the DDS readers as it
   // arrives and queues it here, whatever the training thread is doing. A worker deep in a long
@@ -217,8 +252,10 @@ struct DistWorker::Impl {
       std::optional<dds::ReceivedSample> s = node->Receive(std::chrono::milliseconds(50));
       if (!s) continue;
       s->received_s = NowSeconds();
+      ++live.received[size_t(s->topic)];
       std::lock_guard<std::mutex> lock(inbox_mu);
       inbox_bytes += s->bytes.size();
+      live.inbox_bytes = inbox_bytes;
       inbox.push_back(std::move(*s));
       inbox_cv.notify_all();
     }
@@ -232,6 +269,7 @@ struct DistWorker::Impl {
     dds::ReceivedSample s = std::move(inbox.front());
     inbox.pop_front();
     inbox_bytes -= s.bytes.size();
+    live.inbox_bytes = inbox_bytes;
     inbox_cv.notify_all();
     return s;
   }
@@ -247,7 +285,12 @@ struct DistWorker::Impl {
     // Serialized outside the lock: a reply of tens of MiB took the heartbeat thread's lock long
     // enough, on a loaded machine, for the coordinator to take the worker for lost.
     const std::string bytes = env.SerializeAsString();
-    return node->Publish(topic, bytes);
+    Status st = node->Publish(topic, bytes);
+    if (st.ok()) {
+      ++live.sent[size_t(topic)];
+      live.sent_bytes[size_t(topic)] += bytes.size();
+    }
+    return st;
   }
 
   v1::WorkerCapacity Capacity() const {
@@ -344,6 +387,13 @@ struct DistWorker::Impl {
       std::lock_guard<std::mutex> lock(send_mu);
       stamper.set_job_id(job_id);
     }
+    {
+      std::lock_guard<std::mutex> lock(live.mu);
+      live.job_id = job_id;
+      live.coordinator_id = coordinator_id;
+    }
+    live.cache_capacity = task_cache.cap_bytes;
+    live.cache_bytes = 0;
     assigned_any = false;
     shard_epoch = 0;
     received_shard_epoch = 0;
@@ -386,9 +436,13 @@ struct DistWorker::Impl {
     std::vector<FrameData> loaded;
     const double t_render = NowSeconds();
     POSEFOREST_RETURN_IF_ERROR(LoadFrames(missing, &loaded, &cpu.shard));
-    shard_render_unreported_s += NowSeconds() - t_render;
+    const double render_s = NowSeconds() - t_render;
+    shard_render_unreported_s += render_s;
+    live.shard_render_us += uint64_t(render_s * 1e6);
     for (size_t j = 0; j < missing.size(); ++j) cache[missing[j]] = std::move(loaded[j]);
     frames_rendered += missing.size();
+    live.shard_rendered += missing.size();
+    live.shard_hits += wanted.size() - missing.size();
     cpu.shard_frames += missing.size();
     samples = worker::SampleSet{};
     for (const auto& [i, f] : cache) {
@@ -510,6 +564,7 @@ struct DistWorker::Impl {
     reply->set_num_bins(uint32_t(t + 1));
     reply->set_num_parts(uint32_t(core::kNumParts));
     reply->set_phase(req.phase());
+    uint64_t histograms_built = 0;  // node histograms in the reply (Stats())
     // A node of the reply without a histogram: its id and zero part counts.
     auto add_empty_node = [reply](uint32_t node) {
       auto* nh = reply->add_nodes();
@@ -544,6 +599,7 @@ struct DistWorker::Impl {
         if (!normal.empty()) builder->ComputeRanges(samples, params, tree, normal, &ranges);
         if (!fused.empty()) builder->BuildFused(samples, params, tree, fused, &fused_hists);
       }
+      histograms_built = fused.size();
       for (int i = 0; i < n; ++i) {
         const auto [is_fused, j] = where[size_t(i)];
         auto* nh = reply->add_nodes();
@@ -618,6 +674,7 @@ struct DistWorker::Impl {
         CpuTimer timer(&cpu.level_compute);
         builder->Build(samples, plans, t, &hists);
       }
+      histograms_built = uint64_t(n);
       for (int i = 0; i < n; ++i) {
         const worker::NodePlan& plan = plans[size_t(i)];
         auto* nh = reply->add_nodes();
@@ -642,10 +699,16 @@ struct DistWorker::Impl {
     uint64_t binned = 0;  // samples in the histograms (fused or pass 2), as the coordinator counts
     for (const auto& nh : reply->nodes()) binned += nh.samples();
     evaluations += binned * uint64_t(k);
+    live.evaluations += binned * uint64_t(k);
     busy = false;
     // A volatile writer drops what it writes before the coordinator's reader matched.
     (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
-    return Publish(Topic::kReplies, env);
+    Status sent = Publish(Topic::kReplies, env);
+    if (sent.ok()) {
+      ++live.rounds[size_t(req.phase()) - 1];  // PHASE_RANGES (1) .. PHASE_FRAMES (4), checked above
+      live.histograms += histograms_built;
+    }
+    return sent;
   }
 
   /// Frames `missing` of tree `t` rendered on this thread by task_source (few frames: no
@@ -742,6 +805,7 @@ struct DistWorker::Impl {
             std::to_string(task_cache.evictions - tree_evictions_at_start) + " evicted (cache " +
             std::to_string(task_cache.cap_bytes >> 20) + " MiB)");
       task_cache.Clear(t);
+      live.cache_bytes = 0;
       task_tree = uint32_t(t);
       tree_task_rendered = 0;
       tree_task_cached = 0;
@@ -756,14 +820,20 @@ struct DistWorker::Impl {
     cpu.task_frames_cached += wanted.size() - missing->size();
     tree_task_rendered += missing->size();
     tree_task_cached += wanted.size() - missing->size();
+    live.task_hits += wanted.size() - missing->size();
     {
       CpuTimer timer(&cpu.subtree_render);
       const double t_render = NowSeconds();
       struct Mark {  // the wall time, however it ends
         double t0;
         double* sum;
-        ~Mark() { *sum += NowSeconds() - t0; }
-      } mark{t_render, &task_render_unreported_s};
+        std::atomic<uint64_t>* micros;
+        ~Mark() {
+          const double s = NowSeconds() - t0;
+          *sum += s;
+          *micros += uint64_t(s * 1e6);
+        }
+      } mark{t_render, &task_render_unreported_s, &live.task_render_us};
       Status st;
       if (missing->size() >= 4 * size_t(params.threads) && params.threads > 1) {
         const int saved_tree = tree;
@@ -775,6 +845,7 @@ struct DistWorker::Impl {
       }
       if (!st.ok()) return st;
       frames_rendered += missing->size();
+      live.task_rendered += missing->size();
     }
     src->assign(wanted.size(), nullptr);
     for (size_t e = 0, next_loaded = 0; e < wanted.size(); ++e) {
@@ -793,6 +864,9 @@ struct DistWorker::Impl {
     cpu.task_cache_peak_bytes = std::max(cpu.task_cache_peak_bytes, task_cache.peak_bytes);
     cpu.task_cache_evictions = task_cache.evictions;
     tree_task_evictions = task_cache.evictions - tree_evictions_at_start;
+    live.cache_evictions += task_cache.evictions - evictions_counted;
+    evictions_counted = task_cache.evictions;
+    live.cache_bytes = task_cache.bytes;
   }
 
   Status RunSubtree(const v1::SubtreeTask& task) {
@@ -880,6 +954,7 @@ struct DistWorker::Impl {
     res->set_position(task.position());
     res->set_evaluations(out->evaluations);
     evaluations += out->evaluations;
+    live.evaluations += out->evaluations;
     for (const coordinator::SubtreeNode& n : out->nodes) {
       v1::SubtreeNode* sn = res->add_subtree_nodes();
       sn->set_position(n.position);
@@ -929,7 +1004,12 @@ struct DistWorker::Impl {
           " evicted; queued rounds answered " + std::to_string(cpu.rounds_in_batches) + " times in between)");
     encode_timer.reset();
     (void)node->WaitForMatch(Topic::kReplies, 1, std::chrono::milliseconds(5000));
-    return Publish(Topic::kReplies, env);
+    Status sent = Publish(Topic::kReplies, env);
+    if (sent.ok()) {
+      ++live.subtrees;
+      live.subtree_nodes += out->nodes.size();
+    }
+    return sent;
   }
 
   /// SubtreeTasks of one tree that all list their samples, trained together: one SampleSet of
@@ -1108,6 +1188,7 @@ struct DistWorker::Impl {
         break;
       }
       auto out = gate->Check(s->topic, s->bytes, s->writer_guid);
+      CountDropped(out);
       if (out.verdict != dds::MessageGate::Verdict::kAccepted) continue;
       if (!is_round(out.envelope)) {
         pending.push_back({true, {}, std::move(out.envelope), std::move(out.sender), s->received_s});
@@ -1129,6 +1210,7 @@ struct DistWorker::Impl {
   void OnSample(const dds::ReceivedSample& s) {
     if (s.topic == Topic::kJob) {
       auto out = job_gate.Check(s.topic, s.bytes, s.writer_guid);
+      CountDropped(out);
       if (out.verdict == dds::MessageGate::Verdict::kAccepted) OnJob(out.envelope);
       return;
     }
@@ -1136,6 +1218,7 @@ struct DistWorker::Impl {
     std::optional<CpuTimer> gate_timer(&cpu.receive);
     auto out = gate->Check(s.topic, s.bytes, s.writer_guid);
     gate_timer.reset();
+    CountDropped(out);
     if (out.verdict != dds::MessageGate::Verdict::kAccepted) return;
     if (s.topic == Topic::kControl && out.sender == coordinator_id) control_writer = s.writer_guid;
     dispatch_received_s = s.received_s;
@@ -1197,6 +1280,7 @@ struct DistWorker::Impl {
       std::optional<CpuTimer> gate_timer(&cpu.receive);
       auto out = gate->Check(more->topic, more->bytes, more->writer_guid);
       gate_timer.reset();
+      CountDropped(out);
       if (out.verdict != dds::MessageGate::Verdict::kAccepted) continue;
       if (out.envelope.body_case() == v1::Envelope::kSubtreeTask &&
           out.envelope.subtree_task().tree() == batch->front().subtree_task().tree() &&
@@ -1348,7 +1432,8 @@ Status SelectListedSamples(std::span<const worker::PixelSample> picked, int widt
   return Status::Ok();
 }
 
-DistWorker::DistWorker(WorkerOptions options) : options_(std::move(options)) {
+DistWorker::DistWorker(WorkerOptions options)
+    : options_(std::move(options)), live_(std::make_unique<Live>()) {
   if (options_.worker_id.empty()) options_.worker_id = DefaultWorkerId();
   if (!options_.log) {
     const std::string id = options_.worker_id;
@@ -1361,7 +1446,13 @@ DistWorker::~DistWorker() = default;
 
 Status DistWorker::Run() {
   const double process0 = ProcessCpu();
-  Impl impl(options_, stop_);
+  live_->busy = false;
+  live_->stopped = false;
+  struct Stopped {
+    std::atomic<bool>& stopped;
+    ~Stopped() { stopped = true; }
+  } stopped_at_return{live_->stopped};
+  Impl impl(options_, stop_, *live_);
   impl.cpu.process_at_start = process0;
   std::optional<CpuTimer> participant_timer(&impl.cpu.participant);
   dds::NodeConfig node_config =
@@ -1392,6 +1483,7 @@ Status DistWorker::Run() {
       s = impl.Take(std::chrono::milliseconds(50));
     }
     if (s) impl.OnSample(*s);
+    impl.SaveCpu();
   }
   heartbeat.join();
   impl.inbox_cv.notify_all();
@@ -1404,7 +1496,40 @@ Status DistWorker::Run() {
   }
   impl.cpu.run_total = ProcessCpu() - process0;
   cpu_ = impl.cpu;
+  impl.SaveCpu();
   return Status::Ok();
+}
+
+WorkerStats DistWorker::Stats() const {
+  const Live& l = *live_;
+  WorkerStats s;
+  s.worker_id = options_.worker_id;
+  s.stopped = l.stopped;
+  s.threads = options_.threads;
+  s.busy_threads = l.busy ? options_.threads : 0;
+  for (size_t i = 0; i < s.rounds.size(); ++i) s.rounds[i] = l.rounds[i];
+  s.histograms = l.histograms;
+  s.subtrees = l.subtrees;
+  s.subtree_nodes = l.subtree_nodes;
+  s.evaluations = l.evaluations;
+  s.shard_frames = {l.shard_rendered, double(l.shard_render_us) * 1e-6, l.shard_hits};
+  s.task_frames = {l.task_rendered, double(l.task_render_us) * 1e-6, l.task_hits};
+  s.frame_cache_evictions = l.cache_evictions;
+  s.frame_cache_bytes = l.cache_bytes;
+  s.frame_cache_capacity_bytes = l.cache_capacity;
+  for (size_t t = 0; t < size_t(dds::kNumTopics); ++t) {
+    s.messages_sent[t] = l.sent[t];
+    s.bytes_sent[t] = l.sent_bytes[t];
+    s.messages_received[t] = l.received[t];
+  }
+  s.messages_rejected = l.rejected;
+  s.messages_stale = l.stale;
+  s.inbox_bytes = l.inbox_bytes;
+  std::lock_guard<std::mutex> lock(l.mu);
+  s.job_id = l.job_id;
+  s.coordinator_id = l.coordinator_id;
+  s.cpu = l.cpu;
+  return s;
 }
 
 }  // namespace poseforest::dist

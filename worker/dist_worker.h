@@ -12,10 +12,12 @@
 // (which also asserts its DDS liveliness) while the main thread computes. DDS listeners only
 // enqueue (dds::DdsNode).
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -24,6 +26,7 @@
 #include "engine/sample_set.h"
 #include "proto/dds/dds_flags.h"
 #include "proto/dds/dds_node.h"
+#include "proto/dds/topics.h"
 #include "runtime/core/result.h"
 
 namespace poseforest::dist {
@@ -104,6 +107,44 @@ struct WorkerCpu {
   }
 };
 
+/// What a worker has done, for its /metrics (`worker --http`, worker/worker_metrics.h): counters
+/// since the DistWorker was made, over every Run() and every job of a --stay worker (they only
+/// grow), and the figures of now. A copy taken by DistWorker::Stats(), from any thread at any time.
+struct WorkerStats {
+  std::string worker_id;
+  /// Run() returned (the worker stopped: Stop(), a signal, or the job done); false before it
+  /// starts, so that a metrics server started ahead of Run() says "up".
+  bool stopped = false;
+  std::string job_id, coordinator_id;  ///< the job joined last (empty: none yet)
+  int threads = 1;                     ///< WorkerOptions::threads
+  int busy_threads = 0;                ///< in a round or a subtree task now: 0 or `threads`
+  /// LevelRequests answered, by phase: ranges (pass 1), histograms (pass 2), counts (census),
+  /// frames (the frame lists before a hand-off); kRoundPhases names them.
+  std::array<uint64_t, 4> rounds{};
+  static constexpr std::array<const char*, 4> kRoundPhases = {"ranges", "histograms", "counts", "frames"};
+  uint64_t histograms = 0;     ///< node histograms sent (fused ones of pass 1, and pass 2's)
+  uint64_t subtrees = 0;       ///< subtrees trained and sent (SubtreeResults)
+  uint64_t subtree_nodes = 0;  ///< nodes of those subtrees
+  uint64_t evaluations = 0;    ///< sample x candidate evaluations binned, rounds and subtrees
+  /// Frames of the own shard (ShardAssignments) and of other shards (SubtreeTasks).
+  struct Frames {
+    uint64_t rendered = 0;      ///< rendered or loaded
+    double render_seconds = 0;  ///< wall seconds spent rendering/loading them (all threads at once)
+    uint64_t cache_hits = 0;    ///< needed but already held (shard: kept from the tree's last
+                                ///< assignment; subtree: in the shard or the task-frame cache)
+  } shard_frames, task_frames;
+  uint64_t frame_cache_evictions = 0;       ///< frames dropped from the task-frame cache (its cap)
+  uint64_t frame_cache_bytes = 0;           ///< bytes the task-frame cache holds now
+  uint64_t frame_cache_capacity_bytes = 0;  ///< its cap (WorkerOptions::task_cache_bytes, or auto)
+  /// Envelopes written and their serialized bytes, and samples taken off DDS, by dds::Topic.
+  std::array<uint64_t, dds::kNumTopics> messages_sent{}, bytes_sent{}, messages_received{};
+  uint64_t messages_rejected = 0;  ///< dropped by the message gate: malformed or not allowed
+  uint64_t messages_stale = 0;     ///< dropped by the message gate: outdated (older epoch or level)
+  uint64_t inbox_bytes = 0;        ///< taken off DDS, queued for the training thread now
+  /// CPU seconds by phase so far (updated between messages: a phase's time counts once it ends).
+  WorkerCpu cpu;
+};
+
 /// The samples of one frame that a SubtreeTask lists (SubtreeTask.sample_pixel_deltas): `deltas`
 /// are pixel indices y * width + x, ascending and delta-coded (the first absolute), each one of
 /// `picked`, the frame's sampled pixels (ascending, as SamplePixels returns them); `*out` gets
@@ -128,13 +169,17 @@ class DistWorker {
   const std::string& id() const { return options_.worker_id; }
   /// Where the CPU went in the last Run() (complete once Run() returned).
   const WorkerCpu& cpu() const { return cpu_; }
+  /// What the worker has done so far (WorkerStats): thread-safe, also while Run() runs.
+  WorkerStats Stats() const;
 
   struct Impl;
+  struct Live;  ///< the counters behind Stats(), written by Run()'s threads (dist_worker.cpp)
 
  private:
   WorkerOptions options_;
   std::atomic<bool> stop_{false};
   WorkerCpu cpu_;
+  std::unique_ptr<Live> live_;
 };
 
 }  // namespace poseforest::dist

@@ -6,15 +6,18 @@
 #include <atomic>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <string>
 
 #include "engine/cli/job_dds.h"
 #include "engine/job_spec.h"
 #include "proto/dds/dds_flags.h"
 #include "proto/dds/node_config.h"
+#include "proto/http/http_server.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
 #include "worker/dist_worker.h"
+#include "worker/worker_metrics.h"
 
 namespace poseforest::cli {
 
@@ -28,7 +31,8 @@ void OnWorkerSignal(int) {
 }  // namespace
 
 int WorkerMain(int argc, char** argv) {
-  Args args(WithDdsOptions({"domain", "threads", "job", "job-file", "id", "task-cache-mb", "parent-pid"}),
+  Args args(WithDdsOptions({"domain", "threads", "job", "job-file", "id", "task-cache-mb", "parent-pid",
+                            "http", "http-token-file", "http-tls-cert", "http-tls-key"}),
             {"stay", "exit-with-parent", "check-config", "help"});
   if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty()) {
     if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.message().c_str());
@@ -44,8 +48,16 @@ int WorkerMain(int argc, char** argv) {
                  "         [--task-cache-mb M]   (frames of other shards kept between subtree tasks of a\n"
                  "          tree, least recently used dropped first; default 0 = auto: every frame of a tree,\n"
                  "          at most an eighth of this machine's memory, at least 256 MiB)\n"
-                 "         [--check-config]   (parse the flags, load the XML profile and the security files,\n"
-                 "          print what would run and exit 0, without joining DDS; 2 on a bad setting)\n"
+                 "         [--http HOST:PORT|off]   (the worker's own Prometheus metrics at /metrics, and\n"
+                 "          /healthz; default off; e.g. 127.0.0.1:9101, :9101 = every interface, port 0 =\n"
+                 "          a free one; the URL is printed at start)\n"
+                 "         [--http-token-file FILE]   (every request but /healthz needs \"Authorization:\n"
+                 "          Bearer TOKEN\"; FILE: one line, mode 600 (or root-owned 440))\n"
+                 "         [--http-tls-cert CERT.pem --http-tls-key KEY.pem]   (HTTPS only, TLS 1.2+: the\n"
+                 "          certificate chain and its unencrypted key; both or neither)\n"
+                 "         [--check-config]   (parse the flags, load the XML profile, the security files and\n"
+                 "          the HTTP token and TLS files, print what would run and exit 0, without joining DDS\n"
+                 "          or opening the HTTP port; 2 on a bad setting)\n"
                  "%s",
                  kDdsUsage);
     return args.Has("help") ? 0 : 2;
@@ -85,10 +97,47 @@ int WorkerMain(int argc, char** argv) {
                      .c_str());
     return 2;
   }
+  // --http: the worker's own /metrics (off by default); its token and TLS files, checked here.
+  const std::string http = args.GetOr("http", "off");
+  dist::HttpServerOptions http_opt;
+  if (http != "off") {
+    if (Status st = dist::ParseHttpAddress(http, &http_opt); !st.ok()) {
+      std::fprintf(stderr, "worker: %s\n", st.message().c_str());
+      return 2;
+    }
+  } else if (args.Has("http-token-file") || args.Has("http-tls-cert") || args.Has("http-tls-key")) {
+    std::fprintf(stderr,
+                 "worker: --http-token-file/--http-tls-cert/--http-tls-key are for the metrics server: give "
+                 "--http HOST:PORT\n");
+    return 2;
+  }
+  if (args.Has("http-token-file")) {
+    auto token = dist::ReadHttpTokenFile(*args.Get("http-token-file"));
+    if (!token.ok()) {
+      std::fprintf(stderr, "worker: %s\n", token.status().message().c_str());
+      return 2;
+    }
+    http_opt.bearer_token = std::move(*token);
+  }
+  http_opt.tls_cert_file = args.GetOr("http-tls-cert", "");
+  http_opt.tls_key_file = args.GetOr("http-tls-key", "");
+  if (!http_opt.tls_cert_file.empty() || !http_opt.tls_key_file.empty()) {
+    if (Status st = dist::CheckHttpTlsFiles(http_opt.tls_cert_file, http_opt.tls_key_file); !st.ok()) {
+      std::fprintf(stderr, "worker: %s\n", st.message().c_str());
+      return 2;
+    }
+  }
+  const std::string metrics_text =
+      http == "off" ? "metrics off"
+                    : std::string("metrics on ") + (http_opt.tls_cert_file.empty() ? "http" : "https") +
+                          "://" + http_opt.address + ":" + std::to_string(http_opt.port) + "/metrics" +
+                          (http_opt.port == 0 ? " (port 0: a free one, printed at start)" : "") +
+                          (http_opt.bearer_token.empty() ? "" : " with a bearer token");
   if (args.Has("check-config")) {
-    std::printf("worker config ok: id %s, job %s, %ld threads; DDS domain %ld, %s\n",
-                args.GetOr("id", "(worker-HOST-PID-RANDOM)").c_str(), job_id.empty() ? "(any)" : job_id.c_str(), *threads,
-                *domain, dds_flags->Describe().c_str());
+    std::printf("worker config ok: id %s, job %s, %ld threads; DDS domain %ld, %s; %s\n",
+                args.GetOr("id", "(worker-HOST-PID-RANDOM)").c_str(),
+                job_id.empty() ? "(any)" : job_id.c_str(), *threads, *domain, dds_flags->Describe().c_str(),
+                metrics_text.c_str());
     return 0;
   }
   if (!dds_flags->resolved.empty())  // resolved once: a name that moves later is not followed
@@ -128,6 +177,26 @@ int WorkerMain(int argc, char** argv) {
                    expected > 0 ? ("pid " + std::to_string(expected)).c_str() : "its parent");
       return 0;
     }
+  }
+  // After `worker`: the server (its handler reads the worker) stops first.
+  std::unique_ptr<dist::HttpServer> metrics;
+  if (http != "off") {
+    http_opt.log = [](const std::string& line) {
+      std::fprintf(stderr, "worker: %s\n", line.c_str());
+      std::fflush(stderr);
+    };
+    for (const std::string& w :
+         dist::HttpExposureWarnings(http_opt, http, "the worker's metrics", "the metrics"))
+      std::fprintf(stderr, "worker: %s\n", w.c_str());
+    auto server = dist::HttpServer::Start(http_opt, dist::WorkerMetricsHandler(&worker));
+    if (!server.ok()) {
+      std::fprintf(stderr, "worker: %s\n", server.status().ToString().c_str());
+      return server.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;  // 1: port in use
+    }
+    metrics = std::move(*server);
+    std::fprintf(stderr, "worker: metrics: %s/metrics%s\n", metrics->url().c_str(),
+                 http_opt.bearer_token.empty() ? "" : " (with the token of --http-token-file)");
+    std::fflush(stderr);
   }
   Status st = worker.Run();
   g_worker = nullptr;

@@ -31,24 +31,10 @@ core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Star
       std::fprintf(stderr, "coordinator: %s\n", line.c_str());
       std::fflush(stderr);
     };
-    if (http_token.empty() && !IsLoopbackAddress(opt.address)) {
-      std::fprintf(stderr,
-                   "coordinator: warning: --http %s serves the job's status, metrics and dashboard to anyone "
-                   "who can reach this address, without authentication; give --http-token-file FILE "
-                   "(docs/distributed/monitoring.md#access-control)\n",
-                   http.c_str());
-      std::fflush(stderr);
-    }
-    if (!http_token.empty() && tls_cert.empty() && !IsLoopbackAddress(opt.address)) {
-      std::fprintf(
-          stderr,
-          "coordinator: warning: --http %s with --http-token-file but without "
-          "--http-tls-cert/--http-tls-key: "
-          "the token and the job's status cross the network in clear text; give a certificate and key "
-          "(docs/distributed/monitoring.md#https)\n",
-          http.c_str());
-      std::fflush(stderr);
-    }
+    for (const std::string& w :
+         HttpExposureWarnings(opt, http, "the job's status, metrics and dashboard", "the job's status"))
+      std::fprintf(stderr, "coordinator: %s\n", w.c_str());
+    std::fflush(stderr);
     auto server = HttpServer::Start(opt, StatusHandler(m->model_.get()));
     if (!server.ok()) return server.status();
     m->http_ = std::move(*server);

@@ -7,8 +7,8 @@
 #include <string>
 
 #include "coordinator/monitoring/event_log.h"
-#include "coordinator/monitoring/http_server.h"
 #include "coordinator/monitoring/status_model.h"
+#include "proto/http/http_server.h"
 
 namespace poseforest::dist {
 

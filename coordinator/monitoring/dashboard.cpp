@@ -1,5 +1,7 @@
 #include "coordinator/monitoring/dashboard.h"
 
+#include "proto/http/prometheus_text.h"
+
 namespace poseforest::dist {
 
 namespace {
@@ -205,24 +207,6 @@ poll();
 const std::string& DashboardHtml() {
   static const std::string html = kDashboard;
   return html;
-}
-
-std::string HttpServerMetrics(const HttpServer& server) {
-  std::string out =
-      "# HELP poseforest_http_requests_total Requests and connections of the status server, by outcome "
-      "(ok: answered; bad_request: 400/405/408/431; unauthorized: 401, no or a wrong token; "
-      "rejected_connection: 503, over the connection limits; tls_handshake_failed: HTTPS only, a failed TLS "
-      "handshake, plain HTTP to the port included).\n"
-      "# TYPE poseforest_http_requests_total counter\n";
-  const std::pair<const char*, uint64_t> rows[] = {{"ok", server.requests()},
-                                                   {"bad_request", server.bad_requests()},
-                                                   {"unauthorized", server.unauthorized()},
-                                                   {"rejected_connection", server.dropped()},
-                                                   {"tls_handshake_failed", server.tls_handshake_failures()}};
-  for (const auto& [outcome, n] : rows)
-    out += std::string("poseforest_http_requests_total{outcome=\"") + outcome + "\"} " + std::to_string(n) +
-           "\n";
-  return out;
 }
 
 HttpServer::Handler StatusHandler(const StatusModel* model) {

@@ -5,17 +5,14 @@
 
 #include <string>
 
-#include "coordinator/monitoring/http_server.h"
 #include "coordinator/monitoring/status_model.h"
+#include "proto/http/http_server.h"
+#include "proto/http/prometheus_text.h"  // HttpServerMetrics (/metrics ends with the server's counters)
 
 namespace poseforest::dist {
 
 /// The dashboard page (no external resources).
 const std::string& DashboardHtml();
-
-/// The status server's own counters in Prometheus text (poseforest_http_requests_total by outcome:
-/// ok, bad_request, unauthorized, rejected_connection, tls_handshake_failed); /metrics ends with them.
-std::string HttpServerMetrics(const HttpServer& server);
 
 /// Routes requests to `model` (not owned; must outlive the server).
 HttpServer::Handler StatusHandler(const StatusModel* model);

@@ -14,15 +14,14 @@
 #include <string>
 #include <thread>
 
-#include "coordinator/monitoring/http_server.h"
 #include "coordinator/monitoring/status_model.h"
 #include "poseforest/v1/status.pb.h"
 #include "poseforest/v1/wire.pb.h"
 #include "proto/dds/dds_node.h"
 #include "proto/dds/message_gate.h"
+#include "proto/http/http_server.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
-
 
 namespace poseforest::cli {
 

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "proto/http/prometheus_text.h"
+
 namespace poseforest::dist {
 
 namespace {
@@ -14,30 +16,6 @@ double SteadySeconds() {
 }
 
 constexpr double kWorkerWindowS = 10;  // per-worker throughput window
-
-/// Prometheus label value: backslash, double quote and newline escaped.
-std::string Label(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '\\')
-      out += "\\\\";
-    else if (c == '"')
-      out += "\\\"";
-    else if (c == '\n')
-      out += "\\n";
-    else
-      out += c;
-  }
-  return out;
-}
-
-std::string PromNumber(double v) {
-  if (std::isnan(v)) return "NaN";
-  if (std::isinf(v)) return v > 0 ? "+Inf" : "-Inf";
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
 }  // namespace
 
 double UnixSeconds() {
@@ -455,7 +433,7 @@ std::string StatusModel::Prometheus() const {
   // Prometheus attaches its own `job` label (the scrape job) to every sample; a target's own
   // `job` label would clash with it (renamed exported_job, or overriding it with honor_labels), so
   // ours is exported_job from the start.
-  const std::string job = "exported_job=\"" + Label(info_.job_id) + "\"";
+  const std::string job = "exported_job=\"" + PromLabelValue(info_.job_id) + "\"";
   std::string m =
       "# HELP poseforest_build_info The poseforest build serving these metrics (always 1).\n"
       "# TYPE poseforest_build_info gauge\n"
@@ -514,11 +492,11 @@ std::string StatusModel::Prometheus() const {
   for (const char* s : {"joined", "training", "lost", "evicted", "done"}) by_state[s] = 0;
   for (const auto& [id, w] : workers_) ++by_state[w.state];
   std::vector<std::pair<std::string, double>> ws;
-  for (const auto& [s, n] : by_state) ws.push_back({"state=\"" + Label(s) + "\"", double(n)});
+  for (const auto& [s, n] : by_state) ws.push_back({"state=\"" + PromLabelValue(s) + "\"", double(n)});
   metric("poseforest_workers", "gauge", "Workers by state.", ws);
   std::vector<std::pair<std::string, double>> up, rate, evals, bytes, seen;
   for (const auto& [id, w] : workers_) {
-    const std::string l = "worker=\"" + Label(id) + "\"";
+    const std::string l = "worker=\"" + PromLabelValue(id) + "\"";
     up.push_back({l, w.state == "training" || w.state == "joined" ? 1 : 0});
     rate.push_back({l, WorkerRate(w, now)});
     evals.push_back({l, double(w.evaluations)});
@@ -528,7 +506,8 @@ std::string StatusModel::Prometheus() const {
   std::vector<std::pair<std::string, double>> task_rendered, task_cached, task_evicted;
   for (const auto& [id, w] : workers_) {
     if (w.task_tree < 0) continue;
-    const std::string l = "worker=\"" + Label(id) + "\",tree=\"" + std::to_string(w.task_tree) + "\"";
+    const std::string l =
+        "worker=\"" + PromLabelValue(id) + "\",tree=\"" + std::to_string(w.task_tree) + "\"";
     task_rendered.push_back({l, double(w.task_rendered)});
     task_cached.push_back({l, double(w.task_cached)});
     task_evicted.push_back({l, double(w.task_evicted)});

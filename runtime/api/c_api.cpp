@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "poseforest/poseforest.h"
+#include "runtime/api/skeleton_layout.h"
 #include "runtime/classifier.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/joint_proposals.h"
@@ -129,8 +130,6 @@ pf_status CopySkeletons(const char* function, const std::vector<pf_skeleton>& al
 
 }  // namespace
 
-static_assert(PF_SKELETON_JOINTS == poseforest::core::kNumJoints);
-
 extern "C" {
 
 uint32_t pf_version(void) { return POSEFOREST_VERSION_NUMBER; }
@@ -201,6 +200,12 @@ const char* pf_joint_name(int joint) {
   // JointName returns views of string literals, so .data() is NUL-terminated static storage.
   if (joint < 0 || joint >= poseforest::core::kNumJoints) return nullptr;
   return poseforest::core::JointName(joint).data();
+}
+
+const char* pf_joint_state_name(int32_t state) {
+  // JointStateName returns views of string literals, so .data() is NUL-terminated static storage.
+  if (state < PF_JOINT_NOT_TRACKED || state > PF_JOINT_TRACKED) return nullptr;
+  return poseforest::runtime::JointStateName(poseforest::runtime::JointState(state)).data();
 }
 
 pf_status pf_classify(const pf_forest* forest, const uint16_t* depth_mm, int width, int height,
@@ -347,24 +352,8 @@ pf_status pf_skeleton_stream_process(pf_skeleton_stream* stream, const uint16_t*
     stream->pipeline->Process(frame, &stream->frame);
     stream->frame.depth = nullptr;  // pointed into `frame`
     stream->last.clear();
-    for (const rt::Skeleton& s : stream->frame.skeletons) {
-      pf_skeleton o{};
-      o.id = s.id;
-      o.pixels = s.pixels;
-      for (int i = 0; i < 3; ++i) o.centroid_m[i] = s.centroid_m[i];
-      for (int j = 0; j < PF_SKELETON_JOINTS; ++j) {
-        const rt::SkeletonJoint& in = s.joints[size_t(j)];
-        pf_skeleton_joint& oj = o.joints[j];
-        oj.found = in.found ? 1 : 0;
-        oj.tracked = in.tracked ? 1 : 0;
-        if (!in.found) continue;  // zeros
-        for (int i = 0; i < 3; ++i) oj.position_m[i] = in.position_m[i];
-        oj.pixel[0] = in.pixel.x();
-        oj.pixel[1] = in.pixel.y();
-        oj.confidence = in.confidence;
-      }
-      stream->last.push_back(o);
-    }
+    for (const rt::Skeleton& s : stream->frame.skeletons)
+      stream->last.push_back(poseforest::capi::ToPfSkeleton(s));
     return CopySkeletons(function, stream->last, skeletons, capacity, count);
   });
 }

@@ -66,6 +66,7 @@ std::vector<uint8_t> EncodeSkeletons(const FrameStamp& stamp, const std::vector<
       c.Put(float(joint.confidence));
       for (int k = 0; k < 3; ++k) c.Put(joint.found ? double(joint.position_m[k]) : 0.0);
       for (int k = 0; k < 2; ++k) c.Put(joint.found ? float(joint.pixel[k]) : 0.0f);
+      c.Put(uint8_t(StateOf(joint)));  // NOT_TRACKED, INFERRED, TRACKED: JointState's numbers
     }
   }
   return std::move(c.bytes());
@@ -78,15 +79,24 @@ std::vector<uint8_t> EncodeMarkerArray(const FrameStamp& stamp, const std::vecto
     int32_t id = 0, type = kSphereList, action = kAdd;
     double scale = 0;
     core::Rgb colour{0, 0, 0};
+    float alpha = 1;
     std::vector<Eigen::Vector3f> points;
+    const char* ns = kMarkerNamespace;
   };
   std::vector<Marker> markers;
-  markers.push_back({0, kSphereList, kDeleteAll, 0, {0, 0, 0}, {}});  // clears the previous frame's people
+  markers.push_back({0, kSphereList, kDeleteAll, 0, {0, 0, 0}, 1, {}});  // clears the previous frame's people
   for (const Skeleton& s : skeletons) {
-    Marker joints{2 * s.id, kSphereList, kAdd, 0.04, PersonColour(s.id), {}};
-    Marker bones{2 * s.id + 1, kLineList, kAdd, 0.015, PersonColour(s.id), {}};
+    Marker joints{2 * s.id, kSphereList, kAdd, 0.04, PersonColour(s.id), 1, {}};
+    Marker bones{2 * s.id + 1, kLineList, kAdd, 0.015, PersonColour(s.id), 1, {}};
+    // Inferred joints: the person's colour halfway to light grey, translucent, smaller.
+    const core::Rgb c = PersonColour(s.id);
+    const core::Rgb pale{uint8_t((c.r + 200) / 2), uint8_t((c.g + 200) / 2), uint8_t((c.b + 200) / 2)};
+    Marker inferred{2 * s.id, kSphereList, kAdd, 0.03, pale, 0.5f, {}, kInferredMarkerNamespace};
     for (const SkeletonJoint& j : s.joints)
-      if (j.tracked) joints.points.push_back(j.position_m);
+      if (j.tracked)
+        joints.points.push_back(j.position_m);
+      else if (StateOf(j) == JointState::kInferred)
+        inferred.points.push_back(j.position_m);
     for (const auto& [a, b] : SkeletonBones())
       if (s.joints[size_t(a)].tracked && s.joints[size_t(b)].tracked) {
         bones.points.push_back(s.joints[size_t(a)].position_m);
@@ -94,17 +104,20 @@ std::vector<uint8_t> EncodeMarkerArray(const FrameStamp& stamp, const std::vecto
       }
     markers.push_back(std::move(joints));
     markers.push_back(std::move(bones));
+    // Only when there are some (forests without offset votes have none: no empty marker per person
+    // and frame); the next frame's DELETEALL removes it.
+    if (!inferred.points.empty()) markers.push_back(std::move(inferred));
   }
   c.Put(uint32_t(markers.size()));
   for (const Marker& m : markers) {
     c.Header(stamp);
-    c.String("poseforest");
+    c.String(m.ns);
     c.Put(m.id);
     c.Put(m.type);
     c.Put(m.action);
     for (double v : {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0}) c.Put(v);  // pose: origin, identity
     for (int k = 0; k < 3; ++k) c.Put(m.scale);
-    for (float v : {m.colour.r / 255.0f, m.colour.g / 255.0f, m.colour.b / 255.0f, 1.0f}) c.Put(v);
+    for (float v : {m.colour.r / 255.0f, m.colour.g / 255.0f, m.colour.b / 255.0f, m.alpha}) c.Put(v);
     c.Put(int32_t(0));  // lifetime: forever (the next frame's DELETEALL removes it)
     c.Put(uint32_t(0));
     c.Bool(false);  // frame_locked

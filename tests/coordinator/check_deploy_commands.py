@@ -2,29 +2,37 @@
 """Runs every poseforest command line of deploy/ through the real argument parser.
 
   check_deploy_commands.py --bin build/bin/poseforest [--deploy DIR] [--source ROOT]
+                           [--kubectl PROGRAM] [--rendered-json FILE]
 
 Extracts the command lines a deployment would run:
   - deploy/docker/Dockerfile.*: ENTRYPOINT + CMD (exec form) with the image's ENV;
-  - deploy/k8s/*.yaml: each container of a Deployment/StatefulSet/DaemonSet/Job/Pod: its
-    command/args (or the image's ENTRYPOINT/CMD; images are matched to Dockerfiles through the
-    `docker build -f deploy/docker/Dockerfile.X -t IMAGE` line in each Dockerfile), the image's
-    ENV overlaid with the container's env (fieldRef metadata.name -> "<name>-0"), $(VAR) expanded.
+  - deploy/k8s: what `kubectl kustomize deploy/k8s` renders (what `kubectl apply -k` applies;
+    every object of a deploy/k8s/*.yaml but *.example.yaml must be in it), each container of a
+    Deployment/StatefulSet/DaemonSet/Job/Pod: its command/args (or the image's ENTRYPOINT/CMD;
+    images are matched to Dockerfiles through the `docker build -f deploy/docker/Dockerfile.X -t
+    IMAGE` line in each Dockerfile), the image's ENV overlaid with the container's env (fieldRef
+    metadata.name -> "<name>-0"), $(VAR) expanded; and the command of each exec probe (a
+    poseforest probe must give the container's DDS transport and job flags, with the same
+    values), each httpGet probe's port must be one of the container's.
 and runs `poseforest <command> ARGS --check-config` (parses the flags, loads the job, the Fast DDS
 XML profile and the security files, exits 0 without joining DDS) inside a fake file-system root:
 absolute paths in arguments and environment values are moved under a temporary folder that holds
 what the container would see: files the Dockerfile COPYs from the repository, its VOLUMEs,
 ConfigMap data at their mountPaths, emptyDirs, Secrets filled with test DDS credentials from
 deploy/security/make-test-ca.sh (a Secret volume with `items`: a test value in each item's path,
-with the item's mode or the volume's defaultMode), and for an image run without Kubernetes, the ConfigMap's job at
+with the item's mode or the volume's defaultMode), PersistentVolumeClaims (which must be rendered too)
+as empty folders, and for an image run without Kubernetes, the ConfigMap's job at
 /etc/poseforest/job.textproto (the documented mount). A command of another program (the
-discovery server) is checked to exist on PATH and listed.
+discovery server, `sh` of a probe) is checked to exist on PATH and listed.
 A Kubernetes command runs in a mount and network namespace of its own (`unshare`) whose
 /etc/hosts maps the manifests' Service names (NAME, NAME.NS, NAME.NS.svc,
 NAME.NS.svc.cluster.local) to test addresses, as the cluster's DNS would: a host name in a flag
 or an XML profile must name a Service of the manifests, and no lookup leaves the machine.
 
 Exit 0 when every command passes; 1 naming each file, container and the parser's message.
-Needs python3-yaml (Debian).
+--rendered-json FILE: also write the rendered objects there (a JSON list), for the test's checks.
+Needs python3-yaml and kubectl (Debian: kubernetes-client; its 1.20 renders these files as a newer
+kubectl does).
 """
 
 import argparse
@@ -41,6 +49,46 @@ import tempfile
 import yaml
 
 WORKLOAD_KINDS = {"Deployment", "StatefulSet", "DaemonSet", "Job", "Pod", "ReplicaSet"}
+PROBES = ("startupProbe", "readinessProbe", "livenessProbe")
+# Flags that say where a worker or coordinator meets its job: a probe that runs `poseforest ...
+# --check-config` must give the same as the container, or it checks another set-up.
+TRANSPORT_FLAGS = ("--domain", "--job", "--profile", "--peers", "--interfaces", "--dds-xml", "--dds-profile",
+                   "--discovery-server", "--security")
+
+
+def transport_flags(argv):
+    """{flag: value} of TRANSPORT_FLAGS in a command line ("--flag value" or "--flag=value")."""
+    out, i = {}, 0
+    while i < len(argv):
+        flag, eq, value = argv[i].partition("=")
+        if flag in TRANSPORT_FLAGS:
+            if not eq:
+                i += 1
+                value = argv[i] if i < len(argv) else ""
+            out[flag] = value
+        i += 1
+    return out
+
+
+def render_kustomization(kubectl, k8s_dir):
+    """The objects `kubectl kustomize k8s_dir` renders, or (None, error)."""
+    if shutil.which(kubectl) is None:
+        return None, f"{kubectl} is not on PATH (Debian: kubernetes-client; scripts/setup.sh installs it)"
+    try:
+        r = subprocess.run([kubectl, "kustomize", k8s_dir], capture_output=True, text=True, timeout=120)
+    except subprocess.TimeoutExpired:
+        return None, f"`{kubectl} kustomize {k8s_dir}` did not finish in 120 s"
+    if r.returncode != 0:
+        return None, f"`{kubectl} kustomize` fails (exit {r.returncode}): {r.stderr.strip()}"
+    try:
+        return [d for d in yaml.safe_load_all(r.stdout) if d], None
+    except yaml.YAMLError as e:
+        return None, f"`{kubectl} kustomize` printed no valid YAML: {e}"
+
+
+def object_key(d):
+    m = d.get("metadata", {})
+    return (d.get("kind"), m.get("namespace", ""), m.get("name"))
 
 
 def dockerfile_instructions(path):
@@ -177,7 +225,7 @@ def run_check(binary, argv, env, root, label, source, hosts_file=None):
     for k in ("POSEFOREST_DATA_DIR", "HOME"):
         if k in os.environ:
             full_env.setdefault(k, os.environ[k])
-    command = [binary] + args + ["--check-config"]
+    command = [binary] + args + ([] if "--check-config" in args else ["--check-config"])
     if hosts_file:  # -r: a user namespace too when not root (mounting needs it)
         command = ["unshare"] + (["-r"] if os.geteuid() != 0 else []) + \
             ["-m", "-n", "sh", "-c", 'mount --bind "$0" /etc/hosts && exec "$@"', hosts_file] + command
@@ -221,6 +269,8 @@ def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ap.add_argument("--source", default=os.path.normpath(os.path.join(here, "..", "..")))
     ap.add_argument("--deploy", default=None, help="deploy folder (default SOURCE/deploy)")
+    ap.add_argument("--kubectl", default="kubectl", help="kubectl program (default: kubectl on PATH)")
+    ap.add_argument("--rendered-json", default=None, help="write what kubectl kustomize renders here (JSON)")
     a = ap.parse_args()
     binary = os.path.abspath(a.bin)
     deploy = os.path.abspath(a.deploy or os.path.join(a.source, "deploy"))
@@ -238,13 +288,35 @@ def main():
         else:
             images[img.name] = img
 
-    docs = []
+    # The files, for naming where each rendered object comes from.
+    sources = {}
     for p in sorted(glob.glob(os.path.join(deploy, "k8s", "*.yaml"))):
         try:
             with open(p) as f:
-                docs += [(p, d) for d in yaml.safe_load_all(f) if d]
+                for d in yaml.safe_load_all(f):
+                    if d and d.get("kind") != "Kustomization":
+                        sources[object_key(d)] = p
         except yaml.YAMLError as e:
             errors.append(f"{os.path.relpath(p, os.path.dirname(deploy))}: not valid YAML: {e}")
+    # What `kubectl apply -k deploy/k8s` applies.
+    k8s_dir = os.path.join(deploy, "k8s")
+    rendered, error = render_kustomization(a.kubectl, k8s_dir)
+    docs = []
+    if error:
+        errors.append(f"deploy/k8s: {error}")
+    else:
+        print(f"ok   deploy/k8s: `kubectl kustomize` renders {len(rendered)} objects: " +
+              ", ".join(f"{d.get('kind')}/{d.get('metadata', {}).get('name')}" for d in rendered))
+        docs = [(sources.get(object_key(d), os.path.join(k8s_dir, "kustomization.yaml")), d) for d in rendered]
+        keys = {object_key(d) for d in rendered}
+        for key, p in sources.items():
+            if key not in keys and not p.endswith(".example.yaml"):
+                errors.append(f"{os.path.relpath(p, os.path.dirname(deploy))}: {key[0]}/{key[2]} is not in what "
+                              f"`kubectl kustomize deploy/k8s` renders (list the file in kustomization.yaml)")
+        if a.rendered_json:
+            with open(a.rendered_json, "w") as f:
+                json.dump(rendered, f, indent=1)
+    claims = {d["metadata"]["name"] for _, d in docs if d.get("kind") == "PersistentVolumeClaim"}
     configmaps = {d["metadata"]["name"]: d.get("data", {}) for _, d in docs if d.get("kind") == "ConfigMap"}
     job_text = next((data["job.textproto"] for data in configmaps.values() if "job.textproto" in data), None)
 
@@ -326,6 +398,9 @@ def main():
                             os.chmod(f, item.get("mode", v["secret"].get("defaultMode", 0o644)))
                     elif "secret" in v:
                         make_credentials(mount, a.source, tmp)
+                    elif "persistentVolumeClaim" in v and v["persistentVolumeClaim"]["claimName"] not in claims:
+                        errors.append(f"{label}: volume {m['name']}: PersistentVolumeClaim "
+                                      f"{v['persistentVolumeClaim']['claimName']} is not in deploy/k8s")
                 env = dict(img.env) if img else {}
                 for e in c.get("env", []):
                     if "value" in e:
@@ -347,6 +422,42 @@ def main():
                 checked += 1
                 if err:
                     errors.append(err)
+                # Probes: an exec probe's command runs in the same container (its env, its files).
+                ports = {p.get("name") for p in c.get("ports", [])} | \
+                        {p.get("containerPort") for p in c.get("ports", [])}
+                for probe in PROBES:
+                    if probe not in c:
+                        continue
+                    plabel = f"{label} {probe}"
+                    if "httpGet" in c[probe]:
+                        port = c[probe]["httpGet"].get("port")
+                        if port not in ports:
+                            errors.append(f"{plabel}: httpGet port {port} is not a port of the container")
+                        else:
+                            print(f"ok   {plabel}: httpGet {c[probe]['httpGet'].get('path', '/')} on port {port}")
+                        continue
+                    if "exec" not in c[probe]:
+                        print(f"ok   {plabel}: {', '.join(c[probe])} (not checked)")
+                        continue
+                    # The kubelet expands $(VAR) in a probe's command only from env entries with a
+                    # `value` (not valueFrom, not the image's ENV).
+                    static = {e["name"]: str(e["value"]) for e in c.get("env", []) if "value" in e}
+                    pcommand = [str(x) for x in c[probe]["exec"].get("command", [])]
+                    unexpanded = sorted({v for x in pcommand for v in re.findall(r"\$\((\w+)\)", x)} - set(static))
+                    if unexpanded:
+                        errors.append(f"{plabel}: $({'), $('.join(unexpanded)}) in the command: in a probe Kubernetes "
+                                      f"expands only env entries with a value (valueFrom ones become \"\")")
+                        continue
+                    pargv = [re.sub(r"\$\((\w+)\)", lambda mm: static[mm.group(1)], x) for x in pcommand]
+                    if pargv and os.path.basename(pargv[0]) == "poseforest":
+                        want, have = transport_flags(argv), transport_flags(pargv)
+                        if want != have:
+                            errors.append(f"{plabel}: gives {json.dumps(have)} where the container has "
+                                          f"{json.dumps(want)}: it would check another transport")
+                    err = run_check(binary, pargv, env, root, plabel, a.source, hosts_file)
+                    checked += 1
+                    if err:
+                        errors.append(err)
 
     if checked == 0:
         errors.append(f"no command lines found under {deploy}")

@@ -14,14 +14,20 @@
 //    does not resolve (checked in a network namespace of its own: no DNS query leaves) is refused
 //    naming the flag and the name, also from the job's dds section;
 //  - flag errors name the file, the profile, the missing credential or the contradiction;
-//  - every command line of deploy/k8s/*.yaml and deploy/docker/Dockerfile.* passes the real
-//    argument parser (`--check-config`), and a manifest with a wrong flag fails the check.
+//  - every command line of deploy/docker/Dockerfile.* and of what `kubectl kustomize deploy/k8s`
+//    renders (containers and exec probes) passes the real argument parser (`--check-config`), and
+//    a manifest with a wrong flag fails the check;
+//  - the rendered deploy/k8s is what operators expect (issue 24): the coordinator a batch/v1 Job
+//    (OnFailure) resuming from a checkpoint on a PersistentVolumeClaim, the forest on that volume;
+//    the workers scaled by replicas, with readiness and liveness probes.
 
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <tuple>
 
 #include "proto/dds/dds_flags.h"
@@ -562,11 +568,16 @@ TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or
 }
 
 namespace {
-/// tests/coordinator/check_deploy_commands.py on `deploy` (a deploy/ folder).
-std::pair<int, std::string> CheckDeployCommands(const fs::path& deploy) {
-  return Run({"python3", (Source() / "tests/coordinator/check_deploy_commands.py").string(), "--bin",
-              Program(), "--source", Source().string(), "--deploy", deploy.string()},
-             120s);
+/// tests/coordinator/check_deploy_commands.py on `deploy` (a deploy/ folder), plus `extra` flags.
+std::pair<int, std::string> CheckDeployCommands(const fs::path& deploy,
+                                                const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> argv = {
+      "python3",  (Source() / "tests/coordinator/check_deploy_commands.py").string(),
+      "--bin",    Program(),
+      "--source", Source().string(),
+      "--deploy", deploy.string()};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  return Run(argv, 120s);
 }
 
 void Replace(const fs::path& file, const std::string& from, const std::string& to) {
@@ -586,9 +597,12 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
   for (const char* what :
        {"ok   deploy/docker/Dockerfile.coordinator: poseforest coordinator",
         "ok   deploy/docker/Dockerfile.worker: poseforest worker",
-        "ok   deploy/docker/Dockerfile.discovery-server",
-        "ok   deploy/k8s/coordinator.yaml Deployment/coordinator",
-        "ok   deploy/k8s/workers.yaml StatefulSet/worker",
+        "ok   deploy/docker/Dockerfile.discovery-server", "ok   deploy/k8s: `kubectl kustomize` renders",
+        "ok   deploy/k8s/coordinator.yaml Job/coordinator", "ok   deploy/k8s/workers.yaml StatefulSet/worker",
+        "ok   deploy/k8s/workers.yaml StatefulSet/worker container worker readinessProbe: poseforest worker",
+        "ok   deploy/k8s/workers.yaml StatefulSet/worker container worker livenessProbe: sh -c",
+        "ok   deploy/k8s/coordinator.yaml Job/coordinator container coordinator livenessProbe: httpGet "
+        "/healthz",
         "ok   deploy/k8s/discovery-server.yaml Deployment/dds-discovery", "coordinator config ok",
         "worker config ok: id worker-0", "Fast DDS XML profile poseforest_k8s", " 0 problems"})
     CHECK(out.find(what) != std::string::npos);
@@ -617,6 +631,25 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
        "Fast DDS cannot parse the XML profiles", "k8s/workers.yaml"},
       {"k8s/workers.yaml", "\"--stay\"]", "\"--stay\", \"--discovery-server\", \"dds-discovry:11811\"]",
        "--discovery-server dds-discovry:11811: host name 'dds-discovry' does not resolve"},
+      // Exec probes run through the parser too, with the container's transport and job flags.
+      {"k8s/workers.yaml", "\"--check-config\"]", "\"--chek-config\", \"--check-config\"]",
+       "unknown option --chek-config"},
+      {"k8s/workers.yaml", "\"--job\", \"poseforest-k8s\", \"--check-config\"]",
+       "\"--job\", \"poseforest-k9s\", \"--check-config\"]", "it would check another transport"},
+      {"k8s/workers.yaml", "\"--job\", \"poseforest-k8s\", \"--check-config\"]",
+       "\"--id=$(POD_NAME)\", \"--job\", \"poseforest-k8s\", \"--check-config\"]",
+       "$(POD_NAME) in the command: in a probe Kubernetes expands only env entries with a value"},
+      {"k8s/coordinator.yaml", "httpGet: {path: /healthz, port: status,",
+       "httpGet: {path: /healthz, port: stats,", "httpGet port stats is not a port of the container"},
+      // What `kubectl apply -k` applies is what is checked: a file left out of the kustomization,
+      // a claim nobody creates, a kustomization that does not render.
+      {"k8s/kustomization.yaml", "  - state-pvc.yaml\n", "",
+       "PersistentVolumeClaim/poseforest-state is not in what `kubectl kustomize deploy/k8s` renders",
+       "k8s/state-pvc.yaml"},
+      {"k8s/coordinator.yaml", "claimName: poseforest-state", "claimName: poseforest-sate",
+       "PersistentVolumeClaim poseforest-sate is not in deploy/k8s"},
+      {"k8s/kustomization.yaml", "  - workers.yaml\n", "  - worker.yaml\n", "`kubectl kustomize` fails",
+       "k8s:"},
   };
   for (const Mutation& m : mutations) {
     TempDir dir("pf-deploy-mutant");
@@ -633,6 +666,8 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
     fs::copy(Source() / "deploy", dir.path / "deploy", fs::copy_options::recursive);
     Replace(dir.path / "deploy/k8s/workers.yaml", "\"--stay\"]",
             "\"--stay\", \"--discovery-server\", \"dds-discovery.poseforest.svc.cluster.local\"]");
+    Replace(dir.path / "deploy/k8s/workers.yaml", "\"--check-config\"]",
+            "\"--discovery-server\", \"dds-discovery.poseforest.svc.cluster.local\", \"--check-config\"]");
     Replace(dir.path / "deploy/k8s/coordinator.yaml", "\"--resume\",",
             "\"--resume\", \"--discovery-server\", \"dds-discovery\",");
     auto [mrc, mout] = CheckDeployCommands(dir.path / "deploy");
@@ -642,4 +677,192 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
           std::string::npos);
     CHECK(mout.find("--discovery-server dds-discovery -> 10.96.255.") != std::string::npos);
   }
+}
+
+namespace {
+using Json = nlohmann::json;
+
+/// The value at a JSON pointer ("/spec/template/spec"), or null when any part is missing.
+const Json& At(const Json& j, const std::string& pointer) {
+  static const Json kNull;
+  const Json::json_pointer p(pointer);
+  return j.contains(p) ? j.at(p) : kNull;
+}
+
+/// The string at a JSON pointer, or "".
+std::string StringAt(const Json& j, const std::string& pointer) {
+  const Json& v = At(j, pointer);
+  return v.is_string() ? v.get<std::string>() : "";
+}
+
+/// The rendered object of `kind` named `name`, or nullptr.
+const Json* FindObject(const Json& objects, const std::string& kind, const std::string& name) {
+  for (const Json& o : objects)
+    if (StringAt(o, "/kind") == kind && StringAt(o, "/metadata/name") == name) return &o;
+  return nullptr;
+}
+
+/// The container named `name` of a workload's pod template, or nullptr.
+const Json* FindContainer(const Json& workload, const std::string& name) {
+  const Json& containers = At(workload, "/spec/template/spec/containers");
+  if (!containers.is_array()) return nullptr;
+  for (const Json& c : containers)
+    if (StringAt(c, "/name") == name) return &c;
+  return nullptr;
+}
+
+/// A container's command line (command + args).
+std::vector<std::string> CommandLine(const Json& container) {
+  std::vector<std::string> argv;
+  for (const char* key : {"/command", "/args"})
+    if (const Json& list = At(container, key); list.is_array())
+      for (const Json& a : list) argv.push_back(a.is_string() ? a.get<std::string>() : a.dump());
+  return argv;
+}
+
+/// The value of `flag` ("--flag V" or "--flag=V") in argv, or "" when absent.
+std::string FlagValue(const std::vector<std::string>& argv, const std::string& flag) {
+  for (size_t i = 0; i < argv.size(); ++i) {
+    if (argv[i] == flag && i + 1 < argv.size()) return argv[i + 1];
+    if (argv[i].rfind(flag + "=", 0) == 0) return argv[i].substr(flag.size() + 1);
+  }
+  return "";
+}
+
+/// The claim of the PersistentVolumeClaim volume mounted over `path` in `container` of
+/// `workload`, or "" when `path` is on no such volume.
+std::string ClaimHolding(const Json& workload, const Json& container, const std::string& path) {
+  const Json& mounts = At(container, "/volumeMounts");
+  const Json& volumes = At(workload, "/spec/template/spec/volumes");
+  if (!mounts.is_array() || !volumes.is_array()) return "";
+  for (const Json& m : mounts) {
+    const std::string mount = StringAt(m, "/mountPath");
+    if (mount.empty() || path.rfind(mount + "/", 0) != 0) continue;
+    for (const Json& v : volumes)
+      if (StringAt(v, "/name") == StringAt(m, "/name"))
+        return StringAt(v, "/persistentVolumeClaim/claimName");
+  }
+  return "";
+}
+
+/// True when the JSON value is an integer of at least `min`.
+bool IntAtLeast(const Json& v, int min) { return v.is_number_integer() && v.get<int64_t>() >= min; }
+
+/// What operators expect of the rendered deploy/k8s (issue 24): the coordinator a batch/v1 Job,
+/// done when it completes once, whose restarted container resumes from a checkpoint on a
+/// PersistentVolumeClaim (the forest on that volume too); the workers a set scaled by replicas,
+/// with readiness and liveness probes. One line per problem; none when all of that holds.
+std::vector<std::string> OperatorProblems(const Json& objects) {
+  std::vector<std::string> problems;
+  const Json* job = FindObject(objects, "Job", "coordinator");
+  if (job == nullptr || StringAt(*job, "/apiVersion") != "batch/v1") {
+    problems.push_back("no batch/v1 Job coordinator");
+  } else {
+    if (At(*job, "/spec/completions") != 1 || At(*job, "/spec/parallelism") != 1)
+      problems.push_back("Job coordinator: completions and parallelism are not 1");
+    if (!IntAtLeast(At(*job, "/spec/backoffLimit"), 1))
+      problems.push_back("Job coordinator: no backoffLimit of 1 or more");
+    if (StringAt(*job, "/spec/template/spec/restartPolicy") != "OnFailure")
+      problems.push_back("Job coordinator: restartPolicy is not OnFailure (a restarted container resumes)");
+    const Json* c = FindContainer(*job, "coordinator");
+    if (c == nullptr) {
+      problems.push_back("Job coordinator: no container coordinator");
+    } else {
+      const auto argv = CommandLine(*c);
+      if (std::find(argv.begin(), argv.end(), "--resume") == argv.end())
+        problems.push_back("Job coordinator: no --resume");
+      for (const char* flag : {"--checkpoint", "--out"}) {
+        const std::string path = FlagValue(argv, flag);
+        const std::string claim = path.empty() ? "" : ClaimHolding(*job, *c, path);
+        if (claim.empty())
+          problems.push_back(std::string("Job coordinator: ") + flag + " '" + path +
+                             "' is not on a PersistentVolumeClaim volume");
+        else if (FindObject(objects, "PersistentVolumeClaim", claim) == nullptr)
+          problems.push_back("PersistentVolumeClaim " + claim + " is not rendered");
+      }
+    }
+  }
+  if (FindObject(objects, "Deployment", "coordinator") != nullptr)
+    problems.push_back("the coordinator is (also) a Deployment: it would run again after the job is done");
+  const Json* workers = FindObject(objects, "StatefulSet", "worker");
+  if (workers == nullptr) workers = FindObject(objects, "Deployment", "worker");
+  if (workers == nullptr) {
+    problems.push_back("no StatefulSet or Deployment worker");
+  } else {
+    if (!IntAtLeast(At(*workers, "/spec/replicas"), 1)) problems.push_back("worker: no replicas");
+    const Json* c = FindContainer(*workers, "worker");
+    for (const char* probe : {"readinessProbe", "livenessProbe"})
+      if (c == nullptr || !c->contains(probe)) problems.push_back(std::string("worker: no ") + probe);
+  }
+  return problems;
+}
+}  // namespace
+
+TEST_CASE(
+    "deploy: kubectl kustomize deploy/k8s renders a coordinator Job that resumes from a volume, workers with "
+    "probes",
+    "[deploy][integration]") {
+  TempDir dir("pf-deploy-kustomize");
+  const fs::path rendered = dir.path / "rendered.json";
+  auto [rc, out] = CheckDeployCommands(Source() / "deploy", {"--rendered-json", rendered.string()});
+  INFO(out);
+  REQUIRE(rc == 0);  // ...and with it, every command line of the rendering passed --check-config
+  const Json objects = Json::parse(ReadText(rendered));
+  REQUIRE(objects.is_array());
+  const auto problems = OperatorProblems(objects);
+  for (const std::string& p : problems) UNSCOPED_INFO(p);
+  CHECK(problems.empty());
+
+  // The checks themselves: each way of getting it wrong is named.
+  const auto coordinator = [](Json& o) -> Json& {
+    for (Json& x : o)
+      if (x["kind"] == "Job") return x;
+    FAIL("no Job");
+    return o;
+  };
+  const auto mutated = [&](const std::function<void(Json&)>& change) {
+    Json copy = objects;
+    change(copy);
+    const auto found = OperatorProblems(copy);
+    std::string all;
+    for (const std::string& p : found) all += p + "\n";
+    return all;
+  };
+  CHECK(mutated([&](Json& o) {
+          Json& j = coordinator(o);
+          j["apiVersion"] = "apps/v1";
+          j["kind"] = "Deployment";
+        }).find("no batch/v1 Job coordinator") != std::string::npos);
+  CHECK(mutated([&](Json& o) {
+          coordinator(o)["spec"]["template"]["spec"]["restartPolicy"] = "Never";
+        }).find("restartPolicy is not OnFailure") != std::string::npos);
+  CHECK(mutated([&](Json& o) {
+          coordinator(o)["spec"]["completions"] = 2;
+        }).find("completions and parallelism are not 1") != std::string::npos);
+  CHECK(mutated([&](Json& o) {
+          Json& args = coordinator(o)["spec"]["template"]["spec"]["containers"][0]["args"];
+          for (size_t i = 0; i < args.size(); ++i)
+            if (args[i] == "--resume") args.erase(i);
+        }).find("no --resume") != std::string::npos);
+  CHECK(mutated([&](Json& o) {
+          for (Json& v : coordinator(o)["spec"]["template"]["spec"]["volumes"])
+            if (v.contains("persistentVolumeClaim"))
+              v = Json{{"name", v["name"]}, {"emptyDir", Json::object()}};
+        }).find("--checkpoint '/var/lib/poseforest/checkpoint' is not on a PersistentVolumeClaim") !=
+        std::string::npos);
+  CHECK(mutated([&](Json& o) {
+          for (size_t i = 0; i < o.size(); ++i)
+            if (o[i]["kind"] == "PersistentVolumeClaim") o.erase(i);
+        }).find("PersistentVolumeClaim poseforest-state is not rendered") != std::string::npos);
+  CHECK(mutated([&](Json& o) {
+          for (Json& x : o)
+            if (x["kind"] == "StatefulSet")
+              x["spec"]["template"]["spec"]["containers"][0].erase("livenessProbe");
+        }).find("worker: no livenessProbe") != std::string::npos);
+
+  // Without kubectl the check fails, saying where to get it.
+  auto [rc2, out2] = CheckDeployCommands(Source() / "deploy", {"--kubectl", "no-such-kubectl"});
+  INFO(out2);
+  CHECK(rc2 == 1);
+  CHECK(out2.find("no-such-kubectl is not on PATH (Debian: kubernetes-client") != std::string::npos);
 }

@@ -21,8 +21,8 @@
 #include <thread>
 
 #include "coordinator/monitoring/dashboard.h"
-#include "coordinator/monitoring/http_server.h"
 #include "coordinator/monitoring/status_model.h"
+#include "proto/http/http_server.h"
 #include "tests/coordinator/dist_test_util.h"
 #include "tests/coordinator/http_test_util.h"
 #include "tests/proto/dds_test_util.h"

@@ -149,9 +149,16 @@ person = people[0]
 check([j["name"] for j in person["joints"]] == list(poseforest.JOINT_NAMES), "skeleton: 16 joints in JOINT_NAMES order")
 found = [j for j in person["joints"] if j["found"]]
 check(len(found) > 0, f"skeleton: {len(found)} joints found")
+check(all(set(j) == {"name", "found", "tracked", "position_m", "pixel", "confidence", "state"} for j in person["joints"]),
+      "skeleton: each joint has name, found, tracked, position_m, pixel, confidence, state")
 for k, j in enumerate(person["joints"]):
+    # The state agrees with tracked; "inferred" only for a joint found and not tracked.
+    check(j["state"] in ("tracked", "inferred", "not_tracked"), f"skeleton {j['name']}: state {j['state']!r}")
+    check((j["state"] == "tracked") == j["tracked"], f"skeleton {j['name']}: state {j['state']} vs tracked {j['tracked']}")
+    check(j["state"] != "inferred" or (j["found"] and not j["tracked"]), f"skeleton {j['name']}: inferred but not found")
     if not j["found"]:
-        check(j["position_m"] is None and not j["tracked"] and j["confidence"] == 0, f"skeleton {j['name']}: not found")
+        check(j["position_m"] is None and not j["tracked"] and j["confidence"] == 0 and j["state"] == "not_tracked",
+              f"skeleton {j['name']}: not found")
         continue
     mine = [p for p in joints if p["joint"] == k]
     check(any(tuple(float(v) for v in p["position_m"]) == j["position_m"] for p in mine),

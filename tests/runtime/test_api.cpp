@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <catch2/catch.hpp>
+#include <cstddef>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "runtime/api/skeleton_layout.h"
 #include "runtime/classifier.h"
 #include "runtime/core/crc32.h"
 #include "runtime/core/forest_format.h"
@@ -25,6 +27,7 @@
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
 #include "tests/support/scene.h"
+#include "tests/support/skeletons.h"
 #include "tests/support/synthetic.h"
 
 using namespace poseforest;
@@ -354,9 +357,11 @@ TEST_CASE("joint proposals equal the runtime's; the buffer protocol and the 31-p
 
 TEST_CASE("skeleton streams equal the runtime's pipeline: ids over frames, joints, the buffer protocol",
           "[api]") {
-  // The documented layout (docs/runtime/api.md).
-  CHECK(sizeof(pf_skeleton_joint) == 32);
-  CHECK(sizeof(pf_skeleton) == 532);
+  // The documented layout (docs/runtime/api.md): 0.4 appended `state` to the 0.3 joint.
+  CHECK(sizeof(pf_skeleton_joint) == 36);
+  CHECK(offsetof(pf_skeleton_joint, confidence) == 28);
+  CHECK(offsetof(pf_skeleton_joint, state) == 32);
+  CHECK(sizeof(pf_skeleton) == 596);
   const core::Forest forest = SmallForest(11);
   const std::string path = SaveTo(forest, "skeletons.pff");
   Loaded f;
@@ -420,6 +425,9 @@ TEST_CASE("skeleton streams equal the runtime's pipeline: ids over frames, joint
         CHECK(gj.confidence == (ej.found ? ej.confidence : 0.0f));
         CHECK(gj.confidence >= 0.0f);
         CHECK(gj.confidence <= 1.0f);
+        CHECK(gj.state == int32_t(runtime::StateOf(ej)));
+        CHECK((gj.state == PF_JOINT_TRACKED) == (gj.tracked == 1));
+        CHECK((gj.state != PF_JOINT_INFERRED || (gj.found == 1 && gj.tracked == 0)));
         found += gj.found;
         tracked += gj.tracked;
       }
@@ -468,6 +476,45 @@ TEST_CASE("skeleton streams equal the runtime's pipeline: ids over frames, joint
   CHECK(std::string(pf_last_error_message()) ==
         "InvalidArgument: " + five +
             ": skeletons need a forest with the paper's 31-part taxonomy (this one has 5 parts)");
+}
+
+TEST_CASE("skeleton joints carry their state: tracked, inferred, not tracked", "[api]") {
+  CHECK(PF_JOINT_NOT_TRACKED == 0);
+  CHECK(PF_JOINT_INFERRED == 1);
+  CHECK(PF_JOINT_TRACKED == 2);
+  CHECK(std::string(pf_joint_state_name(PF_JOINT_NOT_TRACKED)) == "not_tracked");
+  CHECK(std::string(pf_joint_state_name(PF_JOINT_INFERRED)) == "inferred");
+  CHECK(std::string(pf_joint_state_name(PF_JOINT_TRACKED)) == "tracked");
+  CHECK(pf_joint_state_name(-1) == nullptr);
+  CHECK(pf_joint_state_name(3) == nullptr);
+  // A skeleton made by hand, one joint in each state, in the C layout the streams write (a
+  // stream gives inferred joints only with a forest that has offset votes).
+  const runtime::Skeleton s = testing::FourStateSkeleton();
+  const pf_skeleton c = capi::ToPfSkeleton(s);
+  CHECK(c.id == 3);
+  CHECK(c.pixels == 1200);
+  const pf_skeleton_joint& tracked = c.joints[testing::kTrackedJoint];
+  CHECK((tracked.found == 1 && tracked.tracked == 1 && tracked.state == PF_JOINT_TRACKED));
+  CHECK(tracked.confidence == 0.875f);
+  const pf_skeleton_joint& inferred = c.joints[testing::kInferredJoint];
+  CHECK((inferred.found == 1 && inferred.tracked == 0 && inferred.state == PF_JOINT_INFERRED));
+  CHECK(inferred.position_m[2] == 2.875f);
+  CHECK(inferred.pixel[0] == 339.5f);
+  CHECK(inferred.confidence == 0.75f);
+  const pf_skeleton_joint& found_only = c.joints[testing::kFoundOnlyJoint];
+  CHECK((found_only.found == 1 && found_only.tracked == 0 && found_only.state == PF_JOINT_NOT_TRACKED));
+  const pf_skeleton_joint& lost = c.joints[testing::kNotFoundJoint];
+  CHECK((lost.found == 0 && lost.tracked == 0 && lost.state == PF_JOINT_NOT_TRACKED));
+  CHECK((lost.position_m[0] == 0.0f && lost.pixel[0] == 0.0f && lost.confidence == 0.0f));
+  int states[3] = {0, 0, 0};
+  for (const pf_skeleton_joint& j : c.joints) ++states[j.state];
+  CHECK(states[PF_JOINT_TRACKED] == 1);
+  CHECK(states[PF_JOINT_INFERRED] == 1);
+  CHECK(states[PF_JOINT_NOT_TRACKED] == PF_SKELETON_JOINTS - 2);
+  // The name the JSON Lines record gives each state.
+  for (const pf_skeleton_joint& j : c.joints)
+    CHECK(std::string(pf_joint_state_name(j.state)) ==
+          std::string(runtime::JointStateName(runtime::JointState(j.state))));
 }
 
 TEST_CASE("many threads classify with one forest at once", "[api]") {

@@ -62,10 +62,13 @@ for n, line in enumerate(open(sys.argv[1])):
         assert p["pixels"] > 0 and len(p["centroid_m"]) == 3 and p["centroid_m"][2] > 0
         assert [j["name"] for j in p["joints"]] == names
         for j in p["joints"]:
-            assert set(j) == {"name", "position_m", "pixel", "confidence", "tracked"}, j.keys()
+            assert set(j) == {"name", "position_m", "pixel", "confidence", "tracked", "state"}, j.keys()
             assert 0.0 <= j["confidence"] <= 1.0 and isinstance(j["tracked"], bool)
+            assert j["state"] in ("tracked", "inferred", "not_tracked"), j["state"]
+            assert (j["state"] == "tracked") == j["tracked"], (j["name"], j["state"], j["tracked"])
             if j["position_m"] is None:
                 assert j["pixel"] is None and not j["tracked"] and j["confidence"] == 0
+                assert j["state"] == "not_tracked", (j["name"], j["state"])
             else:
                 assert len(j["position_m"]) == 3 and len(j["pixel"]) == 2 and j["position_m"][2] > 0
             tracked += j["tracked"]

@@ -11,13 +11,44 @@
 #include <fstream>
 
 #include "runtime/core/forest_format.h"
+#include "runtime/dds/ros2_messages.h"
 #include "runtime/dds/skeleton_publisher.h"
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
+#include "tests/support/skeletons.h"
 #include "tests/support/synthetic.h"
 
 using namespace poseforest;
 namespace fs = std::filesystem;
+
+namespace {
+
+void WriteBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+}
+
+// ros2_decode.js on the samples in `dir` (skeletons-K.bin, markers-K.bin) against the JSON Lines
+// `jsonl`, with Foxglove's decoders, installed into the build folder once (the npm registry must
+// be reachable). Its exit code and printout ("ok frames=..." or the mismatches).
+testing::CommandResult DecodeWithFoxglove(const fs::path& dir, const fs::path& jsonl,
+                                          const std::string& frame_id) {
+  const std::string modules = std::string(POSEFOREST_NPM_DIR);
+  if (!fs::exists(fs::path(modules) / "node_modules/@foxglove/rosmsg2-serialization")) {
+    auto npm = testing::RunCommand(
+        "mkdir -p " + modules + " && cd " + modules +
+        " && npm install --no-audit --no-fund --loglevel=error "
+        "@foxglove/rosmsg2-serialization@3 @foxglove/rosmsg-msgs-common@3 @foxglove/rosmsg@5");
+    INFO(npm.output);
+    REQUIRE(npm.exit_code == 0);
+  }
+  return testing::RunCommand("NODE_PATH=" + modules + "/node_modules node " +
+                             std::string(POSEFOREST_SOURCE_DIR) + "/tests/runtime/ros2_decode.js " +
+                             dir.string() + " " + jsonl.string() + " " + std::string(POSEFOREST_SOURCE_DIR) +
+                             "/msg " + frame_id);
+}
+
+}  // namespace
 
 TEST_CASE("live --dds: the samples off the wire, decoded by Foxglove's ROS 2 decoders, equal the JSON Lines",
           "[live][dds]") {
@@ -51,31 +82,49 @@ TEST_CASE("live --dds: the samples off the wire, decoded by Foxglove's ROS 2 dec
   for (size_t k = 0; k < 9; ++k) {
     CHECK(s[k][0] == 0x00);  // CDR_LE encapsulation, as rmw_fastrtps writes
     CHECK(s[k][1] == 0x01);
-    std::ofstream(dir / ("skeletons-" + std::to_string(k) + ".bin"), std::ios::binary)
-        .write(reinterpret_cast<const char*>(s[k].data()), std::streamsize(s[k].size()));
-    std::ofstream(dir / ("markers-" + std::to_string(k) + ".bin"), std::ios::binary)
-        .write(reinterpret_cast<const char*>(m[k].data()), std::streamsize(m[k].size()));
+    WriteBytes(dir / ("skeletons-" + std::to_string(k) + ".bin"), s[k]);
+    WriteBytes(dir / ("markers-" + std::to_string(k) + ".bin"), m[k]);
   }
-  // Foxglove's decoders, installed into the build folder once (the npm registry must be reachable).
-  const std::string modules = std::string(POSEFOREST_NPM_DIR);
-  if (!fs::exists(fs::path(modules) / "node_modules/@foxglove/rosmsg2-serialization")) {
-    auto npm = testing::RunCommand(
-        "mkdir -p " + modules + " && cd " + modules +
-        " && npm install --no-audit --no-fund --loglevel=error "
-        "@foxglove/rosmsg2-serialization@3 @foxglove/rosmsg-msgs-common@3 @foxglove/rosmsg@5");
-    INFO(npm.output);
-    REQUIRE(npm.exit_code == 0);
-  }
-  auto decode = testing::RunCommand("NODE_PATH=" + modules + "/node_modules node " +
-                                    std::string(POSEFOREST_SOURCE_DIR) + "/tests/runtime/ros2_decode.js " +
-                                    dir.string() + " " + (dir / "frames.jsonl").string() + " " +
-                                    std::string(POSEFOREST_SOURCE_DIR) + "/msg test_camera");
+  const auto decode = DecodeWithFoxglove(dir, dir / "frames.jsonl", "test_camera");
+  const std::string& decoded = decode.output;
+  INFO(decoded);
+  REQUIRE(decode.exit_code == 0);
+  CHECK_THAT(decoded, Catch::Contains("ok frames=9 people=9 joints=144"));
+  int points = 0;
+  const auto at = decoded.find("marker_points=");
+  REQUIRE(at != std::string::npos);
+  points = std::atoi(decoded.c_str() + at + 14);
+  CHECK(points > 0);
+}
+
+TEST_CASE("ROS 2 messages carry each joint's state; inferred joints are their own paler markers",
+          "[live][dds]") {
+  // Made by hand, one joint in each state (tracked, inferred, found not tracked, not found), and
+  // a second person with no inferred joint (so no inferred marker); encoded as `live --dds`
+  // publishes and checked by the same decoders against the JSON Lines record.
+  const auto dir = testing::ScratchDir("ros2-states");
+  runtime::Skeleton first = testing::FourStateSkeleton();
+  runtime::Skeleton second = testing::FourStateSkeleton();
+  second.id = 4;
+  second.joints[size_t(testing::kInferredJoint)].inferred = false;  // found, not tracked
+  const std::vector<runtime::Skeleton> people = {first, second};
+  const runtime::ros2::FrameStamp stamp{5, 1.25, "by hand", "test_camera"};
+  WriteBytes(dir / "skeletons-0.bin", runtime::ros2::EncodeSkeletons(stamp, people));
+  WriteBytes(dir / "markers-0.bin", runtime::ros2::EncodeMarkerArray(stamp, people));
+  std::ofstream(dir / "frames.jsonl")
+      << runtime::SkeletonsJsonLine(stamp.index, stamp.time_s, stamp.source, people) << "\n";
+  const auto decode = DecodeWithFoxglove(dir, dir / "frames.jsonl", "test_camera");
   INFO(decode.output);
   REQUIRE(decode.exit_code == 0);
-  CHECK_THAT(decode.output, Catch::Contains("ok frames=9 people=9 joints=144"));
-  int points = 0;
-  const auto at = decode.output.find("marker_points=");
-  REQUIRE(at != std::string::npos);
-  points = std::atoi(decode.output.c_str() + at + 14);
-  CHECK(points > 0);
+  // Two people: 2 tracked heads, 1 inferred knee; spheres: 2 heads + 1 inferred knee, no bones.
+  CHECK_THAT(decode.output,
+             Catch::Contains("ok frames=1 people=2 joints=32 marker_points=3 tracked=2 inferred=1"));
+
+  // The decoder reads the state: a message whose knee is not inferred disagrees with the record.
+  first.joints[size_t(testing::kInferredJoint)].inferred = false;
+  WriteBytes(dir / "skeletons-0.bin", runtime::ros2::EncodeSkeletons(stamp, {first, second}));
+  const auto wrong = DecodeWithFoxglove(dir, dir / "frames.jsonl", "test_camera");
+  INFO(wrong.output);
+  CHECK(wrong.exit_code != 0);
+  CHECK_THAT(wrong.output, Catch::Contains("L_knee: state 0 vs inferred"));
 }

@@ -9,6 +9,8 @@
 #include "runtime/core/forest_format.h"
 #include "runtime/proposal_tuning.h"
 #include "runtime/skeleton.h"
+#include "runtime/visualize.h"
+#include "tests/support/skeletons.h"
 #include "tests/support/synthetic.h"
 
 using namespace poseforest;
@@ -346,11 +348,91 @@ TEST_CASE("the JSON Lines record: one line, people, 16 named joints, null for jo
             "{\"index\":7,\"time_s\":0.250000,\"source\":\"a\\\"b\\\\c\\u000a\",\"people\":[{\"id\":3,", 0) ==
         0);
   CHECK(line.find("{\"name\":\"head\",\"position_m\":[0.1250,-0.5000,2.2500],\"pixel\":[330.5,100.2],"
-                  "\"confidence\":0.8750,\"tracked\":true}") != std::string::npos);
+                  "\"confidence\":0.8750,\"tracked\":true,\"state\":\"tracked\"}") != std::string::npos);
   CHECK(line.find("{\"name\":\"R_foot\",\"position_m\":null,\"pixel\":null,\"confidence\":0.0000,\"tracked\":"
-                  "false}]}]}") != std::string::npos);
+                  "false,\"state\":\"not_tracked\"}]}]}") != std::string::npos);
   CHECK(runtime::SkeletonsJsonLine(0, 0, "x", {}) ==
         "{\"index\":0,\"time_s\":0.000000,\"source\":\"x\",\"people\":[]}");
+}
+
+TEST_CASE("joint states: tracked, inferred, not tracked, in the JSON Lines record", "[skeleton]") {
+  using runtime::JointState;
+  const runtime::Skeleton s = testing::FourStateSkeleton();
+  CHECK(runtime::StateOf(s.joints[testing::kTrackedJoint]) == JointState::kTracked);
+  CHECK(runtime::StateOf(s.joints[testing::kInferredJoint]) == JointState::kInferred);
+  CHECK(runtime::StateOf(s.joints[testing::kFoundOnlyJoint]) == JointState::kNotTracked);
+  CHECK(runtime::StateOf(s.joints[testing::kNotFoundJoint]) == JointState::kNotTracked);
+  // Tracked wins over a stray `inferred`; `inferred` on a joint not found means nothing.
+  runtime::SkeletonJoint both = s.joints[testing::kTrackedJoint];
+  both.inferred = true;
+  CHECK(runtime::StateOf(both) == JointState::kTracked);
+  runtime::SkeletonJoint lost;
+  lost.inferred = true;
+  CHECK(runtime::StateOf(lost) == JointState::kNotTracked);
+  CHECK(runtime::JointStateName(JointState::kTracked) == "tracked");
+  CHECK(runtime::JointStateName(JointState::kInferred) == "inferred");
+  CHECK(runtime::JointStateName(JointState::kNotTracked) == "not_tracked");
+  // The numbers are the C API's PF_JOINT_* and the ROS 2 message's constants.
+  CHECK(int(JointState::kNotTracked) == 0);
+  CHECK(int(JointState::kInferred) == 1);
+  CHECK(int(JointState::kTracked) == 2);
+
+  const std::string line = runtime::SkeletonsJsonLine(1, 0.5, "hand", {s});
+  CHECK(line.find("{\"name\":\"head\",\"position_m\":[0.1250,-0.5000,2.2500],\"pixel\":[330.5,100.2],"
+                  "\"confidence\":0.8750,\"tracked\":true,\"state\":\"tracked\"}") != std::string::npos);
+  CHECK(line.find("{\"name\":\"L_knee\",\"position_m\":[0.0625,0.2500,2.8750],\"pixel\":[339.5,302.0],"
+                  "\"confidence\":0.7500,\"tracked\":false,\"state\":\"inferred\"}") != std::string::npos);
+  CHECK(line.find("{\"name\":\"R_elbow\",\"position_m\":[-0.2500,-0.1250,2.5000],\"pixel\":[259.0,215.0],"
+                  "\"confidence\":0.1250,\"tracked\":false,\"state\":\"not_tracked\"}") != std::string::npos);
+  CHECK(line.find("{\"name\":\"R_foot\",\"position_m\":null,\"pixel\":null,\"confidence\":0.0000,"
+                  "\"tracked\":false,\"state\":\"not_tracked\"}") != std::string::npos);
+  // Every joint says its state, once.
+  size_t states = 0;
+  for (size_t at = line.find("\"state\":"); at != std::string::npos; at = line.find("\"state\":", at + 1))
+    ++states;
+  CHECK(states == size_t(core::kNumJoints));
+}
+
+TEST_CASE("pictures: inferred joints are hollow circles with no bones, tracked ones discs", "[skeleton]") {
+  runtime::Skeleton s = testing::FourStateSkeleton();
+  // A tracked left shoulder: were the knee tracked, a bone would join them.
+  const int shoulder = int(core::Joint::kLShoulder);
+  s.joints[size_t(shoulder)] = s.joints[size_t(testing::kTrackedJoint)];
+  s.joints[size_t(shoulder)].pixel = Eigen::Vector2f(339.5f, 160.0f);
+  const Eigen::Vector2f knee = s.joints[size_t(testing::kInferredJoint)].pixel;
+  auto pixel = [](const runtime::RgbImage& img, float x, float y) {
+    const uint8_t* p = &img.rgb[(size_t(std::lround(y)) * size_t(img.width) + size_t(std::lround(x))) * 3];
+    return std::array<int, 3>{p[0], p[1], p[2]};
+  };
+  auto colour = [](int joint) {
+    const core::Rgb c = core::PartColour(core::JointParts(joint).front());
+    return std::array<int, 3>{c.r, c.g, c.b};
+  };
+  const std::array<int, 3> black{0, 0, 0};
+  runtime::RgbImage picture(640, 480, 0);
+  runtime::DrawSkeletons(picture, {s});
+  CHECK(pixel(picture, 330.5f, 100.25f) == colour(testing::kTrackedJoint));          // a disc
+  CHECK(pixel(picture, knee.x(), knee.y()) == black);                                // hollow ...
+  CHECK(pixel(picture, knee.x() + 4, knee.y()) == colour(testing::kInferredJoint));  // ... its rim
+  CHECK(pixel(picture, knee.x(), (knee.y() + 160.0f) / 2) == black);                 // no bone to it
+  CHECK(pixel(picture, 259.0f, 215.0f) == std::array<int, 3>{110, 110, 110});        // found, not tracked
+  // The same knee tracked: a disc, and the bone from the shoulder.
+  runtime::Skeleton t = s;
+  t.joints[size_t(testing::kInferredJoint)].inferred = false;
+  t.joints[size_t(testing::kInferredJoint)].tracked = true;
+  runtime::RgbImage tracked(640, 480, 0);
+  runtime::DrawSkeletons(tracked, {t});
+  CHECK(pixel(tracked, knee.x(), knee.y()) == colour(testing::kInferredJoint));
+  const core::Rgb person = runtime::PersonColour(s.id);
+  CHECK(pixel(tracked, knee.x(), (knee.y() + 160.0f) / 2) ==
+        std::array<int, 3>{person.r, person.g, person.b});
+  // live's whole figure draws them too (half size).
+  core::DepthImage depth(640, 480, 0);
+  for (int y = 50; y < 400; ++y)
+    for (int x = 200; x < 450; ++x) depth.at(x, y) = 2500;
+  const runtime::RgbImage fig = runtime::SkeletonFigure(depth, core::LabelImage(640, 480, 0), {s}, 2);
+  CHECK(fig.width == 3 * 320);
+  CHECK(fig.height == 240);
 }
 
 TEST_CASE("the kinematic fit is exact: dynamic programming equals brute force", "[skeleton][fit]") {
@@ -473,6 +555,13 @@ TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hid
       CHECK(s[0].joints[kLKnee].inferred);  // confident, hidden: placed by the body model
       CHECK_FALSE(s[0].joints[kLHand].inferred);  // tracked joints are not "inferred"
       CHECK_FALSE(s[0].joints[kHead].inferred);
+      CHECK(runtime::StateOf(s[0].joints[kLKnee]) == runtime::JointState::kInferred);
+      CHECK(runtime::StateOf(s[0].joints[kLHand]) == runtime::JointState::kTracked);
+      const std::string line = runtime::SkeletonsJsonLine(0, 0, "x", s);
+      const size_t knee = line.find("{\"name\":\"L_knee\"");
+      REQUIRE(knee != std::string::npos);
+      CHECK_THAT(line.substr(knee, line.find('}', knee) - knee + 1),
+                 Catch::EndsWith(",\"tracked\":false,\"state\":\"inferred\"}"));
       CHECK(s[0].joints[kLKnee].position_m.z() == Approx(2.4f));
       // Off the person: not used.
       CHECK_FALSE(s[0].joints[int(core::Joint::kRHand)].found);

@@ -69,6 +69,8 @@ py::list SkeletonsToPython(const std::vector<pf_skeleton>& skeletons) {
       joint["position_m"] = pj.found ? Xyz(pj.position_m, 3) : py::none();
       joint["pixel"] = pj.found ? Xyz(pj.pixel, 2) : py::none();
       joint["confidence"] = pj.confidence;
+      const char* state = pf_joint_state_name(pj.state);
+      joint["state"] = state ? state : "not_tracked";  // the library writes only the three
       joints.append(joint);
     }
     py::dict person;
@@ -169,10 +171,9 @@ PYBIND11_MODULE(_poseforest, m) {
           "3D joint proposals as a structured array (joint, position_m[3], pixel[2], confidence), grouped by "
           "joint in JOINT_NAMES order, most confident first.");
 
-  py::class_<SkeletonStream>(
-      m, "SkeletonStream",
-      "Per-person skeletons over a stream of depth frames (pf_skeleton_stream: "
-      "segmentation, ids, calibrated confidence, tracked state). One thread at a time.")
+  py::class_<SkeletonStream>(m, "SkeletonStream",
+                             "Per-person skeletons over a stream of depth frames (pf_skeleton_stream: "
+                             "segmentation, ids, calibrated confidence, joint states). One thread at a time.")
       .def(py::init([](const Forest& f, int threads) {
              auto s = std::make_unique<SkeletonStream>();
              poseforest::api::Check(pf_skeleton_stream_create(f.handle(), threads, &s->stream));
@@ -204,6 +205,7 @@ PYBIND11_MODULE(_poseforest, m) {
           py::arg("depth"), py::arg("timestamp_s"),
           "Runs one frame (uint16 (height, width) mm; seconds, not decreasing): a list of people, each a "
           "dict "
-          "id, pixels, centroid_m, joints (16 dicts: name, found, tracked, position_m, pixel, confidence; "
-          "position_m and pixel None when not found), ordered by id.");
+          "id, pixels, centroid_m, joints (16 dicts: name, found, tracked, position_m, pixel, confidence, "
+          "state; position_m and pixel None when not found; state 'tracked', 'inferred' (found, not "
+          "tracked: a hidden joint placed by the offset votes) or 'not_tracked'), ordered by id.");
 }

@@ -17,7 +17,7 @@
      pf_last_error_message is per thread.
    - Versioning: see poseforest/version.h (compile time) and pf_version() (run time). Until
      1.0 the ABI may change with each minor version; the shared library's SONAME carries
-     major.minor (libposeforest.so.0.3). Symbols are prefixed pf_ / PF_; nothing else is
+     major.minor (libposeforest.so.0.4). Symbols are prefixed pf_ / PF_; nothing else is
      exported. */
 #ifndef POSEFOREST_POSEFOREST_H_
 #define POSEFOREST_POSEFOREST_H_
@@ -78,7 +78,7 @@ typedef struct pf_joint_proposal {
 
 /** Version of the loaded library as POSEFOREST_VERSION_NUMBER encodes it (0x00MMmmpp). */
 PF_API uint32_t pf_version(void);
-/** Version of the loaded library, "0.3.0". Static storage. */
+/** Version of the loaded library, "0.4.0". Static storage. */
 PF_API const char* pf_version_string(void);
 /** Name of a status, "DataLoss" (as messages start), "Ok" for PF_OK, "Unknown" for other values.
     Static storage. */
@@ -151,6 +151,17 @@ PF_API pf_status pf_propose_joints(const pf_forest* forest, const uint16_t* dept
     the stream, as `poseforest live` (docs/runtime/live.md). */
 typedef struct pf_skeleton_stream pf_skeleton_stream;
 
+/** A joint's state, pf_skeleton_joint.state (the JSON Lines record and the ROS 2 message name the
+    same three). The values are stable (they are part of the ABI).
+    PF_JOINT_NOT_TRACKED: not found, or found but failing a tracking rule.
+    PF_JOINT_INFERRED: found, not tracked, but placed by a confident offset vote behind the
+      person's visible surface: a hidden joint the body model puts there (Azure Kinect Body
+      Tracking's "LOW: predicted"). Forests without offset votes never give it.
+    PF_JOINT_TRACKED: tracked == 1. */
+#define PF_JOINT_NOT_TRACKED 0
+#define PF_JOINT_INFERRED 1
+#define PF_JOINT_TRACKED 2
+
 /** One joint of a skeleton. */
 typedef struct pf_skeleton_joint {
   int32_t found;       /**< 1 if a proposal lies on the person (position_m and pixel are valid), else 0 */
@@ -158,7 +169,13 @@ typedef struct pf_skeleton_joint {
   float position_m[3]; /**< x right, y down, z forward; metres, camera frame; zeros when not found */
   float pixel[2];      /**< where position_m projects: x (column), y (row), pixels; zeros when not found */
   float confidence;    /**< 0..1: the forest's calibrated precision (or the fallback); 0 when not found */
+  int32_t state;       /**< PF_JOINT_TRACKED exactly when tracked == 1; PF_JOINT_INFERRED only when
+                            found == 1 and tracked == 0; else PF_JOINT_NOT_TRACKED (since 0.4) */
 } pf_skeleton_joint;
+
+/** Name of a joint state: "not_tracked", "inferred", "tracked" (the JSON Lines record's words),
+    NULL for any other value. Static storage. */
+PF_API const char* pf_joint_state_name(int32_t state);
 
 /** Number of joints in a pf_skeleton (the paper's 16, pf_joint_name order). */
 #define PF_SKELETON_JOINTS 16

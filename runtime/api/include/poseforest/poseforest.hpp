@@ -35,7 +35,7 @@ inline void Check(pf_status status) {
   if (status != PF_OK) throw Error(status, pf_last_error_message());
 }
 
-/// Version of the library loaded at run time ("0.3.0"); POSEFOREST_VERSION_STRING is the
+/// Version of the library loaded at run time ("0.4.0"); POSEFOREST_VERSION_STRING is the
 /// version of the headers.
 inline std::string Version() { return pf_version_string(); }
 

@@ -1,4 +1,4 @@
-#include "coordinator/monitoring/http_server.h"
+#include "proto/http/http_server.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -279,7 +279,7 @@ Result<SslCtxPtr> MakeServerContext(const std::string& cert_file, const std::str
   if (key_pem.text.find("ENCRYPTED") != std::string::npos)
     return Status(ErrorCode::kInvalidArgument,
                   key_what +
-                      ": encrypted with a passphrase, which the coordinator cannot ask for; give it "
+                      ": encrypted with a passphrase, which the server cannot ask for; give it "
                       "unencrypted (openssl pkey -in " +
                       key_file + " -out PLAIN.key; chmod 600 PLAIN.key)");
   BioPtr key_bio(BIO_new_mem_buf(key_pem.text.data(), int(key_pem.text.size())));
@@ -435,6 +435,24 @@ bool IsLoopbackAddress(const std::string& ipv4) {
   return ::inet_pton(AF_INET, ipv4.c_str(), &a) == 1 && (ntohl(a.s_addr) >> 24) == 127;
 }
 
+std::vector<std::string> HttpExposureWarnings(const HttpServerOptions& opt, const std::string& http,
+                                              const std::string& served, const std::string& exposed) {
+  std::vector<std::string> out;
+  if (IsLoopbackAddress(opt.address)) return out;
+  if (opt.bearer_token.empty())
+    out.push_back(
+        "warning: --http " + http + " serves " + served +
+        " to anyone who can reach this address, without authentication; give --http-token-file FILE "
+        "(docs/distributed/monitoring.md#access-control)");
+  else if (opt.tls_cert_file.empty())
+    out.push_back("warning: --http " + http +
+                  " with --http-token-file but without --http-tls-cert/--http-tls-key: the token and " +
+                  exposed +
+                  " cross the network in clear text; give a certificate and key "
+                  "(docs/distributed/monitoring.md#https)");
+  return out;
+}
+
 Result<std::string> ReadHttpTokenFile(const std::string& path) {
   const std::string what = "--http-token-file " + path;
   auto read = ReadCheckedFile(path, what, true, 4098, what + ": over 4096 bytes (a token, not a file)");
@@ -496,10 +514,11 @@ Status ParseHttpAddress(const std::string& text, HttpServerOptions* opt) {
   std::string host = text.substr(0, colon);
   const std::string port = text.substr(colon + 1);
   if (host == "localhost") host = "127.0.0.1";
+  if (host.empty()) host = "0.0.0.0";  // ":9101", as Prometheus exporters' listen addresses
   in_addr a{};
   if (::inet_pton(AF_INET, host.c_str(), &a) != 1)
     return Status(ErrorCode::kInvalidArgument,
-                  "--http " + text + ": host must be an IPv4 address or localhost");
+                  "--http " + text + ": host must be an IPv4 address, localhost or empty (every interface)");
   char* end = nullptr;
   errno = 0;
   const long p = port.empty() ? -1 : std::strtol(port.c_str(), &end, 10);

@@ -1,15 +1,19 @@
 #pragma once
-// The coordinator's HTTP status server (GET/HEAD only, one response per connection, "Connection:
-// close") on cpp-httplib (Debian libcpp-httplib-dev), and the matching client used by `poseforest
-// monitor` (httplib::Client / SSLClient). cpp-httplib parses the request, routes it to the handler
-// and writes the response; what it does not do is done around it, before a request reaches it
-// (http_server.cpp says why for each): connection caps (in all, and per peer address: 503), one
-// deadline for the whole exchange (slow clients: 408), bounded request heads (431), strict request
-// lines (400; other methods 405), the bearer token (`--http-token-file`: every request but
-// /healthz must carry it, "Authorization: Bearer TOKEN", or `?token=TOKEN` for the dashboard page
-// itself; others get 401, are counted and logged, rate-limited, with the peer address) and HTTPS
-// (`--http-tls-cert`, `--http-tls-key`; OpenSSL, TLS 1.2+): a failed handshake is counted and
-// logged, and plain HTTP sent to the TLS port gets a plain 400. docs/distributed/monitoring.md.
+// The HTTP status server of the services (GET/HEAD only, one response per connection, "Connection:
+// close") on cpp-httplib (Debian libcpp-httplib-dev): the coordinator's dashboard, /status.json and
+// /metrics (coordinator/monitoring/), the worker's /metrics (worker/worker_metrics.h); and the
+// matching client used by `poseforest monitor` (httplib::Client / SSLClient). Below both services
+// (a target of its own, poseforest::http, that neither the engine nor the DDS transport links), so
+// that they share it without including each other (docs/architecture.md). cpp-httplib parses the
+// request, routes it to the handler and writes the response; what it does not do is done around
+// it, before a request reaches it (http_server.cpp says why for each): connection caps (in all,
+// and per peer address: 503), one deadline for the whole exchange (slow clients: 408), bounded
+// request heads (431), strict request lines (400; other methods 405), the bearer token
+// (`--http-token-file`: every request but /healthz must carry it, "Authorization: Bearer TOKEN",
+// or `?token=TOKEN` for the dashboard page itself; others get 401, are counted and logged,
+// rate-limited, with the peer address) and HTTPS (`--http-tls-cert`, `--http-tls-key`; OpenSSL,
+// TLS 1.2+): a failed handshake is counted and logged, and plain HTTP sent to the TLS port gets a
+// plain 400. docs/distributed/monitoring.md.
 
 #include <atomic>
 #include <chrono>
@@ -19,6 +23,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "runtime/core/result.h"
 
@@ -86,8 +91,16 @@ bool IsLoopbackAddress(const std::string& ipv4);
 /// Equal strings, in time that depends only on the length of `given` (never on where they differ).
 bool ConstantTimeEquals(const std::string& given, const std::string& expected);
 
-/// "HOST:PORT" (HOST an IPv4 literal or "localhost", PORT 0..65535) into `opt`.
+/// "HOST:PORT" (HOST an IPv4 literal, "localhost", or empty for every interface, 0.0.0.0, as in
+/// ":9101"; PORT 0..65535) into `opt`. Errors name the flag: "--http TEXT: ...".
 core::Status ParseHttpAddress(const std::string& text, HttpServerOptions* opt);
+
+/// The start-up warnings a server on `opt` deserves (none on a loopback address): without a token,
+/// anyone who reaches it reads `served` ("the job's status, metrics and dashboard"); with a token
+/// but without TLS, the token and `exposed` ("the job's status") cross the network in clear text.
+/// Each line starts "warning: --http `http` ..."; the caller prefixes its name.
+std::vector<std::string> HttpExposureWarnings(const HttpServerOptions& opt, const std::string& http,
+                                              const std::string& served, const std::string& exposed);
 
 class HttpServer {
  public:
