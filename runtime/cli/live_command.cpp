@@ -133,9 +133,13 @@ es.onmessage = (e) => {
   n++;
   const dt = (performance.now() - t0) / 1000;
   if (dt > 0) document.getElementById('fps').textContent = (n / dt).toFixed(1);
-  const rows = f.people.map(p => '<tr class="person" data-id="' + p.id + '"><td>id ' + p.id + '</td><td>' +
-      p.joints.filter(j => j.tracked).length + ' joints tracked</td><td>' +
-      p.joints.filter(j => j.tracked).map(j => j.name).join(' ') + '</td></tr>');
+  const rows = f.people.map(p => {
+    const tracked = p.joints.filter(j => j.tracked), inferred = p.joints.filter(j => j.state === 'inferred');
+    return '<tr class="person" data-id="' + p.id + '"><td>id ' + p.id + '</td><td>' + tracked.length +
+        ' joints tracked' + (inferred.length ? ', ' + inferred.length + ' inferred' : '') + '</td><td>' +
+        tracked.map(j => j.name).join(' ') +
+        (inferred.length ? ' (inferred: ' + inferred.map(j => j.name).join(' ') + ')' : '') + '</td></tr>';
+  });
   document.getElementById('people').innerHTML = rows.join('');
 };
 </script></body></html>
