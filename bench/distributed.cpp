@@ -65,6 +65,31 @@
 //                   was busy, traffic), merge, waiting for subtree results and other, beside
 //                   the workers' subtree and rendering seconds. Above the last line: the
 //                   median wall ratio (service / engine; issue 13's goal: at most 1.10).
+//   --scale N,N,..  many workers on one machine (issue 24; docs/distributed/scaling.md): instead
+//                   of the runs above, the engine once (the reference forest) and then one service
+//                   run per N (1..64) worker processes, 1 thread each, subtree hand-off off unless
+//                   --subtree-max S is given (every level by histogram rounds: the coordinator's
+//                   cost per reply is what is measured). Oversubscribed on a small machine, so it
+//                   counts CPU seconds, not wall: per N and level the coordinator's CPU seconds
+//                   (CLOCK_PROCESS_CPUTIME_ID from the level's start to its end, all its threads)
+//                   and merge time, replies and heartbeats heard, control messages written and
+//                   bytes both ways, rounds; per N the workers' CPU (wait4) and peak RSS (each
+//                   worker's VmHWM), this process's peak RSS, and whether the forest is the
+//                   engine's, byte for byte. Then least-squares fits of the coordinator's CPU per
+//                   level on the runs with N <= 8 (1: a + b x replies; 1b: an intercept per level +
+//                   b x replies; 2: per level, per reply, per MB received, per dense cell searched,
+//                   per heartbeat), checked against the runs with N > 8, the byte law of
+//                   traffic_model.md checked the same way, fit 2's terms fitted on every N (fit 3),
+//                   and from fit 3 a projection to the paper's job (3 trees, depth 20, 300k images
+//                   per tree, 2000 x 50) on 10..1000 workers of 2 and 16 cores, with what would
+//                   lift the coordinator's limit (hand-off, a reduction tree, a sharded merge).
+//                   Workers get a 10 s liveliness lease and a 60 s heartbeat timeout (32 processes
+//                   on 2 cores must not be taken for lost); the coordinator waits for all N
+//                   (min_workers, up to 10 min). --csv writes the per-level rows (the columns of
+//                   the default mode's, then rounds, replies, node entries in them, heartbeats,
+//                   control messages, coordinator CPU). Last line: `coordinator CPU per reply:
+//                   <b> ms` (fit 1b's slope: what one more worker's reply costs the coordinator on
+//                   the same level).
 
 #include <fcntl.h>
 #include <signal.h>
@@ -76,9 +101,11 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -87,6 +114,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include <google/protobuf/text_format.h>
@@ -119,6 +147,23 @@ double CpuSeconds(int who) {
   return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
          1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
+
+double ProcessCpu() {
+  timespec ts{};
+  ::clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+/// This process's peak resident set (VmHWM), MB; reset by ResetPeakRss.
+double PeakRssMb() {
+  std::ifstream in("/proc/self/status");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;
+  return 0;
+}
+
+/// Starts a new peak-RSS window for this process (Linux: "5" to clear_refs resets VmHWM).
+void ResetPeakRss() { std::ofstream("/proc/self/clear_refs") << "5"; }
 
 /// Starts args[0] (looked up in PATH if `search_path`) with this process's environment; -1 if
 /// it cannot be started.
@@ -377,6 +422,8 @@ int WorkerProcess(int argc, char** argv) {
       o.job_id = argv[++i];
     else if (!std::strcmp(argv[i], "--id"))
       o.worker_id = argv[++i];
+    else if (!std::strcmp(argv[i], "--lease-ms"))
+      o.lease = std::chrono::milliseconds(std::atoi(argv[++i]));
   }
   o.threads = 1;
   o.exit_when_done = true;
@@ -388,6 +435,7 @@ int WorkerProcess(int argc, char** argv) {
     std::ofstream out(stats_path);
     for (const auto& [name, value] : CpuFields(w.cpu())) out << name << ' ' << value << '\n';
     out << "process_at_report " << CpuSeconds(RUSAGE_SELF) << '\n';
+    out << "peak_rss_mb " << PeakRssMb() << '\n';  // --scale (wait4's ru_maxrss holds the bench's peak)
   }
   return st.ok() ? 0 : 1;
 }
@@ -520,6 +568,896 @@ int NeighbourProcess(int argc, char** argv) {
   }
 }
 
+namespace {
+
+// ---- --scale: many worker processes on one machine, one job (issue 24) ----
+
+/// One level of one --scale run, as the coordinator saw it.
+struct ScaleLevel {
+  int workers = 0, tree = 0, level = 0;
+  size_t nodes = 0;
+  uint64_t samples = 0, evaluations = 0;
+  int rounds = 0;
+  uint64_t replies = 0;      ///< histogram replies accepted (every round of the level)
+  uint64_t reply_nodes = 0;  ///< node entries in them (ranges or histograms of one node from one worker)
+  uint64_t heartbeats = 0;   ///< workers' heartbeats accepted while the level ran
+  /// Control messages written: one request per round, one SplitDecisions, the SubtreeTasks
+  /// messages (dist_coordinator.cpp Round, ApplySplits, FlushTasks); each reaches every worker.
+  uint64_t sent = 0;
+  uint64_t bytes_received = 0, bytes_sent = 0;
+  double cpu_s = 0;    ///< coordinator process CPU from the level's start to its end (all threads)
+  double merge_s = 0;  ///< DistLevelStats::merge_seconds (wall: decode + sum + split choice)
+  double level_s = 0;
+  double mcells = 0;  ///< millions of dense histogram cells searched: n x K x B x min(31, samples per node)
+  int k = 0;          ///< candidates per node
+  int sweep = 0;      ///< which of the --repeat sweeps
+};
+
+/// The coordinator's CPU per level as fitted: per level, per reply, per MB received, per million
+/// dense cells searched (the split search). Tried first and dropped (docs/distributed/scaling.md):
+/// a term per node-candidate in the replies, which extrapolated from N <= 8 to 16 and 32 worse,
+/// and one per heartbeat heard, which the fits filled with what grows with N (heartbeats do:
+/// N x the level's wall time) at an impossible ~2 ms per 100-byte message.
+std::vector<double> CpuTerms(double replies, double bytes, double mcells) {
+  return {1.0, replies, bytes * 1e-6, mcells};
+}
+std::vector<double> CpuTerms(const ScaleLevel& r) {
+  return CpuTerms(double(r.replies), double(r.bytes_received), r.mcells);
+}
+constexpr size_t kTerms = 4;
+const char* const kTermNames[kTerms] = {"per level", "per reply", "per MB received", "per M dense cells"};
+
+/// Counts what the coordinator hears during each level and the CPU it spends then. Called on the
+/// coordinator's training thread (CoordinatorObserver).
+class ScaleObserver final : public dist::CoordinatorObserver {
+ public:
+  ScaleObserver(int workers, int candidates, int bins) : workers_(workers), k_(candidates), b_(bins) {}
+  void OnLevelStart(int, int, size_t, uint64_t) override {
+    cpu0_ = ProcessCpu();
+    replies_ = reply_nodes_ = heartbeats_ = 0;
+  }
+  void OnWorkerReply(const std::string&, uint64_t, const v1::HistogramReply& r) override {
+    ++replies_;
+    reply_nodes_ += uint64_t(std::max(r.ranges_size(), r.nodes_size()));
+  }
+  void OnWorkerHeartbeat(const std::string&, const v1::Heartbeat&) override { ++heartbeats_; }
+  void OnLevelDone(const dist::DistLevelStats& s) override {
+    ScaleLevel r;
+    r.workers = workers_, r.tree = s.tree, r.level = s.level, r.nodes = s.frontier_nodes;
+    r.samples = s.samples, r.evaluations = s.evaluations, r.rounds = s.rounds;
+    r.replies = replies_, r.reply_nodes = reply_nodes_, r.heartbeats = heartbeats_, r.k = k_;
+    r.sent = uint64_t(s.rounds) + 1 + s.subtree_task_messages;
+    r.bytes_received = s.bytes_received, r.bytes_sent = s.bytes_sent;
+    r.cpu_s = ProcessCpu() - cpu0_;
+    r.merge_s = s.merge_seconds, r.level_s = s.level_seconds;
+    const double per_node = s.frontier_nodes ? double(s.samples) / double(s.frontier_nodes) : 0;
+    r.mcells = double(s.frontier_nodes) * k_ * b_ * std::min(31.0, per_node) * 1e-6;
+    rows.push_back(r);
+  }
+  std::vector<ScaleLevel> rows;
+
+ private:
+  int workers_, k_, b_;
+  double cpu0_ = 0;
+  uint64_t replies_ = 0, reply_nodes_ = 0, heartbeats_ = 0;
+};
+
+/// One N of --scale.
+struct ScaleRun {
+  int workers = 0;
+  double wall = 0, load = 0;
+  double coordinator_cpu = 0, levels_cpu = 0, merge = 0, coordinator_rss_mb = 0;
+  double workers_cpu = 0, worker_cpu_max = 0, worker_rss_max_mb = 0, worker_rss_mean_mb = 0;
+  uint64_t evaluations = 0, replies = 0, heartbeats = 0, sent = 0, bytes_received = 0, bytes_sent = 0;
+  int rounds = 0, lost = 0, reaped = 0;
+  bool identical = false;
+  std::map<std::string, double> worker_cpu;  ///< CpuFields summed over the workers
+};
+
+/// y ~ sum_j c_j x_j (least squares) with every c_j >= 0: the best unconstrained fit over the
+/// subsets of the terms whose coefficients all come out >= 0 (a handful of terms: exhaustive).
+/// Columns are scaled to unit RMS before solving (cells and replies differ by orders of magnitude).
+std::vector<double> FitNonNegative(const std::vector<std::vector<double>>& x, const std::vector<double>& y) {
+  const size_t m = x.empty() ? 0 : x[0].size();
+  std::vector<double> best(m, 0.0);
+  double best_sse = 0;
+  for (double v : y) best_sse += v * v;
+  std::vector<double> scale(m, 0.0);
+  for (const auto& row : x)
+    for (size_t j = 0; j < m; ++j) scale[j] += row[j] * row[j];
+  for (double& s : scale) s = s > 0 ? std::sqrt(s / double(x.size())) : 1.0;
+  for (unsigned mask = 1; mask < (1u << m); ++mask) {
+    std::vector<size_t> cols;
+    for (size_t j = 0; j < m; ++j)
+      if (mask & (1u << j)) cols.push_back(j);
+    const size_t k = cols.size();
+    std::vector<std::vector<double>> a(k, std::vector<double>(k + 1, 0.0));  // normal equations
+    for (size_t i = 0; i < x.size(); ++i)
+      for (size_t p = 0; p < k; ++p) {
+        const double xp = x[i][cols[p]] / scale[cols[p]];
+        for (size_t q = 0; q < k; ++q) a[p][q] += xp * x[i][cols[q]] / scale[cols[q]];
+        a[p][k] += xp * y[i];
+      }
+    bool singular = false;
+    for (size_t p = 0; p < k && !singular; ++p) {
+      size_t piv = p;
+      for (size_t r = p + 1; r < k; ++r)
+        if (std::fabs(a[r][p]) > std::fabs(a[piv][p])) piv = r;
+      std::swap(a[p], a[piv]);
+      if (std::fabs(a[p][p]) < 1e-12) singular = true;
+      for (size_t r = 0; r < k && !singular; ++r)
+        if (r != p) {
+          const double f = a[r][p] / a[p][p];
+          for (size_t c = p; c <= k; ++c) a[r][c] -= f * a[p][c];
+        }
+    }
+    if (singular) continue;
+    std::vector<double> coef(m, 0.0);
+    bool negative = false;
+    for (size_t p = 0; p < k; ++p) {
+      coef[cols[p]] = a[p][k] / a[p][p] / scale[cols[p]];
+      negative = negative || coef[cols[p]] < 0;
+    }
+    if (negative) continue;
+    double sse = 0;
+    for (size_t i = 0; i < x.size(); ++i) {
+      double f = 0;
+      for (size_t j = 0; j < m; ++j) f += coef[j] * x[i][j];
+      sse += (f - y[i]) * (f - y[i]);
+    }
+    if (sse < best_sse) best_sse = sse, best = coef;
+  }
+  return best;
+}
+
+double Dot(const std::vector<double>& a, const std::vector<double>& b) {
+  double s = 0;
+  for (size_t i = 0; i < a.size() && i < b.size(); ++i) s += a[i] * b[i];
+  return s;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+std::string Human(double bytes) {
+  char buf[32];
+  const char* units[] = {"B", "kB", "MB", "GB", "TB", "PB"};
+  int u = 0;
+  while (bytes >= 1000 && u < 5) bytes /= 1000, ++u;
+  std::snprintf(buf, sizeof buf, u ? "%.3g %s" : "%.0f %s", bytes, units[u]);
+  return buf;
+}
+
+std::string Duration(double s) {
+  char buf[32];
+  if (s >= 86400)
+    std::snprintf(buf, sizeof buf, "%.3g d", s / 86400);
+  else if (s >= 3600)
+    std::snprintf(buf, sizeof buf, "%.3g h", s / 3600);
+  else if (s >= 60)
+    std::snprintf(buf, sizeof buf, "%.3g min", s / 60);
+  else
+    std::snprintf(buf, sizeof buf, "%.3g s", s);
+  return buf;
+}
+
+/// What the projection takes from the measurements.
+struct Measured {
+  std::vector<double> cpu_fit;  ///< seconds per CpuTerms term
+  double q_c = 0, q_e = 0;      ///< reply bytes per node, candidate and worker = q_c * s_w^q_e (capped)
+  double eval_rate = 0;         ///< evaluations per CPU-second of a worker's level work (one core)
+  /// CPU seconds a worker spends per node it answers in a round, whatever its samples there (it
+  /// draws the node's candidates and cuts, ranges and encodes every candidate): the fitted slope.
+  double per_node_entry = 0;
+  double sent_per_node_k = 0;  ///< control bytes per frontier node and candidate
+  double worker_base_mb = 0;   ///< peak RSS of a worker process (DDS, libraries) whose shard is small
+};
+
+/// The paper's job (Shotton et al. 2011, section 4; job.proto's defaults) and the cluster it would
+/// run on. Every figure not measured by this bench is here, named.
+struct PaperJob {
+  int trees = 3, depth = 20;
+  double images = 300000;  ///< per tree (3 trees: ~1M images)
+  double pixels = 2000;    ///< samples per image
+  double k = 2000;         ///< candidate features per node
+  double bins = 51;        ///< 50 thresholds + 1
+  double parts = 31;       ///< all present in every node (an upper bound: deep nodes hold fewer)
+  double batch_bytes = 64.0 * (1 << 20);  ///< CoordinatorOptions::max_batch_bytes (below histogram_memory_mb)
+  double round_latency_s = 0.5e-3;        ///< per request/reply round: LAN round trip and wake-ups
+  double nic_bytes_per_s = 1.25e9;        ///< the coordinator's 10 Gb/s link, which every reply crosses
+  /// Per image a worker holds 75.7 kB (compact frames + 13-byte samples, service.md "Memory"),
+  /// its compact frames twice (frame cache and SampleSet, 49.7 kB) and while routing a second copy
+  /// of the per-sample columns (26 kB).
+  double worker_bytes_per_image = 75.7e3 + 49.7e3 + 26e3;
+  double renderer_mb = 300;  ///< meshes, EGL (service.md: ~300 MB with 200 images)
+};
+
+/// One level of one tree of the paper's job on `w` workers of `cores` cores each; hand-off
+/// (nodes of at most `handoff` samples trained whole by one worker) when handoff > 0.
+struct ProjectedLevel {
+  double nodes = 0, samples_per_node = 0, rounds = 0, replies = 0, bytes = 0, sent = 0;
+  double coordinator = 0, compute = 0, network = 0, latency = 0, wall = 0;
+  std::vector<double> by_term =
+      std::vector<double>(kTerms, 0.0);  ///< the coordinator's seconds per CpuTerms term
+  double held_per_round = 0;             ///< reply bytes one merge holds at once (a round's)
+  double reply_per_worker = 0;           ///< bytes of one worker's reply in one round
+  bool handed_off = false, inside_subtree = false;
+};
+
+/// Where the level's histograms are summed: at the coordinator (the service today); through a
+/// reduction tree of fan-in 10 (workers sum their children's replies, the coordinator gets 10);
+/// or sharded over the workers (reduce-scatter: each worker sums 1/W of each round's nodes from
+/// every worker's slice and picks their splits, as LightGBM's data-parallel learner does).
+enum class MergeAt { kCoordinator, kTree, kSharded };
+constexpr double kTreeFanIn = 10;
+
+ProjectedLevel ProjectLevel(const PaperJob& j, const Measured& m, int d, double w, double cores,
+                            double handoff, MergeAt at = MergeAt::kCoordinator) {
+  ProjectedLevel p;
+  const double s_tree = j.images * j.pixels;
+  p.nodes = std::ldexp(1.0, d);
+  p.samples_per_node = s_tree / p.nodes;
+  const double s = p.samples_per_node;
+  // Every level evaluates every sample on every candidate, wherever it is trained; and every
+  // worker answers every node of the level's rounds twice (ranges, histograms) whatever its
+  // samples there (subtree levels: each node once, by one worker).
+  p.compute = s_tree * j.k / (w * cores * m.eval_rate);
+  const double node_work = m.per_node_entry / cores;
+  std::vector<double> t(kTerms, 0.0);
+  double hops = 1;  // merges one after the other (the reduction tree's depth)
+  if (handoff > 0 && s <= handoff) {
+    if (d > 0 && 2 * s <= handoff) {
+      p.inside_subtree = true;  // decided inside the subtree of an earlier level: no coordinator
+    } else {
+      // One SubtreeResult per node (tasks go a few per message): the per-reply cost, no merge.
+      p.handed_off = true;
+      p.replies = p.nodes;
+      p.compute += p.nodes / w * node_work;
+      t = CpuTerms(p.replies, 0, 0);
+      t[0] = 0;
+    }
+  } else {
+    const double slots = std::min(j.parts, s);
+    const bool sample_bins = s < 4 * j.bins * slots;  // worker::UseSampleBins
+    const double plan_bytes = sample_bins ? s * (j.k + 1) : j.k * j.bins * slots * 4;  // PlanHistogramBytes
+    const double per_batch = std::max(1.0, std::floor(j.batch_bytes / plan_bytes));
+    p.rounds = 2 * std::ceil(p.nodes / per_batch) + (d == 0 ? 1 : 0);  // ranges + histograms (+ census)
+    p.replies = w * p.rounds;
+    p.compute += 2 * p.nodes * node_work;
+    auto bytes_from = [&](double senders) {
+      const double s_w = s / senders;
+      return senders * p.nodes * j.k *
+             std::min({m.q_c * std::pow(s_w, m.q_e), 2 * j.bins * j.parts, 12 + 3 * s_w});
+    };
+    p.bytes = bytes_from(w);
+    p.sent = m.sent_per_node_k * p.nodes * j.k * w;  // written once, delivered to every worker
+    const double mcells = p.nodes * j.k * j.bins * slots * 1e-6;
+    // Every worker answers every round (no node is fused: its samples lie in frames of every
+    // worker), so replies = W x rounds.
+    // Requests go to every worker, one copy each (DDS over UDP writes to each reader's unicast
+    // locator), the replies come back: the coordinator's link carries the larger of the two.
+    if (at == MergeAt::kCoordinator) {
+      t = CpuTerms(p.replies, p.bytes, mcells);
+      p.network = std::max(p.bytes, p.sent) / j.nic_bytes_per_s;
+    } else if (at == MergeAt::kTree) {
+      // Each merge sums kTreeFanIn replies; the top one's replies each cover W / fan-in workers
+      // and carry the bytes of that many samples (sparse histograms of disjoint samples do not
+      // shrink when summed): the top merge costs what the coordinator pays with fan-in workers.
+      // The lower hops (in parallel within a hop, one hop after the other) cost at most as much.
+      const double f = std::min(kTreeFanIn, w);
+      hops = std::max(1.0, std::ceil(std::log(w) / std::log(kTreeFanIn) - 1e-9));
+      t = CpuTerms(f * p.rounds, bytes_from(f), mcells / hops);  // the split search once, at the top
+      p.network =
+          std::max(bytes_from(f), p.sent / w * f) / j.nic_bytes_per_s;  // requests relayed down the tree
+    } else {
+      // Each worker merges 1/W of the nodes: it gets a slice of every worker's reply, and the
+      // merged ranges go to every worker peer to peer (an all-gather): each link carries 1/W.
+      t = CpuTerms(p.replies, p.bytes / w, mcells / w);
+      p.network = std::max(p.bytes, p.sent) / w / j.nic_bytes_per_s;
+    }
+    p.latency = p.rounds * j.round_latency_s * hops;
+    p.held_per_round = t[2] * 1e6 / p.rounds;  // what one merge holds: a round's replies
+    p.reply_per_worker = p.bytes / w / p.rounds;
+  }
+  for (size_t i = 0; i < t.size(); ++i) p.by_term[i] = m.cpu_fit[i] * t[i] * hops;
+  p.coordinator = Dot(m.cpu_fit, t) * hops;
+  // Rounds are synchronous: the workers wait while the level's histograms are merged.
+  p.wall = p.compute + p.coordinator + p.network * hops + p.latency;
+  return p;
+}
+
+struct ProjectedJob {
+  double wall = 0, coordinator = 0, compute = 0, network = 0, latency = 0;
+  std::vector<double> by_term = std::vector<double>(kTerms, 0.0);
+  double bytes = 0, peak_level_bytes = 0, peak_level_sent = 0, sent = 0, rounds = 0, replies = 0;
+  int peak_level = 0;
+  double worker_peak = 0, coordinator_held = 0;  ///< bytes
+};
+
+ProjectedJob ProjectJob(const PaperJob& j, const Measured& m, double w, double cores, double handoff,
+                        MergeAt at = MergeAt::kCoordinator) {
+  ProjectedJob r;
+  double max_reply = 0;
+  for (int d = 0; d < j.depth; ++d) {
+    const ProjectedLevel p = ProjectLevel(j, m, d, w, cores, handoff, at);
+    r.wall += p.wall, r.coordinator += p.coordinator, r.compute += p.compute;
+    r.network += p.network, r.latency += p.latency;
+    for (size_t i = 0; i < r.by_term.size(); ++i) r.by_term[i] += p.by_term[i];
+    r.bytes += p.bytes, r.sent += p.sent, r.rounds += p.rounds, r.replies += p.replies;
+    if (p.bytes > r.peak_level_bytes) r.peak_level_bytes = p.bytes, r.peak_level = d;
+    r.peak_level_sent = std::max(r.peak_level_sent, p.sent);
+    r.coordinator_held = std::max(r.coordinator_held, p.held_per_round);
+    max_reply =
+        std::max(max_reply, p.reply_per_worker + (at == MergeAt::kCoordinator ? 0 : p.held_per_round));
+  }
+  for (double* v : {&r.wall, &r.coordinator, &r.compute, &r.network, &r.latency, &r.bytes, &r.sent, &r.rounds,
+                    &r.replies})
+    *v *= j.trees;
+  for (double& v : r.by_term) v *= j.trees;
+  // Trees one after the other: a worker holds one tree's shard at a time.
+  r.worker_peak = m.worker_base_mb * 1e6 + j.renderer_mb * 1e6 + j.images / w * j.worker_bytes_per_image +
+                  j.batch_bytes + max_reply;
+  return r;
+}
+
+void PrintProjection(const Measured& m) {
+  const PaperJob j;
+  std::printf(
+      "\nprojection: the paper's job (3 trees, depth 20, 300k images per tree = ~1M images, 2000 pixels per "
+      "image, 2000 candidates x 50 thresholds), hand-off off (every level by histogram rounds, as measured "
+      "here)\n");
+  std::printf(
+      "assumptions: %.3g evaluations per CPU-second per core and %.3f ms per node a worker answers in a "
+      "round (fitted here: the workers' level work), cores scale perfectly; coordinator CPU per level = fit "
+      "3 on one core; reply bytes = W x nodes x K x "
+      "%.3g x s_w^%.3f (fitted here, capped as traffic_model.md); %.0f MiB batches, all 31 parts in every "
+      "node (rounds = 2 x batches); %.1f ms per round; %.0f Gb/s into the coordinator; rounds synchronous "
+      "(workers wait while the coordinator merges); a worker holds "
+      "%.0f MB (measured: process, DDS) + %.0f MB renderer + %.0f kB per image of its shard + a batch + a "
+      "reply\n",
+      m.eval_rate, m.per_node_entry * 1e3, m.q_c, m.q_e, j.batch_bytes / (1 << 20), j.round_latency_s * 1e3,
+      j.nic_bytes_per_s * 8 / 1e9, m.worker_base_mb, j.renderer_mb, j.worker_bytes_per_image / 1e3);
+  std::printf("%8s %6s %10s %10s %10s %6s %10s %16s %16s %10s %10s %10s %10s %12s %12s\n", "workers", "cores",
+              "wall", "compute", "coord", "share", "network", "coord % by term", "peak level", "peak sent",
+              "job bytes", "rounds", "replies", "worker peak", "coord holds");
+  for (double cores : {2.0, 16.0})
+    for (double w : {10.0, 100.0, 1000.0}) {
+      const ProjectedJob r = ProjectJob(j, m, w, cores, 0);
+      char shares[64] = "";
+      for (size_t i = 1; i < r.by_term.size(); ++i) {
+        const size_t used = std::strlen(shares);
+        std::snprintf(shares + used, sizeof shares - used, "%s%.0f", i > 1 ? "/" : "",
+                      100 * r.by_term[i] / r.coordinator);
+      }
+      std::printf(
+          "%8.0f %6.0f %10s %10s %10s %5.0f%% %10s %16s %11s (%2d) %10s %10s %10.3g %10.3g %12s %12s\n", w,
+          cores, Duration(r.wall).c_str(), Duration(r.compute).c_str(), Duration(r.coordinator).c_str(),
+          100 * r.coordinator / r.wall, Duration(r.network).c_str(), shares,
+          Human(r.peak_level_bytes).c_str(), r.peak_level, Human(r.peak_level_sent).c_str(),
+          Human(r.bytes).c_str(), r.rounds, r.replies, Human(r.worker_peak).c_str(),
+          Human(r.coordinator_held).c_str());
+    }
+  std::printf(
+      "(wall = compute + coordinator + network + round latency, summed over levels; share: the "
+      "coordinator's CPU / wall; network: the coordinator's link, the larger direction per level; by term: "
+      "replies / MB / dense cells; \"peak level\": the largest level's reply bytes in one tree, its level in "
+      "brackets; \"peak sent\": the largest level's control bytes, every worker's copy; \"coord holds\": one "
+      "round's replies)\n");
+  std::printf(
+      "\nper level of one tree, 100 workers of 16 cores, hand-off off (bytes sent: every worker's "
+      "copy):\n%5s %8s "
+      "%12s %8s %10s %12s %10s %10s %10s %10s %10s\n",
+      "level", "nodes", "samples/node", "rounds", "replies", "bytes recv", "bytes sent", "compute", "coord",
+      "network", "wall");
+  for (int d = 0; d < j.depth; ++d) {
+    const ProjectedLevel p = ProjectLevel(j, m, d, 100, 16, 0);
+    std::printf("%5d %8.0f %12.3g %8.0f %10.3g %12s %10s %10s %10s %10s %10s\n", d, p.nodes,
+                p.samples_per_node, p.rounds, p.replies, Human(p.bytes).c_str(), Human(p.sent).c_str(),
+                Duration(p.compute).c_str(), Duration(p.coordinator).c_str(), Duration(p.network).c_str(),
+                Duration(p.wall).c_str());
+  }
+  // What would lift it: the same job with the histograms summed elsewhere, or fewer levels of
+  // histograms (hand-off; the frames the subtrees need, rendered or fetched, not counted).
+  struct Variant {
+    const char* name;
+    double handoff;
+    MergeAt at;
+  };
+  const Variant variants[] = {{"as is", 0, MergeAt::kCoordinator},
+                              {"hand-off 4096 (job default)", 4096, MergeAt::kCoordinator},
+                              {"hand-off 50000", 50000, MergeAt::kCoordinator},
+                              {"reduction tree, fan-in 10", 0, MergeAt::kTree},
+                              {"merge sharded over the workers", 0, MergeAt::kSharded},
+                              {"sharded + hand-off 4096", 4096, MergeAt::kSharded}};
+  std::printf(
+      "\nwhat would lift it: wall (share of the busiest merger's CPU; \"merger\": the coordinator, the top "
+      "of the tree, or each worker when sharded)\n%-32s",
+      "");
+  for (double cores : {2.0, 16.0})
+    for (double w : {10.0, 100.0, 1000.0}) std::printf(" %6.0f x %-2.0f      ", w, cores);
+  std::printf("\n");
+  for (const Variant& v : variants) {
+    std::printf("%-32s", v.name);
+    for (double cores : {2.0, 16.0})
+      for (double w : {10.0, 100.0, 1000.0}) {
+        const ProjectedJob r = ProjectJob(j, m, w, cores, v.handoff, v.at);
+        char cell[32];
+        std::snprintf(cell, sizeof cell, "%s (%.0f%%)", Duration(r.wall).c_str(),
+                      100 * r.coordinator / r.wall);
+        std::printf(" %-17s", cell);
+      }
+    std::printf("\n");
+  }
+  // Where the coordinator becomes the bottleneck: the worker count where it takes half the wall
+  // time, and the one where adding workers stops paying (lowest wall).
+  std::printf("\nwhere the merge becomes the bottleneck:\n");
+  for (const Variant& v : variants)
+    for (double cores : {2.0, 16.0}) {
+      double half = 0, best_w = 1, best_wall = 1e300;
+      for (double w = 1; w <= 100000; w = std::max(w + 1, std::round(w * 1.05))) {
+        const ProjectedJob r = ProjectJob(j, m, w, cores, v.handoff, v.at);
+        if (!half && r.coordinator >= 0.5 * r.wall) half = w;
+        if (r.wall < best_wall) best_wall = r.wall, best_w = w;
+      }
+      const ProjectedJob at = ProjectJob(j, m, best_w, cores, v.handoff, v.at);
+      const std::string lowest = best_w * 1.05 > 100000
+                                     ? std::string("still falling at 100000 workers")
+                                     : "lowest at " + std::to_string(int(best_w)) + " workers";
+      std::printf(
+          "  %-32s %2.0f cores per worker: merger CPU >= half the wall from %s workers; wall %s: %s (merger "
+          "%s of it)\n",
+          v.name, cores, half ? std::to_string(int(half)).c_str() : "(none up to 100000)", lowest.c_str(),
+          Duration(best_wall).c_str(), Duration(at.coordinator).c_str());
+    }
+}
+
+/// --scale: one service run per worker count, then the fits, their check and the projection.
+int Scale(const std::string& self, v1::TrainerConfig config, worker::TrainParams params,
+          const std::vector<int>& counts, int repeat, uint32_t domain, long long subtree_max,
+          bool sample_lists, const std::string& csv_path, const std::vector<uint8_t>& ref_bytes,
+          uint64_t engine_evaluations, double engine_cpu) {
+  const uint64_t sm = subtree_max > 0 ? uint64_t(subtree_max) : 0;
+  config.set_subtree_max_samples(sm);
+  params.subtree_max_samples = sm;
+  const int k = params.candidate_features, bins = params.thresholds_per_feature + 1;
+  std::vector<ScaleLevel> all_rows;  // every run's levels; `rows`: their medians over the repeats
+  std::vector<ScaleRun> all_runs;
+  std::printf(
+      "\nscale: one job, %zu worker counts x %d sweep(s), 1 thread per worker process, subtree hand-off %s; "
+      "coordinator CPU from the level's start to its end (all its threads), workers' CPU from wait4\n",
+      counts.size(), repeat, sm ? ("at <= " + std::to_string(sm) + " samples").c_str() : "off");
+  std::printf(
+      "(per level: rounds = request/reply rounds; replies = histogram replies received; hb = heartbeats "
+      "received; sent = control messages written, each delivered to all N workers; coord_ms = the "
+      "coordinator's CPU; merge_ms = its merge wall time)\n");
+  // Sweeps one after the other, so that a change in the machine's load falls on every N alike.
+  for (int sweep = 0; sweep < repeat; ++sweep)
+    for (size_t ci = 0; ci < counts.size(); ++ci) {
+      const int n = counts[ci];
+      const uint32_t dom = (domain + 1 + uint32_t(ci)) % 233;
+      const std::string job_id =
+          "scale-" + std::to_string(::getpid()) + "-" + std::to_string(n) + "-" + std::to_string(sweep);
+      ScaleRun run;
+      run.workers = n;
+      std::vector<pid_t> pids;
+      std::vector<std::string> stats_files;
+      const double t0 = dist::NowSeconds();
+      for (int i = 0; i < n; ++i) {
+        stats_files.push_back(
+            (std::filesystem::temp_directory_path() / (job_id + "-w" + std::to_string(i) + ".stats"))
+                .string());
+        const pid_t pid =
+            Spawn({self, "--worker-process", "--domain", std::to_string(dom), "--job", job_id, "--id",
+                   "scale-w" + std::to_string(i), "--stats", stats_files.back(), "--lease-ms", "10000"});
+        if (pid < 0) return std::fprintf(stderr, "distributed: cannot start a worker process\n"), 1;
+        pids.push_back(pid);
+      }
+      dist::CoordinatorOptions co;
+      co.domain = dom;
+      co.job_id = job_id;
+      co.min_workers = n;                                  // waits (polling DDS) until all n joined
+      co.worker_wait = std::chrono::milliseconds(600000);  // 32 processes on 2 cores discover slowly
+      co.lease = std::chrono::milliseconds(10000);
+      co.heartbeat_timeout = std::chrono::milliseconds(60000);
+      co.subtree_sample_lists = sample_lists;
+      co.merge_threads = std::max(1, int(std::thread::hardware_concurrency()) - n);
+      co.log = [](const std::string&) {};
+      ScaleObserver obs(n, k, bins);
+      co.observer = &obs;
+      ResetPeakRss();
+      const double c0 = ProcessCpu();
+      core::Result<core::Forest> forest = core::Status(core::ErrorCode::kInternal, "not run");
+      {
+        dist::DistCoordinator coord(config, params, co);
+        forest = coord.Train();
+        run.lost = coord.workers_lost();
+      }
+      run.coordinator_cpu = ProcessCpu() - c0;
+      run.coordinator_rss_mb = PeakRssMb();
+      // Workers leave on JOB_DONE: reap each, with its own CPU and peak RSS.
+      const double deadline = dist::NowSeconds() + 300;
+      std::vector<double> rss;
+      for (pid_t p : pids) {
+        int status = 0;
+        rusage ru{};
+        pid_t got = 0;
+        while ((got = ::wait4(p, &status, WNOHANG, &ru)) == 0) {
+          if (dist::NowSeconds() > deadline) {
+            ::kill(p, SIGKILL);
+            got = ::wait4(p, &status, 0, &ru);
+            break;
+          }
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+        if (got != p) continue;
+        run.reaped += WIFEXITED(status) && WEXITSTATUS(status) == 0;
+        // Not ru_maxrss: posix_spawn starts the child in this process's memory (vfork), and Linux
+        // keeps that memory's peak as the child's; each worker reports its own VmHWM instead.
+        const double cpu = double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+                           1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+        run.workers_cpu += cpu;
+        run.worker_cpu_max = std::max(run.worker_cpu_max, cpu);
+      }
+      run.wall = dist::NowSeconds() - t0;
+      run.load = LoadAverage();
+      for (const std::string& path : stats_files) {
+        std::map<std::string, double> one;
+        if (AddStats(path, &one)) {
+          rss.push_back(one["peak_rss_mb"]);
+          for (const auto& [key, value] : one) run.worker_cpu[key] += value;
+        }
+        std::filesystem::remove(path);
+      }
+      for (double r : rss)
+        run.worker_rss_max_mb = std::max(run.worker_rss_max_mb, r), run.worker_rss_mean_mb += r;
+      if (!rss.empty()) run.worker_rss_mean_mb /= double(rss.size());
+      if (!forest.ok())
+        return std::fprintf(stderr, "%d workers: %s\n", n, forest.status().ToString().c_str()), 1;
+      run.identical = core::SerializeForest(*forest) == ref_bytes;
+      for (const ScaleLevel& r : obs.rows) {
+        run.levels_cpu += r.cpu_s, run.merge += r.merge_s, run.evaluations += r.evaluations;
+        run.replies += r.replies, run.heartbeats += r.heartbeats, run.sent += r.sent, run.rounds += r.rounds;
+        run.bytes_received += r.bytes_received, run.bytes_sent += r.bytes_sent;
+      }
+      for (ScaleLevel& r : obs.rows) r.sweep = sweep;
+      std::printf(
+          "\nsweep %d: %d worker process(es): %.1f s wall (load average %.1f); coordinator %.3f CPU s "
+          "(levels %.3f, "
+          "outside them %.3f: start-up, discovery, shards, teardown), merge %.3f s, process peak RSS %.0f "
+          "MB; "
+          "workers "
+          "%.2f CPU s (mean %.3f, max %.3f per worker), peak RSS per worker max %.0f MB, mean %.0f MB; %d of "
+          "%d exited normally, %d lost; forest identical to the engine's: %s\n",
+          sweep + 1, n, run.wall, run.load, run.coordinator_cpu, run.levels_cpu,
+          run.coordinator_cpu - run.levels_cpu, run.merge, run.coordinator_rss_mb, run.workers_cpu,
+          run.workers_cpu / n, run.worker_cpu_max, run.worker_rss_max_mb, run.worker_rss_mean_mb, run.reaped,
+          n, run.lost, run.identical ? "yes" : "NO");
+      std::printf("  %4s %5s %6s %8s %6s %8s %6s %6s %14s %11s %9s %9s %8s\n", "tree", "level", "nodes",
+                  "samples", "rounds", "replies", "hb", "sent", "bytes_recv", "bytes_sent", "coord_ms",
+                  "merge_ms", "level_s");
+      for (const ScaleLevel& r : obs.rows)
+        std::printf("  %4d %5d %6zu %8llu %6d %8llu %6llu %6llu %14llu %11llu %9.1f %9.1f %8.3f\n", r.tree,
+                    r.level, r.nodes, (unsigned long long)r.samples, r.rounds, (unsigned long long)r.replies,
+                    (unsigned long long)r.heartbeats, (unsigned long long)r.sent,
+                    (unsigned long long)r.bytes_received, (unsigned long long)r.bytes_sent, r.cpu_s * 1e3,
+                    r.merge_s * 1e3, r.level_s);
+      std::fflush(stdout);
+      all_rows.insert(all_rows.end(), obs.rows.begin(), obs.rows.end());
+      all_runs.push_back(run);
+    }
+
+  // Medians over the sweeps: per (N, tree, level) the timed figures (the counts are the same in
+  // every sweep but the heartbeats'), per N the run's.
+  std::vector<ScaleLevel> rows;
+  {
+    std::map<std::tuple<int, int, int>, std::vector<const ScaleLevel*>> by;
+    for (const ScaleLevel& r : all_rows) by[{r.workers, r.tree, r.level}].push_back(&r);
+    for (const int n : counts)
+      for (const auto& [key, v] : by) {
+        if (std::get<0>(key) != n) continue;
+        ScaleLevel m = *v.front();
+        auto med = [&](double ScaleLevel::*f) {
+          std::vector<double> x;
+          for (const ScaleLevel* r : v) x.push_back(r->*f);
+          return Median(x);
+        };
+        m.cpu_s = med(&ScaleLevel::cpu_s), m.merge_s = med(&ScaleLevel::merge_s),
+        m.level_s = med(&ScaleLevel::level_s);
+        std::vector<double> hb;
+        for (const ScaleLevel* r : v) hb.push_back(double(r->heartbeats));
+        m.heartbeats = uint64_t(Median(hb));
+        rows.push_back(m);
+      }
+  }
+  std::vector<ScaleRun> runs;
+  for (const int n : counts) {
+    std::vector<const ScaleRun*> v;
+    for (const ScaleRun& r : all_runs)
+      if (r.workers == n) v.push_back(&r);
+    ScaleRun m = *v.front();
+    auto med = [&](double ScaleRun::*f) {
+      std::vector<double> x;
+      for (const ScaleRun* r : v) x.push_back(r->*f);
+      return Median(x);
+    };
+    for (double ScaleRun::*f :
+         {&ScaleRun::wall, &ScaleRun::load, &ScaleRun::coordinator_cpu, &ScaleRun::levels_cpu,
+          &ScaleRun::merge, &ScaleRun::coordinator_rss_mb, &ScaleRun::workers_cpu, &ScaleRun::worker_cpu_max,
+          &ScaleRun::worker_rss_max_mb, &ScaleRun::worker_rss_mean_mb})
+      m.*f = med(f);
+    for (const auto& [key, value] : m.worker_cpu) {
+      std::vector<double> x;
+      for (const ScaleRun* r : v) x.push_back(r->worker_cpu.count(key) ? r->worker_cpu.at(key) : 0.0);
+      m.worker_cpu[key] = Median(x);
+    }
+    for (const ScaleRun* r : v) m.identical = m.identical && r->identical, m.lost = std::max(m.lost, r->lost);
+    runs.push_back(m);
+  }
+
+  // Per N, side by side.
+  auto g = [](const ScaleRun& r, const char* key) {
+    return r.worker_cpu.count(key) ? r.worker_cpu.at(key) : 0.0;
+  };
+  std::printf("\nscale summary, medians over %d sweep(s) (engine, 1 thread: %.2f CPU s, %llu evaluations)\n",
+              repeat, engine_cpu, (unsigned long long)engine_evaluations);
+  std::printf("%4s %8s %9s %9s %8s %8s %7s %9s %9s %7s %10s %9s %9s %10s %8s %9s %9s\n", "N", "wall_s",
+              "coord_s", "levels_s", "merge_s", "replies", "rounds", "MB_recv", "MB_sent", "sent",
+              "workers_s", "start_s", "dds_s", "eval/cpu_s", "rss_MB", "coord_MB", "identical");
+  for (const ScaleRun& r : runs)
+    std::printf(
+        "%4d %8.1f %9.3f %9.3f %8.3f %8llu %7d %9.2f %9.3f %7llu %10.2f %9.2f %9.2f %10.3g %8.0f %9.0f %9s\n",
+        r.workers, r.wall, r.coordinator_cpu, r.levels_cpu, r.merge, (unsigned long long)r.replies, r.rounds,
+        double(r.bytes_received) / 1e6, double(r.bytes_sent) / 1e6, (unsigned long long)r.sent, r.workers_cpu,
+        g(r, "process_at_start") + g(r, "participant"), g(r, "other_threads"),
+        double(r.evaluations) /
+            std::max(1e-9, g(r, "level_compute") + g(r, "level_encode") + g(r, "decisions")),
+        r.worker_rss_max_mb, r.coordinator_rss_mb,
+        r.identical && r.evaluations == engine_evaluations ? "yes" : "NO");
+  std::printf(
+      "(coord_s: the coordinator's CPU over the run, levels_s: of it within levels; sent: control messages "
+      "written, each delivered to all N workers; workers_s: all worker processes' CPU, of which start_s "
+      "start-up and DDS participant, dds_s their DDS and heartbeat threads; eval/cpu_s: evaluations per "
+      "CPU-second of the workers' level work (ranges, histograms, replies, routing); rss_MB: the largest "
+      "worker's "
+      "peak RSS (VmHWM); coord_MB: this process's peak RSS during the run, which includes the engine's "
+      "freed heap, kept (KeepFreedMemory))\n");
+  // Per level across N: the coordinator's CPU ms, merge ms and MB received.
+  std::set<std::pair<int, int>> levels;
+  std::map<std::tuple<int, int, int>, const ScaleLevel*> at;
+  for (const ScaleLevel& r : rows) levels.insert({r.tree, r.level}), at[{r.workers, r.tree, r.level}] = &r;
+  for (int what = 0; what < 3; ++what) {
+    std::printf("\n%s per level (medians), N = ", what == 0   ? "coordinator CPU ms"
+                                                  : what == 1 ? "merge ms"
+                                                              : "MB received");
+    for (const ScaleRun& r : runs) std::printf("%d ", r.workers);
+    std::printf("\n%4s %5s", "tree", "level");
+    for (const ScaleRun& r : runs) std::printf(" %8d", r.workers);
+    std::printf("\n");
+    for (const auto& [t, l] : levels) {
+      std::printf("%4d %5d", t, l);
+      for (const ScaleRun& r : runs) {
+        const auto it = at.find({r.workers, t, l});
+        const ScaleLevel* s = it == at.end() ? nullptr : it->second;
+        std::printf(" %8.2f", !s          ? 0.0
+                              : what == 0 ? s->cpu_s * 1e3
+                              : what == 1 ? s->merge_s * 1e3
+                                          : double(s->bytes_received) / 1e6);
+      }
+      std::printf("\n");
+    }
+  }
+  if (!csv_path.empty()) {
+    std::ofstream csv(csv_path);
+    csv << "workers,tree,level,nodes,split,samples,evaluations,bytes_received,bytes_sent,merge_s,level_s,"
+           "candidates,bins,images_per_tree,pixels_per_image,rounds,replies,reply_nodes,heartbeats,sent,"
+           "coordinator_cpu_s,sweep\n";
+    for (const ScaleLevel& r : all_rows)
+      csv << r.workers << ',' << r.tree << ',' << r.level << ',' << r.nodes << ",0," << r.samples << ','
+          << r.evaluations << ',' << r.bytes_received << ',' << r.bytes_sent << ',' << r.merge_s << ','
+          << r.level_s << ',' << k << ',' << bins << ',' << config.images_per_tree() << ','
+          << config.pixels_per_image() << ',' << r.rounds << ',' << r.replies << ',' << r.reply_nodes << ','
+          << r.heartbeats << ',' << r.sent << ',' << r.cpu_s << ',' << r.sweep << '\n';
+    std::printf("\nwrote %zu per-level rows (every sweep) to %s\n", all_rows.size(), csv_path.c_str());
+  }
+
+  // Fits on N <= 8, checked on N > 8.
+  std::vector<const ScaleLevel*> fit_rows, check_rows;
+  for (const ScaleLevel& r : rows) (r.workers <= 8 ? fit_rows : check_rows).push_back(&r);
+  if (fit_rows.size() < 4) return std::printf("scale: fewer than 4 levels with N <= 8: no fit\n"), 1;
+  std::vector<std::vector<double>> x1, x2;
+  std::vector<double> y, ym;
+  for (const ScaleLevel* r : fit_rows) {
+    x1.push_back({1.0, double(r->replies)});
+    x2.push_back(CpuTerms(*r));
+    y.push_back(r->cpu_s);
+    ym.push_back(r->merge_s);
+  }
+  const std::vector<std::vector<double>>& xm = x2;
+  const std::vector<double> f1 = FitNonNegative(x1, y), f2 = FitNonNegative(x2, y),
+                            fm = FitNonNegative(xm, ym);
+  // Fit 1b: what one more reply costs the coordinator, level by level: cpu = a_level + b x replies
+  // with an intercept per (tree, level) (every N trains the same forest, so the same levels) and
+  // one slope: the level's own work (nodes, split search) drops out, what grows with the workers
+  // stays.
+  std::map<std::pair<int, int>, std::pair<double, double>> level_mean;  // (tree, level) -> mean replies, cpu
+  std::map<std::pair<int, int>, int> level_n;
+  for (const ScaleLevel* r : fit_rows) {
+    auto& mean = level_mean[{r->tree, r->level}];
+    mean.first += double(r->replies), mean.second += r->cpu_s, ++level_n[{r->tree, r->level}];
+  }
+  for (auto& [key, mean] : level_mean) mean.first /= level_n[key], mean.second /= level_n[key];
+  double sxy = 0, sxx = 0;
+  for (const ScaleLevel* r : fit_rows) {
+    const auto& mean = level_mean[{r->tree, r->level}];
+    sxy += (double(r->replies) - mean.first) * (r->cpu_s - mean.second);
+    sxx += (double(r->replies) - mean.first) * (double(r->replies) - mean.first);
+  }
+  const double per_reply = sxx > 0 ? sxy / sxx : 0;
+  auto fit1b = [&](const ScaleLevel& r) {
+    const auto it = level_mean.find({r.tree, r.level});
+    return it == level_mean.end() ? 0.0
+                                  : it->second.second + per_reply * (double(r.replies) - it->second.first);
+  };
+  auto print_fit = [](const char* what, const std::vector<double>& f) {
+    std::printf("  %s =", what);
+    for (size_t i = 0; i < f.size(); ++i)
+      std::printf("%s %.4g ms %s", i ? " +" : "", f[i] * 1e3, kTermNames[i]);
+    std::printf("\n");
+  };
+  std::printf(
+      "\nfits on the %zu levels of N <= 8 (least squares, coefficients >= 0; a term left at 0 did not "
+      "help):\n",
+      fit_rows.size());
+  std::printf("  fit 1: coordinator CPU per level = %.3f ms + %.4f ms per reply\n", f1[0] * 1e3, f1[1] * 1e3);
+  std::printf("  fit 1b: coordinator CPU per level = its own intercept (%zu levels) + %.4f ms per reply\n",
+              level_mean.size(), per_reply * 1e3);
+  print_fit("fit 2: coordinator CPU per level", f2);
+  print_fit("merge: merge time per level", fm);
+  // Fit 3, for the projection: fit 2's terms on every N. Checked above, fit 2 over-predicts the
+  // larger N (the CPU per MB falls as replies get smaller: 7.4 ms per MB at 1 worker, 5.0 at
+  // 32 on the scale job); the paper's replies (0.3-2 MB each) are the size of N = 16-32's here.
+  std::vector<std::vector<double>> x3;
+  std::vector<double> y3;
+  for (const ScaleLevel& r : rows) x3.push_back(CpuTerms(r)), y3.push_back(r.cpu_s);
+  const std::vector<double> f3 = FitNonNegative(x3, y3);
+  print_fit("fit 3 (every N, for the projection): coordinator CPU per level", f3);
+  // Bytes: traffic_model.md's law, bytes = W x n x K x c x s_w^e, fitted the same way (log-log).
+  double c_q = 0, e_q = 0;
+  {
+    std::vector<double> lx, ly;
+    for (const ScaleLevel* r : fit_rows)
+      if (r->bytes_received > 0 && r->nodes > 0) {
+        const double wnk = double(r->workers) * double(r->nodes) * k;
+        lx.push_back(std::log(double(r->samples) / double(r->nodes) / r->workers));
+        ly.push_back(std::log(double(r->bytes_received) / wnk));
+      }
+    double mx = 0, my = 0, sxx = 0, sxy = 0;
+    for (size_t i = 0; i < lx.size(); ++i) mx += lx[i], my += ly[i];
+    mx /= double(lx.size()), my /= double(lx.size());
+    for (size_t i = 0; i < lx.size(); ++i)
+      sxx += (lx[i] - mx) * (lx[i] - mx), sxy += (lx[i] - mx) * (ly[i] - my);
+    e_q = sxx > 0 ? sxy / sxx : 0;
+    c_q = std::exp(my - e_q * mx);
+  }
+  auto q_bytes = [&](const ScaleLevel& r, double c, double e) {
+    const double s_w = double(r.samples) / double(r.nodes) / r.workers;
+    return double(r.workers) * double(r.nodes) * k *
+           std::min({c * std::pow(s_w, e), 2.0 * bins * 31, 12 + 3 * s_w});
+  };
+  std::printf(
+      "  bytes: reply bytes per level = W x nodes x K x %.3g x s_w^%.3f (traffic_model.md's law, fitted "
+      "here; its own fit on 1-2 workers: 5.99 x s_w^0.377)\n",
+      c_q, e_q);
+  if (check_rows.empty()) {
+    std::printf("no runs with N > 8: nothing to check the fits against\n");
+  } else {
+    std::printf("\ncheck on N > 8 (the fits above never saw these runs): per N, summed over the levels\n");
+    std::printf("%4s %10s %9s %6s %9s %6s %9s %6s %8s %9s %6s %9s %9s %6s %10s %6s\n", "N", "cpu meas s",
+                "fit 1 s", "err", "fit 1b s", "err", "fit 2 s", "err", "merge s", "merge fit", "err",
+                "MB meas", "MB law", "err", "MB 1-2 law", "err");
+    for (const ScaleRun& run : runs) {
+      if (run.workers <= 8) continue;
+      double cpu = 0, p1 = 0, p1b = 0, p2 = 0, mg = 0, pm = 0, mb = 0, pb = 0, pb12 = 0;
+      for (const ScaleLevel* r : check_rows) {
+        if (r->workers != run.workers) continue;
+        const std::vector<double> t = CpuTerms(*r);
+        cpu += r->cpu_s, p1 += f1[0] + f1[1] * double(r->replies), p1b += fit1b(*r), p2 += Dot(f2, t);
+        mg += r->merge_s, pm += Dot(fm, t);
+        mb += double(r->bytes_received), pb += q_bytes(*r, c_q, e_q), pb12 += q_bytes(*r, 5.99, 0.377);
+      }
+      std::printf(
+          "%4d %10.3f %9.3f %5.0f%% %9.3f %5.0f%% %9.3f %5.0f%% %8.3f %9.3f %5.0f%% %9.1f %9.1f %5.0f%% "
+          "%10.1f "
+          "%5.0f%%\n",
+          run.workers, cpu, p1, 100 * (p1 / cpu - 1), p1b, 100 * (p1b / cpu - 1), p2, 100 * (p2 / cpu - 1),
+          mg, pm, 100 * (pm / mg - 1), mb / 1e6, pb / 1e6, 100 * (pb / mb - 1), pb12 / 1e6,
+          100 * (pb12 / mb - 1));
+    }
+    std::printf(
+        "\nper level at N > 8: coordinator CPU ms measured, fit 1, fit 1b, fit 2\n%4s %4s %5s %8s %8s %10s "
+        "%9s "
+        "%9s %9s\n",
+        "N", "tree", "level", "replies", "MB", "measured", "fit 1", "fit 1b", "fit 2");
+    std::vector<double> e1, e1b, e2;
+    for (const ScaleLevel* r : check_rows) {
+      const double a = f1[0] + f1[1] * double(r->replies), ab = fit1b(*r);
+      const double b = Dot(f2, CpuTerms(*r));
+      if (r->cpu_s > 0)
+        e1.push_back(std::fabs(a / r->cpu_s - 1)), e1b.push_back(std::fabs(ab / r->cpu_s - 1)),
+            e2.push_back(std::fabs(b / r->cpu_s - 1));
+      std::printf("%4d %4d %5d %8llu %8.2f %10.2f %9.2f %9.2f %9.2f\n", r->workers, r->tree, r->level,
+                  (unsigned long long)r->replies, double(r->bytes_received) / 1e6, r->cpu_s * 1e3, a * 1e3,
+                  ab * 1e3, b * 1e3);
+    }
+    std::printf("median |error| per level at N > 8: fit 1 %.0f %%, fit 1b %.0f %%, fit 2 %.0f %%\n",
+                100 * Median(e1), 100 * Median(e1b), 100 * Median(e2));
+  }
+  {
+    std::printf("fit 3 (fitted on every N), summed over the levels, predicted / measured - 1:");
+    for (const ScaleRun& run : runs) {
+      double cpu = 0, p3 = 0;
+      for (const ScaleLevel& r : rows)
+        if (r.workers == run.workers) cpu += r.cpu_s, p3 += Dot(f3, CpuTerms(r));
+      std::printf(" N = %d %+.0f %%;", run.workers, 100 * (p3 / cpu - 1));
+    }
+    std::printf("\n");
+  }
+
+  // The projection's measured inputs.
+  Measured m;
+  m.cpu_fit = f3;
+  m.q_c = c_q, m.q_e = e_q;
+  {
+    // The workers' level work (ranges, histograms, replies, routing; all workers) against N x the
+    // node entries each worker answered: the intercept is the evaluations' own cost (the same job
+    // at every N), the slope what each worker pays per node whatever its samples there.
+    std::vector<std::vector<double>> xw;
+    std::vector<double> yw;
+    for (const ScaleRun& r : runs) {
+      double entries = 0;  // node entries one worker answered, every level
+      for (const ScaleLevel& l : rows)
+        if (l.workers == r.workers) entries += double(l.reply_nodes) / r.workers;
+      xw.push_back({1.0, double(r.workers) * entries});
+      yw.push_back(g(r, "level_compute") + g(r, "level_encode") + g(r, "decisions"));
+    }
+    const std::vector<double> fw = FitNonNegative(xw, yw);
+    m.eval_rate = fw[0] > 0 ? double(engine_evaluations) / fw[0] : double(engine_evaluations) / engine_cpu;
+    m.per_node_entry = fw[1];
+    std::printf("\nworkers' level work (ranges, histograms, replies, routing; all workers), CPU s:");
+    for (size_t i = 0; i < runs.size(); ++i)
+      std::printf(" N = %d %.2f (fit %.2f);", runs[i].workers, yw[i], Dot(fw, xw[i]));
+    std::printf(
+        "\n  = %.2f s (the evaluations: %.3g per CPU-second) + %.3f ms per node entry per worker "
+        "(%.0f entries per worker); the engine, 1 thread, whole run: %.3g evaluations per CPU-second\n",
+        fw[0], m.eval_rate, fw[1] * 1e3, xw.front()[1] / std::max(1, runs.front().workers),
+        double(engine_evaluations) / engine_cpu);
+    // Control bytes per node and candidate (the histogram requests' ranges), from the levels
+    // with rounds of runs with more than one worker (with one, every node is answered fused).
+    std::vector<double> per;
+    for (const ScaleLevel& r : rows)
+      if (r.nodes && r.rounds && r.workers > 1) per.push_back(double(r.bytes_sent) / (double(r.nodes) * k));
+    m.sent_per_node_k = Median(per);
+    // The smallest mean worker peak measured (it includes this job's shard and a batch of
+    // histograms; it grows with N here: shared-memory segments per peer).
+    m.worker_base_mb = runs.front().worker_rss_mean_mb;
+    for (const ScaleRun& r : runs) m.worker_base_mb = std::min(m.worker_base_mb, r.worker_rss_mean_mb);
+  }
+  PrintProjection(m);
+
+  bool ok = true;
+  for (const ScaleRun& r : runs) ok = ok && r.identical && r.evaluations == engine_evaluations && r.lost == 0;
+  if (!ok)
+    std::printf(
+        "WARNING: a run's forest or evaluation count differs from the engine's, or a worker was lost\n");
+  std::printf("coordinator CPU per reply: %.4f ms\n", per_reply * 1e3);
+  return ok ? 0 : 1;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
   if (argc > 2 && !std::strcmp(argv[1], "--neighbour")) return NeighbourProcess(argc, argv);
@@ -536,6 +1474,7 @@ int main(int argc, char** argv) {
   uint32_t domain = 1 + uint32_t(::getpid()) % 200;
   long long subtree_max = -1;
   std::vector<int> worker_counts = {1, 2};
+  std::vector<int> scale_counts;  // --scale
   bool skip_off = false;
   int repeat = 1;
   bool engine_only = false, sample_lists = true;
@@ -552,6 +1491,14 @@ int main(int argc, char** argv) {
         const int n = std::atoi(item.c_str());
         if (n < 1 || n > 16) return std::fprintf(stderr, "distributed: --workers wants counts 1..16\n"), 2;
         worker_counts.push_back(n);
+      }
+    } else if (!std::strcmp(argv[i], "--scale") && i + 1 < argc) {
+      for (std::stringstream ss(argv[++i]); ss.good();) {
+        std::string item;
+        std::getline(ss, item, ',');
+        const int n = std::atoi(item.c_str());
+        if (n < 1 || n > 64) return std::fprintf(stderr, "distributed: --scale wants counts 1..64\n"), 2;
+        scale_counts.push_back(n);
       }
     } else if (!std::strcmp(argv[i], "--commands-only")) {
       commands_only = true;
@@ -582,7 +1529,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] "
                    "[--workers N,N] [--skip-off] [--repeat R] [--engine-only] [--no-sample-lists] "
-                   "[--neighbour-test R] [--poseforest PATH] [--commands-only [--keep-logs DIR]]\n");
+                   "[--neighbour-test R] [--poseforest PATH] [--commands-only [--keep-logs DIR]] "
+                   "[--scale N,N,...]\n");
       return std::strcmp(argv[i], "--help") ? 2 : 0;
     } else {
       std::ifstream in(argv[i]);
@@ -598,6 +1546,7 @@ int main(int argc, char** argv) {
   auto params = worker::ParamsFromConfig(*config, "bench job");
   if (!params.ok()) return std::fprintf(stderr, "%s\n", params.status().ToString().c_str()), 1;
   params->threads = 1;
+  const bool subtree_max_given = subtree_max >= 0;  // --scale: hand-off only when asked for
   if (subtree_max < 0) subtree_max = (long long)params->subtree_max_samples;
   std::printf("job: %s\n", worker::DescribeParams(*params).c_str());
   std::printf(
@@ -654,6 +1603,13 @@ int main(int argc, char** argv) {
     return 0;
   };
   if (int rc = run_engine(engine, 1, true); rc != 0) return rc;
+  if (!scale_counts.empty()) {
+    std::error_code ec;
+    const std::string self = std::filesystem::read_symlink("/proc/self/exe", ec).string();
+    if (ec) return std::fprintf(stderr, "distributed: cannot find /proc/self/exe\n"), 1;
+    return Scale(self, *config, *params, scale_counts, repeat, domain, subtree_max_given ? subtree_max : 0,
+                 sample_lists, csv_path, ref_bytes, engine.evaluations, engine.cpu);
+  }
   // The engine on as many cores as each worker count (the headline's comparison).
   std::map<int, RunFigures> engines;  // threads -> figures
   engines[1] = engine;
