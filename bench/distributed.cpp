@@ -382,18 +382,9 @@ int CommandsOnly(const std::string& job_path_in, const std::string& text, const 
 /// A worker's CPU breakdown as (name, value) pairs: what a worker process writes to its
 /// --stats file, summed over the workers of a run by the bench.
 std::vector<std::pair<std::string, double>> CpuFields(const dist::WorkerCpu& c) {
-  return {{"process_at_start", c.process_at_start},
-          {"participant", c.participant},
-          {"receive", c.receive},
-          {"shard", c.shard},
-          {"decisions", c.decisions},
-          {"level_compute", c.level_compute},
-          {"level_encode", c.level_encode},
-          {"subtree_render", c.subtree_render},
-          {"subtree_route", c.subtree_route},
-          {"subtree_train", c.subtree_train},
-          {"subtree_encode", c.subtree_encode},
-          {"publish", c.publish},
+  std::vector<std::pair<std::string, double>> out = {{"process_at_start", c.process_at_start}};
+  for (const auto& [name, seconds] : c.NamedPhases()) out.emplace_back(name, seconds);
+  std::vector<std::pair<std::string, double>> rest = {
           {"run_total", c.run_total},
           {"other_threads", c.run_total - c.Phases()},
           {"shard_frames", double(c.shard_frames)},
@@ -404,6 +395,8 @@ std::vector<std::pair<std::string, double>> CpuFields(const dist::WorkerCpu& c) 
           {"rounds_in_batches", double(c.rounds_in_batches)},
           {"task_cache_peak_bytes", double(c.task_cache_peak_bytes)},
           {"task_cache_evictions", double(c.task_cache_evictions)}};
+  out.insert(out.end(), rest.begin(), rest.end());
+  return out;
 }
 
 /// A worker process: this program with --worker-process.

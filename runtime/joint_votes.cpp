@@ -135,12 +135,6 @@ PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& tabl
 
 }  // namespace
 
-PersonVotes VoteCandidatesFromPixels(const core::Forest& forest, const core::OffsetVotes& table,
-                                     const core::DepthImage& depth, const std::vector<uint32_t>& pixels,
-                                     const core::CameraIntrinsics& camera, const VoteOptions& options) {
-  return Candidates(forest, table, depth, pixels, nullptr, camera, options);
-}
-
 std::vector<PersonVotes> CastVotes(const core::Forest& forest, const core::DepthImage& depth,
                                    const core::LabelImage& masks, int num_people,
                                    const core::CameraIntrinsics& camera, const VoteOptions& options,

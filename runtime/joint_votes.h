@@ -55,10 +55,4 @@ std::vector<PersonVotes> CastVotes(const core::Forest& forest, const core::Depth
                                    const core::CameraIntrinsics& camera, const VoteOptions& options = {},
                                    const Classification* classification = nullptr);
 
-/// The same for one set of pixels (raster indices, depth > 0) of one person, with the table's
-/// confidence left at 0 when `votes` has no calibration. Used by CastVotes and by `learn-votes`.
-PersonVotes VoteCandidatesFromPixels(const core::Forest& forest, const core::OffsetVotes& votes,
-                                     const core::DepthImage& depth, const std::vector<uint32_t>& pixels,
-                                     const core::CameraIntrinsics& camera, const VoteOptions& options);
-
 }  // namespace poseforest::runtime

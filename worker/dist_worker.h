@@ -100,10 +100,26 @@ struct WorkerCpu {
   uint64_t rounds_in_batches = 0;   ///< times a subtree task or batch stopped to answer queued rounds
   uint64_t task_cache_peak_bytes = 0;  ///< most bytes the task-frame cache held
   uint64_t task_cache_evictions = 0;   ///< frames dropped from it to stay under its cap
-  /// The main thread's phases above (not process_at_start / run_total).
+  /// The main thread's phases above (not process_at_start / run_total), named, in order: what the
+  /// bench's stats file and the worker's /metrics list.
+  std::array<std::pair<const char*, double>, 11> NamedPhases() const {
+    return {{{"participant", participant},
+             {"receive", receive},
+             {"shard", shard},
+             {"decisions", decisions},
+             {"level_compute", level_compute},
+             {"level_encode", level_encode},
+             {"subtree_render", subtree_render},
+             {"subtree_route", subtree_route},
+             {"subtree_train", subtree_train},
+             {"subtree_encode", subtree_encode},
+             {"publish", publish}}};
+  }
+  /// Their sum.
   double Phases() const {
-    return participant + receive + shard + decisions + level_compute + level_encode + subtree_render +
-           subtree_route + subtree_train + subtree_encode + publish;
+    double sum = 0;
+    for (const auto& [name, seconds] : NamedPhases()) sum += seconds;
+    return sum;
   }
 };
 

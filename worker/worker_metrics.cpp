@@ -103,20 +103,8 @@ std::string WorkerPrometheus(const WorkerStats& s) {
          "Bytes of messages taken off DDS and queued for the training thread now.",
          {{"", double(s.inbox_bytes)}});
 
-  const WorkerCpu& c = s.cpu;
-  const std::pair<const char*, double> phases[] = {{"participant", c.participant},
-                                                   {"receive", c.receive},
-                                                   {"shard", c.shard},
-                                                   {"decisions", c.decisions},
-                                                   {"level_compute", c.level_compute},
-                                                   {"level_encode", c.level_encode},
-                                                   {"subtree_render", c.subtree_render},
-                                                   {"subtree_route", c.subtree_route},
-                                                   {"subtree_train", c.subtree_train},
-                                                   {"subtree_encode", c.subtree_encode},
-                                                   {"publish", c.publish}};
   Samples cpu;
-  for (const auto& [phase, seconds] : phases) cpu.push_back({L("phase", phase), seconds});
+  for (const auto& [phase, seconds] : s.cpu.NamedPhases()) cpu.push_back({L("phase", phase), seconds});
   family("poseforest_worker_cpu_seconds_total", "counter",
          "CPU seconds of the training thread (and the frame-loading threads it starts) by phase, counted as "
          "each "
