@@ -482,6 +482,7 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker
           mask.pixels[k] = has_mask ? (frame->person_masks.pixels[k] == 1) : (frame->depth.pixels[k] ? 1 : 0);
         runtime::SkeletonOptions so;
         so.fit = options.skeleton_fit;
+        so.agree_radius_m = options.agree_radius_m;
         // The forest's offset votes (format 1.5), when it has them and they are not turned off.
         std::vector<runtime::PersonVotes> votes;
         if (options.votes && classifier.forest().offset_votes)

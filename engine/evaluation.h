@@ -102,6 +102,7 @@ struct JointEvalOptions {
   bool votes = true;
   /// How the skeleton (the `skeleton accuracy` table) picks its joints (runtime::SkeletonFit).
   runtime::SkeletonFit skeleton_fit = runtime::SkeletonFit::kGreedy;
+  float agree_radius_m = runtime::SkeletonOptions{}.agree_radius_m;  ///< SkeletonOptions::agree_radius_m
   bool fast = true;         ///< also the fast clustering
   bool upper_bound = true;  ///< also mean shift on the ground-truth parts
   /// Proposal parameters of mean shift (and the upper bound) and of the fast clustering; unset =

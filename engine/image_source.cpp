@@ -121,9 +121,21 @@ Result<std::shared_ptr<const std::vector<renderer::Pose>>> SharedPoses(const Sou
 
 Result<std::shared_ptr<const std::vector<renderer::BodyMesh>>> SharedMakeHumanBodies(const SourceSpec& spec) {
   static AssetCache<std::vector<renderer::BodyMesh>> cache;
+  renderer::MakeHumanBodyOptions options;
+  options.sampled_bodies = spec.makehuman_sampled_bodies;
+  options.seed = spec.makehuman_body_seed;
+  options.clothed_share = spec.makehuman_clothed_share;
+  options.clothes_dir = spec.makehuman_clothes;
+  std::string key = FileKey(spec.makehuman_kit);
+  if (options.sampled_bodies > 0 || options.clothed_share > 0) {  // presets alone keep their key
+    char tail[96];
+    std::snprintf(tail, sizeof tail, "|%d|%llu|%.17g|", options.sampled_bodies,
+                  static_cast<unsigned long long>(options.seed), options.clothed_share);
+    key += tail + (options.clothed_share > 0 ? FileKey(spec.makehuman_clothes) : std::string());
+  }
   return cache.Get(
-      FileKey(spec.makehuman_kit), [&]() -> Result<std::shared_ptr<const std::vector<renderer::BodyMesh>>> {
-        auto bodies = renderer::MakeHumanPresetBodies(spec.makehuman_kit);
+      key, [&]() -> Result<std::shared_ptr<const std::vector<renderer::BodyMesh>>> {
+        auto bodies = renderer::MakeHumanBodies(spec.makehuman_kit, options);
         if (!bodies.ok()) return bodies.status();
         return std::make_shared<const std::vector<renderer::BodyMesh>>(std::move(bodies).value());
       });
@@ -166,6 +178,21 @@ Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
   scene->framing.upper_body_min_distance_m = spec.upper_body_min_distance_m;
   scene->framing.upper_body_max_distance_m = spec.upper_body_max_distance_m;
   scene->arm_pose_share = spec.arm_pose_share;
+  {
+    // The sensor's noise model (Kinect v1: the classic one), at the render camera's focal length:
+    // frames stay Kinect v1-sized (SourceSpec width/height), whatever the sensor.
+    const renderer::DepthSensor sensor =
+        spec.sensor == DepthSensor::kKinectV2          ? renderer::DepthSensor::kKinectV2
+        : spec.sensor == DepthSensor::kAzureKinectNfov ? renderer::DepthSensor::kAzureKinectNfov
+                                                       : renderer::DepthSensor::kKinectV1;
+    const bool enabled = scene->noise.enabled;
+    scene->noise = renderer::SensorNoise(sensor).noise;
+    scene->noise.enabled = enabled;
+    scene->noise.focal_px = scene->camera.fx;
+    if (spec.flying_pixels) scene->noise.flying_pixels = *spec.flying_pixels;
+    if (spec.range_holes) scene->noise.range_dropout = *spec.range_holes;
+    if (spec.grazing_holes) scene->noise.grazing_dropout = *spec.grazing_holes;
+  }
   scene->noise.projector_shadow = spec.projector_shadow;
   scene->noise.min_range_m = spec.min_range_m;
   if (!spec.pose_library.empty()) {

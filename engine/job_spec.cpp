@@ -108,6 +108,42 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
         spec.min_range_m = r.has_min_range_m() ? r.min_range_m() : defaults.min_range_m;
         if (!std::isfinite(spec.min_range_m) || spec.min_range_m < 0 || spec.min_range_m > 2)
           return Bad(source, field + ".rendered.min_range_m", Str(spec.min_range_m), "must be in 0..2 m");
+        switch (r.sensor()) {  // the depth camera's artefacts (fields 25-28)
+          case v1::DEPTH_SENSOR_UNSPECIFIED:
+          case v1::DEPTH_SENSOR_KINECT_V1:
+            spec.sensor = DepthSensor::kKinectV1;
+            break;
+          case v1::DEPTH_SENSOR_KINECT_V2:
+            spec.sensor = DepthSensor::kKinectV2;
+            break;
+          case v1::DEPTH_SENSOR_AZURE_KINECT_NFOV:
+            spec.sensor = DepthSensor::kAzureKinectNfov;
+            break;
+          default:
+            return Bad(source, field + ".rendered.sensor", Str(int(r.sensor())), "unknown depth sensor");
+        }
+        // Kinect v2 and Azure Kinect NFOV unbinned both read from 0.5 m (renderer::SensorNoise).
+        if (spec.sensor != DepthSensor::kKinectV1 && !r.has_min_range_m()) spec.min_range_m = 0.5;
+        auto optional_share = [&](bool has, double v, const char* name,
+                                  std::optional<double>* out) -> Status {
+          if (!has) return Status::Ok();  // the sensor's value
+          if (!std::isfinite(v) || v < 0 || v > 1)
+            return Bad(source, field + ".rendered." + name, Str(v), "must be in 0..1");
+          *out = v;
+          return Status::Ok();
+        };
+        if (auto st = optional_share(r.has_flying_pixels(), r.flying_pixels(), "flying_pixels",
+                                     &spec.flying_pixels);
+            !st.ok())
+          return st;
+        if (auto st =
+                optional_share(r.has_range_holes(), r.range_holes(), "range_holes", &spec.range_holes);
+            !st.ok())
+          return st;
+        if (auto st = optional_share(r.has_grazing_holes(), r.grazing_holes(), "grazing_holes",
+                                     &spec.grazing_holes);
+            !st.ok())
+          return st;
       }
       spec.width = 640;
       spec.height = 480;
@@ -168,6 +204,43 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
         if (!loaded.ok())
           return Bad(source, name, "\"" + mesh + "\"", "cannot be a body: " + loaded.message());
         spec.body_meshes.push_back(mesh);
+      }
+      {  // More MakeHuman bodies (fields 21-24): each needs the kit.
+        const SourceSpec defaults;
+        spec.makehuman_sampled_bodies =
+            r.has_makehuman_sampled_bodies() ? int(std::min<uint32_t>(r.makehuman_sampled_bodies(), 1u << 30))
+                                             : defaults.makehuman_sampled_bodies;
+        spec.makehuman_body_seed = r.has_makehuman_body_seed() ? r.makehuman_body_seed() : defaults.makehuman_body_seed;
+        spec.makehuman_clothed_share =
+            r.has_makehuman_clothed_share() ? r.makehuman_clothed_share() : defaults.makehuman_clothed_share;
+        if (spec.makehuman_sampled_bodies > 2000)
+          return Bad(source, field + ".rendered.makehuman_sampled_bodies", Str(r.makehuman_sampled_bodies()),
+                     "must be in 0..2000");
+        if (!std::isfinite(spec.makehuman_clothed_share) || spec.makehuman_clothed_share < 0 ||
+            spec.makehuman_clothed_share > 1)
+          return Bad(source, field + ".rendered.makehuman_clothed_share", Str(spec.makehuman_clothed_share),
+                     "must be in 0..1");
+        const char* needs_kit = nullptr;
+        if (spec.makehuman_sampled_bodies > 0) needs_kit = "makehuman_sampled_bodies";
+        if (spec.makehuman_clothed_share > 0) needs_kit = "makehuman_clothed_share";
+        if (!r.makehuman_clothes().empty()) needs_kit = "makehuman_clothes";
+        if (needs_kit && spec.makehuman_kit.empty())
+          return Bad(source, field + ".rendered." + needs_kit, "",
+                     "needs MakeHuman bodies: set makehuman_kit (the hm08 kit folder, e.g. "
+                     "<data>/meshes/makehuman_hm08_kit)");
+        if (!r.makehuman_clothes().empty() && spec.makehuman_clothed_share == 0)
+          return Bad(source, field + ".rendered.makehuman_clothes", "\"" + r.makehuman_clothes() + "\"",
+                     "is unused: set makehuman_clothed_share (the share of bodies dressed) too");
+        if (spec.makehuman_clothed_share > 0) {
+          fs::path kit = fs::path(spec.makehuman_kit).lexically_normal();
+          if (!kit.has_filename()) kit = kit.parent_path();  // ".../makehuman_hm08_kit/"
+          spec.makehuman_clothes = r.makehuman_clothes().empty() ? (kit.parent_path() / "makehuman_clothes").string()
+                                                                 : r.makehuman_clothes();
+          if (!fs::is_directory(spec.makehuman_clothes, ec))
+            return Bad(source, field + ".rendered.makehuman_clothes", "\"" + spec.makehuman_clothes + "\"",
+                       std::string(r.makehuman_clothes().empty() ? "(the default, beside makehuman_kit): " : "") +
+                           "no such folder (expected MakeHuman .mhclo clothes, e.g. <data>/meshes/makehuman_clothes)");
+        }
       }
       spec.procedural_bodies = r.has_procedural_bodies() ? r.procedural_bodies() : true;
       if (!spec.procedural_bodies && spec.makehuman_kit.empty() && spec.body_meshes.empty())
@@ -322,6 +395,7 @@ void ResolveJobPaths(const std::string& job_path, v1::TrainerConfig* config) {
     v1::RenderedSource* r = src->mutable_rendered();
     if (r->has_pose_library()) fix(r->mutable_pose_library());
     if (r->has_makehuman_kit()) fix(r->mutable_makehuman_kit());
+    if (r->has_makehuman_clothes()) fix(r->mutable_makehuman_clothes());
     for (std::string& mesh : *r->mutable_body_meshes()) fix(&mesh);
   }
 }
@@ -342,7 +416,15 @@ std::string DescribeBodies(const SourceSpec& spec) {
   if (spec.makehuman_kit.empty() && spec.body_meshes.empty()) return "";
   std::string bodies;
   auto add = [&](const std::string& b) { bodies += (bodies.empty() ? "" : " + ") + b; };
-  if (!spec.makehuman_kit.empty()) add("MakeHuman");
+  if (!spec.makehuman_kit.empty()) {
+    std::string mh = "MakeHuman";
+    if (spec.makehuman_sampled_bodies > 0) mh += " (18 presets + " + Str(spec.makehuman_sampled_bodies) + " sampled";
+    if (spec.makehuman_clothed_share > 0)
+      mh += std::string(spec.makehuman_sampled_bodies > 0 ? ", " : " (") + Str(spec.makehuman_clothed_share) +
+            " clothed";
+    if (spec.makehuman_sampled_bodies > 0 || spec.makehuman_clothed_share > 0) mh += ")";
+    add(mh);
+  }
   for (const std::string& m : spec.body_meshes) add("mesh " + std::filesystem::path(m).filename().string());
   if (spec.procedural_bodies) add("procedural");
   return bodies;

@@ -4,6 +4,7 @@
 // validation live here (not in the coordinator) because workers receive the same config.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,9 @@ enum class SourceKind { kRendered, kDataset, kProcedural };
 /// Clips of a pose library a rendered source draws poses from (poseforest.v1.ClipSet).
 enum class ClipSet { kAll, kTrain, kTest };
 
+/// The depth camera a rendered source models (poseforest.v1.DepthSensor).
+enum class DepthSensor { kKinectV1, kKinectV2, kAzureKinectNfov };
+
 /// Where labelled frames come from (poseforest.v1.ImageSource with defaults applied).
 struct SourceSpec {
   SourceKind kind = SourceKind::kProcedural;
@@ -37,6 +41,15 @@ struct SourceSpec {
   double arm_pose_share = 0.5;
   bool projector_shadow = true;
   double min_range_m = 0.45;
+  /// rendered: the depth camera's artefacts (job.proto fields 25-28). Unset: the sensor's value
+  /// (renderer/scene.h SensorNoise; Kinect v1: 0, the classic model). Shares in [0, 1].
+  DepthSensor sensor = DepthSensor::kKinectV1;
+  /// Share of depth-edge pixels read as mixed pixels.
+  std::optional<double> flying_pixels;
+  /// Dropout probability at 4 m, growing as z^2.
+  std::optional<double> range_holes;
+  /// Dropout probability on surfaces seen edge-on.
+  std::optional<double> grazing_holes;
   int width = 640, height = 480;    ///< rendered / procedural: pixels
   std::string folder;               ///< dataset
   uint32_t first_index = 0;         ///< dataset: first file index
@@ -50,6 +63,13 @@ struct SourceSpec {
   uint64_t split_seed = 0;        ///< rendered: seed of the clip split
   std::string makehuman_kit;      ///< rendered: MakeHuman hm08 kit folder ("" = none)
   bool procedural_bodies = true;  ///< rendered: the procedural body family
+  /// rendered, with makehuman_kit (job.proto fields 21-24): continuously sampled MakeHuman bodies
+  /// after the presets, the seed of their shapes and outfits, the share of MakeHuman bodies
+  /// dressed, and the clothes folder (resolved: set whenever makehuman_clothed_share > 0).
+  int makehuman_sampled_bodies = 0;
+  uint64_t makehuman_body_seed = 1;
+  double makehuman_clothed_share = 0.0;
+  std::string makehuman_clothes;
   /// rendered: rigged mesh files (glTF, FBX, ... through Assimp) used as bodies after the
   /// MakeHuman presets, in this order (the order is part of the job: body i of a scene). Paths
   /// as pose_library; ParamsFromConfig has loaded each once (PreloadBodyMesh), so they are known good.

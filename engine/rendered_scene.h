@@ -12,7 +12,9 @@ namespace poseforest::worker {
 
 /// Fills `scene` from a rendered `spec`: yaw range, 1..max_people people, the noise switch,
 /// distances (m), the pose library's selected poses, and the bodies: the procedural family when
-/// spec.procedural_bodies, then the 18 MakeHuman presets, then spec.body_meshes in job order.
+/// spec.procedural_bodies, then the 18 MakeHuman presets (and spec.makehuman_sampled_bodies
+/// sampled ones, a share of them clothed: renderer::MakeHumanBodies), then spec.body_meshes in
+/// job order.
 /// Poses and bodies are loaded once per process (cached by file path, size and modification
 /// time) and copied from there. Errors are the loaders', naming the file.
 core::Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene);

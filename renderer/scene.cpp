@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <numbers>
 #include <vector>
 
 #include "runtime/core/rng.h"
@@ -73,10 +74,100 @@ void ApplyProjectorShadow(const NoiseConfig& noise, core::DepthImage* depth, cor
   }
 }
 
+namespace {
+
+/// Probability `p` (clamped to [0, 1]) as a threshold on 16 random bits.
+uint32_t Threshold16(double p) { return uint32_t(std::clamp(p, 0.0, 1.0) * 65536.0); }
+
+/// The depth gradient (mm per pixel) at centre `d` from its two neighbours along one axis, on
+/// the same surface only: a neighbour within `jump` mm, or both neighbours on one slanted line
+/// (their second difference within `jump`: a steep plane steps more than `jump` per pixel).
+double SurfaceSlope(int before, int d, int after, int jump) {
+  const bool b = before != 0 && std::abs(before - d) <= jump, a = after != 0 && std::abs(after - d) <= jump;
+  if ((a && b) || (before != 0 && after != 0 && std::abs((after - d) - (d - before)) <= jump))
+    return 0.5 * double(after - before);
+  if (a) return double(after - d);
+  if (b) return double(d - before);
+  return 0.0;
+}
+
+}  // namespace
+
+const char* DepthSensorName(DepthSensor sensor) {
+  switch (sensor) {
+    case DepthSensor::kKinectV2:
+      return "kinect-v2";
+    case DepthSensor::kAzureKinectNfov:
+      return "azure-nfov";
+    case DepthSensor::kKinectV1:
+      break;
+  }
+  return "kinect-v1";
+}
+
+bool ParseDepthSensor(const std::string& name, DepthSensor* sensor) {
+  for (DepthSensor s : {DepthSensor::kKinectV1, DepthSensor::kKinectV2, DepthSensor::kAzureKinectNfov}) {
+    if (name == DepthSensorName(s)) {
+      *sensor = s;
+      return true;
+    }
+  }
+  return false;
+}
+
+SensorPreset SensorNoise(DepthSensor sensor) {
+  SensorPreset p;  // Kinect v1: CameraIntrinsics::KinectV1() and the classic noise model
+  if (sensor == DepthSensor::kKinectV1) return p;
+  NoiseConfig& n = p.noise;
+  n.principle = DepthPrinciple::kTimeOfFlight;
+  n.projector_shadow = false;  // ToF lights the scene from (almost) the camera's own position
+  // Axial noise: Fankhauser et al., "Kinect v2 for mobile robot navigation: evaluation and
+  // modeling" (ICAR 2015) fit sigma_z = 1.5 - 0.5 z + 0.3 z^2 mm (z in m) on surfaces facing the
+  // camera: 1.3 mm at 1 m, 1.7 mm at 2 m, 4.3 mm at 4 m (their angle term is left to
+  // grazing_dropout). Used for the Azure Kinect too: Microsoft's depth-camera page bounds its
+  // random error by sigma <= 17 mm, and Toelgyessy et al. (Sensors 2021, "Evaluation of the Azure
+  // Kinect and its comparison to Kinect v1 and Kinect v2") find it within that and no noisier
+  // than the Kinect v2; we know no fitted sigma(z) of its own.
+  n.tof_sigma_mm[0] = 1.5, n.tof_sigma_mm[1] = -0.5, n.tof_sigma_mm[2] = 0.3;
+  // Flying pixels are the ToF artefact at edges (pmdtec's FAQ "flying pixel": the reading of a
+  // pixel on an object's corner lies between object and background; Sarbolandi et al., "Kinect
+  // range sensing: structured-light versus time-of-flight Kinect", CVIU 2015, see far more mixed
+  // pixels on the Kinect v2 than on the Kinect v1). The shares below are NOT measured: half of
+  // the edge pixels mixed, and the edge dropout of structured light (its correlation window
+  // loses edges) cut to 0.1, are our guesses for "strong flying pixels, few edge holes".
+  n.flying_pixels = 0.5;
+  n.edge_dropout = 0.1;
+  // Holes: returned light falls as cos(theta) / z^2, so dark and far or edge-on surfaces give
+  // no reading. Guesses again (no published per-pixel rates): 2 % at 4 m, and up to 50 % on
+  // surfaces seen edge-on, from 60 deg (Nguyen, Izadi and Lovell 2012 and Fankhauser et al.
+  // 2015 both find the axial noise flat up to ~60 deg and rising steeply toward 90 deg).
+  n.range_dropout = 0.02;
+  n.grazing_dropout = 0.5;
+  if (sensor == DepthSensor::kKinectV2) {
+    // 512x424 depth; f = 365.5 px: factory calibrations read through libfreenect2 / the SDK's
+    // coordinate mapper give fx = fy ~ 365.2-365.6 (e.g. 365.456); the nominal 70.6 x 60 deg
+    // field of view gives 361.6 x 367.2. Operating range 0.5-4.5 m.
+    p.camera = {512, 424, 365.5, 365.5, 255.5, 211.5};
+    n.min_range_m = 0.5;
+  } else {
+    // Azure Kinect NFOV unbinned: 640x576 (k4a_depth_mode_t K4A_DEPTH_MODE_NFOV_UNBINNED). The
+    // factory calibration stores the depth camera's focal length normalized by the 1024 px
+    // sensor: ~0.492 (Azure-Kinect-Sensor-SDK issue #1488 prints one), 0.492 * 1024 = 504 px in
+    // NFOV unbinned. (runtime/camera_model's nominal azure-nfov, from the 75 x 65 deg FOV of the
+    // hexagonal mask, is 417 x 452 px.) Operating range 0.5-3.86 m (Microsoft's depth-camera page).
+    p.camera = {640, 576, 504.0, 504.0, 319.5, 287.5};
+    n.min_range_m = 0.5;
+  }
+  n.focal_px = p.camera.fx;
+  return p;
+}
+
 void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* depth,
-                      core::LabelImage* labels) {
+                      core::LabelImage* labels, core::LabelImage* people) {
   if (!noise.enabled) return;
   const int w = depth->width, h = depth->height;
+  const bool tof = noise.principle == DepthPrinciple::kTimeOfFlight;
+  if (people && (people->width != w || people->height != h)) people = nullptr;
   if (noise.min_range_m > 0) {
     const uint16_t near = uint16_t(std::min(65535.0, noise.min_range_m * 1e3));
     for (size_t i = 0; i < depth->pixels.size(); ++i)
@@ -85,7 +176,7 @@ void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* 
         labels->pixels[i] = core::kBackgroundLabel;
       }
   }
-  if (noise.projector_shadow) ApplyProjectorShadow(noise, depth, labels);
+  if (noise.projector_shadow && !tof) ApplyProjectorShadow(noise, depth, labels);
   // Only the rows holding foreground (plus one either side, for the neighbour test) are touched.
   int y_lo = h, y_hi = -1;
   for (int y = 0; y < h; ++y) {
@@ -93,52 +184,164 @@ void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* 
     if (std::any_of(row, row + w, [](uint16_t d) { return d != 0; })) y_lo = std::min(y_lo, y), y_hi = y;
   }
   if (y_hi < 0) return;
-  // A copy of the clean rows with a one-pixel border, so the 4-neighbour test needs no bounds
-  // checks. Inside the image the rows above y_lo and below y_hi are background (zeros); outside
-  // it, the border repeats the edge pixels, so the frame edge itself is not a discontinuity.
-  const int copy_lo = y_lo - 1, stride = w + 2;
-  std::vector<uint16_t> clean(size_t(stride) * size_t(y_hi - y_lo + 3), 0);
-  auto fill_row = [&](int dst_row, int src_y) {
-    uint16_t* r = &clean[size_t(dst_row) * size_t(stride)];
-    std::copy_n(depth->data() + size_t(src_y) * size_t(w), size_t(w), r + 1);
-    r[0] = r[1];
-    r[w + 1] = r[w];
-  };
-  for (int y = y_lo; y <= y_hi; ++y) fill_row(y - copy_lo, y);
-  if (y_lo == 0) fill_row(0, 0);
-  if (y_hi == h - 1) fill_row(y_hi - copy_lo + 1, h - 1);
+  const bool flying = noise.flying_pixels > 0;
+  const bool holes = noise.range_dropout > 0 || noise.grazing_dropout > 0;
+  // Rows visited: the foreground rows, and with flying pixels the background row either side
+  // (its pixels may straddle the silhouette).
+  const int r_lo = flying ? std::max(0, y_lo - 1) : y_lo, r_hi = flying ? std::min(h - 1, y_hi + 1) : y_hi;
+  // A copy of the clean rows r_lo-1 .. r_hi+1 with a one-pixel border, so the 4-neighbour test
+  // needs no bounds checks. Inside the image the rows outside y_lo..y_hi are background (zeros);
+  // outside it, the border repeats the edge pixels, so the frame edge itself is not a
+  // discontinuity. Labels (and people) are copied too when mixed pixels may take a neighbour's.
+  const int copy_lo = r_lo - 1, stride = w + 2, copy_rows = r_hi - r_lo + 3;
+  std::vector<uint16_t> clean(size_t(stride) * size_t(copy_rows), 0);
+  std::vector<uint8_t> clean_labels(flying ? clean.size() : 0, core::kBackgroundLabel);
+  std::vector<uint8_t> clean_people(flying && people ? clean.size() : 0, 0);
+  for (int row = 0; row < copy_rows; ++row) {
+    const int src_y = std::clamp(copy_lo + row, 0, h - 1);
+    if (src_y < y_lo || src_y > y_hi) continue;
+    const size_t dst = size_t(row) * size_t(stride), src = size_t(src_y) * size_t(w);
+    auto fill = [&](auto* out, const auto* in) {
+      std::copy_n(in + src, size_t(w), out + dst + 1);
+      out[dst] = out[dst + 1];
+      out[dst + size_t(w) + 1] = out[dst + size_t(w)];
+    };
+    fill(clean.data(), depth->data());
+    if (flying) fill(clean_labels.data(), labels->data());
+    if (!clean_people.empty()) fill(clean_people.data(), people->data());
+  }
   const core::CounterRng rng(key, 0x4E015E, 0, 1);
+  // The optional effects draw from streams of their own: off, they change nothing.
+  const core::CounterRng hole_rng(key, 0x4013E5, 0, 2), fly_rng(key, 0xF1E5, 0, 3);
   // Disparity in steps of 1/subpixel_steps pixel: D = steps * f * b / z.
   const double fb_steps_mm = noise.focal_px * noise.baseline_m * noise.subpixel_steps * 1e3;  // steps * mm
   const double sigma_steps = noise.disparity_sigma_px * noise.subpixel_steps;
   const int jump = int(std::lround(noise.discontinuity_mm));
   // Dropout thresholds on 16 random bits.
-  const uint32_t edge_drop = uint32_t(std::clamp(noise.edge_dropout, 0.0, 1.0) * 65536.0);
-  const uint32_t speckle_drop = uint32_t(std::clamp(noise.speckle_dropout, 0.0, 1.0) * 65536.0);
-  for (int y = y_lo; y <= y_hi; ++y) {
-    const uint16_t* c = &clean[size_t(y - copy_lo) * size_t(stride) + 1];
+  const uint32_t edge_drop = Threshold16(noise.edge_dropout);
+  const uint32_t speckle_drop = Threshold16(noise.speckle_dropout);
+  const uint32_t fly_share = Threshold16(noise.flying_pixels);
+  const double f = noise.focal_px, cx = 0.5 * (w - 1), cy = 0.5 * (h - 1);
+  const double graze_lo = noise.grazing_start_deg * std::numbers::pi / 180.0;
+  const double graze_span = std::max(1e-9, 0.5 * std::numbers::pi - graze_lo);
+  const double range_k =
+      noise.range_dropout / std::max(1e-9, noise.range_dropout_ref_m * noise.range_dropout_ref_m);
+  // The reading of a pixel whose true depth is `z` mm (> 0), from the noise bits of its draw.
+  auto measure = [&](double z, uint64_t bits) -> uint16_t {
+    // Approximately normal: Irwin-Hall of three 16-bit uniforms (mean 1.5, variance 1/4).
+    const double sum = double(bits & 0xFFFF) + double((bits >> 16) & 0xFFFF) + double((bits >> 32) & 0xFFFF);
+    const double gauss = (sum * (1.0 / 65536.0) - 1.5) * 2.0;
+    if (tof) {
+      const double zm = z * 1e-3;
+      const double sigma =
+          std::max(0.0, noise.tof_sigma_mm[0] + noise.tof_sigma_mm[1] * zm + noise.tof_sigma_mm[2] * zm * zm);
+      return uint16_t(std::clamp(std::floor(z + sigma * gauss + 0.5), 1.0, 65535.0));
+    }
+    const double disparity = fb_steps_mm / z + sigma_steps * gauss;  // in steps
+    const double level = std::max(1.0, std::floor(disparity + 0.5));
+    return uint16_t(std::min(65535.0, std::floor(fb_steps_mm / level + 0.5)));
+  };
+  for (int y = r_lo; y <= r_hi; ++y) {
+    const size_t row = size_t(y - copy_lo) * size_t(stride) + 1;
+    const uint16_t* c = &clean[row];
     uint16_t* out_d = depth->data() + size_t(y) * size_t(w);
     uint8_t* out_l = labels->data() + size_t(y) * size_t(w);
+    uint8_t* out_p = people ? people->data() + size_t(y) * size_t(w) : nullptr;
     for (int x = 0; x < w; ++x) {
       const int d = c[x];
-      if (d == 0) continue;
-      const int n[4] = {c[x - 1], c[x + 1], c[x - stride], c[x + stride]};
+      const ptrdiff_t off[4] = {-1, 1, -ptrdiff_t(stride), ptrdiff_t(stride)};
+      const uint64_t index = uint64_t(y) * uint64_t(w) + uint64_t(x);
+      if (d == 0) {
+        if (!flying) continue;
+        // A background pixel beside a surface sees a little of it: its own (virtual) surface is
+        // flying_void_mm behind the nearest neighbour's.
+        int near = 0;
+        for (ptrdiff_t o : off)
+          if (c[x + o] != 0 && (near == 0 || c[x + o] < near)) near = c[x + o];
+        if (near == 0) continue;
+        const uint64_t fly = fly_rng.Bits(index);
+        if (uint32_t(fly & 0xFFFF) >= fly_share) continue;
+        const uint64_t bits = rng.Bits(index);
+        if (uint32_t(bits >> 48) < edge_drop) continue;  // an edge reading, dropped as such
+        const double a = double((fly >> 16) & 0xFFFF) * (0.5 / 65536.0);
+        const double own = near + noise.flying_void_mm;
+        const double mixed = own + a * (near - own);
+        uint8_t label = core::kBackgroundLabel, person = 0;
+        if (mixed - near <= noise.flying_label_mm) {
+          for (ptrdiff_t o : off)
+            if (c[x + o] == near) {
+              label = clean_labels[row + size_t(x + o)];
+              person = clean_people.empty() ? 0 : clean_people[row + size_t(x + o)];
+              break;
+            }
+        }
+        out_d[x] = measure(mixed, bits);
+        out_l[x] = label;
+        if (out_p) out_p[x] = person;
+        continue;
+      }
       bool edge = false;
-      for (int k = 0; k < 4; ++k) edge |= n[k] == 0 || std::abs(n[k] - d) > jump;
+      for (ptrdiff_t o : off) edge |= c[x + o] == 0 || std::abs(c[x + o] - d) > jump;
       // One 64-bit draw per pixel: 16 bits decide the dropout, 48 bits make the noise.
-      const uint64_t bits = rng.Bits(uint64_t(y) * uint64_t(w) + uint64_t(x));
+      const uint64_t bits = rng.Bits(index);
       if (uint32_t(bits >> 48) < (edge ? edge_drop : speckle_drop)) {
         out_d[x] = 0;
         out_l[x] = core::kBackgroundLabel;
         continue;
       }
-      // Approximately normal: Irwin-Hall of three 16-bit uniforms (mean 1.5, variance 1/4).
-      const double sum =
-          double(bits & 0xFFFF) + double((bits >> 16) & 0xFFFF) + double((bits >> 32) & 0xFFFF);
-      const double gauss = (sum * (1.0 / 65536.0) - 1.5) * 2.0;
-      const double disparity = fb_steps_mm / double(d) + sigma_steps * gauss;  // in steps
-      const double level = std::max(1.0, std::floor(disparity + 0.5));
-      out_d[x] = uint16_t(std::min(65535.0, std::floor(fb_steps_mm / level + 0.5)));
+      if (holes) {
+        double p = range_k * (d * 1e-3) * (d * 1e-3);
+        if (noise.grazing_dropout > 0) {
+          // Normal from the clean depth (mm per pixel): with P = z r, r = ((x-cx)/f, (y-cy)/f, 1),
+          // n ~ (-f z_x, -f z_y, f (z_x r_x + z_y r_y) + z) and n.r = z, so cos(theta) = z / (|n| |r|).
+          const double zx = SurfaceSlope(c[x - 1], d, c[x + 1], jump);
+          const double zy = SurfaceSlope(c[x - stride], d, c[x + stride], jump);
+          const double rx = (x - cx) / f, ry = (y - cy) / f;
+          const Eigen::Vector3d n(-f * zx, -f * zy, f * (zx * rx + zy * ry) + d);
+          const double cos_theta = double(d) / (n.norm() * std::sqrt(rx * rx + ry * ry + 1.0));
+          const double theta = std::acos(std::clamp(cos_theta, 0.0, 1.0));
+          const double g = noise.grazing_dropout * std::clamp((theta - graze_lo) / graze_span, 0.0, 1.0);
+          p = 1.0 - (1.0 - std::min(1.0, p)) * (1.0 - g);
+        }
+        if (uint32_t(hole_rng.Bits(index) & 0xFFFF) < Threshold16(p)) {
+          out_d[x] = 0;
+          out_l[x] = core::kBackgroundLabel;
+          if (out_p) out_p[x] = 0;
+          continue;
+        }
+      }
+      double z = d;
+      if (flying && edge) {
+        const uint64_t fly = fly_rng.Bits(index);
+        if (uint32_t(fly & 0xFFFF) < fly_share) {
+          // The other surface: the neighbour across the largest jump (no reading: flying_void_mm
+          // behind this pixel).
+          int other = 0;
+          double other_z = d, best = -1;
+          for (int k = 0; k < 4; ++k) {
+            const int n = c[x + off[k]];
+            if (n != 0 && std::abs(n - d) <= jump) continue;
+            const double nz = n == 0 ? d + noise.flying_void_mm : double(n);
+            if (std::abs(nz - d) > best) best = std::abs(nz - d), other = k, other_z = nz;
+          }
+          const double a = double((fly >> 16) & 0xFFFF) * (0.5 / 65536.0);
+          z = d + a * (other_z - d);
+          // The label of the surface the reading lies within flying_label_mm of, the nearer
+          // surface first; else background. A neighbour with no reading has no label.
+          const int n_other = c[x + off[other]];
+          const bool other_near = n_other != 0 && n_other < d;
+          const bool near_own = std::abs(z - d) <= noise.flying_label_mm;
+          const bool near_other = n_other != 0 && std::abs(z - n_other) <= noise.flying_label_mm;
+          if (near_other && (other_near || !near_own)) {
+            out_l[x] = clean_labels[row + size_t(x + off[other])];
+            if (out_p) out_p[x] = clean_people.empty() ? 0 : clean_people[row + size_t(x + off[other])];
+          } else if (!near_own) {
+            out_l[x] = core::kBackgroundLabel;
+            if (out_p) out_p[x] = 0;
+          }
+        }
+      }
+      out_d[x] = measure(z, bits);
     }
   }
 }

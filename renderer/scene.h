@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "renderer/body.h"
@@ -18,10 +19,23 @@
 
 namespace poseforest::renderer {
 
+/// How the depth camera measures (NoiseConfig::principle).
+enum class DepthPrinciple {
+  kStructuredLight,  ///< Kinect v1: disparity quantization and noise, projector shadow
+  kTimeOfFlight,     ///< Kinect v2, Azure Kinect: Gaussian depth noise growing with depth, no shadow
+};
+
 /// Kinect v1-like sensor noise, applied to the rendered depth (labels follow: a pixel whose depth
-/// is dropped becomes background).
+/// is dropped becomes background). The defaults are the classic Kinect v1 model; the edge and hole
+/// effects below (flying_pixels, range_dropout, grazing_dropout) are off, and each draws from a
+/// random stream of its own, so switched off they leave every frame byte for byte as before.
+/// SensorNoise() gives the presets of other cameras.
 struct NoiseConfig {
   bool enabled = true;
+  DepthPrinciple principle = DepthPrinciple::kStructuredLight;
+  /// The camera's focal length (pixels): structured light's disparity below, and every
+  /// principle's surface normals (grazing_dropout). The principal point is taken at the image
+  /// centre.
   /// Structured-light disparity quantization: disparity d = f*b/z pixels is rounded to
   /// multiples of 1/subpixel_steps px, so the depth step grows as z^2 / (f*b*subpixel_steps).
   double focal_px = 575.8;    ///< pixels
@@ -45,7 +59,54 @@ struct NoiseConfig {
   int projector_side = +1;
   /// Surfaces nearer than this give no reading (Kinect v1's near limit), metres; 0 = none.
   double min_range_m = 0.0;
+
+  /// Time of flight only: the sd of the depth noise, tof_sigma_mm[0] + [1] z + [2] z^2 mm with z
+  /// in metres (no quantization: readings are whole millimetres). Defaults: Kinect v2.
+  double tof_sigma_mm[3] = {1.5, -0.5, 0.3};
+
+  /// Mixed ("flying") pixels: a pixel that straddles a depth edge (the silhouette, or a jump of
+  /// more than discontinuity_mm to a 4-neighbour) sees both surfaces and reads a depth between
+  /// them. With probability flying_pixels, a pixel on either side of such an edge reads
+  /// own + a (other - own), a uniform in [0, 0.5) (its centre is on its own surface, so the
+  /// other covers less than half of it). Where the other side has no reading (depth 0), the
+  /// far surface is taken flying_void_mm behind the near one (a wall somewhere behind). Label:
+  /// that of a surface the reading lies within flying_label_mm of (the nearer surface first),
+  /// else background, so the forest never learns to call points floating between surfaces (off
+  /// the body) a body part; a reading that close to a surface is what the camera gives there.
+  /// 0 = off.
+  double flying_pixels = 0.0;
+  double flying_label_mm = 30.0;  ///< millimetres
+  double flying_void_mm = 600.0;  ///< millimetres
+  /// Holes that grow with distance (the returned light falls as 1/z^2): a foreground pixel is
+  /// dropped with probability range_dropout * (z / range_dropout_ref_m)^2 (at most 1), besides
+  /// the dropouts above. 0 = off.
+  double range_dropout = 0.0;
+  double range_dropout_ref_m = 4.0;  ///< metres
+  /// Holes on grazing surfaces: with the angle theta between the view ray and the surface normal
+  /// (estimated from the clean depth's gradient), a pixel is dropped with probability
+  /// grazing_dropout * (theta - grazing_start_deg) / (90 - grazing_start_deg), 0 below
+  /// grazing_start_deg. 0 = off.
+  double grazing_dropout = 0.0;
+  double grazing_start_deg = 60.0;  ///< degrees
 };
+
+/// Depth cameras the renderer has presets for.
+enum class DepthSensor { kKinectV1, kKinectV2, kAzureKinectNfov };
+
+/// A depth camera as the renderer draws it: its intrinsics and its noise model.
+struct SensorPreset {
+  core::CameraIntrinsics camera;
+  NoiseConfig noise;
+};
+
+/// The preset of `sensor` (sources and figures in scene.cpp and renderer/README.md). Kinect v1:
+/// CameraIntrinsics::KinectV1() and NoiseConfig{} (the classic model). Kinect v2: 512x424,
+/// f = 365.5 px, time of flight. Azure Kinect NFOV unbinned: 640x576, f = 504 px, time of flight.
+SensorPreset SensorNoise(DepthSensor sensor);
+/// "kinect-v1", "kinect-v2", "azure-nfov".
+const char* DepthSensorName(DepthSensor sensor);
+/// The sensor named by DepthSensorName; false if the name is unknown.
+bool ParseDepthSensor(const std::string& name, DepthSensor* sensor);
 
 /// How the camera frames the first person. By default (upper_body_share 0) the camera stands
 /// min..max_distance_m from the person and is aimed at their mid-height, so whole bodies fill
@@ -181,9 +242,10 @@ void RayCastClutter(const SceneClutter& clutter, const Eigen::Isometry3d& camera
 /// centre of the foot, the others at the skeleton joint.
 std::array<Eigen::Vector3d, core::kNumJoints> EvalJoints(const SkelPositions& posed);
 
-/// Applies NoiseConfig to a rendered frame in place, as a pure function of `key`.
+/// Applies NoiseConfig to a rendered frame in place, as a pure function of `key`. `people`
+/// (optional, the person masks of RenderedFrame) follows the labels of mixed pixels.
 void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* depth,
-                      core::LabelImage* labels);
+                      core::LabelImage* labels, core::LabelImage* people = nullptr);
 
 /// Kinect v1's projector shadow (NoiseConfig::projector_shadow) alone, in place: pixels the
 /// projector cannot light become 0 / background. ApplyKinectNoise calls it when enabled.

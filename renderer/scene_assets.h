@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "renderer/assets/makehuman.h"
 #include "renderer/assets/pose_library.h"
 #include "renderer/body.h"
 #include "renderer/skeleton.h"
@@ -48,6 +49,41 @@ core::Result<std::shared_ptr<const std::vector<Pose>>> LoadPoseSelection(const P
 /// does not label them again). Their rest pose is MakeHuman's A-pose: the renderer adapts poses
 /// to it (see SceneConfig::bodies). Errors: the kit loader's (naming the file).
 core::Result<std::vector<BodyMesh>> MakeHumanPresetBodies(const std::filesystem::path& kit_dir);
+
+/// MakeHuman bodies beyond the 18 presets (issue 22): continuously sampled shapes, and clothes,
+/// hair and shoes. Every body is a pure function of these options and the kit (and the clothes
+/// folder), so every worker of a job builds the identical set.
+struct MakeHumanBodyOptions {
+  /// Bodies sampled continuously over the macro targets (assets::SampleMakeHumanParams), after
+  /// the presets; body k (k = 0.. over presets then sampled bodies) draws from its own random
+  /// stream of `seed`.
+  int sampled_bodies = 0;
+  uint64_t seed = 1;
+  /// Share of the bodies (presets and sampled, each decided by its own stream) that wear an
+  /// outfit, hair and shoes from clothes_dir (assets::DrawOutfit). 0 = none.
+  double clothed_share = 0.0;
+  std::filesystem::path clothes_dir;  ///< MakeHuman .mhclo proxies; needed when clothed_share > 0
+};
+
+/// The 18 presets then options.sampled_bodies sampled bodies, dressed as the options say, each
+/// labelled (LabelBodyParts + RefinePartBoundaries; clothes take the part of the body vertex
+/// beneath them, see AssembleDressedBody). Errors: the kit's and the wardrobe's loaders (naming
+/// the file); options out of range (kInvalidArgument).
+core::Result<std::vector<BodyMesh>> MakeHumanBodies(const std::filesystem::path& kit_dir,
+                                                    const MakeHumanBodyOptions& options);
+
+/// One labelled mesh from a dressed body: the body labelled as MakeHumanPresetBodies does, then
+/// each proxy appended with the part of its body_vertex (outfits and shoes then get
+/// RefinePartBoundaries like the skin; hair and hats do not). The result is an open mesh (the
+/// renderer draws it without back-face culling, so open sleeves and hems do not turn
+/// see-through).
+/// The skin under the clothes stays by default: where it pokes through a tight garment the depth
+/// test shows the outer of two surfaces ~1 cm apart, labelled with the same part. With
+/// hide_covered_skin, body triangles whose three vertices an outfit's delete_verts lists are
+/// removed (MakeHuman's way, fewer triangles), but the skin-tight outfits (female_casualsuit01,
+/// female_sportsuit01) then leave 1-pixel holes along the silhouette and few-mm dents where the
+/// garment dips under the skin (tests/renderer/test_makehuman_clothes_render.cpp).
+BodyMesh AssembleDressedBody(assets::DressedMakeHuman dressed, bool hide_covered_skin = false);
 
 /// True when `rest` differs from the canonical reference T-pose (assets::ReferenceRestJoints())
 /// by more than `max_angle_deg` in the direction of any bone (e.g. MakeHuman's A-pose: arms

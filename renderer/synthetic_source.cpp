@@ -72,6 +72,13 @@ Status ValidateConfig(const SceneConfig& c) {
       (!(c.noise.focal_px > 0) || !(c.noise.baseline_m > 0) || c.noise.subpixel_steps < 1)) {
     return bad("noise: focal_px, baseline_m and subpixel_steps must be positive");
   }
+  for (const double share : {c.noise.flying_pixels, c.noise.range_dropout, c.noise.grazing_dropout})
+    if (!(share >= 0 && share <= 1))
+      return bad("noise: flying_pixels, range_dropout and grazing_dropout must be in [0, 1]");
+  if (!(c.noise.flying_label_mm >= 0) || !(c.noise.flying_void_mm > 0) || !(c.noise.range_dropout_ref_m > 0))
+    return bad("noise: flying_label_mm must be >= 0, flying_void_mm and range_dropout_ref_m > 0");
+  if (!(c.noise.grazing_start_deg >= 0 && c.noise.grazing_start_deg < 90))
+    return bad("noise: grazing_start_deg must be in [0, 90)");
   for (size_t b = 0; b < c.bodies.size(); ++b) {
     const BodyMesh& m = c.bodies[b];
     if (m.vertices.empty() || m.triangles.empty() || m.skin.size() != m.vertices.size()) {
@@ -381,7 +388,7 @@ core::Result<RenderedFrame> SyntheticRenderer::RenderScene(const SceneSample& sc
     }
     frame.visible.push_back(vis);
   }
-  ApplyKinectNoise(config_.noise, scene.noise_key, &frame.depth, &frame.labels);
+  ApplyKinectNoise(config_.noise, scene.noise_key, &frame.depth, &frame.labels, &frame.people);
   if (config_.noise.enabled)
     for (size_t i = 0; i < frame.depth.pixels.size(); ++i)
       if (frame.depth.pixels[i] == 0) frame.people.pixels[i] = 0;

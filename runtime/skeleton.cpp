@@ -247,8 +247,25 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
             break;
           }
         const auto v = usable_votes(j);
-        if (!v.empty() && (!s.joints[size_t(j)].found || v[0].vote->confidence > s.joints[size_t(j)].confidence))
-          place_vote(j, v[0]);
+        if (v.empty()) continue;
+        SkeletonJoint& joint = s.joints[size_t(j)];
+        const bool agree = joint.found && options.agree_radius_m > 0 &&
+                           (joint.position_m - v[0].vote->position).norm() <= options.agree_radius_m;
+        const float proposal_confidence = joint.confidence;
+        if (!joint.found || v[0].vote->confidence > joint.confidence) place_vote(j, v[0]);
+        if (agree) {
+          const float c = 1.0f - (1.0f - proposal_confidence) * (1.0f - v[0].vote->confidence);
+          joint.confidence = c;
+          if (joint.voted) {
+            const float gap = joint.position_m.z() - float(v[0].mask_depth) * 1e-3f;
+            joint.tracked = c >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
+            joint.inferred = c >= options.min_confidence && gap > options.max_depth_gap_m;
+          } else {
+            const float gap = joint.position_m.z() - float(mask_depth_px(joint.pixel)) * 1e-3f;
+            joint.tracked = joint.support_m2 >= options.min_support_m2 && c >= options.min_confidence &&
+                            std::abs(gap) <= options.max_depth_gap_m;
+          }
+        }
       }
     } else {
       // Candidates: the most confident proposals on the mask whose depth agrees with it.
@@ -421,13 +438,8 @@ void AppendVec(std::string& out, const float* v, int n, const char* fmt) {
 }
 }  // namespace
 
-// Written by hand: the runtime depends on nothing but Eigen and OpenMP (no JSON library).
-std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& source,
-                              const std::vector<Skeleton>& skeletons) {
-  std::string out = "{\"index\":" + std::to_string(index) + ",\"time_s\":";
-  AppendF(out, "%.6f", time_s);
-  out += ",\"source\":\"";
-  for (const char c : source) {
+void AppendJsonString(std::string& out, std::string_view text) {
+  for (const char c : text) {
     if (c == '"' || c == '\\') {
       out += '\\', out += c;
     } else if (static_cast<unsigned char>(c) < 0x20) {
@@ -438,6 +450,15 @@ std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& s
       out += c;
     }
   }
+}
+
+// Written by hand: the runtime depends on nothing but Eigen and OpenMP (no JSON library).
+std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& source,
+                              const std::vector<Skeleton>& skeletons) {
+  std::string out = "{\"index\":" + std::to_string(index) + ",\"time_s\":";
+  AppendF(out, "%.6f", time_s);
+  out += ",\"source\":\"";
+  AppendJsonString(out, source);
   out += "\",\"people\":[";
   for (size_t k = 0; k < skeletons.size(); ++k) {
     const Skeleton& s = skeletons[k];

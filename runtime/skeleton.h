@@ -60,6 +60,11 @@ struct SkeletonOptions {
   /// A vote candidate may lie up to this far behind the mask's surface at its pixel (a hidden
   /// joint: found, not tracked); in front of it, max_depth_gap_m as for proposals.
   float max_vote_behind_m = 0.6f;
+  /// kGreedy with votes: where the joint's part proposal and its best vote candidate lie within
+  /// this distance of each other, two different readings of the trees (the pixels' parts and
+  /// their offsets) agree, and the joint's confidence becomes 1 - (1 - c_proposal)(1 - c_vote)
+  /// (noisy-OR), at the position of the more confident one. 0 disables.
+  float agree_radius_m = 0.1f;
   /// Where a person's mask is cut by the image border, joints within this distance of that
   /// border are not tracked: on an upper-body frame the thighs at the bottom edge are read as
   /// knees, and the real knees lie below the picture. 0 disables.
@@ -189,6 +194,12 @@ class SkeletonTracker {
   std::vector<Track> tracks_;
   int next_id_ = 1;
 };
+
+/// Appends `text` to `out` as the body of a JSON string (no quotes): '"' and '\\' escaped,
+/// control characters (< 0x20) as \u00XX, everything else byte for byte (UTF-8 passes through).
+/// The one escaping of the runtime's hand-written JSON (SkeletonsJsonLine, `infer`'s joints
+/// files), which may use no JSON library (the runtime's dependency promise).
+void AppendJsonString(std::string& out, std::string_view text);
 
 /// One JSON Lines record (no newline) for a frame: docs/runtime/live.md has the schema.
 /// Written by hand: the runtime library depends on a compiler, Eigen and OpenMP only, and the

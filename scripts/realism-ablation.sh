@@ -40,6 +40,11 @@ VARIANTS=(
   "share 0.5, no shadow, no near limit|upper_body_share: 0.5 projector_shadow: false min_range_m: 0"
   "no upper-body framing|upper_body_share: 0"
   "arms only|upper_body_share: 0 projector_shadow: false min_range_m: 0"
+  "defaults + flying pixels 0.3|flying_pixels: 0.3"
+  "defaults + range and grazing holes|range_holes: 0.2 grazing_holes: 0.5"
+  "defaults + 50 sampled bodies|makehuman_sampled_bodies: 50"
+  "defaults + clothes and hair 0.5|makehuman_clothed_share: 0.5"
+  "defaults + sampled bodies, clothes|makehuman_sampled_bodies: 50 makehuman_clothed_share: 0.5"
 )
 [[ -n "${POSEFOREST_ABLATION_ONLY:-}" ]] && echo "(only variants matching '$POSEFOREST_ABLATION_ONLY')"
 

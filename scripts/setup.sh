@@ -19,6 +19,7 @@ training_pkgs=(
   python3 iproute2 bzip2 openssl            # test helpers, network namespaces, PCL trees, DDS-Security certs
   libssl-dev curl                           # HTTPS of the coordinator's status server; test_https's second client
   python3-yaml                              # test_deploy: reads deploy/k8s manifests
+  docker-compose                            # test_deploy: `docker-compose config` renders deploy/compose.yaml (no engine needed)
   chromium                                  # the coordinator dashboard's headless-browser test
   prometheus                                # promtool: test_monitoring checks /metrics (its server is not started)
   python3-sklearn python3-matplotlib        # bench/train's side-by-side learner, docs plots (/usr/bin/python3)

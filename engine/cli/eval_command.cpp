@@ -2,6 +2,7 @@
 // labelled frames.
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include <filesystem>
@@ -85,6 +86,9 @@ options:
                     confident proposal on the person) or kinematic (one fit per person choosing
                     among each joint's proposals with bone lengths; runtime/skeleton.h)
   --no-votes        the skeleton ignores the forest's offset votes (format 1.5, `learn-votes`)
+  --agree-radius M  a joint whose part proposal and best vote candidate lie within M metres
+                    of each other gets their combined confidence (default 0.1; 0: off;
+                    runtime/skeleton.h SkeletonOptions::agree_radius_m)
   --real-labels F   score skeletons on hand-labelled real frames (above) instead of --test-set
   --png-dir DIR     with --real-labels: a picture per frame, DIR/<frame file>.png
   --quiet           no progress lines
@@ -99,6 +103,20 @@ bool ParseFit(const Args& args, runtime::SkeletonFit* fit) {
     return false;
   }
   *fit = *parsed;
+  return true;
+}
+
+// --agree-radius: SkeletonOptions::agree_radius_m.
+bool ParseAgreeRadius(const Args& args, float* radius) {
+  const std::string v = args.GetOr("agree-radius", "");
+  if (v.empty()) return true;
+  char* end = nullptr;
+  const double r = std::strtod(v.c_str(), &end);
+  if (end == v.c_str() || *end != '\0' || !(r >= 0 && r <= 1)) {
+    std::fprintf(stderr, "poseforest eval: --agree-radius must be metres in [0, 1] (got '%s')\n", v.c_str());
+    return false;
+  }
+  *radius = float(r);
   return true;
 }
 
@@ -153,6 +171,7 @@ int EvalRealMain(const Args& args) {
   options.num_threads = int(*threads);
   options.pixel_stride = int(*pixel_stride);
   if (!ParseFit(args, &options.skeleton.fit)) return 2;
+  if (!ParseAgreeRadius(args, &options.skeleton.agree_radius_m)) return 2;
   options.votes = !args.Has("no-votes");
   runtime::FrameSourceOptions source_options;
   source_options.camera = labels->camera;
@@ -213,7 +232,7 @@ int EvalRealMain(const Args& args) {
 
 int EvalMain(int argc, char** argv) {
   Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png",
-             "segment", "pixel-stride", "real-labels", "png-dir", "fit"},
+             "segment", "pixel-stride", "real-labels", "png-dir", "fit", "agree-radius"},
             {"help", "quiet", "per-person", "no-rescale", "no-votes"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
@@ -273,6 +292,7 @@ int EvalMain(int argc, char** argv) {
   eo.people = int(*people);
   eo.pixel_stride = int(*pixel_stride);
   if (!ParseFit(args, &eo.skeleton_fit)) return 2;
+  if (!ParseAgreeRadius(args, &eo.agree_radius_m)) return 2;
   eo.votes = !args.Has("no-votes");
   eo.fast = method == "both";
   eo.rescale = !args.Has("no-rescale");

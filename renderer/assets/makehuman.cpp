@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <limits>
 #include <mutex>
@@ -90,6 +91,33 @@ struct MakeHumanKit::Impl {
   std::vector<Bone> bones;
   std::unordered_map<std::string, std::vector<uint32_t>> joints;  // joint name -> base vertices
   RigWeights weights;                                             // per compact vertex (bone index, w)
+  RigWeights all_weights;                                         // per base vertex (proxy skinning)
+  std::vector<int> compact;                                       // base index -> compact index or -1
+
+  // Per base vertex: the nearest body vertex (compact index) in the neutral mesh; computed on the
+  // first dressed build (proxies bind mostly to helper vertices, which have no part of their own).
+  mutable std::once_flag anchor_once;
+  mutable std::vector<uint32_t> anchor;
+
+  const std::vector<uint32_t>& Anchors() const {
+    std::call_once(anchor_once, [&] {
+      anchor.assign(base.size(), 0);
+      for (size_t i = 0; i < base.size(); ++i) {
+        if (compact[i] >= 0) {
+          anchor[i] = uint32_t(compact[i]);
+          continue;
+        }
+        float best = std::numeric_limits<float>::infinity();
+        uint32_t best_c = 0;
+        for (size_t c = 0; c < body_vertices.size(); ++c) {
+          const float d = (base[body_vertices[c]] - base[i]).squaredNorm();
+          if (d < best) best = d, best_c = uint32_t(c);
+        }
+        anchor[i] = best_c;
+      }
+    });
+    return anchor;
+  }
 
   mutable std::mutex mu;
   mutable std::map<std::string, std::shared_ptr<const Target>> targets;
@@ -177,7 +205,8 @@ Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::
   });
   if (!err.ok()) return err;
   if (faces.empty()) return Status(ErrorCode::kDataLoss, obj_path.string() + ": no faces in group 'body'");
-  std::vector<int> compact(m.base.size(), -1);
+  m.compact.assign(m.base.size(), -1);
+  std::vector<int>& compact = m.compact;
   for (const auto& f : faces)
     for (uint32_t i : f)
       if (compact[i] < 0) {
@@ -234,6 +263,7 @@ Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::
   if (weights == mhw->end() || !weights->is_object())
     return Status(ErrorCode::kDataLoss, mhw_path.string() + ": missing 'weights'");
   m.weights.assign(m.body_vertices.size(), {});
+  m.all_weights.assign(m.base.size(), {});
   for (const auto& [bone, list] : weights->items()) {
     int b = -1;
     for (size_t k = 0; k < m.bones.size(); ++k)
@@ -248,15 +278,35 @@ Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::
         return Status(ErrorCode::kDataLoss,
                       mhw_path.string() + ": bone '" + bone + "': bad [vertex, weight] pair");
       const int c = compact[size_t(pair[0].get<double>())];
-      if (c >= 0 && pair[1].get<double>() > 0)
-        m.weights[size_t(c)].push_back({b, float(pair[1].get<double>())});
+      if (pair[1].get<double>() > 0) {
+        if (c >= 0) m.weights[size_t(c)].push_back({b, float(pair[1].get<double>())});
+        m.all_weights[size_t(pair[0].get<double>())].push_back({b, float(pair[1].get<double>())});
+      }
     }
   }
   return kit;
 }
 
 Result<BodyMesh> MakeHumanKit::Build(const MakeHumanParams& p) const {
+  auto dressed = BuildDressed(p, {});
+  if (!dressed.ok()) return dressed.status();
+  return std::move(dressed->body);
+}
+
+size_t MakeHumanKit::base_vertex_count() const { return impl_->base.size(); }
+
+Result<DressedMakeHuman> MakeHumanKit::BuildDressed(const MakeHumanParams& p,
+                                                    const std::vector<const MhcloProxy*>& proxies) const {
   const Impl& m = *impl_;
+  for (const MhcloProxy* proxy : proxies) {
+    POSEFOREST_CHECK(proxy != nullptr);
+    for (const auto& r : proxy->ref)
+      for (uint32_t i : r)
+        if (i >= m.base.size())  // LoadMhclo checks against base_vertex_count(); another kit may differ
+          return Status(ErrorCode::kInvalidArgument, proxy->source + ": binds base vertex " + std::to_string(i) +
+                                                         " but " + (m.dir / "base.obj").string() + " has " +
+                                                         std::to_string(m.base.size()));
+  }
   for (double v : {p.gender, p.age, p.muscle, p.weight})
     if (!(v >= 0 && v <= 1))
       return Status(ErrorCode::kInvalidArgument,
@@ -327,7 +377,8 @@ Result<BodyMesh> MakeHumanKit::Build(const MakeHumanParams& p) const {
   auto rig = FoldRig(bones, source);
   if (!rig.ok()) return rig.status();
 
-  BodyMesh body;
+  DressedMakeHuman out;
+  BodyMesh& body = out.body;
   body.name = "makehuman:" + p.name;
   body.vertices.reserve(m.body_vertices.size());
   for (uint32_t i : m.body_vertices) body.vertices.push_back((pos[i].cast<double>() * scale).cast<float>());
@@ -335,9 +386,58 @@ Result<BodyMesh> MakeHumanKit::Build(const MakeHumanParams& p) const {
   body.skin = FoldSkin(*rig, m.weights, body.vertices);
   EstimateMissingJoints(*rig, body.vertices, body.skin);
   body.rest_joints = rig->rest_joints;
+  out.covered.assign(body.vertices.size(), 0);
+  if (proxies.empty()) {
+    PlaceOnFloor(&body);
+    return out;
+  }
 
-  PlaceOnFloor(&body);
-  return body;
+  const std::vector<uint32_t>& anchor = m.Anchors();
+  constexpr float kWeightThreshold = 1e-4f;  // MakeHuman's Proxy.getVertexWeights
+  float min_y = std::numeric_limits<float>::infinity();
+  for (const auto& v : body.vertices) min_y = std::min(min_y, v.y());
+  for (const MhcloProxy* proxy : proxies) {
+    FittedProxy f;
+    f.name = proxy->name;
+    f.kind = proxy->kind;
+    f.vertices = FitProxy(*proxy, pos);
+    for (auto& v : f.vertices) {
+      v = (v.cast<double>() * scale).cast<float>();
+      min_y = std::min(min_y, v.y());
+    }
+    f.triangles = proxy->triangles;
+    RigWeights w(f.vertices.size());
+    f.body_vertex.resize(f.vertices.size());
+    std::vector<float> acc(m.bones.size());
+    for (size_t k = 0; k < f.vertices.size(); ++k) {
+      std::fill(acc.begin(), acc.end(), 0.f);
+      int heaviest = 0;
+      for (int r = 0; r < 3; ++r) {
+        const float wr = proxy->weight[k][size_t(r)];
+        if (wr > proxy->weight[k][size_t(heaviest)]) heaviest = r;
+        for (const auto& [bone, bw] : m.all_weights[proxy->ref[k][size_t(r)]])
+          if (wr * bw > kWeightThreshold) acc[size_t(bone)] += wr * bw;
+      }
+      for (size_t b = 0; b < acc.size(); ++b)
+        if (acc[b] > 0) w[k].push_back({int(b), acc[b]});
+      f.body_vertex[k] = anchor[proxy->ref[k][size_t(heaviest)]];
+    }
+    f.skin = FoldSkin(*rig, w, f.vertices);
+    // Shoes' delete_verts take the whole foot, but the soles do not cover the heel's lower
+    // edge seen from behind: hidden feet would leave holes, and feet inside shoes do not show.
+    if (proxy->kind != ProxyKind::kShoes)
+      for (uint32_t i : proxy->delete_verts)
+        if (i < m.compact.size() && m.compact[i] >= 0) out.covered[size_t(m.compact[i])] = 1;
+    out.proxies.push_back(std::move(f));
+  }
+  // PlaceOnFloor, with the shoes' soles (below the feet) counted.
+  const Eigen::Vector3d pelvis = body.rest_joints[size_t(SkelJoint::kPelvis)];
+  const Eigen::Vector3f shift = Eigen::Vector3d(-pelvis.x(), -double(min_y), -pelvis.z()).cast<float>();
+  for (auto& v : body.vertices) v += shift;
+  for (auto& j : body.rest_joints) j += shift.cast<double>();
+  for (FittedProxy& f : out.proxies)
+    for (auto& v : f.vertices) v += shift;
+  return out;
 }
 
 double MakeHumanAgeFromYears(double years) {
@@ -391,6 +491,66 @@ MakeHumanParams VaryMakeHuman(const MakeHumanParams& base, core::RngStream& rng)
   p.weight = std::clamp(base.weight + 0.06 * rng.Normal(), 0.0, 1.0);
   p.name = base.name + "~var";
   return p;
+}
+
+MakeHumanParams SampleMakeHumanParams(core::RngStream& rng) {
+  MakeHumanParams p;
+  const double g = rng.Uniform01(), gv = rng.Uniform01();
+  p.gender = g < 0.1 ? gv : g < 0.55 ? 0.2 * gv : 0.8 + 0.2 * gv;
+  const double a = rng.Uniform01(), av = rng.Uniform01();
+  const double years = a < 0.12 ? 6 + 7 * av : a < 0.22 ? 13 + 5 * av : a < 0.85 ? 18 + 47 * av : 65 + 25 * av;
+  p.age = MakeHumanAgeFromYears(years);
+  const double adult = std::clamp((years - 18) / 40, 0.0, 1.0), old = std::clamp((years - 50) / 40, 0.0, 1.0);
+  p.weight = std::clamp(0.42 + 0.12 * adult + 0.22 * rng.Normal(), 0.0, 1.0);
+  p.muscle = std::clamp(0.5 - 0.15 * old + 0.2 * rng.Normal(), 0.0, 1.0);
+  // MakeHuman's child and teen targets come out short without its height modifier (see the
+  // presets): bring them to typical heights, and old bodies a little down.
+  const double young_scale = 1.11 + 0.05 * (1 - p.gender);
+  const double base = years <= 14   ? young_scale
+                      : years < 20  ? young_scale + (1.0 - young_scale) * (years - 14) / 6
+                      : years <= 60 ? 1.0
+                                    : 1.0 - 0.04 * (years - 60) / 30;
+  p.height_scale = base * (1 + std::clamp(0.04 * rng.Normal(), -0.1, 0.1));
+  char name[48];
+  std::snprintf(name, sizeof name, "sampled-%s%d", p.gender < 0.5 ? "f" : "m", int(years));
+  p.name = name;
+  return p;
+}
+
+std::vector<const MhcloProxy*> DrawOutfit(const MakeHumanWardrobe& wardrobe, const MakeHumanParams& params,
+                                          core::RngStream& rng) {
+  const bool female = params.gender < 0.5;
+  // A proxy from `list`: with probability `prefer_share` one whose name starts with one of
+  // `preferred` (when the wardrobe has any), else any.
+  auto pick = [&](const std::vector<std::shared_ptr<const MhcloProxy>>& list,
+                  std::initializer_list<const char*> preferred, double prefer_share) -> const MhcloProxy* {
+    if (list.empty()) return nullptr;
+    std::vector<const MhcloProxy*> pref, all;
+    for (const auto& p : list) {
+      all.push_back(p.get());
+      for (const char* name : preferred)
+        if (p->name.rfind(name, 0) == 0) {
+          pref.push_back(p.get());
+          break;
+        }
+    }
+    const bool use_pref = rng.Uniform01() < prefer_share && !pref.empty();
+    const auto& from = use_pref ? pref : all;
+    return from[rng.UniformInt(uint32_t(from.size()))];
+  };
+  std::vector<const MhcloProxy*> out;
+  if (const MhcloProxy* o = female ? pick(wardrobe.outfits, {"female"}, 0.8) : pick(wardrobe.outfits, {"male"}, 0.8))
+    out.push_back(o);
+  const bool bald = !female && rng.Uniform01() < 0.1;
+  const MhcloProxy* hair =
+      female ? pick(wardrobe.hair, {"long", "ponytail", "braid", "bob", "short03"}, 0.75)
+             : pick(wardrobe.hair, {"short01", "short02", "short04", "afro"}, 0.85);
+  if (hair && !bald) out.push_back(hair);
+  if (rng.Uniform01() < 0.07)
+    if (const MhcloProxy* hat = pick(wardrobe.hats, {}, 0.0)) out.push_back(hat);
+  if (rng.Uniform01() < 0.92)
+    if (const MhcloProxy* shoes = pick(wardrobe.shoes, {}, 0.0)) out.push_back(shoes);
+  return out;
 }
 
 double BodyHeight(const BodyMesh& body) {

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "renderer/assets/mhclo.h"
 #include "renderer/assets/rig.h"
 #include "renderer/body.h"
 #include "runtime/core/result.h"
@@ -53,6 +54,44 @@ const std::vector<MakeHumanParams>& MakeHumanPresets();
 /// N(0, 0.03)) clamped to +-8 %, weight + N(0, 0.06) clamped to [0, 1]. Deterministic in `rng`.
 MakeHumanParams VaryMakeHuman(const MakeHumanParams& base, core::RngStream& rng);
 
+/// A continuously sampled body (issue 22): macro values drawn from an adult-heavy population
+/// (about 12 % children 6-12 years, 10 % teens 13-17, 63 % adults 18-64, 15 % 65-90; mostly
+/// clearly male or female, 10 % anywhere between; weight and muscle spread over the whole range,
+/// heavier and less muscular with age) and a height_scale that brings MakeHuman's short child
+/// targets to typical heights, with +-4 % (1 sigma) individual variation. Deterministic in `rng`.
+MakeHumanParams SampleMakeHumanParams(core::RngStream& rng);
+
+/// A proxy (garment, hair, hat, shoes) fitted to a MakeHuman body, in the body's frame (metres,
+/// rest pose), skinned with the base mesh's rig weights mixed through the proxy's binding
+/// (MakeHuman's Proxy.getVertexWeights), folded onto the canonical skeleton.
+struct FittedProxy {
+  std::string name;
+  ProxyKind kind = ProxyKind::kOutfit;
+  std::vector<Eigen::Vector3f> vertices;           ///< metres, body frame
+  std::vector<std::array<uint32_t, 3>> triangles;  ///< indices into vertices
+  std::vector<SkinInfluence> skin;                 ///< one per vertex
+  /// Per vertex: the body vertex beneath it (index into the body's vertices): the body vertex
+  /// nearest (in the neutral base mesh) to its heaviest bound base vertex. It takes that vertex's
+  /// part label, so clothes are labelled as the body part they cover.
+  std::vector<uint32_t> body_vertex;
+};
+
+/// A body with proxies fitted to it. body is exactly what Build gives for the same params except
+/// that body and proxies are lifted together onto the floor (shoes' soles at y = 0).
+struct DressedMakeHuman {
+  BodyMesh body;                     ///< part empty
+  std::vector<FittedProxy> proxies;  ///< in the order given
+  /// Per body vertex: 1 when an outfit's delete_verts hides it (shoes' are not used: their soles
+  /// leave the heel's edge open).
+  std::vector<char> covered;
+};
+
+/// One outfit for a body, drawn from `rng`: an outfit (mostly of the body's gender: 80 %), a
+/// hairstyle (long styles mostly on female bodies; 10 % of male bodies bald), a hat (7 %) and
+/// shoes (92 %). Pointers into `wardrobe`.
+std::vector<const MhcloProxy*> DrawOutfit(const MakeHumanWardrobe& wardrobe, const MakeHumanParams& params,
+                                          core::RngStream& rng);
+
 /// The loaded kit (base mesh, rig, weights; targets are read on first use and cached).
 /// Thread-compatible: Build() is const but fills the target cache under a mutex.
 class MakeHumanKit {
@@ -64,8 +103,15 @@ class MakeHumanKit {
   /// Builds a body. Errors: a missing or malformed target file.
   core::Result<BodyMesh> Build(const MakeHumanParams& params) const;
 
+  /// Builds a body and fits `proxies` to it (MakeHuman's proxy fitting on the morphed base mesh,
+  /// helper vertices included). Errors: Build's.
+  core::Result<DressedMakeHuman> BuildDressed(const MakeHumanParams& params,
+                                              const std::vector<const MhcloProxy*>& proxies) const;
+
   /// Number of vertices of the `body` group (the output's vertex count).
   size_t body_vertex_count() const;
+  /// Number of vertices of base.obj, helpers included (19,158 for hm08): the bound of proxy indices.
+  size_t base_vertex_count() const;
 
   struct Impl;
 

@@ -56,7 +56,14 @@ constexpr const char* kUsage =
     "                     realsense-d435-640 (docs/runtime/frames.md)\n"
     "  --fx F --fy F --cx C --cy C  intrinsics on top of the preset, pixels (--fx alone sets both);\n"
     "                     the noise model's disparity follows fx\n"
-    "  --clutter LIST     comma-separated: floor, walls (a back and a side wall), boxes (1-3\n"
+    "  --sensor NAME      depth camera modelled (default kinect-v1): kinect-v2 and azure-nfov\n"
+    "                     (NFOV unbinned) are time of flight, rendered at their own size and\n"
+    "                     intrinsics unless --camera/--fx is given (renderer/README.md \"Sensor models\")\n"
+    "  --flying-pixels P  share of depth-edge pixels read between the two surfaces (default: the\n"
+    "                     sensor's; kinect-v1 0)\n"
+    "  --range-holes P    hole probability at 4 m, growing as z^2 (default: the sensor's)\n"
+    "  --grazing-holes P  hole probability on surfaces seen edge-on (default: the sensor's)\n"
+  "  --clutter LIST     comma-separated: floor, walls (a back and a side wall), boxes (1-3\n"
     "                     boxes on the floor); a pure function of (seed, frame) like the rest\n"
     "  --occluders N      N boxes per frame between the camera and the people (default 0)\n"
     "  --masks            write mask_%06d.png also without clutter\n"
@@ -74,6 +81,11 @@ constexpr const char* kUsage =
     "  --split-seed S     seed of the clip split (default 0)\n"
     "  --bodies procedural|makehuman|all  body family (default procedural); makehuman = the 18\n"
     "                     MakeHuman presets from DATA/meshes/makehuman_hm08_kit\n"
+    "  --sampled-bodies N with makehuman/all: N more MakeHuman bodies sampled over the macro\n"
+    "                     targets (gender, age 6-90, weight, muscle, height) after the presets\n"
+    "  --clothed F        with makehuman/all: share 0..1 of the MakeHuman bodies dressed (outfit,\n"
+    "                     hair, shoes) from DATA/meshes/makehuman_clothes (default 0)\n"
+    "  --body-seed S      seed of the sampled bodies and of the outfits (default 1)\n"
     "  --data DIR         shared data folder (default: $POSEFOREST_DATA_DIR, else the build's\n"
     "                     " POSEFOREST_RENDER_DATA_DIR
     ")\n"
@@ -123,7 +135,8 @@ int RenderMain(int argc, char** argv) {
   Args args(
       {"out",           "count",      "seed",   "threads", "rotation", "people", "montage", "poses", "clips",
        "test-fraction", "split-seed", "bodies", "data",    "camera",   "fx",     "fy",      "cx",    "cy",
-       "clutter",       "occluders"},
+       "clutter",       "occluders", "sampled-bodies", "clothed", "body-seed",
+       "sensor",        "flying-pixels", "range-holes", "grazing-holes"},
       {"no-noise", "masks", "help", "realism"});
   if (core::Status st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest render: %s\n\n%s", st.message().c_str(), kUsage);
@@ -174,6 +187,40 @@ int RenderMain(int argc, char** argv) {
                  bodies.c_str());
     return 2;
   }
+  if (bodies == "procedural") {
+    for (const char* o : {"sampled-bodies", "clothed", "body-seed"}) {
+      if (args.Has(o)) {
+        std::fprintf(stderr, "poseforest render: --%s needs MakeHuman bodies (--bodies makehuman or all)\n", o);
+        return 2;
+      }
+    }
+  }
+  renderer::MakeHumanBodyOptions mh_options;
+  {
+    auto sampled = args.GetInt("sampled-bodies", 0, 0, 2000);
+    if (!sampled.ok()) {
+      std::fprintf(stderr, "poseforest render: %s\n", sampled.status().message().c_str());
+      return 2;
+    }
+    mh_options.sampled_bodies = int(*sampled);
+    if (auto f = args.Get("clothed")) {
+      char* end = nullptr;
+      mh_options.clothed_share = std::strtod(f->c_str(), &end);
+      if (f->empty() || *end != '\0' || !(mh_options.clothed_share >= 0 && mh_options.clothed_share <= 1)) {
+        std::fprintf(stderr, "poseforest render: --clothed must be a number in [0, 1], not '%s'\n", f->c_str());
+        return 2;
+      }
+    }
+    if (auto s = args.Get("body-seed")) {
+      char* end = nullptr;
+      mh_options.seed = std::strtoull(s->c_str(), &end, 10);
+      if (s->empty() || *end != '\0' || (*s)[0] == '-') {
+        std::fprintf(stderr, "poseforest render: --body-seed must be a non-negative integer, not '%s'\n",
+                     s->c_str());
+        return 2;
+      }
+    }
+  }
   if (!args.Has("poses")) {
     for (const char* o : {"clips", "test-fraction", "split-seed"}) {
       if (args.Has(o)) {
@@ -210,8 +257,37 @@ int RenderMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest render: %s\n", st.message().c_str());
     return 2;
   }
+  // The sensor's noise model (issue 22) and, unless a camera is given, its size and intrinsics.
+  renderer::DepthSensor sensor = renderer::DepthSensor::kKinectV1;
+  if (auto name = args.Get("sensor"); name && !renderer::ParseDepthSensor(*name, &sensor)) {
+    std::fprintf(stderr, "poseforest render: --sensor takes kinect-v1, kinect-v2 or azure-nfov, not '%s'\n",
+                 name->c_str());
+    return 2;
+  }
+  const renderer::SensorPreset preset = renderer::SensorNoise(sensor);
+  if (!camera_given && sensor != renderer::DepthSensor::kKinectV1) {
+    camera.name = renderer::DepthSensorName(sensor);
+    camera.intrinsics = preset.camera;
+  }
   config.camera = camera.intrinsics;
-  if (camera_given) config.noise.focal_px = camera.intrinsics.fx;  // disparity at this focal length
+  config.noise = preset.noise;
+  config.noise.focal_px = camera.intrinsics.fx;  // disparity and surface normals at this focal length
+  {
+    struct Share {
+      const char* option;
+      double* value;
+    };
+    for (const Share& share : {Share{"flying-pixels", &config.noise.flying_pixels},
+                               Share{"range-holes", &config.noise.range_dropout},
+                               Share{"grazing-holes", &config.noise.grazing_dropout}}) {
+      auto v = GetDouble(args, share.option, *share.value, 0.0, 1.0);
+      if (!v.ok()) {
+        std::fprintf(stderr, "poseforest render: %s\n", v.status().message().c_str());
+        return 2;
+      }
+      *share.value = *v;
+    }
+  }
   if (auto list = args.Get("clutter")) {
     size_t start = 0;
     while (start <= list->size()) {
@@ -264,14 +340,16 @@ int RenderMain(int argc, char** argv) {
                    bodies.c_str(), kit.string().c_str());
       return 1;
     }
-    auto made = renderer::MakeHumanPresetBodies(kit);
+    mh_options.clothes_dir = data / "meshes" / "makehuman_clothes";
+    auto made = renderer::MakeHumanBodies(kit, mh_options);
     if (!made.ok()) {
       std::fprintf(stderr, "poseforest render: --bodies %s: %s\n", bodies.c_str(),
                    made.status().ToString().c_str());
       return 1;
     }
     config.bodies = std::move(made).value();
-    std::printf("bodies: %zu MakeHuman presets from %s%s\n", config.bodies.size(), kit.string().c_str(),
+    std::printf("bodies: %zu MakeHuman (18 presets + %d sampled, clothed share %g) from %s%s\n",
+                config.bodies.size(), mh_options.sampled_bodies, mh_options.clothed_share, kit.string().c_str(),
                 bodies == "all" ? " + the procedural family" : "");
   }
 

@@ -16,6 +16,9 @@
 #ifdef POSEFOREST_DOCS_WITH_ASSETS
 #include "renderer/assets/makehuman.h"
 #include "renderer/assets/mesh_loader.h"
+#include "renderer/assets/retarget.h"
+#include "renderer/pose_sampler.h"
+#include "renderer/scene_assets.h"
 #endif
 
 using namespace poseforest;
@@ -266,6 +269,71 @@ int main(int argc, char** argv) {
         !st.ok())
       return Fail(st);
     std::printf("wrote %s/asset_bodies.png\n", out.c_str());
+
+    // 6. MakeHuman bodies in MakeHuman clothes, hair and shoes (issue 22): a skirt, long hair, an
+    //    open jacket, dungarees, a suit and a hat among them, then two sampled clothed bodies; per
+    //    body, clean depth and parts in the rest pose (from the front left) and in a procedural
+    //    pose (from behind).
+    const auto clothes_dir = data / "meshes" / "makehuman_clothes";
+    auto wardrobe = assets::LoadMakeHumanWardrobe(clothes_dir, (*kit)->base_vertex_count());
+    if (!wardrobe.ok()) return Fail(wardrobe.status());
+    auto find = [&](const std::string& name) -> const assets::MhcloProxy* {
+      for (const auto* list : {&wardrobe->outfits, &wardrobe->hair, &wardrobe->hats, &wardrobe->shoes})
+        for (const auto& p : *list)
+          if (p->name == name) return p.get();
+      return nullptr;
+    };
+    const std::pair<const char*, std::vector<const char*>> dressed[] = {
+        {"female-young-average", {"female_elegantsuit01", "long01", "shoes01"}},
+        {"male-young-average", {"male_casualsuit05", "short02", "shoes02"}},
+        {"female-young-thin", {"female_casualsuit02", "ponytail01", "shoes02"}},
+        {"male-young-heavy", {"male_worksuit01", "afro01", "shoes03"}},
+        {"girl-11-thin", {"female_sportsuit01", "braid01", "shoes02"}},
+        {"male-old", {"male_elegantsuit01", "short04", "fedora_cocked", "shoes03"}},
+    };
+    SceneConfig c6;
+    c6.use_procedural_bodies = false;
+    c6.noise.enabled = false;
+    for (const auto& [preset, names] : dressed) {
+      std::vector<const assets::MhcloProxy*> outfit;
+      for (const char* n : names)
+        if (const auto* p = find(n)) outfit.push_back(p);
+      for (const auto& p : assets::MakeHumanPresets()) {
+        if (p.name != preset) continue;
+        auto body = (*kit)->BuildDressed(p, outfit);
+        if (!body.ok()) return Fail(body.status());
+        c6.bodies.push_back(AssembleDressedBody(std::move(body).value()));
+      }
+    }
+    MakeHumanBodyOptions sampled{2, 3, 1.0, clothes_dir};
+    auto more = MakeHumanBodies(data / "meshes" / "makehuman_hm08_kit", sampled);
+    if (!more.ok()) return Fail(more.status());
+    for (size_t k = more->size() - 2; k < more->size(); ++k) c6.bodies.push_back((*more)[k]);
+    auto r6 = SyntheticRenderer::Create(c6);
+    if (!r6.ok()) return Fail(r6.status());
+    const int n6 = int((*r6)->bodies().size()), w6 = 150;
+    RgbImage clothed;
+    clothed.width = n6 * w6;
+    clothed.height = 4 * 240;
+    clothed.rgb.assign(size_t(clothed.width) * size_t(clothed.height) * 3, 0);
+    for (int b = 0; b < n6; ++b) {
+      for (int k = 0; k < 2; ++k) {
+        SceneSample scene = Front(b, k ? 150.0 : 20.0, 2.5, 0.95);
+        if (k) {
+          const BodyMesh& body = (*r6)->bodies()[size_t(b)];
+          scene.people[0].pose = assets::AdaptPose(SampleProceduralPose(17, uint64_t(b)), body.rest_joints);
+        }
+        auto f = (*r6)->RenderScene(scene);
+        if (!f.ok()) return Fail(f.status());
+        Blit(CropX(DepthToGrey(f->depth, 2), 160 - w6 / 2, w6), &clothed, b * w6, 2 * k * 240);
+        Blit(CropX(LabelsToColour(f->labels, 2), 160 - w6 / 2, w6), &clothed, b * w6, (2 * k + 1) * 240);
+      }
+    }
+    if (auto st = runtime::WriteRgbPng((out / "clothed_bodies.png").string(), clothed.width, clothed.height,
+                                       clothed.rgb);
+        !st.ok())
+      return Fail(st);
+    std::printf("wrote %s/clothed_bodies.png\n", out.c_str());
   }
 #endif
   std::printf("wrote %s/{procedural_family,front_back,montage,closeup_noise,clutter_segmentation}.png\n",

@@ -18,6 +18,7 @@
 #include "runtime/classifier.h"
 #include "runtime/frame_source.h"
 #include "runtime/segmentation.h"
+#include "runtime/skeleton.h"
 #include "runtime/cli/args.h"
 #include "runtime/cli/commands.h"
 #include "runtime/cli/frame_options.h"
@@ -101,10 +102,7 @@ float CalibratedConfidence(const core::ConfidenceCalibration* cal, int joint, co
 std::string JointsJson(const std::string& source, const core::DepthImage& depth, const runtime::FrameProposals& f,
                        const char* method, const core::ConfidenceCalibration* cal, const core::CameraIntrinsics& camera) {
   std::string out = "{\n  \"frame\": \"";
-  for (char c : source) {
-    if (c == '"' || c == '\\') out += '\\';
-    out += c;
-  }
+  runtime::AppendJsonString(out, source);  // control characters too: a file name may hold any
   char buf[256];
   std::snprintf(buf, sizeof buf, "\",\n  \"width\": %d, \"height\": %d, \"method\": \"%s\",\n  \"joints\": [\n",
                 depth.width, depth.height, method);

@@ -24,15 +24,25 @@ with the item's mode or the volume's defaultMode), PersistentVolumeClaims (which
 as empty folders, and for an image run without Kubernetes, the ConfigMap's job at
 /etc/poseforest/job.textproto (the documented mount). A command of another program (the
 discovery server, `sh` of a probe) is checked to exist on PATH and listed.
+  - deploy/compose.yaml: each service as `docker compose config` renders it (the file's
+    ${VAR:-default} with this environment, YAML anchors and merges): its entrypoint/command (or
+    the image's), the image's ENV plus `environment`, bind mounts (the host file, which must
+    exist) and named volumes; each service's image must be built by its `build.dockerfile`, a
+    Dockerfile of deploy/docker; every network `internal` and no published port or host network
+    (the cluster's traffic stays on its own bridge); Prometheus's `--config.file` through
+    `promtool check config` (when promtool is installed). When a compose CLI is installed
+    (`docker compose` v2, or Debian's docker-compose 1.29) its `config` must accept the file
+    and render the same command lines; without one, that comparison is skipped and said so.
 A Kubernetes command runs in a mount and network namespace of its own (`unshare`) whose
 /etc/hosts maps the manifests' Service names (NAME, NAME.NS, NAME.NS.svc,
 NAME.NS.svc.cluster.local) to test addresses, as the cluster's DNS would: a host name in a flag
-or an XML profile must name a Service of the manifests, and no lookup leaves the machine.
+or an XML profile must name a Service of the manifests, and no lookup leaves the machine. A
+compose service's command likewise, with the compose services' names in its /etc/hosts.
 
 Exit 0 when every command passes; 1 naming each file, container and the parser's message.
 --rendered-json FILE: also write the rendered objects there (a JSON list), for the test's checks.
 Needs python3-yaml and kubectl (Debian: kubernetes-client; its 1.20 renders these files as a newer
-kubectl does).
+kubectl does). --compose-cli "docker-compose" (or "docker compose", "none") picks the compose CLI.
 """
 
 import argparse
@@ -263,6 +273,227 @@ def make_credentials(dest, source, tmp):
         shutil.copy(os.path.join(ca, "participant", f), dest)
 
 
+def interpolate(value, env):
+    """Compose's variable substitution in a string: $$, $VAR, ${VAR}, ${VAR:-default},
+    ${VAR-default}, ${VAR:?message}, ${VAR?message}. Returns (text, errors)."""
+    errors = []
+
+    def one(m):
+        if m.group(0) == "$$":
+            return "$"
+        name = m.group("braced") or m.group("plain")
+        op, arg = m.group("op") or "", m.group("arg") or ""
+        have = name in env
+        val = env.get(name, "")
+        if op == ":-":
+            return val if val else arg
+        if op == "-":
+            return val if have else arg
+        if op in (":?", "?") and (not have or (op == ":?" and not val)):
+            errors.append(f"${{{name}}} is not set: {arg}")
+        if not have and not op:
+            errors.append(f"${name} is not set and has no default (${{{name}:-default}})")
+        return val
+
+    pattern = r"\$\$|\$\{(?P<braced>\w+)(?:(?P<op>:-|-|:\?|\?)(?P<arg>[^}]*))?\}|\$(?P<plain>[A-Za-z_]\w*)"
+    return re.sub(pattern, one, value), errors
+
+
+def interpolate_tree(node, env, errors):
+    if isinstance(node, str):
+        text, errs = interpolate(node, env)
+        errors += errs
+        return text
+    if isinstance(node, list):
+        return [interpolate_tree(x, env, errors) for x in node]
+    if isinstance(node, dict):
+        return {k: interpolate_tree(v, env, errors) for k, v in node.items() if not str(k).startswith("x-")}
+    return node
+
+
+def compose_cli(choice):
+    """The compose CLI as an argv prefix: `docker compose` (v2) when it answers, else
+    docker-compose (Debian's 1.29); None when neither is installed or choice is "none"."""
+    if choice == "none":
+        return None
+    candidates = [choice.split()] if choice else [["docker", "compose"], ["docker-compose"]]
+    for c in candidates:
+        if shutil.which(c[0]) is None:
+            continue
+        try:
+            r = subprocess.run(c + ["version"], capture_output=True, text=True, timeout=30)
+        except subprocess.TimeoutExpired:
+            continue
+        if r.returncode == 0:
+            return c
+    return None
+
+
+def short_image(name):
+    return str(name or "").split("/")[-1].split(":")[0]
+
+
+def compose_checks(compose_file, deploy, source, images, cli_choice):
+    """deploy/compose.yaml: (services {name: rendered service}, errors, notes)."""
+    label = os.path.relpath(compose_file, os.path.dirname(deploy))
+    errors, notes = [], []
+    try:
+        with open(compose_file) as f:
+            raw = yaml.safe_load(f)
+    except yaml.YAMLError as e:
+        return {}, [f"{label}: not valid YAML: {e}"], notes
+    if not isinstance(raw, dict) or not isinstance(raw.get("services"), dict):
+        return {}, [f"{label}: no services"], notes
+    ierrors = []
+    doc = interpolate_tree(raw, dict(os.environ), ierrors)
+    errors += [f"{label}: {e}" for e in ierrors]
+    services = doc["services"]
+    base = os.path.dirname(os.path.abspath(compose_file))
+
+    # What the compose CLI makes of it: it must accept the file and run the same command lines.
+    cli = compose_cli(cli_choice)
+    if cli is None:
+        notes.append(f"note {label}: no compose CLI here (`docker compose` v2 or Debian's docker-compose): "
+                     f"checked with this script's own rendering only")
+    else:
+        try:
+            r = subprocess.run(cli + ["-f", compose_file, "config"], capture_output=True, text=True, timeout=120,
+                               cwd=base)
+        except subprocess.TimeoutExpired:
+            r = None
+            errors.append(f"{label}: `{' '.join(cli)} config` did not finish in 120 s")
+        if r is not None and r.returncode != 0:
+            errors.append(f"{label}: `{' '.join(cli)} config` refuses it (exit {r.returncode}): "
+                          f"{(r.stderr or r.stdout).strip()}")
+        elif r is not None:
+            rendered = (yaml.safe_load(r.stdout) or {}).get("services", {})
+            if sorted(rendered) != sorted(services):
+                errors.append(f"{label}: `{' '.join(cli)} config` renders services {sorted(rendered)}, "
+                              f"this script {sorted(services)}")
+            for name, svc in services.items():
+                for key in ("entrypoint", "command"):
+                    want = svc.get(key)
+                    if isinstance(want, str):
+                        want = shlex.split(want)
+                    have = rendered.get(name, {}).get(key)
+                    if isinstance(have, str):
+                        have = shlex.split(have)
+                    if want != have:
+                        errors.append(f"{label} service {name}: `{' '.join(cli)} config` renders {key} "
+                                      f"{json.dumps(have)}, this script {json.dumps(want)}")
+            print(f"ok   {label}: `{' '.join(cli)} config` accepts it: services {', '.join(rendered)}")
+
+    # The cluster's traffic stays on its own bridge: internal networks, nothing published.
+    networks = doc.get("networks") or {}
+    for name, net in networks.items():
+        net = net or {}
+        if not net.get("internal"):
+            errors.append(f"{label}: network {name} is not `internal: true` (the cluster's traffic stays on "
+                          f"its bridge, with no route out)")
+        if net.get("external") or net.get("driver", "bridge") != "bridge":
+            errors.append(f"{label}: network {name}: a bridge network of this file only")
+    volumes = doc.get("volumes") or {}
+    for name, svc in services.items():
+        slabel = f"{label} service {name}"
+        if svc.get("network_mode"):
+            errors.append(f"{slabel}: network_mode {svc['network_mode']}: use the file's internal network")
+        if svc.get("ports"):
+            errors.append(f"{slabel}: ports {svc['ports']}: nothing is published (the host reaches the "
+                          f"containers on the bridge)")
+        nets = svc.get("networks") or []
+        for n in (nets if isinstance(nets, list) else list(nets)):
+            if n not in networks:
+                errors.append(f"{slabel}: network {n} is not defined in the file")
+        if not nets:
+            errors.append(f"{slabel}: no network: it would join compose's default network, which is not internal")
+        # Image and build: the image is the one its Dockerfile's `docker build ... -t` line names.
+        img = images.get(short_image(svc.get("image")))
+        build = svc.get("build")
+        if build is not None:
+            if isinstance(build, str):
+                build = {"context": build}
+            context = os.path.normpath(os.path.join(base, build.get("context", ".")))
+            dockerfile = os.path.join(context, build.get("dockerfile", "Dockerfile"))
+            if not os.path.isfile(dockerfile):
+                errors.append(f"{slabel}: build.dockerfile {build.get('dockerfile')} is not a file in the context "
+                              f"{os.path.relpath(context, base)}")
+            else:
+                built = Image(dockerfile)
+                if built.name != short_image(svc.get("image")):
+                    errors.append(f"{slabel}: image {svc.get('image')} but its build.dockerfile "
+                                  f"{build.get('dockerfile')} is built as {built.name}")
+                img = built  # built from this context: its COPY sources are the context's files
+                svc["_context"] = context
+        if img is None:
+            errors.append(f"{slabel}: image {svc.get('image')} has no Dockerfile in deploy/docker "
+                          f"(known: {', '.join(sorted(images))})")
+            continue
+        svc["_image"] = img
+        svc["_label"] = slabel
+        mounts = []
+        for v in svc.get("volumes") or []:
+            if isinstance(v, str):
+                parts = v.split(":")
+                src, dst = (parts[0], parts[1]) if len(parts) > 1 else (None, parts[0])
+            else:
+                src, dst = v.get("source"), v.get("target")
+            if src and (src.startswith((".", "/", "~"))):
+                host = os.path.normpath(os.path.join(base, os.path.expanduser(src)))
+                if not os.path.exists(host):
+                    errors.append(f"{slabel}: bind mount {src}: {host} does not exist")
+                    continue
+                mounts.append(("bind", host, dst))
+            else:
+                if src and src not in volumes:
+                    errors.append(f"{slabel}: volume {src} is not defined in the file")
+                mounts.append(("volume", src, dst))
+        svc["_mounts"] = mounts
+    return services, errors, notes
+
+
+def http_port(service):
+    """The port of a poseforest service's `--http HOST:PORT` (or --http=...), or None."""
+    argv = [str(x) for x in (service.get("command") or [])]
+    for i, x in enumerate(argv):
+        value = argv[i + 1] if x == "--http" and i + 1 < len(argv) else x[7:] if x.startswith("--http=") else None
+        if value and ":" in value:
+            return value.rsplit(":", 1)[1]
+    return None
+
+
+def scrape_target_errors(config_file, services):
+    """Each scrape target of a Prometheus config (static targets HOST:PORT, dns_sd names with
+    their port) must be a compose service that serves HTTP on that port (`--http ...:PORT`)."""
+    with open(config_file) as f:
+        config = yaml.safe_load(f) or {}
+    errors, targets = [], []
+    for job in config.get("scrape_configs") or []:
+        for sc in job.get("static_configs") or []:
+            for t in sc.get("targets") or []:
+                host, _, port = str(t).rpartition(":")
+                targets.append((job.get("job_name"), host, port))
+        for sd in job.get("dns_sd_configs") or []:
+            for n in sd.get("names") or []:
+                targets.append((job.get("job_name"), n, str(sd.get("port", ""))))
+    for job, host, port in targets:
+        if host not in services:
+            errors.append(f"job {job}: target {host}:{port} is no service of the compose file")
+        elif http_port(services[host]) != port:
+            errors.append(f"job {job}: target {host}:{port}, but service {host} serves --http on port "
+                          f"{http_port(services[host])}")
+    return errors
+
+
+def compose_hosts(services, subnet):
+    """/etc/hosts text giving every compose service name an address of the network, as
+    compose's network DNS does."""
+    prefix = ".".join((subnet or "10.250.0.0/24").split("/")[0].split(".")[:3])
+    lines = ["127.0.0.1 localhost"]
+    for i, name in enumerate(sorted(services)):
+        lines.append(f"{prefix}.{10 + i} {name}")
+    return "\n".join(lines) + "\n"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bin", required=True, help="the built poseforest program")
@@ -271,6 +502,9 @@ def main():
     ap.add_argument("--deploy", default=None, help="deploy folder (default SOURCE/deploy)")
     ap.add_argument("--kubectl", default="kubectl", help="kubectl program (default: kubectl on PATH)")
     ap.add_argument("--rendered-json", default=None, help="write what kubectl kustomize renders here (JSON)")
+    ap.add_argument("--compose-cli", default="",
+                    help='compose CLI for `config` ("docker compose", "docker-compose"; "none": skip; default: '
+                         'whichever is installed)')
     a = ap.parse_args()
     binary = os.path.abspath(a.bin)
     deploy = os.path.abspath(a.deploy or os.path.join(a.source, "deploy"))
@@ -458,6 +692,80 @@ def main():
                     checked += 1
                     if err:
                         errors.append(err)
+
+        # deploy/compose.yaml: each service as compose runs it, with the services' names as hosts.
+        compose_file = os.path.join(deploy, "compose.yaml")
+        if os.path.exists(compose_file):
+            services, cerrors, notes = compose_checks(compose_file, deploy, a.source, images, a.compose_cli)
+            errors += cerrors
+            for n in notes:
+                print(n)
+            subnet = None
+            for net in (yaml.safe_load(open(compose_file)) or {}).get("networks", {}).values():
+                for c in ((net or {}).get("ipam") or {}).get("config") or []:
+                    subnet = interpolate(str(c.get("subnet", "")), dict(os.environ))[0] or subnet
+            compose_hosts_file = os.path.join(tmp, "compose-hosts")
+            with open(compose_hosts_file, "w") as f:
+                f.write(compose_hosts(services, subnet))
+            for name, svc in services.items():
+                if "_image" not in svc:
+                    continue
+                img, slabel = svc["_image"], svc["_label"]
+                root = tempfile.mkdtemp(dir=tmp)
+                try:
+                    place_image_files(img, root, svc.get("_context", a.source))
+                except RuntimeError as e:
+                    errors.append(f"{slabel}: {e}")
+                    continue
+                for kind, src, dst in svc["_mounts"]:
+                    target = root + dst
+                    if kind == "bind" and os.path.isfile(src):
+                        os.makedirs(os.path.dirname(target), exist_ok=True)
+                        shutil.copy(src, target)
+                    elif kind == "bind":
+                        shutil.copytree(src, target, dirs_exist_ok=True)
+                    else:
+                        os.makedirs(target, exist_ok=True)
+                env = dict(img.env)
+                environment = svc.get("environment") or {}
+                if isinstance(environment, list):
+                    environment = dict(e.partition("=")[::2] for e in environment)
+                env.update({k: str(v if v is not None else os.environ.get(k, "")) for k, v in environment.items()})
+
+                def as_list(x):
+                    return shlex.split(x) if isinstance(x, str) else [str(y) for y in x]
+
+                entry = as_list(svc["entrypoint"]) if svc.get("entrypoint") is not None else list(img.entrypoint)
+                if svc.get("command") is not None:
+                    cmd = as_list(svc["command"])
+                elif svc.get("entrypoint") is not None:
+                    cmd = []  # compose: a new entrypoint drops the image's CMD
+                else:
+                    cmd = list(img.cmd)
+                argv = entry + cmd
+                err = run_check(binary, argv, env, root, slabel, a.source, compose_hosts_file)
+                checked += 1
+                if err:
+                    errors.append(err)
+                # Prometheus: its config file, as the container sees it, through promtool.
+                if argv and os.path.basename(argv[0]) == "prometheus":
+                    config = next((x.split("=", 1)[1] for x in argv if x.startswith("--config.file=")),
+                                  "/etc/prometheus/prometheus.yml")
+                    if shutil.which("promtool") is None:
+                        print(f"note {slabel}: promtool not installed (Debian: prometheus): {config} not checked")
+                    elif not os.path.isfile(root + config):
+                        errors.append(f"{slabel}: --config.file {config}: no such file in the image or its mounts")
+                    else:
+                        r = subprocess.run(["promtool", "check", "config", root + config], capture_output=True,
+                                           text=True, timeout=60)
+                        text = (r.stdout + r.stderr).strip().replace(root, "")
+                        if r.returncode != 0:
+                            errors.append(f"{slabel}: `promtool check config {config}` fails:\n    " +
+                                          text.replace("\n", "\n    "))
+                        else:
+                            print(f"ok   {slabel}: promtool check config {config}")
+                        for e in scrape_target_errors(root + config, services):
+                            errors.append(f"{slabel}: {config}: {e}")
 
     if checked == 0:
         errors.append(f"no command lines found under {deploy}")

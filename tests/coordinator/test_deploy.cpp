@@ -17,6 +17,10 @@
 //  - every command line of deploy/docker/Dockerfile.* and of what `kubectl kustomize deploy/k8s`
 //    renders (containers and exec probes) passes the real argument parser (`--check-config`), and
 //    a manifest with a wrong flag fails the check;
+//  - deploy/compose.yaml as compose renders it: each service's command through the parser with the
+//    services' names as hosts, internal network only, images built by their Dockerfiles,
+//    Prometheus's config through promtool and its targets the services' --http ports (the live
+//    cluster run is scripts/compose-test.sh, not part of ctest: it needs a container engine);
 //  - the rendered deploy/k8s is what operators expect (issue 24): the coordinator a batch/v1 Job
 //    (OnFailure) resuming from a checkpoint on a PersistentVolumeClaim, the forest on that volume;
 //    the workers scaled by replicas, with readiness and liveness probes.
@@ -589,8 +593,9 @@ void Replace(const fs::path& file, const std::string& from, const std::string& t
 }
 }  // namespace
 
-TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the real parser",
-          "[deploy][integration]") {
+TEST_CASE(
+    "deploy: every command line of deploy/k8s, deploy/docker and deploy/compose.yaml passes the real parser",
+    "[deploy][integration]") {
   auto [rc, out] = CheckDeployCommands(Source() / "deploy");
   INFO(out);
   CHECK(rc == 0);
@@ -604,8 +609,22 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
         "ok   deploy/k8s/coordinator.yaml Job/coordinator container coordinator livenessProbe: httpGet "
         "/healthz",
         "ok   deploy/k8s/discovery-server.yaml Deployment/dds-discovery", "coordinator config ok",
-        "worker config ok: id worker-0", "Fast DDS XML profile poseforest_k8s", " 0 problems"})
+        "worker config ok: id worker-0", "Fast DDS XML profile poseforest_k8s",
+        // deploy/compose.yaml (docs/distributed/compose.md): the services' names resolve as on
+        // the compose network; Prometheus's config through promtool, its targets the services.
+        "ok   deploy/compose.yaml service coordinator: poseforest coordinator",
+        "--discovery-server discovery -> 10.250.0.",
+        "ok   deploy/compose.yaml service worker: poseforest worker",
+        "metrics on http://0.0.0.0:9101/metrics",
+        "ok   deploy/compose.yaml service discovery: fast-discovery-server",
+        "ok   deploy/compose.yaml service prometheus: promtool check config /etc/prometheus/prometheus.yml",
+        " 0 problems"})
     CHECK(out.find(what) != std::string::npos);
+  // The compose CLI's own `config` (docker compose v2 or Debian's docker-compose, which
+  // scripts/setup.sh installs): it must be there and accept the file.
+  INFO("no compose CLI: install Debian's docker-compose (scripts/setup.sh does)");
+  CHECK(out.find("no compose CLI here") == std::string::npos);
+  CHECK(out.find("config` accepts it: services") != std::string::npos);
 
   // A manifest or image with a wrong flag, profile or value fails the check, naming it.
   struct Mutation {
@@ -650,6 +669,23 @@ TEST_CASE("deploy: every command line of deploy/k8s and deploy/docker passes the
        "PersistentVolumeClaim poseforest-sate is not in deploy/k8s"},
       {"k8s/kustomization.yaml", "  - workers.yaml\n", "  - worker.yaml\n", "`kubectl kustomize` fails",
        "k8s:"},
+      // deploy/compose.yaml: a wrong value, a name that is no service, a network with a way out,
+      // an image built from another Dockerfile, Prometheus scraping a port nobody serves.
+      {"compose.yaml", "\"--min-workers\", \"${POSEFOREST_WORKERS:-2}\"",
+       "\"--min-workers\", \"${POSEFOREST_WORKERS:-two}\"", "--min-workers must be an integer",
+       "compose.yaml service coordinator"},
+      {"compose.yaml", "\"--discovery-server\", \"discovery\",\n              \"--http\", \"0.0.0.0:9101\"",
+       "\"--discovery-server\", \"discovry\",\n              \"--http\", \"0.0.0.0:9101\"",
+       "host name 'discovry' does not resolve", "compose.yaml service worker"},
+      {"compose.yaml", "    internal: true", "    internal: false", "is not `internal: true`"},
+      {"compose.yaml", "dockerfile: deploy/docker/Dockerfile.worker",
+       "dockerfile: deploy/docker/Dockerfile.coordinator", "is built as poseforest-coordinator",
+       "compose.yaml service worker"},
+      {"compose.yaml", "    networks: [poseforest]\n    restart: unless-stopped\n\n  coordinator:",
+       "    restart: unless-stopped\n\n  coordinator:", "no network: it would join compose's default network",
+       "compose.yaml service discovery"},
+      {"prometheus/prometheus.yml", "port: 9101", "port: 9102", "service worker serves --http on port 9101",
+       "compose.yaml service prometheus"},
   };
   for (const Mutation& m : mutations) {
     TempDir dir("pf-deploy-mutant");

@@ -370,3 +370,59 @@ TEST_CASE("body_bone_map: a rig no built-in name map knows (Rigify names) become
   fs::remove_all(dir);
 }
 #endif
+
+#if POSEFOREST_HAS_RENDERER
+#include "engine/rendered_scene.h"
+#endif
+
+TEST_CASE("the sensor fields (issue 22): defaults classic, values, the noise they make, bad values named",
+          "[training][config][realism]") {
+  auto d = Parse("images_per_tree: 5 source { rendered { } }");
+  REQUIRE(d.ok());
+  CHECK(d->source.sensor == worker::DepthSensor::kKinectV1);
+  CHECK_FALSE(d->source.flying_pixels.has_value());
+  CHECK_FALSE(d->source.range_holes.has_value());
+  CHECK_FALSE(d->source.grazing_holes.has_value());
+  auto c = Parse(
+      "images_per_tree: 5 source { rendered { flying_pixels: 0.4 range_holes: 0.1 grazing_holes: 0.6 "
+      "sensor: DEPTH_SENSOR_KINECT_V2 } }");
+  REQUIRE(c.ok());
+  CHECK(c->source.sensor == worker::DepthSensor::kKinectV2);
+  CHECK(c->source.flying_pixels == 0.4);
+  CHECK(c->source.range_holes == 0.1);
+  CHECK(c->source.grazing_holes == 0.6);
+  CHECK(c->source.min_range_m == 0.5);  // the ToF cameras' near limit unless given
+  const std::string r = "images_per_tree: 5 source { rendered { ";
+  CHECK_THAT(ErrorOf(r + "flying_pixels: 1.5 } }"), Catch::Contains("source.rendered.flying_pixels = 1.5"));
+  CHECK_THAT(ErrorOf(r + "range_holes: -0.1 } }"), Catch::Contains("source.rendered.range_holes"));
+  CHECK_THAT(ErrorOf(r + "grazing_holes: 2 } }"), Catch::Contains("source.rendered.grazing_holes"));
+#if POSEFOREST_HAS_RENDERER
+  // Unset: the classic Kinect v1 model, every new effect off (frames as before the fields).
+  renderer::SceneConfig classic;
+  REQUIRE(worker::ApplySceneOptions(d->source, &classic).ok());
+  const renderer::NoiseConfig v1;
+  CHECK(classic.noise.principle == renderer::DepthPrinciple::kStructuredLight);
+  CHECK(classic.noise.flying_pixels == 0);
+  CHECK(classic.noise.range_dropout == 0);
+  CHECK(classic.noise.grazing_dropout == 0);
+  CHECK(classic.noise.focal_px == v1.focal_px);
+  CHECK(classic.noise.edge_dropout == v1.edge_dropout);
+  CHECK(classic.noise.disparity_sigma_px == v1.disparity_sigma_px);
+  // Kinect v2: time of flight at the render camera's focal length, the job's shares.
+  renderer::SceneConfig tof;
+  REQUIRE(worker::ApplySceneOptions(c->source, &tof).ok());
+  CHECK(tof.noise.principle == renderer::DepthPrinciple::kTimeOfFlight);
+  CHECK(tof.noise.flying_pixels == 0.4);
+  CHECK(tof.noise.range_dropout == 0.1);
+  CHECK(tof.noise.grazing_dropout == 0.6);
+  CHECK(tof.noise.focal_px == tof.camera.fx);
+  CHECK(tof.camera.width == 640);  // frames keep the Kinect v1 size for now
+  // Unset shares under a ToF sensor: the sensor's own.
+  auto a = Parse("images_per_tree: 5 source { rendered { sensor: DEPTH_SENSOR_AZURE_KINECT_NFOV } }");
+  REQUIRE(a.ok());
+  renderer::SceneConfig azure;
+  REQUIRE(worker::ApplySceneOptions(a->source, &azure).ok());
+  const renderer::NoiseConfig azure_preset = renderer::SensorNoise(renderer::DepthSensor::kAzureKinectNfov).noise;
+  CHECK(azure.noise.flying_pixels == azure_preset.flying_pixels);
+#endif
+}

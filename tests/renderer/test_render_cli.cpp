@@ -79,3 +79,28 @@ TEST_CASE("poseforest render refuses bad options with exit code 2", "[cli]") {
   CHECK(Run({"render", "--out", "/tmp/x", "--bogus"}) == 2);
   CHECK(Run({"render", "--help"}) == 0);
 }
+
+TEST_CASE("poseforest render --sensor: the camera's size and ToF noise; effects off render as before",
+          "[cli][egl]") {
+  const fs::path base = testing::ScratchDir("render-sensor-base"), off = testing::ScratchDir("render-sensor-off"),
+                 fly = testing::ScratchDir("render-sensor-fly"), v2 = testing::ScratchDir("render-sensor-v2");
+  REQUIRE(Run({"render", "--out", base.string(), "--count", "2", "--seed", "7", "--clutter", "walls"}) == 0);
+  REQUIRE(Run({"render", "--out", off.string(), "--count", "2", "--seed", "7", "--clutter", "walls", "--sensor",
+               "kinect-v1", "--flying-pixels", "0", "--range-holes", "0", "--grazing-holes", "0"}) == 0);
+  REQUIRE(Run({"render", "--out", fly.string(), "--count", "2", "--seed", "7", "--clutter", "walls",
+               "--flying-pixels", "0.5"}) == 0);
+  REQUIRE(Run({"render", "--out", v2.string(), "--count", "2", "--seed", "7", "--sensor", "kinect-v2"}) == 0);
+  for (const char* name : {"depth_000001.png", "labels_000001.png", "mask_000001.png"}) {
+    INFO(name);
+    CHECK(Slurp(off / name) == Slurp(base / name));  // switched off: byte for byte as before
+  }
+  CHECK(Slurp(fly / "depth_000001.png") != Slurp(base / "depth_000001.png"));
+  auto depth = runtime::ReadDepthImage((v2 / "depth_000001.png").string());
+  REQUIRE(depth.ok());
+  CHECK(depth->width == 512);
+  CHECK(depth->height == 424);
+  CHECK(core::CountForeground(*depth) > 100);
+  CHECK_THAT(Slurp(v2 / "camera.txt"), Catch::Contains("kinect-v2 512 424 365.5 365.5"));
+  CHECK(Run({"render", "--out", v2.string(), "--count", "1", "--sensor", "kinect-v9"}) == 2);
+  CHECK(Run({"render", "--out", v2.string(), "--count", "1", "--grazing-holes", "1.5"}) == 2);
+}

@@ -355,6 +355,16 @@ TEST_CASE("the JSON Lines record: one line, people, 16 named joints, null for jo
         "{\"index\":0,\"time_s\":0.000000,\"source\":\"x\",\"people\":[]}");
 }
 
+TEST_CASE("AppendJsonString: quotes, backslashes and control characters escaped, UTF-8 kept", "[skeleton]") {
+  std::string out;
+  runtime::AppendJsonString(out, std::string("a\"b\\c\nd\te\x01\x1f\x7f") + "\xc3\xa9");
+  CHECK(out == "a\\\"b\\\\c\\u000ad\\u0009e\\u0001\\u001f\x7f\xc3\xa9");
+  // In the JSON Lines record: a source name with a newline stays one valid line.
+  const std::string line = runtime::SkeletonsJsonLine(0, 0, "cam\n1", {});
+  CHECK(line.find('\n') == std::string::npos);
+  CHECK(line.find("\"source\":\"cam\\u000a1\"") != std::string::npos);
+}
+
 TEST_CASE("joint states: tracked, inferred, not tracked, in the JSON Lines record", "[skeleton]") {
   using runtime::JointState;
   const runtime::Skeleton s = testing::FourStateSkeleton();
@@ -578,6 +588,61 @@ TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hid
       CHECK(h[0].joints[kHead].tracked);
     }
   }
+}
+
+TEST_CASE("skeletons with offset votes: a proposal and a vote that agree combine their confidences",
+          "[skeleton][votes]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 100, 100, 250, 479, 2000);
+  const auto cal = RampCalibration();
+  runtime::FrameProposals proposals{};
+  // Support 3e-3 m^2: calibrated between 0.3 and 0.9 (RampCalibration); set min_confidence
+  // above it, so the proposal alone is not tracked.
+  proposals[kLHand] = {At(cam, 130, 250, 2.04f, 3e-3f * float(cam.fx * cam.fy))};
+  const float cp = cal.Confidence(kLHand, 3e-3f);
+  REQUIRE(cp > 0.3f);
+  REQUIRE(cp < 0.9f);
+  auto vote = [&](int x, int y, float z, float confidence) {
+    runtime::VoteCandidate v;
+    v.position = cam.Unproject(x, y, z).cast<float>();
+    v.share = 0.5f;
+    v.confidence = confidence;
+    return v;
+  };
+  std::vector<runtime::PersonVotes> near(1), far(1);
+  near[0][kLHand] = {vote(134, 252, 2.05f, 0.4f)};  // 1.5 cm from the proposal
+  far[0][kLHand] = {vote(200, 250, 2.05f, 0.4f)};   // 0.24 m from it
+  runtime::SkeletonOptions opt;
+  opt.min_confidence = 1.0f - (1.0f - cp) * (1.0f - 0.4f) - 0.01f;  // reached only together
+  opt.require_tracked_parent = false;
+  opt.check_bone_lengths = false;
+  REQUIRE(opt.agree_radius_m == Approx(0.1f));  // the default
+  const auto agree = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &near);
+  REQUIRE(agree.size() == 1);
+  const runtime::SkeletonJoint& hand = agree[0].joints[kLHand];
+  CHECK(hand.found);
+  CHECK_FALSE(hand.voted);  // the proposal is the more confident: its position
+  CHECK(hand.pixel.x() == 130);
+  CHECK(hand.confidence == Approx(1.0f - (1.0f - cp) * (1.0f - 0.4f)).margin(1e-4));
+  CHECK(hand.tracked);
+  // Apart, each alone is below the threshold: found, not tracked.
+  const auto apart = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &far);
+  CHECK(apart[0].joints[kLHand].found);
+  CHECK_FALSE(apart[0].joints[kLHand].tracked);
+  CHECK(apart[0].joints[kLHand].confidence == Approx(cp).margin(1e-4));
+  // Radius 0: the rule is off.
+  opt.agree_radius_m = 0;
+  const auto off = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &near);
+  CHECK_FALSE(off[0].joints[kLHand].tracked);
+  // A more confident vote that agrees: its position, the combined confidence.
+  opt.agree_radius_m = 0.1f;
+  const float cv = cp + 0.05f;
+  near[0][kLHand] = {vote(134, 252, 2.05f, cv)};
+  const auto v = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &near);
+  CHECK(v[0].joints[kLHand].voted);
+  CHECK(v[0].joints[kLHand].tracked);
+  CHECK(v[0].joints[kLHand].confidence == Approx(1.0f - (1.0f - cp) * (1.0f - cv)).margin(1e-4));
 }
 
 TEST_CASE("CastVotes: every pixel votes its leaf's offset; mean shift finds the mode; confidence from the table",
