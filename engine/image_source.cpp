@@ -178,6 +178,8 @@ Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
   scene->framing.upper_body_min_distance_m = spec.upper_body_min_distance_m;
   scene->framing.upper_body_max_distance_m = spec.upper_body_max_distance_m;
   scene->arm_pose_share = spec.arm_pose_share;
+  scene->sit_share = spec.sitting_share;
+  scene->lean_share = spec.leaning_share;
   {
     // The sensor's noise model (Kinect v1: the classic one), at the render camera's focal length:
     // frames stay Kinect v1-sized (SourceSpec width/height), whatever the sensor.

@@ -92,6 +92,14 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
                             "arm_pose_share", &spec.arm_pose_share);
             !st.ok())
           return st;
+        if (auto st = share(r.has_sitting_share(), r.sitting_share(), defaults.sitting_share, "sitting_share",
+                            &spec.sitting_share);
+            !st.ok())
+          return st;
+        if (auto st = share(r.has_leaning_share(), r.leaning_share(), defaults.leaning_share, "leaning_share",
+                            &spec.leaning_share);
+            !st.ok())
+          return st;
         spec.upper_body_min_distance_m =
             r.has_upper_body_min_distance_m() ? r.upper_body_min_distance_m() : defaults.upper_body_min_distance_m;
         spec.upper_body_max_distance_m =

@@ -39,6 +39,8 @@ struct SourceSpec {
   double upper_body_min_distance_m = 0.6;
   double upper_body_max_distance_m = 2.0;
   double arm_pose_share = 0.5;
+  double sitting_share = 0.0;  ///< rendered: share of people sat down (job.proto field 29)
+  double leaning_share = 0.0;  ///< rendered: share of people leaning their upper body (field 30)
   bool projector_shadow = true;
   double min_range_m = 0.45;
   /// rendered: the depth camera's artefacts (job.proto fields 25-28). Unset: the sensor's value

@@ -183,4 +183,46 @@ void PerturbArms(uint64_t seed, uint64_t index, Pose* pose) {
   }
 }
 
+void LeanTrunk(uint64_t seed, uint64_t index, Pose* pose) {
+  core::RngStream rng(core::CounterRng(seed, 0x1EA7, index, 0x7E4C));
+  // Forward (+angle about X turns the trunk's up toward +Z, where the person faces) more often
+  // than back; sideways about Z.
+  const double forward = rng.Uniform01() < 0.8 ? rng.UniformIn(5, 35) : rng.UniformIn(-15, -5);
+  const double side = rng.UniformIn(-15, 15);
+  // The lean turns about the pelvis's frame (a pitched or turned pelvis keeps its own axes).
+  const Quaterniond pelvis = pose->rotation[size_t(int(J::kPelvis))];
+  const Quaterniond q = (pelvis * Rz(side) * Rx(forward) * pelvis.conjugate()).normalized();
+  // The spine and every joint below it in the tree (parents come before children).
+  std::array<bool, kNumSkelJoints> moved{};
+  for (int j = 0; j < kNumSkelJoints; ++j) {
+    const int p = kSkelParent[size_t(j)];
+    moved[size_t(j)] = j == int(J::kSpine) || (p >= 0 && moved[size_t(p)]);
+    if (moved[size_t(j)]) pose->rotation[size_t(j)] = (q * pose->rotation[size_t(j)]).normalized();
+  }
+}
+
+void SitDown(uint64_t seed, uint64_t index, Pose* pose) {
+  core::RngStream rng(core::CounterRng(seed, 0x517D, index, 0x7E4C));
+  auto U = [&](double lo, double hi) { return rng.UniformIn(lo, hi); };
+  auto& R = pose->rotation;
+  const Quaterniond pelvis = R[size_t(int(J::kPelvis))];
+  const double flex = U(65, 100);  // both thighs about alike: one seat
+  for (int s = 0; s < 2; ++s) {
+    const double sx = s == 0 ? 1.0 : -1.0;  // left = +X
+    const J hip = s == 0 ? J::kLHip : J::kRHip;
+    const J kn = s == 0 ? J::kLKnee : J::kRKnee;
+    const J an = s == 0 ? J::kLAnkle : J::kRAnkle;
+    const J toe = s == 0 ? J::kLToe : J::kRToe;
+    const Quaterniond toe_local = R[size_t(int(an))].conjugate() * R[size_t(int(toe))];
+    const double hip_flex = flex + U(-8, 8), knee = U(60, 105);
+    // As SampleProceduralPose: flexion turns the thigh (rest -Y) toward +Z (about X by -angle),
+    // abduction to the side, the knee turns the shin back (+angle about X).
+    R[size_t(int(hip))] = (pelvis * Rz(sx * U(0, 12)) * Rx(-hip_flex) * Ry(sx * U(-10, 15))).normalized();
+    R[size_t(int(kn))] = (R[size_t(int(hip))] * Rx(knee)).normalized();
+    // The foot back near the pelvis's horizontal: undo the shin's tilt, within +-15 degrees.
+    R[size_t(int(an))] = (R[size_t(int(kn))] * Rx(hip_flex - knee + U(-15, 15))).normalized();
+    R[size_t(int(toe))] = (R[size_t(int(an))] * toe_local).normalized();
+  }
+}
+
 }  // namespace poseforest::renderer

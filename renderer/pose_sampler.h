@@ -32,4 +32,17 @@ Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig
 /// follows its collar, so a twisted chest carries it along.
 void PerturbArms(uint64_t seed, uint64_t index, Pose* pose);
 
+/// Leans the upper body of `pose` as a pure function of (seed, index): everything from the spine
+/// up (spine, chest, neck, head, both arms) turns about the spine joint, 5 to 35 degrees forward
+/// (over a desk, toward a screen) or up to 15 degrees back, and up to 15 degrees to either side.
+/// Bone lengths and the arms' pose relative to the chest are kept; pelvis and legs are untouched.
+void LeanTrunk(uint64_t seed, uint64_t index, Pose* pose);
+
+/// Sits `pose` down as a pure function of (seed, index): both thighs flexed 65 to 100 degrees
+/// from the pelvis's vertical (a chair, a sofa, a desk), 0 to 12 degrees apart, the knees flexed
+/// 60 to 105 degrees, the feet near flat; pelvis, trunk and arms untouched. No chair is drawn:
+/// the scene grounds the lowest point, so the person sits on nothing a depth camera would see
+/// (the seat is background to the forest either way).
+void SitDown(uint64_t seed, uint64_t index, Pose* pose);
+
 }  // namespace poseforest::renderer

@@ -176,6 +176,12 @@ struct SceneConfig {
   /// across the camera, hands near the face or body) on top of their library or procedural pose.
   /// Drawn from its own random stream: 0 leaves every scene as it was.
   double arm_pose_share = 0.0;
+  /// Share of people sat down (SitDown in pose_sampler.h: thighs forward, knees bent, on no
+  /// visible seat) and share leaning their upper body (LeanTrunk: forward over a desk, back,
+  /// sideways), each on top of the pose and the arms. Each from its own random stream: 0 leaves
+  /// every scene as it was.
+  double sit_share = 0.0;
+  double lean_share = 0.0;
 
   int min_people = 1;  ///< people per frame (each placed independently; they may occlude)
   int max_people = 1;

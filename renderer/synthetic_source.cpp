@@ -62,6 +62,8 @@ Status ValidateConfig(const SceneConfig& c) {
   if (!(c.framing.upper_body_camera_below_m >= 0) || !(c.framing.upper_body_camera_above_m >= 0))
     return bad("framing: upper_body_camera_below_m and _above_m must be >= 0");
   if (!(c.arm_pose_share >= 0 && c.arm_pose_share <= 1)) return bad("arm_pose_share must be in [0, 1]");
+  if (!(c.sit_share >= 0 && c.sit_share <= 1)) return bad("sit_share must be in [0, 1]");
+  if (!(c.lean_share >= 0 && c.lean_share <= 1)) return bad("lean_share must be in [0, 1]");
   if (c.noise.projector_side != 1 && c.noise.projector_side != -1) return bad("noise.projector_side must be +1 or -1");
   if (!(c.noise.min_range_m >= 0 && c.noise.min_range_m < 10)) return bad("noise.min_range_m must be in [0, 10)");
   if (!(c.min_camera_height_m <= c.max_camera_height_m)) return bad("camera height range is empty");
@@ -225,6 +227,8 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
   const bool upper_body =
       c.framing.upper_body_share > 0 && framing_rng.Uniform01() < c.framing.upper_body_share;
   core::RngStream arms_rng(core::CounterRng(seed, 0xA4A5, index, 1));
+  core::RngStream sit_rng(core::CounterRng(seed, 0x517D, index, 1));
+  core::RngStream lean_rng(core::CounterRng(seed, 0x1EA7, index, 1));
   double cam_h_used = cam_h;
 
   double pitch = 0;
@@ -242,6 +246,9 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
     }
     if (c.arm_pose_share > 0 && arms_rng.Uniform01() < c.arm_pose_share)
       PerturbArms(seed, index * 8 + uint64_t(p), &person.pose);
+    if (c.sit_share > 0 && sit_rng.Uniform01() < c.sit_share) SitDown(seed, index * 8 + uint64_t(p), &person.pose);
+    if (c.lean_share > 0 && lean_rng.Uniform01() < c.lean_share)
+      LeanTrunk(seed, index * 8 + uint64_t(p), &person.pose);
     // Library and procedural poses are relative to the canonical T-pose; re-express them for a
     // body resting in another pose (MakeHuman's A-pose), or its arms would come out ~45 deg off.
     if (adapt_pose_[size_t(person.body)])

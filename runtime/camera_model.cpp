@@ -15,6 +15,18 @@ double FocalFromFov(int size_px, double fov_deg) {
   return 0.5 * size_px / std::tan(0.5 * fov_deg * std::numbers::pi / 180.0);
 }
 
+/// A pinhole of focal length f px (both axes), principal point at the centre.
+CameraModel Calibrated(const std::string& name, int w, int h, double f) {
+  CameraModel m;
+  m.name = name;
+  m.intrinsics.width = w;
+  m.intrinsics.height = h;
+  m.intrinsics.fx = m.intrinsics.fy = f;
+  m.intrinsics.cx = 0.5 * w - 0.5;
+  m.intrinsics.cy = 0.5 * h - 0.5;
+  return m;
+}
+
 CameraModel Nominal(const std::string& name, int w, int h, double hfov_deg, double vfov_deg,
                     double scale = 1.0) {
   CameraModel m;
@@ -57,8 +69,13 @@ core::Result<CameraModel> CameraPreset(const std::string& name) {
   // Kinect v2 70.6 x 60 deg; Azure Kinect NFOV 75 x 65, WFOV 120 x 120 (a fisheye: the pinhole
   // model is rough near the edges); RealSense D435 87 x 58 at 848x480 (1280x720 scaled by 0.6625).
   if (name == "kinect-v2") return Nominal(name, 512, 424, 70.6, 60.0);
-  if (name == "azure-nfov") return Nominal(name, 640, 576, 75.0, 65.0);
-  if (name == "azure-nfov-binned") return Nominal(name, 320, 288, 75.0, 65.0);
+  // Azure Kinect NFOV from the factory calibration, not the documented 75 x 65 deg (which gives
+  // 417 x 452 px, ~20 % short): the depth camera's intrinsics are stored normalized to its
+  // 1024x1024 sensor, fx ~ fy ~ 0.492 (503.9 px; e.g. a device's calibration blob quoted in
+  // microsoft/Azure-Kinect-Sensor-SDK#1488: 0.49204, 0.49193), and NFOV unbinned is the sensor's
+  // central 640x576 at full resolution, binned the same halved.
+  if (name == "azure-nfov") return Calibrated(name, 640, 576, 504.0);
+  if (name == "azure-nfov-binned") return Calibrated(name, 320, 288, 252.0);
   if (name == "azure-wfov") return Nominal(name, 512, 512, 120.0, 120.0);
   if (name == "azure-wfov-unbinned") return Nominal(name, 1024, 1024, 120.0, 120.0);
   if (name == "realsense-d435") return Nominal(name, 848, 480, 87.0, 58.0);

@@ -6,7 +6,7 @@
 # for ablations (scripts/realism-ablation.sh); the held-out test set is never changed by them.
 # TEST_FIELDS: the test set's realism fields; default: the classic renders (classic_test_fields),
 # so mAP compares with every earlier forest; "" renders the test clips with the realism defaults.
-classic_test_fields="upper_body_share: 0 arm_pose_share: 0 projector_shadow: false min_range_m: 0 flying_pixels: 0 range_holes: 0 grazing_holes: 0 sensor: DEPTH_SENSOR_KINECT_V1"
+classic_test_fields="upper_body_share: 0 arm_pose_share: 0 projector_shadow: false min_range_m: 0 flying_pixels: 0 range_holes: 0 grazing_holes: 0 sensor: DEPTH_SENSOR_KINECT_V1 sitting_share: 0 leaning_share: 0"
 # Sized (300 images per tree) to train in minutes on two cores; the paper used 300k per tree.
 write_default_job() {
   cat > "$1" <<JOB

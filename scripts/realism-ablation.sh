@@ -13,6 +13,7 @@
 # variant; a variant already trained (tune.log) is not trained again, and a score file that exists
 # is kept (delete it to score again; delete the folder to train again).
 # ~7 minutes per variant at 300 images per tree on two cores.
+# POSEFOREST_ABLATION_ONLY='A|B' trains and scores only the variants whose name contains A or B.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
@@ -45,6 +46,7 @@ VARIANTS=(
   "defaults + 50 sampled bodies|makehuman_sampled_bodies: 50"
   "defaults + clothes and hair 0.5|makehuman_clothed_share: 0.5"
   "defaults + sampled bodies, clothes|makehuman_sampled_bodies: 50 makehuman_clothed_share: 0.5"
+  "defaults + sitting 0.25, leaning 0.25|sitting_share: 0.25 leaning_share: 0.25"
 )
 [[ -n "${POSEFOREST_ABLATION_ONLY:-}" ]] && echo "(only variants matching '$POSEFOREST_ABLATION_ONLY')"
 
@@ -53,7 +55,12 @@ rows=()
 for v in "${VARIANTS[@]}"; do
   name=${v%%|*}
   fields=${v#*|}
-  [[ -n "${POSEFOREST_ABLATION_ONLY:-}" && "$name" != *"$POSEFOREST_ABLATION_ONLY"* ]] && continue
+  if [[ -n "${POSEFOREST_ABLATION_ONLY:-}" ]]; then  # 'a|b|c': variants whose name contains any
+    IFS='|' read -r -a only <<<"$POSEFOREST_ABLATION_ONLY"
+    keep=0
+    for o in "${only[@]}"; do [[ -n "$o" && "$name" == *"$o"* ]] && keep=1; done
+    ((keep)) || continue
+  fi
   dir=$out/$(echo "$name" | tr -c 'a-zA-Z0-9\n' '-' | tr -s '-')
   mkdir -p "$dir"
   if [[ ! -s "$dir/tune.log" ]]; then

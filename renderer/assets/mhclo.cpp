@@ -4,52 +4,25 @@
 #include <charconv>
 #include <cmath>
 
+#include "renderer/assets/text_scan.h"
 #include "runtime/core/forest_format.h"
 
 namespace poseforest::renderer::assets {
 namespace {
 
+using text::ForEachLine;
+using text::ParseNum;
+using text::Words;
+
 using core::ErrorCode;
 using core::Result;
 using core::Status;
-
-bool ParseNum(std::string_view w, double* out) {
-  if (!w.empty() && w.front() == '+') w.remove_prefix(1);
-  auto [p, ec] = std::from_chars(w.data(), w.data() + w.size(), *out);
-  return ec == std::errc() && p == w.data() + w.size() && std::isfinite(*out);
-}
 
 bool ParseIndex(std::string_view w, size_t limit, uint32_t* out) {
   double v;
   if (!ParseNum(w, &v) || v < 0 || v != std::floor(v) || v >= double(limit)) return false;
   *out = uint32_t(v);
   return true;
-}
-
-std::vector<std::string_view> Words(std::string_view line) {
-  std::vector<std::string_view> out;
-  size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
-    size_t j = i;
-    while (j < line.size() && line[j] != ' ' && line[j] != '\t' && line[j] != '\r') ++j;
-    if (j > i) out.push_back(line.substr(i, j - i));
-    i = j;
-  }
-  return out;
-}
-
-template <typename F>
-void ForEachLine(std::string_view text, F&& f) {
-  size_t pos = 0;
-  int line_no = 0;
-  while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string_view::npos) end = text.size();
-    ++line_no;
-    if (!f(text.substr(pos, end - pos), line_no)) return;
-    pos = end + 1;
-  }
 }
 
 bool IsNumberWord(std::string_view w) {

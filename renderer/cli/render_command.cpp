@@ -63,6 +63,9 @@ constexpr const char* kUsage =
     "                     sensor's; kinect-v1 0)\n"
     "  --range-holes P    hole probability at 4 m, growing as z^2 (default: the sensor's)\n"
     "  --grazing-holes P  hole probability on surfaces seen edge-on (default: the sensor's)\n"
+    "  --sitting P        share of people sat down: thighs forward, knees bent (default 0)\n"
+    "  --leaning P        share of people leaning the upper body forward, back or sideways\n"
+    "                     (default 0; renderer/pose_sampler.h SitDown, LeanTrunk)\n"
   "  --clutter LIST     comma-separated: floor, walls (a back and a side wall), boxes (1-3\n"
     "                     boxes on the floor); a pure function of (seed, frame) like the rest\n"
     "  --occluders N      N boxes per frame between the camera and the people (default 0)\n"
@@ -136,7 +139,7 @@ int RenderMain(int argc, char** argv) {
       {"out",           "count",      "seed",   "threads", "rotation", "people", "montage", "poses", "clips",
        "test-fraction", "split-seed", "bodies", "data",    "camera",   "fx",     "fy",      "cx",    "cy",
        "clutter",       "occluders", "sampled-bodies", "clothed", "body-seed",
-       "sensor",        "flying-pixels", "range-holes", "grazing-holes"},
+       "sensor",        "flying-pixels", "range-holes", "grazing-holes", "sitting", "leaning"},
       {"no-noise", "masks", "help", "realism"});
   if (core::Status st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest render: %s\n\n%s", st.message().c_str(), kUsage);
@@ -279,7 +282,8 @@ int RenderMain(int argc, char** argv) {
     };
     for (const Share& share : {Share{"flying-pixels", &config.noise.flying_pixels},
                                Share{"range-holes", &config.noise.range_dropout},
-                               Share{"grazing-holes", &config.noise.grazing_dropout}}) {
+                               Share{"grazing-holes", &config.noise.grazing_dropout},
+                               Share{"sitting", &config.sit_share}, Share{"leaning", &config.lean_share}}) {
       auto v = GetDouble(args, share.option, *share.value, 0.0, 1.0);
       if (!v.ok()) {
         std::fprintf(stderr, "poseforest render: %s\n", v.status().message().c_str());

@@ -1,8 +1,8 @@
 #pragma once
 // The ROS 2 messages `poseforest live --dds` publishes, encoded as rmw_fastrtps writes them: CDR
 // (XCDR1, little endian) with its 4-byte encapsulation header, fields in .msg order, each aligned
-// to its size from the start of the data (after the header). Pure C++ (no DDS headers): the
-// encoding is ours, the transport is Fast DDS (skeleton_publisher.h).
+// to its size from the start of the data (after the header). Encoded with Fast CDR (no DDS
+// headers here); the transport is Fast DDS (skeleton_publisher.h).
 //   poseforest_msgs/msg/Skeletons     msg/Skeletons.msg (+ Skeleton.msg, SkeletonJoint.msg)
 //   visualization_msgs/msg/MarkerArray  ROS 2 Humble's definition: per person a SPHERE_LIST of the
 //                                     tracked joints and a LINE_LIST of the bones between them,

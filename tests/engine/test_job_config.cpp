@@ -298,6 +298,15 @@ TEST_CASE("the rendering realism fields: defaults, values, the scene they make, 
   REQUIRE(t.ok());
   CHECK(t->source.upper_body_share == 0.25);
   CHECK(t->test_source.upper_body_share == 0);
+  // Sitting and leaning: off by default, shares in [0, 1], passed to the scene.
+  CHECK(d->source.sitting_share == 0);
+  CHECK(d->source.leaning_share == 0);
+  auto sl = Parse("images_per_tree: 5 source { rendered { sitting_share: 0.3 leaning_share: 0.6 } }");
+  REQUIRE(sl.ok());
+  CHECK(sl->source.sitting_share == 0.3);
+  CHECK(sl->source.leaning_share == 0.6);
+  CHECK_THAT(ErrorOf(r + "sitting_share: 2 } }"), Catch::Contains("source.rendered.sitting_share"));
+  CHECK_THAT(ErrorOf(r + "leaning_share: -1 } }"), Catch::Contains("source.rendered.leaning_share"));
 }
 
 #if POSEFOREST_HAS_RENDERER
@@ -373,6 +382,15 @@ TEST_CASE("body_bone_map: a rig no built-in name map knows (Rigify names) become
 
 #if POSEFOREST_HAS_RENDERER
 #include "engine/rendered_scene.h"
+
+TEST_CASE("sitting and leaning shares reach the scene", "[training][config][realism]") {
+  auto sl = Parse("images_per_tree: 5 source { rendered { sitting_share: 0.3 leaning_share: 0.6 } }");
+  REQUIRE(sl.ok());
+  renderer::SceneConfig scene;
+  REQUIRE(worker::ApplySceneOptions(sl->source, &scene).ok());
+  CHECK(scene.sit_share == 0.3);
+  CHECK(scene.lean_share == 0.6);
+}
 #endif
 
 TEST_CASE("the sensor fields (issue 22): defaults classic, values, the noise they make, bad values named",

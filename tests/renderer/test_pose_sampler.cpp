@@ -134,6 +134,68 @@ TEST_CASE("PerturbArms: arms toward the camera or near the body, the rest kept, 
   CHECK(hands_near_body > arms * 0.3);
 }
 
+TEST_CASE("SitDown and LeanTrunk: thighs forward and knees bent; the trunk tilted; the rest kept", "[pose]") {
+  const SkelPositions rest = ProceduralSkeleton(ProceduralBaseShape(5));
+  const Eigen::Vector3d up(0, 1, 0), forward(0, 0, 1);
+  int leaned_forward = 0;
+  const int n = 500;
+  for (int i = 0; i < n; ++i) {
+    Pose base = SampleProceduralPose(7, uint64_t(i));
+    base.rotation[0] = Eigen::Quaterniond::Identity();  // an upright pelvis: angles read off the axes
+    Pose sat = base, sat2 = base, leaned = base, leaned2 = base;
+    SitDown(11, uint64_t(i), &sat);
+    SitDown(11, uint64_t(i), &sat2);
+    LeanTrunk(11, uint64_t(i), &leaned);
+    LeanTrunk(11, uint64_t(i), &leaned2);
+    for (int j = 0; j < kNumSkelJoints; ++j) {
+      REQUIRE(sat.rotation[size_t(j)].coeffs() == sat2.rotation[size_t(j)].coeffs());
+      REQUIRE(leaned.rotation[size_t(j)].coeffs() == leaned2.rotation[size_t(j)].coeffs());
+    }
+    const SkelPositions b = PoseJoints(rest, base), s = PoseJoints(rest, sat), l = PoseJoints(rest, leaned);
+    for (int j = 1; j < kNumSkelJoints; ++j) {  // bone lengths kept
+      const int par = kSkelParent[size_t(j)];
+      const double len = (rest[size_t(j)] - rest[size_t(par)]).norm();
+      REQUIRE((s[size_t(j)] - s[size_t(par)]).norm() == Approx(len).margin(1e-9));
+      REQUIRE((l[size_t(j)] - l[size_t(par)]).norm() == Approx(len).margin(1e-9));
+    }
+    // Sitting: trunk, head and arms untouched; each thigh 60-105 degrees from hanging straight
+    // down, forward (+Z); each knee bent 55-110 degrees; the feet no higher than the knees.
+    for (SkelJoint j : {SkelJoint::kPelvis, SkelJoint::kChest, SkelJoint::kHeadTop, SkelJoint::kLHandTip,
+                        SkelJoint::kRWrist, SkelJoint::kLHip, SkelJoint::kRHip})
+      REQUIRE((J(s, j) - J(b, j)).norm() < 1e-9);
+    for (int side = 0; side < 2; ++side) {
+      const SkelJoint hip = side ? SkelJoint::kRHip : SkelJoint::kLHip;
+      const SkelJoint kn = side ? SkelJoint::kRKnee : SkelJoint::kLKnee;
+      const SkelJoint an = side ? SkelJoint::kRAnkle : SkelJoint::kLAnkle;
+      const Eigen::Vector3d thigh = J(s, kn) - J(s, hip), shin = J(s, an) - J(s, kn);
+      CHECK(AngleDeg(thigh, -up) > 55.0);
+      CHECK(AngleDeg(thigh, -up) < 110.0);
+      CHECK(thigh.z() > 0);
+      CHECK(AngleDeg(thigh, shin) > 50.0);
+      CHECK(AngleDeg(thigh, shin) < 115.0);
+      CHECK(J(s, an).y() < J(s, kn).y());
+    }
+    // Leaning: pelvis, hips and legs untouched; the spine-to-head direction turned 5-37 degrees
+    // (15 back or 35 forward, 15 to the side at most); the spine joint itself is the pivot.
+    for (SkelJoint j : {SkelJoint::kPelvis, SkelJoint::kSpine, SkelJoint::kLHip, SkelJoint::kRKnee,
+                        SkelJoint::kLToe})
+      REQUIRE((J(l, j) - J(b, j)).norm() < 1e-9);
+    const Eigen::Vector3d before = J(b, SkelJoint::kHead) - J(b, SkelJoint::kSpine);
+    const Eigen::Vector3d after = J(l, SkelJoint::kHead) - J(l, SkelJoint::kSpine);
+    CHECK(AngleDeg(before, after) > 4.9);
+    CHECK(AngleDeg(before, after) < 38.0);
+    leaned_forward += after.normalized().dot(forward) > before.normalized().dot(forward);
+    // The arms keep their pose relative to the chest.
+    const Eigen::Quaterniond rel_b = base.rotation[size_t(int(SkelJoint::kChest))].conjugate() *
+                                     base.rotation[size_t(int(SkelJoint::kLElbow))];
+    const Eigen::Quaterniond rel_l = leaned.rotation[size_t(int(SkelJoint::kChest))].conjugate() *
+                                     leaned.rotation[size_t(int(SkelJoint::kLElbow))];
+    REQUIRE(rel_b.angularDistance(rel_l) < 1e-9);
+  }
+  CHECK(leaned_forward > n * 0.7);  // 80 % forward
+  CHECK(leaned_forward < n * 0.9);
+}
+
 TEST_CASE("the skeleton fit's typical bone lengths match the body family's", "[pose]") {
   // runtime::TypicalBoneLength centres the kinematic fit's bone preference; here against the
   // evaluation joints of every procedural base shape (children to tall adults) in the rest pose.

@@ -354,3 +354,45 @@ TEST_CASE("arm re-posing: a share of people; the others render as before", "[egl
   CHECK(same >= n / 5);
   CHECK(same <= n * 4 / 5);
 }
+
+TEST_CASE("sitting and leaning: a share of people each; the others render as before", "[egl]") {
+  SceneConfig classic = SmallConfig();
+  SceneConfig sit = classic, lean = classic;
+  sit.sit_share = 0.5;
+  lean.lean_share = 0.5;
+  auto rc = Make(classic), rs = Make(sit), rl = Make(lean);
+  int same_sit = 0, same_lean = 0, knees_forward = 0;
+  const int n = 20;
+  for (uint64_t i = 0; i < n; ++i) {
+    auto fc = rc->Render(9, i), fs = rs->Render(9, i), fl = rl->Render(9, i);
+    REQUIRE(fc.ok());
+    REQUIRE(fs.ok());
+    REQUIRE(fl.ok());
+    const bool s_same = fs->depth.pixels == fc->depth.pixels && fs->labels.pixels == fc->labels.pixels;
+    const bool l_same = fl->depth.pixels == fc->depth.pixels && fl->labels.pixels == fc->labels.pixels;
+    same_sit += s_same;
+    same_lean += l_same;
+    if (!s_same) {
+      // Sat down: the knees come up toward the hips (thighs forward), so the hip-to-knee height
+      // difference shrinks against the classic frame's.
+      const auto& js = fs->joints[0];
+      const auto& jc = fc->joints[0];
+      auto drop = [](const auto& j) {  // mean vertical distance from the neck to the knees, camera y is down
+        return 0.5 * ((j[size_t(core::Joint::kLKnee)] - j[size_t(core::Joint::kNeck)]).norm() +
+                      (j[size_t(core::Joint::kRKnee)] - j[size_t(core::Joint::kNeck)]).norm());
+      };
+      knees_forward += drop(js) < drop(jc);
+    }
+  }
+  INFO("sitting: " << same_sit << " of " << n << " frames unchanged, knees nearer the neck in " << knees_forward
+                   << "; leaning: " << same_lean << " unchanged");
+  CHECK(same_sit >= n / 5);
+  CHECK(same_sit <= n * 4 / 5);
+  CHECK(knees_forward >= (n - same_sit) * 3 / 4);
+  CHECK(same_lean >= n / 5);
+  CHECK(same_lean <= n * 4 / 5);
+  // Shares outside [0, 1] are refused.
+  SceneConfig bad = classic;
+  bad.sit_share = 1.5;
+  CHECK_FALSE(SyntheticRenderer::Create(bad).ok());
+}

@@ -64,6 +64,9 @@ TEST_CASE("camera presets: sizes, nominal focal lengths, unknown names", "[frame
   const auto nfov = *runtime::CameraPreset("azure-nfov");
   CHECK(nfov.intrinsics.width == 640);
   CHECK(nfov.intrinsics.height == 576);
+  CHECK(nfov.intrinsics.fx == 504.0);  // factory calibrations, not the documented FOV's 417
+  CHECK(nfov.intrinsics.fy == 504.0);
+  CHECK(runtime::CameraPreset("azure-nfov-binned")->intrinsics.fx == 252.0);
   CHECK(runtime::CameraPreset("realsense-d435")->intrinsics.width == 848);
   auto bad = runtime::CameraPreset("kinect-v9");
   REQUIRE_FALSE(bad.ok());

@@ -128,3 +128,40 @@ TEST_CASE("ROS 2 messages carry each joint's state; inferred joints are their ow
   CHECK(wrong.exit_code != 0);
   CHECK_THAT(wrong.output, Catch::Contains("L_knee: state 0 vs inferred"));
 }
+
+TEST_CASE("ROS 2 encoding: XCDR1 little endian, alignment padding written as zeros", "[dds][ros2]") {
+  // A frame with no people, every field by hand: the padding before the int64 and the double
+  // must be zeros (Fast CDR skips it; the encoder zero-fills), so the bytes depend on the message
+  // alone.
+  runtime::ros2::FrameStamp st;
+  st.index = 7;
+  st.time_s = 2.5;
+  st.source = "ab";
+  st.frame_id = "f";
+  const std::vector<uint8_t> expected = {
+      0x00, 0x01, 0x00, 0x00,                          // encapsulation: CDR_LE, options 0
+      0x02, 0x00, 0x00, 0x00,                          // header.stamp.sec = 2
+      0x00, 0x65, 0xcd, 0x1d,                          // header.stamp.nanosec = 5e8
+      0x02, 0x00, 0x00, 0x00, 'f', 0x00,               // header.frame_id "f"
+      0x00, 0x00,                                      // padding to 8
+      0x07, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,  // index = 7
+      0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x04, 0x40,  // time_s = 2.5
+      0x03, 0x00, 0x00, 0x00, 'a',  'b',  0x00,        // source "ab"
+      0x00,                                            // padding to 4
+      0x00, 0x00, 0x00, 0x00};                         // people: 0
+  CHECK(runtime::ros2::EncodeSkeletons(st, {}) == expected);
+  // Larger messages (each joint's bool, bool, float: padding after every joint): two encodings
+  // of the same frame are the same bytes, and every byte between fields is zero.
+  std::vector<runtime::Skeleton> people(2);
+  for (size_t k = 0; k < people.size(); ++k) {
+    people[k].id = int(k) + 1;
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      people[k].joints[size_t(j)].found = (j + int(k)) % 3 != 0;
+      people[k].joints[size_t(j)].tracked = j % 2 == 0 && people[k].joints[size_t(j)].found;
+      people[k].joints[size_t(j)].confidence = 0.5f;
+    }
+  }
+  const auto a = runtime::ros2::EncodeMarkerArray(st, people), b = runtime::ros2::EncodeMarkerArray(st, people);
+  CHECK(a == b);
+  CHECK(runtime::ros2::EncodeSkeletons(st, people) == runtime::ros2::EncodeSkeletons(st, people));
+}

@@ -47,6 +47,15 @@ runtime::JointProposal At(const core::CameraIntrinsics& cam, int x, int y, float
   return p;
 }
 
+// An offset-vote candidate at pixel (x, y) and depth z (share 0.5).
+runtime::VoteCandidate VoteAt(const core::CameraIntrinsics& cam, int x, int y, float z_m, float confidence) {
+  runtime::VoteCandidate v;
+  v.position = cam.Unproject(x, y, z_m).cast<float>();
+  v.share = 0.5f;
+  v.confidence = confidence;
+  return v;
+}
+
 }  // namespace
 
 TEST_CASE("calibrated confidence interpolates the table in log support and stays in 0..1", "[skeleton]") {
@@ -525,13 +534,7 @@ TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hid
   const float big = 0.01f * float(cam.fx * cam.fy);
   proposals[kHead] = {At(cam, 170, 120, 2.04f, big)};  // calibrated 0.9 (RampCalibration)
   const auto cal = RampCalibration();
-  auto vote = [&](int x, int y, float z, float confidence) {
-    runtime::VoteCandidate v;
-    v.position = cam.Unproject(x, y, z).cast<float>();
-    v.share = 0.5f;
-    v.confidence = confidence;
-    return v;
-  };
+  auto vote = [&](int x, int y, float z, float confidence) { return VoteAt(cam, x, y, z, confidence); };
   std::vector<runtime::PersonVotes> votes(1);
   votes[0][kHead] = {vote(175, 125, 2.06f, 0.5f)};         // less confident than the proposal
   votes[0][kLHand] = {vote(130, 250, 2.05f, 0.8f)};        // on the mask, at its depth
@@ -603,13 +606,7 @@ TEST_CASE("skeletons with offset votes: a proposal and a vote that agree combine
   const float cp = cal.Confidence(kLHand, 3e-3f);
   REQUIRE(cp > 0.3f);
   REQUIRE(cp < 0.9f);
-  auto vote = [&](int x, int y, float z, float confidence) {
-    runtime::VoteCandidate v;
-    v.position = cam.Unproject(x, y, z).cast<float>();
-    v.share = 0.5f;
-    v.confidence = confidence;
-    return v;
-  };
+  auto vote = [&](int x, int y, float z, float confidence) { return VoteAt(cam, x, y, z, confidence); };
   std::vector<runtime::PersonVotes> near(1), far(1);
   near[0][kLHand] = {vote(134, 252, 2.05f, 0.4f)};  // 1.5 cm from the proposal
   far[0][kLHand] = {vote(200, 250, 2.05f, 0.4f)};   // 0.24 m from it
