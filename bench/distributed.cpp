@@ -43,7 +43,7 @@
 // processes" and as the ratio "vs the engine as N concurrent 1-thread processes" above the last
 // line (what the service costs beyond running N processes at once on these cores).
 // Every run also prints where its CPU went: the coordinator, and the workers by phase (each
-// worker process writes its dist::WorkerCpu to a --stats file when it exits), and a "why the
+// worker process writes its worker::WorkerCpu to a --stats file when it exits), and a "why the
 // ratio" line splits the headline run's CPU into the training work the engine also does and
 // what the service adds (docs/distributed/service.md, "Per-core overhead").
 //   --workers N,N   worker counts to run (default 1,2)     --skip-off   only runs with hand-off
@@ -191,14 +191,14 @@ bool RunCommand(const std::vector<std::string>& args, const std::string& log, do
   ::posix_spawn_file_actions_init(&fa);
   ::posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
   ::posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  const double c0 = CpuSeconds(RUSAGE_CHILDREN), t0 = dist::NowSeconds();
+  const double c0 = CpuSeconds(RUSAGE_CHILDREN), t0 = proto::dds::NowSeconds();
   const pid_t pid = Spawn(args, &fa);
   ::posix_spawn_file_actions_destroy(&fa);
   if (pid < 0) return false;
   int status = 0;
   ::waitpid(pid, &status, 0);
   *cpu = CpuSeconds(RUSAGE_CHILDREN) - c0;
-  *wall = dist::NowSeconds() - t0;
+  *wall = proto::dds::NowSeconds() - t0;
   return WIFEXITED(status) && WEXITSTATUS(status) == 0;
 }
 
@@ -381,7 +381,7 @@ int CommandsOnly(const std::string& job_path_in, const std::string& text, const 
 
 /// A worker's CPU breakdown as (name, value) pairs: what a worker process writes to its
 /// --stats file, summed over the workers of a run by the bench.
-std::vector<std::pair<std::string, double>> CpuFields(const dist::WorkerCpu& c) {
+std::vector<std::pair<std::string, double>> CpuFields(const worker::WorkerCpu& c) {
   std::vector<std::pair<std::string, double>> out = {{"process_at_start", c.process_at_start}};
   for (const auto& [name, seconds] : c.NamedPhases()) out.emplace_back(name, seconds);
   std::vector<std::pair<std::string, double>> rest = {
@@ -404,7 +404,7 @@ int WorkerProcess(int argc, char** argv) {
   // Go when the bench goes (killed or interrupted), as `worker --exit-with-parent` does.
   ::prctl(PR_SET_PDEATHSIG, SIGTERM);
   if (::getppid() == 1) return 0;
-  dist::WorkerOptions o;
+  worker::WorkerOptions o;
   std::string stats_path;
   for (int i = 1; i + 1 < argc; ++i) {
     if (!std::strcmp(argv[i], "--stats"))
@@ -421,7 +421,7 @@ int WorkerProcess(int argc, char** argv) {
   o.threads = 1;
   o.exit_when_done = true;
   o.log = [](const std::string&) {};
-  dist::DistWorker w(o);
+  worker::DistWorker w(o);
   const core::Status st = w.Run();
   if (!st.ok()) std::fprintf(stderr, "worker: %s\n", st.ToString().c_str());
   if (!stats_path.empty()) {
@@ -530,12 +530,12 @@ int EngineProcess(const char* job_path) {
   std::ifstream in(job_path);
   std::stringstream text;
   text << in.rdbuf();
-  auto config = worker::ParseJobText(text.str(), job_path);
+  auto config = engine::ParseJobText(text.str(), job_path);
   if (!config.ok()) return std::fprintf(stderr, "%s\n", config.status().ToString().c_str()), 1;
-  auto params = worker::ParamsFromConfig(*config, job_path);
+  auto params = engine::ParamsFromConfig(*config, job_path);
   if (!params.ok()) return std::fprintf(stderr, "%s\n", params.status().ToString().c_str()), 1;
   params->threads = 1;
-  coordinator::LocalTrainer local(*params, {});
+  engine::LocalTrainer local(*params, {});
   auto forest = local.Train();
   if (!forest.ok()) return std::fprintf(stderr, "%s\n", forest.status().ToString().c_str()), 1;
   return 0;
@@ -602,7 +602,7 @@ const char* const kTermNames[kTerms] = {"per level", "per reply", "per MB receiv
 
 /// Counts what the coordinator hears during each level and the CPU it spends then. Called on the
 /// coordinator's training thread (CoordinatorObserver).
-class ScaleObserver final : public dist::CoordinatorObserver {
+class ScaleObserver final : public coordinator::CoordinatorObserver {
  public:
   ScaleObserver(int workers, int candidates, int bins) : workers_(workers), k_(candidates), b_(bins) {}
   void OnLevelStart(int, int, size_t, uint64_t) override {
@@ -614,7 +614,7 @@ class ScaleObserver final : public dist::CoordinatorObserver {
     reply_nodes_ += uint64_t(std::max(r.ranges_size(), r.nodes_size()));
   }
   void OnWorkerHeartbeat(const std::string&, const v1::Heartbeat&) override { ++heartbeats_; }
-  void OnLevelDone(const dist::DistLevelStats& s) override {
+  void OnLevelDone(const coordinator::DistLevelStats& s) override {
     ScaleLevel r;
     r.workers = workers_, r.tree = s.tree, r.level = s.level, r.nodes = s.frontier_nodes;
     r.samples = s.samples, r.evaluations = s.evaluations, r.rounds = s.rounds;
@@ -814,7 +814,7 @@ ProjectedLevel ProjectLevel(const PaperJob& j, const Measured& m, int d, double 
     }
   } else {
     const double slots = std::min(j.parts, s);
-    const bool sample_bins = s < 4 * j.bins * slots;  // worker::UseSampleBins
+    const bool sample_bins = s < 4 * j.bins * slots;  // engine::UseSampleBins
     const double plan_bytes = sample_bins ? s * (j.k + 1) : j.k * j.bins * slots * 4;  // PlanHistogramBytes
     const double per_batch = std::max(1.0, std::floor(j.batch_bytes / plan_bytes));
     p.rounds = 2 * std::ceil(p.nodes / per_batch) + (d == 0 ? 1 : 0);  // ranges + histograms (+ census)
@@ -1008,7 +1008,7 @@ void PrintProjection(const Measured& m) {
 }
 
 /// --scale: one service run per worker count, then the fits, their check and the projection.
-int Scale(const std::string& self, v1::TrainerConfig config, worker::TrainParams params,
+int Scale(const std::string& self, v1::TrainerConfig config, engine::TrainParams params,
           const std::vector<int>& counts, int repeat, uint32_t domain, long long subtree_max,
           bool sample_lists, const std::string& csv_path, const std::vector<uint8_t>& ref_bytes,
           uint64_t engine_evaluations, double engine_cpu) {
@@ -1037,7 +1037,7 @@ int Scale(const std::string& self, v1::TrainerConfig config, worker::TrainParams
       run.workers = n;
       std::vector<pid_t> pids;
       std::vector<std::string> stats_files;
-      const double t0 = dist::NowSeconds();
+      const double t0 = proto::dds::NowSeconds();
       for (int i = 0; i < n; ++i) {
         stats_files.push_back(
             (std::filesystem::temp_directory_path() / (job_id + "-w" + std::to_string(i) + ".stats"))
@@ -1048,7 +1048,7 @@ int Scale(const std::string& self, v1::TrainerConfig config, worker::TrainParams
         if (pid < 0) return std::fprintf(stderr, "distributed: cannot start a worker process\n"), 1;
         pids.push_back(pid);
       }
-      dist::CoordinatorOptions co;
+      coordinator::CoordinatorOptions co;
       co.domain = dom;
       co.job_id = job_id;
       co.min_workers = n;                                  // waits (polling DDS) until all n joined
@@ -1064,21 +1064,21 @@ int Scale(const std::string& self, v1::TrainerConfig config, worker::TrainParams
       const double c0 = ProcessCpu();
       core::Result<core::Forest> forest = core::Status(core::ErrorCode::kInternal, "not run");
       {
-        dist::DistCoordinator coord(config, params, co);
+        coordinator::DistCoordinator coord(config, params, co);
         forest = coord.Train();
         run.lost = coord.workers_lost();
       }
       run.coordinator_cpu = ProcessCpu() - c0;
       run.coordinator_rss_mb = PeakRssMb();
       // Workers leave on JOB_DONE: reap each, with its own CPU and peak RSS.
-      const double deadline = dist::NowSeconds() + 300;
+      const double deadline = proto::dds::NowSeconds() + 300;
       std::vector<double> rss;
       for (pid_t p : pids) {
         int status = 0;
         rusage ru{};
         pid_t got = 0;
         while ((got = ::wait4(p, &status, WNOHANG, &ru)) == 0) {
-          if (dist::NowSeconds() > deadline) {
+          if (proto::dds::NowSeconds() > deadline) {
             ::kill(p, SIGKILL);
             got = ::wait4(p, &status, 0, &ru);
             break;
@@ -1094,7 +1094,7 @@ int Scale(const std::string& self, v1::TrainerConfig config, worker::TrainParams
         run.workers_cpu += cpu;
         run.worker_cpu_max = std::max(run.worker_cpu_max, cpu);
       }
-      run.wall = dist::NowSeconds() - t0;
+      run.wall = proto::dds::NowSeconds() - t0;
       run.load = LoadAverage();
       for (const std::string& path : stats_files) {
         std::map<std::string, double> one;
@@ -1534,14 +1534,14 @@ int main(int argc, char** argv) {
       text = ss.str();
     }
   }
-  auto config = worker::ParseJobText(text, "bench job");
+  auto config = engine::ParseJobText(text, "bench job");
   if (!config.ok()) return std::fprintf(stderr, "%s\n", config.status().ToString().c_str()), 1;
-  auto params = worker::ParamsFromConfig(*config, "bench job");
+  auto params = engine::ParamsFromConfig(*config, "bench job");
   if (!params.ok()) return std::fprintf(stderr, "%s\n", params.status().ToString().c_str()), 1;
   params->threads = 1;
   const bool subtree_max_given = subtree_max >= 0;  // --scale: hand-off only when asked for
   if (subtree_max < 0) subtree_max = (long long)params->subtree_max_samples;
-  std::printf("job: %s\n", worker::DescribeParams(*params).c_str());
+  std::printf("job: %s\n", engine::DescribeParams(*params).c_str());
   std::printf(
       "machine: %u hardware threads, load average %.1f at start (a shared machine: timings are noisy)\n",
       std::thread::hardware_concurrency(), LoadAverage());
@@ -1569,12 +1569,12 @@ int main(int argc, char** argv) {
   RunFigures engine;
   std::vector<uint8_t> ref_bytes;
   auto run_engine = [&](RunFigures& engine, int threads, bool verbose) -> int {
-    worker::TrainParams p = *params;
+    engine::TrainParams p = *params;
     p.threads = threads;
-    coordinator::LocalTrainer local(p, {});
-    const double c0 = CpuSeconds(RUSAGE_SELF), t0 = dist::NowSeconds();
+    engine::LocalTrainer local(p, {});
+    const double c0 = CpuSeconds(RUSAGE_SELF), t0 = proto::dds::NowSeconds();
     auto ref = local.Train();
-    engine.wall = dist::NowSeconds() - t0;
+    engine.wall = proto::dds::NowSeconds() - t0;
     engine.cpu = CpuSeconds(RUSAGE_SELF) - c0;
     if (!ref.ok()) return std::fprintf(stderr, "%s\n", ref.status().ToString().c_str()), 1;
     engine.evaluations = local.stats().evaluations;
@@ -1672,7 +1672,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   auto run_engine_procs = [&](int n, RunFigures& f) -> int {
-    const double kids0 = CpuSeconds(RUSAGE_CHILDREN), t0 = dist::NowSeconds();
+    const double kids0 = CpuSeconds(RUSAGE_CHILDREN), t0 = proto::dds::NowSeconds();
     std::vector<pid_t> pids;
     for (int i = 0; i < n; ++i) {
       const pid_t pid = Spawn({self, "--engine-process", job_file});
@@ -1685,7 +1685,7 @@ int main(int argc, char** argv) {
       ::waitpid(p, &status, 0);
       ok = ok && WIFEXITED(status) && WEXITSTATUS(status) == 0;
     }
-    f.wall = dist::NowSeconds() - t0;
+    f.wall = proto::dds::NowSeconds() - t0;
     f.cpu = CpuSeconds(RUSAGE_CHILDREN) - kids0;
     f.evaluations = uint64_t(n) * engine.evaluations;
     if (!ok) return std::fprintf(stderr, "distributed: an engine process failed\n"), 1;
@@ -1739,7 +1739,7 @@ int main(int argc, char** argv) {
       if (pid < 0) return std::fprintf(stderr, "distributed: cannot start a worker process\n"), 1;
       pids.push_back(pid);
     }
-    dist::CoordinatorOptions co;
+    coordinator::CoordinatorOptions co;
     co.domain = dom;
     co.job_id = job_id;
     co.min_workers = n;
@@ -1753,7 +1753,7 @@ int main(int argc, char** argv) {
         "\n%d worker process(es), subtree hand-off %s:\n  tree level  nodes  samples  handed  from_sub  "
         "bytes_received  bytes_sent  merge_ms  level_s  evaluations/s\n",
         n, sm ? ("at <= " + std::to_string(sm) + " samples").c_str() : "off");
-    co.progress = [&](const dist::DistLevelStats& s) {
+    co.progress = [&](const coordinator::DistLevelStats& s) {
       if (sm == 0 && verbose)
         rows.push_back({n, s.tree, s.level, s.frontier_nodes, s.split_nodes, s.samples, s.evaluations,
                         s.bytes_received, s.bytes_sent, s.merge_seconds, s.level_seconds});
@@ -1773,17 +1773,17 @@ int main(int argc, char** argv) {
                   s.merge_seconds * 1e3, s.level_seconds, s.evaluations_per_s);
       std::fflush(stdout);
     };
-    dist::DistCoordinator coord(*config, *params, co);
-    const double c0 = CpuSeconds(RUSAGE_SELF), t0 = dist::NowSeconds();
+    coordinator::DistCoordinator coord(*config, *params, co);
+    const double c0 = CpuSeconds(RUSAGE_SELF), t0 = proto::dds::NowSeconds();
     auto forest = coord.Train();
-    f.wall = dist::NowSeconds() - t0;
+    f.wall = proto::dds::NowSeconds() - t0;
     f.coordinator_cpu = CpuSeconds(RUSAGE_SELF) - c0;
     // Workers leave on JOB_DONE; reap them so that their CPU time is counted.
-    const double deadline = dist::NowSeconds() + 10;
+    const double deadline = proto::dds::NowSeconds() + 10;
     for (pid_t p : pids) {
       int status = 0;
       while (::waitpid(p, &status, WNOHANG) == 0) {
-        if (dist::NowSeconds() > deadline) {
+        if (proto::dds::NowSeconds() > deadline) {
           ::kill(p, SIGKILL);
           ::waitpid(p, &status, 0);
           break;

@@ -49,19 +49,18 @@ uint32_t Walk(const core::Tree& tree, const core::DepthImage& d, int x, int y, c
 }  // namespace
 
 int main(int argc, char** argv) {
-  core::Result<worker::TrainParams> params =
-      argc > 1 ? worker::LoadJob(argv[1]) : [] {
-        auto config = worker::ParseJobText(kDefaultJob, "embedded job");
-        if (!config.ok()) return core::Result<worker::TrainParams>(config.status());
-        return worker::ParamsFromConfig(*config, "embedded job");
-      }();
+  core::Result<engine::TrainParams> params = argc > 1 ? engine::LoadJob(argv[1]) : [] {
+    auto config = engine::ParseJobText(kDefaultJob, "embedded job");
+    if (!config.ok()) return core::Result<engine::TrainParams>(config.status());
+    return engine::ParamsFromConfig(*config, "embedded job");
+  }();
   if (!params.ok()) {
     std::fprintf(stderr, "leaf_encoding: %s\n", params.status().ToString().c_str());
     return 1;
   }
   // Exact leaf distributions, normalized, per tree and leaf.
   std::vector<std::map<uint32_t, std::vector<double>>> exact(size_t(params->num_trees));
-  coordinator::LocalTrainerOptions options;
+  engine::LocalTrainerOptions options;
   options.leaf_counts = [&](int tree, uint32_t leaf, std::span<const uint64_t> counts) {
     double total = 0;
     for (uint64_t v : counts) total += double(v);
@@ -70,7 +69,7 @@ int main(int argc, char** argv) {
     exact[size_t(tree)][leaf] = std::move(p);
   };
   const auto t0 = std::chrono::steady_clock::now();
-  coordinator::LocalTrainer trainer(*params, options);
+  engine::LocalTrainer trainer(*params, options);
   auto forest = trainer.Train();
   if (!forest.ok()) {
     std::fprintf(stderr, "leaf_encoding: %s\n", forest.status().ToString().c_str());
@@ -87,14 +86,14 @@ int main(int argc, char** argv) {
               forest->leaf_stride(), forest->num_parts * 4, double(leaves * size_t(forest->leaf_stride())) / 1e6,
               double(leaves * size_t(forest->num_parts) * 4) / 1e6);
 
-  auto source = worker::MakeImageSource(params->test_source);
+  auto source = engine::MakeImageSource(params->test_source);
   if (!source.ok()) {
     std::fprintf(stderr, "leaf_encoding: %s\n", source.status().ToString().c_str());
     return 1;
   }
   runtime::Classifier classifier(*forest);
   runtime::Classification result;
-  coordinator::ConfusionMatrix quantized, floating;
+  engine::ConfusionMatrix quantized, floating;
   uint64_t pixels = 0, agree = 0;
   double max_diff = 0;
   const int trees = int(forest->trees.size());

@@ -11,7 +11,7 @@
 // pixels' responses to the root's candidates, written as an N x K float32 matrix, fitted by
 // scikit-learn's ExtraTreesClassifier (one tree, every candidate at every node, entropy, same
 // depth and min_samples_split, n_jobs=1; bench/sklearn_side_by_side.py times fit() alone),
-// against our engine (coordinator::LocalTrainer, 1 thread) training one tree of the same depth
+// against our engine (engine::LocalTrainer, 1 thread) training one tree of the same depth
 // on the same pixels, feature computation included.
 //
 // usage: train [--source procedural|rendered] [--images N] [--pixels N] [--candidates N] [--thresholds N]
@@ -57,35 +57,35 @@ struct Figures {
 };
 
 /// Ranges + cuts + histograms for every node of the set's frontier, in batches of `batch`.
-Figures RunLevel(const worker::SampleSet& set, const worker::TrainParams& p, int threads, size_t batch) {
-  worker::HistogramBuilder builder(p.constants, threads);
+Figures RunLevel(const engine::SampleSet& set, const engine::TrainParams& p, int threads, size_t batch) {
+  engine::HistogramBuilder builder(p.constants, threads);
   Figures fig;
   const auto& ranges = set.ranges();
   fig.nodes = ranges.size();
   for (size_t b0 = 0; b0 < ranges.size(); b0 += batch) {
-    std::vector<worker::NodePlan> plans;
+    std::vector<engine::NodePlan> plans;
     for (size_t i = b0; i < std::min(ranges.size(), b0 + batch); ++i) {
-      worker::NodePlan plan;
+      engine::NodePlan plan;
       plan.node = ranges[i].node;
       plan.position = plan.node;
       plan.num_samples = ranges[i].end - ranges[i].begin;
       std::vector<uint64_t> parts(core::kNumParts);
       set.CountParts(ranges[i], core::kNumParts, parts.data());
       plan.SetParts(parts);
-      plan.sample_bins = worker::UseSampleBins(plan.num_samples, p.thresholds_per_feature, plan.num_slots);
-      plan.features = worker::DrawFeatures(p, 0, plan.node);
-      plan.cut_stride = worker::CutStride(p.thresholds_per_feature);
+      plan.sample_bins = engine::UseSampleBins(plan.num_samples, p.thresholds_per_feature, plan.num_slots);
+      plan.features = engine::DrawFeatures(p, 0, plan.node);
+      plan.cut_stride = engine::CutStride(p.thresholds_per_feature);
       plans.push_back(std::move(plan));
     }
     const double t0 = Now(), c0 = Cpu();
-    std::vector<std::vector<worker::ResponseRange>> rr;
+    std::vector<std::vector<engine::ResponseRange>> rr;
     builder.ComputeRanges(set, p, 0, plans, &rr);
     const double cc = Cpu();
-    for (size_t i = 0; i < plans.size(); ++i) plans[i].cuts = worker::DrawCuts(p, 0, plans[i].node, rr[i]);
+    for (size_t i = 0; i < plans.size(); ++i) plans[i].cuts = engine::DrawCuts(p, 0, plans[i].node, rr[i]);
     const double t1 = Now(), c1 = Cpu();
     fig.cuts_cpu_s += c1 - cc;
     fig.range_cpu_s += c1 - c0;
-    std::vector<worker::NodeHistogram> hists;
+    std::vector<engine::NodeHistogram> hists;
     builder.Build(set, plans, p.thresholds_per_feature, &hists);
     const double t2 = Now();
     fig.build_cpu_s += Cpu() - c1;
@@ -135,9 +135,9 @@ std::string SklearnMissing(const CompareOptions& o) {
 
 /// The side by side: sklearn's fit() on the precomputed responses vs our engine training the
 /// same tree shape on the same pixels from the frames (features computed as it goes).
-void SideBySide(const worker::SampleSet& set, const worker::TrainParams& p, int images, int pixels,
+void SideBySide(const engine::SampleSet& set, const engine::TrainParams& p, int images, int pixels,
                 const CompareOptions& o) {
-  const auto features = worker::DrawFeatures(p, 0, 0);
+  const auto features = engine::DrawFeatures(p, 0, 0);
   const size_t n = set.num_samples(), k = features.size();
   std::printf("side by side: %zu samples x %zu candidates, depth %d, min_samples_split %lld, 1 thread each\n", n,
               k, o.depth, static_cast<long long>(p.min_samples_split));
@@ -197,13 +197,13 @@ void SideBySide(const worker::SampleSet& set, const worker::TrainParams& p, int 
     return;
   }
   // Ours: the engine trains tree 0 of the same job (same frames, same sampled pixels).
-  worker::TrainParams q = p;
+  engine::TrainParams q = p;
   q.num_trees = 1;
   q.max_depth = o.depth;
   q.images_per_tree = images;
   q.pixels_per_image = pixels;
   q.threads = 1;
-  coordinator::LocalTrainer trainer(q, {});
+  engine::LocalTrainer trainer(q, {});
   const double c0 = Cpu(), w0 = Now();
   auto tree = trainer.TrainTree(0);
   const double ours_cpu = Cpu() - c0, ours_wall = Now() - w0;
@@ -291,21 +291,21 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "--sklearn-model %s: must be extra or forest\n", compare.model.c_str());
     return 2;
   }
-  worker::TrainParams p;
+  engine::TrainParams p;
   p.seed = 1;
   p.candidate_features = candidates;
   p.thresholds_per_feature = thresholds;
-  p.source.kind = rendered ? worker::SourceKind::kRendered : worker::SourceKind::kProcedural;
+  p.source.kind = rendered ? engine::SourceKind::kRendered : engine::SourceKind::kProcedural;
   p.source.width = 640;
   p.source.height = 480;
-  auto source = worker::MakeImageSource(p.source);
+  auto source = engine::MakeImageSource(p.source);
   if (!source.ok()) {
     std::fprintf(stderr, "train bench: %s\n", source.status().ToString().c_str());
     return 1;
   }
   // As LocalTrainer loads a shard: frames compacted as they come, then added with exact room.
-  std::vector<worker::CompactFrame> compact(static_cast<size_t>(images));
-  std::vector<std::vector<worker::PixelSample>> picked(static_cast<size_t>(images));
+  std::vector<engine::CompactFrame> compact(static_cast<size_t>(images));
+  std::vector<std::vector<engine::PixelSample>> picked(static_cast<size_t>(images));
   size_t span_pixels = 0, rows = 0, samples = 0;
   for (int i = 0; i < images; ++i) {
     auto frame = (*source)->Frame(uint64_t(i));
@@ -313,14 +313,14 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "train bench: %s\n", frame.status().ToString().c_str());
       return 1;
     }
-    picked[size_t(i)] = worker::SamplePixels(*frame, pixels, 1.0,
-                                             core::CounterRng(1, 0, uint64_t(i), worker::kSamplingStream));
-    compact[size_t(i)] = worker::CompactFrame::Of(frame->depth, p.constants.background_mm);
+    picked[size_t(i)] = engine::SamplePixels(*frame, pixels, 1.0,
+                                             core::CounterRng(1, 0, uint64_t(i), engine::kSamplingStream));
+    compact[size_t(i)] = engine::CompactFrame::Of(frame->depth, p.constants.background_mm);
     span_pixels += compact[size_t(i)].pixels.size();
     rows += compact[size_t(i)].rows.size();
     samples += picked[size_t(i)].size();
   }
-  worker::SampleSet set;
+  engine::SampleSet set;
   set.Reserve(size_t(images), span_pixels, samples, rows);
   for (int i = 0; i < images; ++i)
     set.AddFrame(uint64_t(i), compact[size_t(i)], picked[size_t(i)], p.constants);
@@ -349,7 +349,7 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  const worker::SampleSet compare_set = compare_skipped.empty() ? set : worker::SampleSet();
+  const engine::SampleSet compare_set = compare_skipped.empty() ? set : engine::SampleSet();
 
   const Figures root = RunLevel(set, p, threads, 1);
   std::printf(
@@ -361,11 +361,11 @@ int main(int argc, char** argv) {
   // Deep level: split every node by a random candidate at the response of its first sample,
   // `depth` times (the shape of a real level: many nodes, few samples each).
   for (int level = 0; level < depth; ++level) {
-    std::vector<worker::SampleSet::Split> splits;
+    std::vector<engine::SampleSet::Split> splits;
     uint32_t next = 0;
     for (const auto& r : set.ranges()) {
       const core::CounterRng rng(7, uint64_t(level), r.node, 0);
-      const auto f = worker::DrawFeatures(p, 0, r.node)[rng.UniformInt(0, uint32_t(candidates))];
+      const auto f = engine::DrawFeatures(p, 0, r.node)[rng.UniformInt(0, uint32_t(candidates))];
       const size_t s = r.begin + (r.end - r.begin) / 2;
       const int32_t cut = set.Response(s, f, p.constants.background_mm);
       splits.push_back({r.node, f, cut, next});
@@ -380,24 +380,24 @@ int main(int argc, char** argv) {
   double fused_cpu = 0;
   uint64_t fused_evals = 0;
   {
-    worker::HistogramBuilder builder(p.constants, threads);
+    engine::HistogramBuilder builder(p.constants, threads);
     const auto& ranges = set.ranges();
     for (size_t b0 = 0; b0 < ranges.size(); b0 += 256) {
-      std::vector<worker::NodePlan> plans;
+      std::vector<engine::NodePlan> plans;
       for (size_t i = b0; i < std::min(ranges.size(), b0 + 256); ++i) {
-        worker::NodePlan plan;
+        engine::NodePlan plan;
         plan.node = ranges[i].node;
         plan.position = plan.node;
         plan.num_samples = ranges[i].end - ranges[i].begin;
         std::vector<uint64_t> parts(core::kNumParts);
         set.CountParts(ranges[i], core::kNumParts, parts.data());
         plan.SetParts(parts);
-        plan.sample_bins = worker::UseSampleBins(plan.num_samples, p.thresholds_per_feature, plan.num_slots);
-        plan.features = worker::DrawFeatures(p, 0, plan.node);
-        if (worker::HistogramBuilder::CanFuse(set, p, plan)) plans.push_back(std::move(plan));
+        plan.sample_bins = engine::UseSampleBins(plan.num_samples, p.thresholds_per_feature, plan.num_slots);
+        plan.features = engine::DrawFeatures(p, 0, plan.node);
+        if (engine::HistogramBuilder::CanFuse(set, p, plan)) plans.push_back(std::move(plan));
       }
       const double c0 = Cpu();
-      std::vector<worker::NodeHistogram> hists;
+      std::vector<engine::NodeHistogram> hists;
       builder.BuildFused(set, p, 0, plans, &hists);
       fused_cpu += Cpu() - c0;
     }

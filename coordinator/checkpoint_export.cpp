@@ -12,7 +12,7 @@
 #include "runtime/core/body_parts.h"
 #include "runtime/core/forest_format.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator {
 
 using core::ErrorCode;
 using core::Result;
@@ -90,7 +90,7 @@ class SafeReplay {
  private:
   std::string where_;
   int max_depth_;
-  coordinator::TreeAssembler a_;
+  engine::TreeAssembler a_;
   std::vector<uint8_t> decided_;
   std::vector<uint32_t> depth_;
 };
@@ -127,7 +127,7 @@ Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& bytes, con
   checked.mutable_source()->Clear();
   checked.mutable_source()->mutable_procedural();
   checked.clear_test_set();
-  auto params = worker::ParamsFromConfig(checked, file + " (job config)");
+  auto params = engine::ParamsFromConfig(checked, file + " (job config)");
   if (!params.ok()) return Status(ErrorCode::kDataLoss, params.status().message());
 
   CheckpointForest out;
@@ -187,4 +187,4 @@ Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& bytes, con
   return out;
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator

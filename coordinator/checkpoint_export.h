@@ -12,7 +12,7 @@
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator {
 
 enum class PartialTree {
   kFinishAsLeaves,  ///< the tree in progress, its frontier turned into leaves
@@ -38,4 +38,4 @@ core::Result<CheckpointForest> ForestFromCheckpoint(const std::string& path, Par
 core::Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& bytes, const std::string& file,
                                                          PartialTree partial);
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator

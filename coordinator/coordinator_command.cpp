@@ -141,7 +141,7 @@ int CoordinatorMain(int argc, char** argv) {
                  (unreadable ? config.status().message() : config.status().ToString()).c_str());
     return unreadable ? 1 : 2;
   }
-  auto params = worker::ParamsFromConfig(*config, job_path);
+  auto params = engine::ParamsFromConfig(*config, job_path);
   if (!params.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", params.status().ToString().c_str());
     return 2;
@@ -156,7 +156,8 @@ int CoordinatorMain(int argc, char** argv) {
   auto min_workers = args.GetInt("min-workers", -1, 1, 4096);
   auto worker_threads = args.GetInt("worker-threads", 1, 1, 1024);
   auto wait_s = args.GetInt("worker-wait-s", 60, 1, 86400);
-  auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return job_dds->Get(args, name); });
+  auto dds_flags =
+      proto::dds::ParseDdsFlags([&](const std::string& name) { return job_dds->Get(args, name); });
   if (!local.ok() || !domain.ok() || !min_workers.ok() || !worker_threads.ok() || !wait_s.ok() ||
       !dds_flags.ok()) {
     for (const Status& st :
@@ -175,7 +176,7 @@ int CoordinatorMain(int argc, char** argv) {
       std::fprintf(stderr, "coordinator: --worker-security is for --local-workers N with --security DIR\n");
       return 2;
     }
-    auto files = dist::SecurityFilesIn(*args.Get("worker-security"), "--worker-security");
+    auto files = proto::dds::SecurityFilesIn(*args.Get("worker-security"), "--worker-security");
     if (!files.ok()) {
       std::fprintf(stderr, "coordinator: %s\n", files.status().message().c_str());
       return 2;
@@ -188,12 +189,12 @@ int CoordinatorMain(int argc, char** argv) {
                  "--worker-security OUT/worker-1)\n");
     return 2;
   }
-  dist::CoordinatorOptions opt;
+  coordinator::CoordinatorOptions opt;
   opt.udp_peers = dds_flags->peers;
   opt.udp_interfaces = dds_flags->interfaces;
   opt.transport_extras = dds_flags->extras;
   opt.job_id = args.GetOr("job-id", "");
-  if (opt.job_id.empty()) opt.job_id = dist::DefaultJobId(*config);
+  if (opt.job_id.empty()) opt.job_id = engine::DefaultJobId(*config);
   opt.domain = uint32_t(*domain);
   opt.transport = dds_flags->transport;
   opt.min_workers = *min_workers > 0 ? int(*min_workers) : std::max(1, int(*local));
@@ -220,7 +221,8 @@ int CoordinatorMain(int argc, char** argv) {
     // an error naming it, never a crash (the same checks as `poseforest export`).
     const auto ckpt = std::filesystem::path(opt.checkpoint_dir) / "checkpoint.pb";
     if (std::filesystem::exists(ckpt)) {
-      auto checked = dist::ForestFromCheckpoint(ckpt.string(), dist::PartialTree::kFinishAsLeaves);
+      auto checked =
+          coordinator::ForestFromCheckpoint(ckpt.string(), coordinator::PartialTree::kFinishAsLeaves);
       if (!checked.ok() && checked.status().code() != core::ErrorCode::kInvalidArgument) {
         std::fprintf(stderr, "coordinator: cannot resume: %s\n", checked.status().message().c_str());
         return 1;
@@ -235,22 +237,22 @@ int CoordinatorMain(int argc, char** argv) {
                    out_dir.c_str());
       return 2;
     }
-    if (const std::string http = args.GetOr("http", dist::kDefaultHttp); http != "off") {
-      dist::HttpServerOptions http_opt;
-      if (Status st = dist::ParseHttpAddress(http, &http_opt); !st.ok()) {
+    if (const std::string http = args.GetOr("http", coordinator::monitoring::kDefaultHttp); http != "off") {
+      proto::http::HttpServerOptions http_opt;
+      if (Status st = proto::http::ParseHttpAddress(http, &http_opt); !st.ok()) {
         std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
         return 2;
       }
     }
     if (args.Has("http-token-file")) {
-      if (auto token = dist::ReadHttpTokenFile(*args.Get("http-token-file")); !token.ok()) {
+      if (auto token = proto::http::ReadHttpTokenFile(*args.Get("http-token-file")); !token.ok()) {
         std::fprintf(stderr, "coordinator: %s\n", token.status().message().c_str());
         return 2;
       }
     }
     if (args.Has("http-tls-cert") || args.Has("http-tls-key")) {
       if (Status st =
-              dist::CheckHttpTlsFiles(args.GetOr("http-tls-cert", ""), args.GetOr("http-tls-key", ""));
+              proto::http::CheckHttpTlsFiles(args.GetOr("http-tls-cert", ""), args.GetOr("http-tls-key", ""));
           !st.ok()) {
         std::fprintf(stderr, "coordinator: %s\n", st.message().c_str());
         return 2;
@@ -278,7 +280,7 @@ int CoordinatorMain(int argc, char** argv) {
     std::fflush(stdout);
   }
   const std::string status_file = args.GetOr("status-file", "");
-  opt.progress = [&](const dist::DistLevelStats& s) {
+  opt.progress = [&](const coordinator::DistLevelStats& s) {
     char line[512];
     std::snprintf(
         line, sizeof line,
@@ -324,11 +326,11 @@ int CoordinatorMain(int argc, char** argv) {
   }
   std::string http_token;
   if (args.Has("http-token-file")) {
-    if (args.GetOr("http", dist::kDefaultHttp) == "off") {
+    if (args.GetOr("http", coordinator::monitoring::kDefaultHttp) == "off") {
       std::fprintf(stderr, "coordinator: --http-token-file is for the HTTP status server, not --http off\n");
       return 2;
     }
-    auto token = dist::ReadHttpTokenFile(*args.Get("http-token-file"));
+    auto token = proto::http::ReadHttpTokenFile(*args.Get("http-token-file"));
     if (!token.ok()) {
       std::fprintf(stderr, "coordinator: %s\n", token.status().message().c_str());
       return 2;
@@ -337,17 +339,18 @@ int CoordinatorMain(int argc, char** argv) {
   }
   const std::string tls_cert = args.GetOr("http-tls-cert", ""), tls_key = args.GetOr("http-tls-key", "");
   if (!tls_cert.empty() || !tls_key.empty()) {
-    if (args.GetOr("http", dist::kDefaultHttp) == "off") {
+    if (args.GetOr("http", coordinator::monitoring::kDefaultHttp) == "off") {
       std::fprintf(stderr,
                    "coordinator: --http-tls-cert/--http-tls-key are for the HTTP status server, not --http off\n");
       return 2;
     }
   }
-  auto monitoring = dist::CoordinatorMonitoring::Start(
+  auto monitoring = coordinator::monitoring::CoordinatorMonitoring::Start(
       {opt.job_id, opt.domain, dds_flags->Label(), params->num_trees, params->max_depth,
        params->images_per_tree, params->pixels_per_image, params->candidate_features,
        params->thresholds_per_feature, *args.Get("out")},
-      args.GetOr("http", dist::kDefaultHttp), args.GetOr("event-log", ""), http_token, tls_cert, tls_key);
+      args.GetOr("http", coordinator::monitoring::kDefaultHttp), args.GetOr("event-log", ""), http_token,
+      tls_cert, tls_key);
   if (!monitoring.ok()) {
     std::fprintf(stderr, "coordinator: %s\n", monitoring.status().ToString().c_str());
     return monitoring.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;  // 1: port in use
@@ -383,8 +386,8 @@ int CoordinatorMain(int argc, char** argv) {
       return 1;
     }
   }
-  dist::DistCoordinator coordinator(*config, *params, opt);
-  const double t0 = dist::NowSeconds();
+  coordinator::DistCoordinator coordinator(*config, *params, opt);
+  const double t0 = proto::dds::NowSeconds();
   auto forest = coordinator.Train();
   workers.StopAll();
   if (!forest.ok()) {
@@ -401,7 +404,8 @@ int CoordinatorMain(int argc, char** argv) {
   std::printf(
       "wrote %s: %zu trees in %.2f s, %s received, %llu messages rejected, %llu stale messages dropped, %d "
       "workers lost\n",
-      out.c_str(), forest->trees.size(), dist::NowSeconds() - t0, Human(double(coordinator.bytes_received())).c_str(),
+      out.c_str(), forest->trees.size(), proto::dds::NowSeconds() - t0,
+      Human(double(coordinator.bytes_received())).c_str(),
       (unsigned long long)coordinator.rejected_messages(), (unsigned long long)coordinator.stale_messages(),
       coordinator.workers_lost());
   std::fflush(stdout);

@@ -31,13 +31,13 @@
 #include "runtime/core/crc32.h"
 #include "runtime/core/forest_format.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator {
 
 using core::ErrorCode;
 using core::Result;
 using core::Status;
-using dds::Topic;
-using Verdict = dds::MessageGate::Verdict;
+using proto::dds::Topic;
+using Verdict = proto::dds::MessageGate::Verdict;
 
 namespace {
 constexpr int kParts = core::kNumParts;
@@ -80,11 +80,11 @@ struct SubtreeJob {
   uint64_t epoch = 0;                       ///< of the task sent to `worker`
   double sent = 0;
   bool done = false;
-  std::vector<coordinator::SubtreeNode> nodes;  ///< the result
+  std::vector<engine::SubtreeNode> nodes;  ///< the result
 };
 
-coordinator::SubtreeNode FromProto(const v1::SubtreeNode& n) {
-  coordinator::SubtreeNode o;
+engine::SubtreeNode FromProto(const v1::SubtreeNode& n) {
+  engine::SubtreeNode o;
   o.position = n.position();
   o.split = n.split();
   o.offsets = {int16_t(n.ux()), int16_t(n.uy()), int16_t(n.vx()), int16_t(n.vy())};
@@ -94,7 +94,7 @@ coordinator::SubtreeNode FromProto(const v1::SubtreeNode& n) {
   return o;
 }
 
-void ToProto(const coordinator::SubtreeNode& n, v1::SubtreeNode* o) {
+void ToProto(const engine::SubtreeNode& n, v1::SubtreeNode* o) {
   o->set_position(n.position);
   o->set_split(n.split);
   if (n.split) {
@@ -111,12 +111,12 @@ bool FitsInt16(int32_t v) { return v >= INT16_MIN && v <= INT16_MAX; }
 struct DistCoordinator::Impl {
   v1::TrainerConfig config;
   v1::Envelope job_announcement;  ///< the job as announced (sent again while workers are missing)
-  worker::TrainParams params;
+  engine::TrainParams params;
   CoordinatorOptions opt;
   std::string job_id, self_id;
-  std::unique_ptr<dds::DdsNode> node;
-  std::unique_ptr<dds::MessageGate> gate;
-  dds::EnvelopeStamper stamper{"", "", v1::SENDER_KIND_COORDINATOR};
+  std::unique_ptr<proto::dds::DdsNode> node;
+  std::unique_ptr<proto::dds::MessageGate> gate;
+  proto::dds::EnvelopeStamper stamper{"", "", v1::SENDER_KIND_COORDINATOR};
   std::map<std::string, WorkerInfo> workers;
   std::vector<std::pair<uint32_t, uint32_t>> orphan_frames;  ///< of lost workers, current tree
   uint64_t epoch = 0;
@@ -131,7 +131,7 @@ struct DistCoordinator::Impl {
   /// Every split of the current tree by heap position (the paths of SubtreeTasks).
   std::map<uint64_t, std::pair<core::FeatureOffsets, int32_t>> split_of;
   /// Decided nodes of delegated subtrees not placed in the tree yet, by heap position.
-  std::map<uint64_t, coordinator::SubtreeNode> delegated;
+  std::map<uint64_t, engine::SubtreeNode> delegated;
   std::map<uint64_t, SubtreeJob> tasks;  ///< outstanding SubtreeTasks of this level, by position
   /// Samples of each worker's unfinished SubtreeTasks of this level (SendTask balances them).
   std::map<std::string, uint64_t> subtree_load;
@@ -192,7 +192,7 @@ struct DistCoordinator::Impl {
       if (kind != v1::STATUS_KIND_PROGRESS) opt.observer->OnStatus(*s);
       opt.observer->FillStatus(s);  // throughput, ETA, workers (monitor --domain)
     }
-    last_status_time = NowSeconds();
+    last_status_time = proto::dds::NowSeconds();
     (void)Send(Topic::kStatus, env);
   }
   double last_status_time = 0;  ///< of the last StatusEvent: a PROGRESS one 2 s after it
@@ -255,10 +255,10 @@ struct DistCoordinator::Impl {
   /// Replies of `want_epoch` from pending workers land in `replies`.
   void Pump(std::chrono::milliseconds timeout, uint64_t want_epoch, std::map<std::string, Reply>* replies) {
     while (auto e = node->NextEvent(std::chrono::milliseconds(0))) {
-      if (e->kind == dds::DdsEvent::Kind::kLivelinessLost && e->topic == Topic::kPresence) {
+      if (e->kind == proto::dds::DdsEvent::Kind::kLivelinessLost && e->topic == Topic::kPresence) {
         for (auto& [id, w] : workers)
           if (w.alive && w.presence_writer == e->peer_guid) MarkLost(id, "liveliness lost");
-      } else if (e->kind == dds::DdsEvent::Kind::kParticipantLost) {
+      } else if (e->kind == proto::dds::DdsEvent::Kind::kParticipantLost) {
         for (auto& [id, w] : workers)
           if (w.alive && !w.participant.empty() && w.participant == e->peer_participant)
             MarkLost(id, "participant lost");
@@ -286,7 +286,7 @@ struct DistCoordinator::Impl {
               PublishStatus(v1::STATUS_KIND_WORKER_JOINED, "joined", w.id);
             }
             w.alive = true;
-            w.last_seen = NowSeconds();
+            w.last_seen = proto::dds::NowSeconds();
             if (opt.observer) opt.observer->OnWorkerSeen(out.sender);
             if (env.has_heartbeat()) {
               const v1::Heartbeat& hb = env.heartbeat();
@@ -334,7 +334,7 @@ struct DistCoordinator::Impl {
       else
         Log("sender " + id + " flagged by the gate; its messages are dropped");
     }
-    const double now = NowSeconds();
+    const double now = proto::dds::NowSeconds();
     const double limit = std::chrono::duration<double>(opt.heartbeat_timeout).count();
     for (auto& [id, w] : workers)
       if (w.alive && now - w.last_seen > limit) MarkLost(id, "heartbeat timeout");
@@ -344,10 +344,10 @@ struct DistCoordinator::Impl {
   }
 
   Status WaitForWorkers(int n) {
-    const double deadline = NowSeconds() + std::chrono::duration<double>(opt.worker_wait).count();
-    double announced = NowSeconds();
+    const double deadline = proto::dds::NowSeconds() + std::chrono::duration<double>(opt.worker_wait).count();
+    double announced = proto::dds::NowSeconds();
     while (AliveCount() < n) {
-      if (NowSeconds() > deadline)
+      if (proto::dds::NowSeconds() > deadline)
         return Status(ErrorCode::kNotFound,
                       "job " + job_id + ": " + std::to_string(AliveCount()) + " of " + std::to_string(n) +
                           " workers after " + std::to_string(opt.worker_wait.count()) + " ms (DDS: " +
@@ -358,8 +358,8 @@ struct DistCoordinator::Impl {
       // The announcement again every 2 s while workers are missing: the job topic is transient-
       // local, but a worker whose reader missed it (a CI run saw 3 of 5 workers never join)
       // would otherwise wait for ever. A worker that has the job ignores it.
-      if (NowSeconds() - announced >= 2.0) {
-        announced = NowSeconds();
+      if (proto::dds::NowSeconds() - announced >= 2.0) {
+        announced = proto::dds::NowSeconds();
         v1::Envelope again = job_announcement;
         POSEFOREST_RETURN_IF_ERROR(Send(Topic::kJob, again));
       }
@@ -398,7 +398,7 @@ struct DistCoordinator::Impl {
     }
     w.assigned = true;
     w.assign_epoch = s->epoch();
-    w.assign_time = NowSeconds();
+    w.assign_time = proto::dds::NowSeconds();
     if (again) {
       ++w.resends;
     } else {
@@ -455,7 +455,7 @@ struct DistCoordinator::Impl {
   /// handing lost workers' frames on) until every assigned worker has answered.
   Result<std::vector<Reply>> Round(v1::Phase phase, const std::vector<uint32_t>& node_ids,
                                    const std::vector<v1::NodeSpec>& specs, int level) {
-    const double t_round = NowSeconds();
+    const double t_round = proto::dds::NowSeconds();
     for (;;) {
       if (!orphan_frames.empty()) {
         auto frames = std::move(orphan_frames);
@@ -484,9 +484,10 @@ struct DistCoordinator::Impl {
       expected_nodes = int(node_ids.size());
       POSEFOREST_RETURN_IF_ERROR(Send(Topic::kControl, env));
       std::map<std::string, Reply> replies;
-      const double deadline = NowSeconds() + std::chrono::duration<double>(opt.reply_timeout).count();
+      const double deadline =
+          proto::dds::NowSeconds() + std::chrono::duration<double>(opt.reply_timeout).count();
       for (;;) {
-        if (NowSeconds() > deadline)
+        if (proto::dds::NowSeconds() > deadline)
           for (auto& [id, w] : workers)
             if (w.assigned && w.alive && !replies.count(id)) MarkLost(id, "no reply");
         if (!orphan_frames.empty()) break;  // someone was lost: redistribute and ask again
@@ -499,7 +500,8 @@ struct DistCoordinator::Impl {
         bool resent = false;
         for (auto& [id, w] : workers)
           if (w.assigned && w.alive && !replies.count(id) && w.seen_epoch < w.frames_epoch &&
-              NowSeconds() - w.assign_time > std::min(30.0, 3.0 * double(1 << std::min(w.resends, 4)))) {
+              proto::dds::NowSeconds() - w.assign_time >
+                  std::min(30.0, 3.0 * double(1 << std::min(w.resends, 4)))) {
             Log("worker " + id + " has not seen its assignment: sending it again");
             POSEFOREST_RETURN_IF_ERROR(SendAssignment(w, 0, 1, /*again=*/true));
             resent = true;
@@ -520,7 +522,7 @@ struct DistCoordinator::Impl {
             if (q + c >= crit) crit = q + c, crit_queued = q, crit_compute = c;
             level_time.render_s += double(r.body.render_micros()) * 1e-6;
           }
-          const double wall = NowSeconds() - t_round;
+          const double wall = proto::dds::NowSeconds() - t_round;
           ++level_time.rounds;
           level_time.round_s += wall;
           level_time.queued_s += std::min(crit_queued, wall);
@@ -568,14 +570,14 @@ struct DistCoordinator::Impl {
     if (res.position() != job->position)
       return RejectSubtree(sender, "position " + std::to_string(res.position()) + ", task is " +
                                        std::to_string(job->position));
-    std::vector<coordinator::SubtreeNode> nodes;
+    std::vector<engine::SubtreeNode> nodes;
     for (const v1::SubtreeNode& n : res.subtree_nodes()) {
       if (n.split() && !(FitsInt16(n.ux()) && FitsInt16(n.uy()) && FitsInt16(n.vx()) && FitsInt16(n.vy())))
         return RejectSubtree(sender, "feature offsets outside int16");
       nodes.push_back(FromProto(n));
     }
     core::Tree layout;
-    if (Status st = coordinator::ValidateSubtree(nodes, job->position, job->parts, params, &layout); !st.ok())
+    if (Status st = engine::ValidateSubtree(nodes, job->position, job->parts, params, &layout); !st.ok())
       return RejectSubtree(sender, st.message());
     // The forest-format bytes must encode the same subtree.
     if (res.num_nodes() != layout.nodes.size() || res.num_leaves() != layout.num_leaves ||
@@ -628,13 +630,13 @@ struct DistCoordinator::Impl {
     v1::SubtreeTask* t = &task_outbox[best->id].emplace_back();
     t->set_tree(uint32_t(tree));
     t->set_node_id(job.node);
-    const int depth = worker::PositionDepth(job.position);
+    const int depth = engine::PositionDepth(job.position);
     t->set_depth(uint32_t(depth));
     t->set_epoch(++epoch);
     std::vector<uint64_t> chain;  // root .. the node
-    for (uint64_t p = job.position;; p = worker::ParentPosition(p)) {
+    for (uint64_t p = job.position;; p = engine::ParentPosition(p)) {
       chain.push_back(p);
-      if (p == worker::kRootPosition) break;
+      if (p == engine::kRootPosition) break;
     }
     std::reverse(chain.begin(), chain.end());
     for (size_t i = 0; i + 1 < chain.size(); ++i) {
@@ -642,8 +644,8 @@ struct DistCoordinator::Impl {
       if (it == split_of.end())
         return Status(ErrorCode::kInternal, "no split known at position " + std::to_string(chain[i]));
       auto* step = t->add_path();
-      SetFeatureSplit(it->second.first, it->second.second, 1, 0, step->mutable_split());
-      step->set_went_right(chain[i + 1] == worker::RightChildPosition(chain[i]));
+      engine::SetFeatureSplit(it->second.first, it->second.second, 1, 0, step->mutable_split());
+      step->set_went_right(chain[i + 1] == engine::RightChildPosition(chain[i]));
     }
     const uint64_t base = uint64_t(tree) * uint64_t(params.images_per_tree);
     for (size_t i = 0; i < job.frames.size();) {
@@ -667,7 +669,7 @@ struct DistCoordinator::Impl {
     }
     job.worker = best->id;
     job.epoch = t->epoch();
-    job.sent = NowSeconds();
+    job.sent = proto::dds::NowSeconds();
     subtree_load[job.worker] += total;
     level_handed[job.worker] += total;
     level_largest_task = std::max(level_largest_task, total);
@@ -686,8 +688,9 @@ struct DistCoordinator::Impl {
         env.set_recipient_id(id);
         v1::SubtreeTasks* batch = env.mutable_subtree_tasks();
         size_t bytes = 0;
-        while (i < list.size() && batch->tasks_size() < dds::kMaxSubtreeTasks &&
-               (batch->tasks_size() == 0 || bytes + list[i].ByteSizeLong() <= dds::kSubtreeTasksMaxBytes)) {
+        while (i < list.size() && batch->tasks_size() < proto::dds::kMaxSubtreeTasks &&
+               (batch->tasks_size() == 0 ||
+                bytes + list[i].ByteSizeLong() <= proto::dds::kSubtreeTasksMaxBytes)) {
           bytes += list[i].ByteSizeLong();
           *batch->add_tasks() = std::move(list[i]);
           ++i;
@@ -710,7 +713,7 @@ struct DistCoordinator::Impl {
         if (job.done) continue;
         all = false;
         auto it = workers.find(job.worker);
-        if (it != workers.end() && it->second.alive && NowSeconds() - job.sent > limit)
+        if (it != workers.end() && it->second.alive && proto::dds::NowSeconds() - job.sent > limit)
           MarkLost(job.worker, "no subtree result");
         if (it == workers.end() || !it->second.alive) {
           Log("subtree at position " + std::to_string(pos) + ": " + job.worker + " is gone, handing it on");
@@ -737,7 +740,7 @@ struct DistCoordinator::Impl {
   }
 
   /// Replays a logged tree's levels into `assembler`; errors if the log is inconsistent.
-  static Status Replay(const v1::LoggedTree& log, coordinator::TreeAssembler* assembler) {
+  static Status Replay(const v1::LoggedTree& log, engine::TreeAssembler* assembler) {
     for (const v1::LoggedLevel& level : log.levels())
       for (const v1::LoggedDecision& d : level.decisions()) {
         if (d.split()) {
@@ -887,12 +890,12 @@ struct DistCoordinator::Impl {
     /// subsample is the whole node builds it in one fused pass and returns its histogram and
     /// cuts right away.
     Status Ranges(int /*tree*/, int level, engine::Batch* batch, const engine::HistogramSink& sink) override {
-      const worker::TrainParams& params = impl.params;
-      std::vector<worker::NodePlan>& plans = batch->plans;
+      const engine::TrainParams& params = impl.params;
+      std::vector<engine::NodePlan>& plans = batch->plans;
       const int k = params.candidate_features;
       const int t_count = params.thresholds_per_feature;
-      const int cut_stride = worker::CutStride(t_count);
-      const dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
+      const int cut_stride = engine::CutStride(t_count);
+      const proto::dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
       batch->ranges.assign(plans.size(), {});
       batch->fused.assign(plans.size(), 0);
       std::vector<uint32_t> ids;
@@ -902,10 +905,10 @@ struct DistCoordinator::Impl {
         specs[p].set_num_samples(plans[p].num_samples);
         specs[p].set_position(plans[p].position);
       }
-      const double t_ranges = NowSeconds();
+      const double t_ranges = proto::dds::NowSeconds();
       auto r1 = impl.Round(v1::PHASE_RANGES, ids, specs, level);
       if (!r1.ok()) return r1.status();
-      hist_s += NowSeconds() - t_ranges;
+      hist_s += proto::dds::NowSeconds() - t_ranges;
       std::vector<int> fused_by(plans.size(), -1);
       for (size_t p = 0; p < plans.size(); ++p) {
         for (size_t r = 0; r < r1->size(); ++r)
@@ -916,20 +919,20 @@ struct DistCoordinator::Impl {
             fused_by[p] = int(r);
           }
         if (fused_by[p] >= 0) continue;
-        std::vector<worker::ResponseRange>& merged = batch->ranges[p];
+        std::vector<engine::ResponseRange>& merged = batch->ranges[p];
         merged.resize(size_t(k));
         for (const Reply& r : *r1)
           for (int c = 0; c < k; ++c)
             merged[size_t(c)].Merge({r.body.ranges(int(p)).lo(c), r.body.ranges(int(p)).hi(c)});
       }
       // Fused nodes: cuts and histogram from their one worker.
-      const double t_merge = NowSeconds();
+      const double t_merge = proto::dds::NowSeconds();
       for (size_t p = 0; p < plans.size(); ++p) {
         if (fused_by[p] < 0) continue;
         batch->fused[p] = 1;
         const Reply& r = (*r1)[size_t(fused_by[p])];
         const v1::NodeRanges& nr = r.body.ranges(int(p));
-        plans[p].cuts.assign(size_t(k) * size_t(cut_stride), worker::kNoCut);
+        plans[p].cuts.assign(size_t(k) * size_t(cut_stride), engine::kNoCut);
         int pos = 0;
         bool ok = r.body.nodes(int(p)).samples() == plans[p].num_samples;
         for (int c = 0; c < k && ok; ++c) {
@@ -938,19 +941,19 @@ struct DistCoordinator::Impl {
             const int32_t d = nr.cut_deltas(pos++);
             if (j > 0 && d <= 0) ok = false;
             v = j == 0 ? int64_t(d) : v + int64_t(d);
-            if (v >= int64_t(worker::kNoCut)) ok = false;
+            if (v >= int64_t(engine::kNoCut)) ok = false;
             plans[p].cuts[size_t(c) * size_t(cut_stride) + j] = int32_t(v);
           }
         }
-        worker::NodeHistogram hist;
+        engine::NodeHistogram hist;
         hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
-        if (ok) ok = AddWireRuns(r.body.nodes(int(p)).runs(), dims, plans[p], &hist);
+        if (ok) ok = engine::AddWireRuns(r.body.nodes(int(p)).runs(), dims, plans[p], &hist);
         if (!ok)
           return Status(ErrorCode::kDataLoss, "fused node " + std::to_string(plans[p].node) + " from " +
                                                   r.sender + " is inconsistent");
         sink(p, hist);
       }
-      merge_s += NowSeconds() - t_merge;
+      merge_s += proto::dds::NowSeconds() - t_merge;
       return Status::Ok();
     }
 
@@ -959,11 +962,11 @@ struct DistCoordinator::Impl {
     /// coordinator: it is evicted and the round asked again without it.
     Status Histograms(int /*tree*/, int level, engine::Batch* batch, std::span<const size_t> which,
                       const engine::HistogramSink& sink) override {
-      const worker::TrainParams& params = impl.params;
-      const std::vector<worker::NodePlan>& plans = batch->plans;
+      const engine::TrainParams& params = impl.params;
+      const std::vector<engine::NodePlan>& plans = batch->plans;
       const int k = params.candidate_features;
       const int t_count = params.thresholds_per_feature;
-      const dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
+      const proto::dds::HistogramDims dims{uint32_t(k), uint32_t(t_count + 1), uint32_t(kParts)};
       std::vector<uint32_t> ids2;
       std::vector<v1::NodeSpec> specs2(which.size());
       for (size_t q = 0; q < which.size(); ++q) {
@@ -978,11 +981,11 @@ struct DistCoordinator::Impl {
         }
       }
       for (int attempt = 0;; ++attempt) {
-        const double t_hist = NowSeconds();
+        const double t_hist = proto::dds::NowSeconds();
         auto r2 = impl.Round(v1::PHASE_HISTOGRAMS, ids2, specs2, level);
         if (!r2.ok()) return r2.status();
-        hist_s += NowSeconds() - t_hist;
-        const double t_merge = NowSeconds();
+        hist_s += proto::dds::NowSeconds() - t_hist;
+        const double t_merge = proto::dds::NowSeconds();
         const auto nq = int64_t(which.size());
         std::vector<std::string> bad(which.size());
         std::vector<uint64_t> got(which.size(), 0);
@@ -992,11 +995,11 @@ struct DistCoordinator::Impl {
           try {  // no exception may leave the OpenMP region: stored, rethrown after it
             const auto q = size_t(qi);
             const size_t p = which[q];
-            worker::NodeHistogram hist;
+            engine::NodeHistogram hist;
             hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
             for (const Reply& r : *r2) {
               const auto& nh = r.body.nodes(int(q));
-              if (!AddWireRuns(nh.runs(), dims, plans[p], &hist)) {
+              if (!engine::AddWireRuns(nh.runs(), dims, plans[p], &hist)) {
                 bad[q] = r.sender;
                 break;
               }
@@ -1010,7 +1013,7 @@ struct DistCoordinator::Impl {
           }
         }
         if (merge_error) std::rethrow_exception(merge_error);
-        merge_s += NowSeconds() - t_merge;
+        merge_s += proto::dds::NowSeconds() - t_merge;
         std::string culprit;
         for (const std::string& b : bad)
           if (!b.empty()) culprit = b;
@@ -1031,7 +1034,7 @@ struct DistCoordinator::Impl {
 
     /// The level's decisions (leaves, splits, delegated nodes) to every worker: each routes its
     /// own samples.
-    Status ApplySplits(std::span<const worker::SampleSet::Split> /*splits*/) override {
+    Status ApplySplits(std::span<const engine::SampleSet::Split> /*splits*/) override {
       if (!decisions) return Status(ErrorCode::kInternal, "no decisions to send");
       v1::SplitDecisions* dec = decisions->mutable_decisions();
       dec->set_epoch(++impl.epoch);
@@ -1041,7 +1044,7 @@ struct DistCoordinator::Impl {
   };
 
   Result<core::Tree> TrainTree(std::vector<engine::OpenNode> frontier, int first_level, int* levels_done) {
-    coordinator::TreeAssembler assembler(kParts);
+    engine::TreeAssembler assembler(kParts);
     POSEFOREST_RETURN_IF_ERROR(Replay(ckpt.current(), &assembler));
     split_of.clear();
     delegated.clear();
@@ -1066,7 +1069,7 @@ struct DistCoordinator::Impl {
     if (frontier.empty()) {
       // Census of the root.
       engine::OpenNode root;
-      root.position = worker::kRootPosition;
+      root.position = engine::kRootPosition;
       level_time = {};
       POSEFOREST_RETURN_IF_ERROR(shards.CountParts(0, &root.parts));
       // The census waits for every worker's shard: its frames rendered (summed over workers).
@@ -1096,7 +1099,7 @@ struct DistCoordinator::Impl {
         while (std::filesystem::exists(opt.pause_file)) Pump(std::chrono::milliseconds(50), 0, nullptr);
         Log("resumed");
       }
-      t_level = NowSeconds();
+      t_level = proto::dds::NowSeconds();
       level_bytes_received = level_bytes_sent = 0;
       level_retries = 0;
       level_subtree_evaluations = 0;
@@ -1126,12 +1129,12 @@ struct DistCoordinator::Impl {
     };
     hooks.after_decide = [&](int level) -> Status {
       if (!tasks.empty()) {
-        const double t_wait = NowSeconds();
+        const double t_wait = proto::dds::NowSeconds();
         POSEFOREST_RETURN_IF_ERROR(WaitSubtrees());
-        shards.hist_s += NowSeconds() - t_wait;
-        level_time.subtree_wait_s += NowSeconds() - t_wait;
+        shards.hist_s += proto::dds::NowSeconds() - t_wait;
+        level_time.subtree_wait_s += proto::dds::NowSeconds() - t_wait;
         for (auto& [pos, job] : tasks)
-          for (coordinator::SubtreeNode& n : job.nodes) delegated[n.position] = std::move(n);
+          for (engine::SubtreeNode& n : job.nodes) delegated[n.position] = std::move(n);
         tasks.clear();
         subtree_load.clear();
         evaluations += level_subtree_evaluations;
@@ -1150,7 +1153,7 @@ struct DistCoordinator::Impl {
       // One tree: a node's sample-node id is its breadth-first index, the assembler's.
       POSEFOREST_CHECK(f.node == f.local);
       if (d.tried) evaluations += d.evaluations;
-      entropy_sum += coordinator::Entropy(f.parts) * double(f.total());
+      entropy_sum += engine::Entropy(f.parts) * double(f.total());
       auto* nd = env.mutable_decisions()->add_nodes();
       nd->set_node_id(f.node);
       v1::LoggedDecision* ld = logged->add_decisions();
@@ -1162,7 +1165,7 @@ struct DistCoordinator::Impl {
         // samples of it (a delegated decision routes nothing).
         ++from_subtrees;
         nd->set_delegated(true);
-        const coordinator::SubtreeNode s = std::move(it->second);
+        const engine::SubtreeNode s = std::move(it->second);
         delegated.erase(it);
         if (!std::equal(s.parts.begin(), s.parts.end(), f.parts.begin(), f.parts.end()))
           return Status(ErrorCode::kInternal, "subtree node " + std::to_string(f.position) + ": part counts");
@@ -1183,8 +1186,8 @@ struct DistCoordinator::Impl {
         d.split = true;
         d.offsets = s.offsets;
         d.choice.cut = s.cut;
-        d.choice.left_parts = delegated.at(worker::LeftChildPosition(f.position)).parts;
-        d.choice.right_parts = delegated.at(worker::RightChildPosition(f.position)).parts;
+        d.choice.left_parts = delegated.at(engine::LeftChildPosition(f.position)).parts;
+        d.choice.right_parts = delegated.at(engine::RightChildPosition(f.position)).parts;
         return left;
       }
       if (!d.split) {
@@ -1195,10 +1198,10 @@ struct DistCoordinator::Impl {
         }
         return uint32_t(0);
       }
-      const coordinator::SplitChoice& c = d.choice;
+      const engine::SplitChoice& c = d.choice;
       gain_sum += c.gain;
       const uint32_t left = assembler.MakeSplit(f.node, d.offsets, c.cut);
-      SetFeatureSplit(d.offsets, c.cut, left, uint32_t(c.candidate), nd->mutable_split());
+      engine::SetFeatureSplit(d.offsets, c.cut, left, uint32_t(c.candidate), nd->mutable_split());
       ld->set_split(true);
       ld->set_ux(d.offsets.ux), ld->set_uy(d.offsets.uy), ld->set_vx(d.offsets.vx), ld->set_vy(d.offsets.vy);
       ld->set_cut(c.cut);
@@ -1232,8 +1235,8 @@ struct DistCoordinator::Impl {
       st.bytes_received = level_bytes_received;
       st.bytes_sent = level_bytes_sent;
       st.merge_seconds = shards.merge_s;
-      st.level_seconds = NowSeconds() - t_level;
-      st.elapsed_s = NowSeconds() - start;
+      st.level_seconds = proto::dds::NowSeconds() - t_level;
+      st.elapsed_s = proto::dds::NowSeconds() - start;
       st.retries = level_retries;
       st.subtree_tasks = handed_off;
       st.subtree_nodes = from_subtrees;
@@ -1271,18 +1274,18 @@ struct DistCoordinator::Impl {
   }
 
   Result<core::Forest> Train() {
-    start = NowSeconds();
+    start = proto::dds::NowSeconds();
     std::string config_bytes;
     config.SerializeToString(&config_bytes);
-    if (job_id.empty()) job_id = DefaultJobId(config);
+    if (job_id.empty()) job_id = engine::DefaultJobId(config);
     // A fresh sender id per run: a restarted coordinator is a new sender (sequence numbers
     // restart), and workers take its announcement as "start over".
     char host[128] = {};
     ::gethostname(host, sizeof host - 1);
     self_id = "coordinator-" + std::string(host) + "-" + std::to_string(::getpid()) + "-" +
-              std::to_string(uint64_t(NowSeconds() * 1e6) & 0xFFFFFF);
-    stamper = dds::EnvelopeStamper(job_id, self_id, v1::SENDER_KIND_COORDINATOR);
-    gate = std::make_unique<dds::MessageGate>(dds::GateConfig{self_id, job_id, 16, opt.log});
+              std::to_string(uint64_t(proto::dds::NowSeconds() * 1e6) & 0xFFFFFF);
+    stamper = proto::dds::EnvelopeStamper(job_id, self_id, v1::SENDER_KIND_COORDINATOR);
+    gate = std::make_unique<proto::dds::MessageGate>(proto::dds::GateConfig{self_id, job_id, 16, opt.log});
     gate->set_num_parts(uint32_t(kParts));
 
     // Resume.
@@ -1310,14 +1313,14 @@ struct DistCoordinator::Impl {
       if (saved.config() != config_bytes || saved.job_id() != job_id)
         return Status(ErrorCode::kInvalidArgument, ckpt_path + ": checkpoint of another job");
       for (const v1::LoggedTree& lt : saved.finished()) {
-        coordinator::TreeAssembler a(kParts);
+        engine::TreeAssembler a(kParts);
         POSEFOREST_RETURN_IF_ERROR(Replay(lt, &a));
         trees.push_back(a.Finish());
       }
       for (const v1::FrontierEntry& fe : saved.frontier()) {
         if (fe.part_counts_size() != kParts) return Status(ErrorCode::kDataLoss, ckpt_path + ": frontier");
         // Every frontier node sits at depth first_level; node ids are breadth-first indices.
-        frontier.push_back({fe.node(), fe.position(), worker::PositionDepth(fe.position()),
+        frontier.push_back({fe.node(), fe.position(), engine::PositionDepth(fe.position()),
                             std::vector<uint64_t>(fe.part_counts().begin(), fe.part_counts().end()), 0,
                             fe.node()});
       }
@@ -1328,10 +1331,11 @@ struct DistCoordinator::Impl {
           std::to_string(first_level));
     }
 
-    dds::NodeConfig node_config = MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease,
-                                                 opt.udp_peers, opt.udp_interfaces, opt.transport_extras);
+    proto::dds::NodeConfig node_config =
+        proto::dds::MakeNodeConfig(opt.domain, opt.transport, true, self_id, opt.lease, opt.udp_peers,
+                                   opt.udp_interfaces, opt.transport_extras);
     node_config.log = opt.log;
-    auto n = dds::DdsNode::Create(node_config);
+    auto n = proto::dds::DdsNode::Create(node_config);
     if (!n.ok()) return n.status();
     node = std::move(*n);
     v1::Envelope job_env;
@@ -1343,8 +1347,8 @@ struct DistCoordinator::Impl {
     job_announcement = job_env;
     POSEFOREST_RETURN_IF_ERROR(Send(Topic::kJob, job_env));
     Log("announced " + job_id + " as " + self_id + " on domain " + std::to_string(opt.domain) + ": " +
-        worker::DescribeParams(params));
-    PublishStatus(v1::STATUS_KIND_JOB_STARTED, worker::DescribeParams(params));
+        engine::DescribeParams(params));
+    PublishStatus(v1::STATUS_KIND_JOB_STARTED, engine::DescribeParams(params));
     POSEFOREST_RETURN_IF_ERROR(WaitForWorkers(std::max(1, opt.min_workers)));
 
     int levels_done = 0;
@@ -1364,8 +1368,8 @@ struct DistCoordinator::Impl {
           if (ld.delegated())
             nd->set_delegated(true);
           else if (ld.split())
-            SetFeatureSplit({int16_t(ld.ux()), int16_t(ld.uy()), int16_t(ld.vx()), int16_t(ld.vy())},
-                            ld.cut(), ld.left_child(), 0, nd->mutable_split());
+            engine::SetFeatureSplit({int16_t(ld.ux()), int16_t(ld.uy()), int16_t(ld.vx()), int16_t(ld.vy())},
+                                    ld.cut(), ld.left_child(), 0, nd->mutable_split());
           else
             for (uint64_t c : ld.part_counts()) nd->mutable_leaf()->add_part_counts(c);
         }
@@ -1400,7 +1404,7 @@ struct DistCoordinator::Impl {
   }
 };
 
-DistCoordinator::DistCoordinator(v1::TrainerConfig config, worker::TrainParams params,
+DistCoordinator::DistCoordinator(v1::TrainerConfig config, engine::TrainParams params,
                                  CoordinatorOptions options)
     : impl_(std::make_unique<Impl>()) {
   impl_->config = std::move(config);
@@ -1422,4 +1426,4 @@ uint64_t DistCoordinator::rejected_messages() const {
 int DistCoordinator::workers_lost() const { return impl_->lost_count; }
 uint64_t DistCoordinator::stale_messages() const { return impl_->stale_count; }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator

@@ -27,7 +27,7 @@
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator {
 
 /// Reported once per finished level.
 struct DistLevelStats {
@@ -96,11 +96,11 @@ class CoordinatorObserver {
 struct CoordinatorOptions {
   std::string job_id;  ///< empty: "job-<crc32 of the config>"
   uint32_t domain = 0;
-  dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
+  proto::dds::TransportKind transport = proto::dds::TransportKind::kSharedMemoryOnly;
   /// kUdpOnly: initial peers and local interfaces (MakeNodeConfig); empty = loopback, all.
   std::vector<std::string> udp_peers, udp_interfaces;
   /// XML profile, discovery server, DDS-Security (the --dds-xml, --discovery-server, --security flags).
-  TransportExtras transport_extras;
+  proto::dds::TransportExtras transport_extras;
   int min_workers = 1;                                ///< workers to wait for before the first tree
   std::chrono::milliseconds worker_wait{60000};       ///< without any live worker this long: error
   std::chrono::milliseconds lease{1500};              ///< liveliness lease (presence, job)
@@ -133,7 +133,7 @@ struct CoordinatorOptions {
 class DistCoordinator {
  public:
   /// `config` is announced to the workers; `params` = ParamsFromConfig(config).
-  DistCoordinator(v1::TrainerConfig config, worker::TrainParams params, CoordinatorOptions options);
+  DistCoordinator(v1::TrainerConfig config, engine::TrainParams params, CoordinatorOptions options);
   ~DistCoordinator();
 
   /// Trains every tree. Errors: participant creation, no workers within worker_wait, a bad
@@ -155,4 +155,4 @@ class DistCoordinator {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator

@@ -34,8 +34,8 @@ int ExportMain(int argc, char** argv) {
     return 2;
   }
   const std::string dir = *args.Get("checkpoint"), out = *args.Get("out");
-  auto r = dist::ForestFromCheckpoint(
-      dir, partial == "leaves" ? dist::PartialTree::kFinishAsLeaves : dist::PartialTree::kDrop);
+  auto r = coordinator::ForestFromCheckpoint(
+      dir, partial == "leaves" ? coordinator::PartialTree::kFinishAsLeaves : coordinator::PartialTree::kDrop);
   if (!r.ok()) {
     std::fprintf(stderr, "export: %s\n", r.status().ToString().c_str());
     return 1;

@@ -5,7 +5,7 @@
 
 #include "runtime/core/rng.h"
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 namespace {
 __extension__ typedef unsigned __int128 U128;  // GCC/Clang; exact products of 64-bit values
@@ -74,4 +74,4 @@ std::vector<int32_t> DrawCuts(const TrainParams& params, int tree, uint64_t posi
   return cuts;
 }
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

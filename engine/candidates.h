@@ -16,7 +16,7 @@
 #include "runtime/core/feature.h"
 #include "runtime/core/rng.h"
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 /// CounterRng streams (the 4th key component) of the training draws.
 inline constexpr uint64_t kFeatureStream = 1;
@@ -86,4 +86,4 @@ class ReferenceSelector {
 std::vector<int32_t> DrawCuts(const TrainParams& params, int tree, uint64_t position,
                               std::span<const ResponseRange> ranges);
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

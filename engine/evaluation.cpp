@@ -24,7 +24,7 @@
 #include "renderer/synthetic_source.h"
 #endif
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 namespace {
 
 using core::ErrorCode;
@@ -39,9 +39,9 @@ std::string IndexedPath(const std::string& folder, const char* stem, uint64_t in
 
 class ProceduralEvalSource final : public EvalFrameSource {
  public:
-  explicit ProceduralEvalSource(worker::SourceSpec spec) : spec_(std::move(spec)) {}
+  explicit ProceduralEvalSource(SourceSpec spec) : spec_(std::move(spec)) {}
   Result<EvalFrame> Frame(uint64_t index) override {
-    worker::LabelledFrame f = worker::MakeProceduralFrame(spec_, index);
+    LabelledFrame f = MakeProceduralFrame(spec_, index);
     return EvalFrame{std::move(f.depth), std::move(f.labels), {}, {}};
   }
   bool has_joints() const override { return false; }
@@ -51,17 +51,16 @@ class ProceduralEvalSource final : public EvalFrameSource {
   }
 
  private:
-  worker::SourceSpec spec_;
+  SourceSpec spec_;
 };
 
 class DatasetEvalSource final : public EvalFrameSource {
  public:
-  DatasetEvalSource(worker::SourceSpec spec, uint64_t count, bool joints, bool masks,
-                    core::CameraIntrinsics camera)
+  DatasetEvalSource(SourceSpec spec, uint64_t count, bool joints, bool masks, core::CameraIntrinsics camera)
       : spec_(std::move(spec)), count_(count), joints_(joints), masks_(masks), camera_(camera) {}
   Result<EvalFrame> Frame(uint64_t index) override {
     const uint64_t file = spec_.first_index + index;
-    auto f = worker::ReadDatasetFrame(spec_.folder, file);
+    auto f = ReadDatasetFrame(spec_.folder, file);
     if (!f.ok()) return f.status();
     EvalFrame out{std::move(f->depth), std::move(f->labels), {}, {}};
     if (out.depth.width != camera_.width || out.depth.height != camera_.height)
@@ -100,7 +99,7 @@ class DatasetEvalSource final : public EvalFrameSource {
   }
 
  private:
-  worker::SourceSpec spec_;
+  SourceSpec spec_;
   uint64_t count_;
   bool joints_, masks_;
   core::CameraIntrinsics camera_;
@@ -109,7 +108,7 @@ class DatasetEvalSource final : public EvalFrameSource {
 #if POSEFOREST_HAS_RENDERER
 class RenderedEvalSource final : public EvalFrameSource {
  public:
-  RenderedEvalSource(worker::SourceSpec spec, std::unique_ptr<renderer::SyntheticRenderer> r)
+  RenderedEvalSource(SourceSpec spec, std::unique_ptr<renderer::SyntheticRenderer> r)
       : spec_(std::move(spec)), renderer_(std::move(r)) {}
   Result<EvalFrame> Frame(uint64_t index) override {
     auto frame = renderer_->Render(spec_.seed, index);
@@ -131,11 +130,11 @@ class RenderedEvalSource final : public EvalFrameSource {
     std::string d = "rendered seed " + std::to_string(spec_.seed);
     if (!spec_.pose_library.empty())
       d += std::string(", ") +
-           (spec_.clips == worker::ClipSet::kTest    ? "test"
-            : spec_.clips == worker::ClipSet::kTrain ? "train"
-                                                     : "all") +
+           (spec_.clips == ClipSet::kTest    ? "test"
+            : spec_.clips == ClipSet::kTrain ? "train"
+                                             : "all") +
            " clips of " + spec_.pose_library;
-    if (const std::string bodies = worker::DescribeBodies(spec_); !bodies.empty()) d += ", bodies: " + bodies;
+    if (const std::string bodies = DescribeBodies(spec_); !bodies.empty()) d += ", bodies: " + bodies;
     d += ", " + std::to_string(renderer_->config().min_people) +
          (people > renderer_->config().min_people ? ".." + std::to_string(people) : std::string()) +
          " people/frame";
@@ -143,7 +142,7 @@ class RenderedEvalSource final : public EvalFrameSource {
   }
 
  private:
-  worker::SourceSpec spec_;
+  SourceSpec spec_;
   std::unique_ptr<renderer::SyntheticRenderer> renderer_;
 };
 #endif
@@ -201,13 +200,13 @@ void ConfusionMatrix::Add(const ConfusionMatrix& other) {
   for (size_t i = 0; i < counts.size(); ++i) counts[i] += other.counts[i];
 }
 
-core::Result<ConfusionMatrix> EvaluateForest(const core::Forest& forest, const worker::SourceSpec& source,
+core::Result<ConfusionMatrix> EvaluateForest(const core::Forest& forest, const SourceSpec& source,
                                              const EvalOptions& options) {
   if (forest.num_parts != core::kNumParts)
     return core::Status(
         core::ErrorCode::kInvalidArgument,
         "forest has " + std::to_string(forest.num_parts) + " parts; evaluation needs the 31-part taxonomy");
-  auto src = worker::MakeImageSource(source);
+  auto src = MakeImageSource(source);
   if (!src.ok()) return src.status();
   runtime::Classifier classifier(forest);
   runtime::ClassifyOptions copt;
@@ -276,18 +275,18 @@ Result<std::vector<runtime::PersonJoints>> ReadJointsJson(const std::string& pat
   return people;
 }
 
-Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const worker::SourceSpec& source, int people) {
+Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const SourceSpec& source, int people) {
   if (people < 0 || people > 8)
     return Status(ErrorCode::kInvalidArgument, "people = " + std::to_string(people) + ": must be in 0..8");
-  if (people > 0 && source.kind != worker::SourceKind::kRendered)
+  if (people > 0 && source.kind != SourceKind::kRendered)
     return Status(ErrorCode::kInvalidArgument,
                   "--people needs a rendered test set (a job's test_set with source.rendered); a folder or "
                   "procedural set has its people already");
   switch (source.kind) {
-    case worker::SourceKind::kProcedural:
+    case SourceKind::kProcedural:
       return std::unique_ptr<EvalFrameSource>(new ProceduralEvalSource(source));
-    case worker::SourceKind::kDataset: {
-      auto probe = worker::MakeImageSource(source);  // checks the folder, counts frames
+    case SourceKind::kDataset: {
+      auto probe = MakeImageSource(source);  // checks the folder, counts frames
       if (!probe.ok()) return probe.status();
       std::error_code ec;
       const bool joints =
@@ -304,12 +303,12 @@ Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const worker::Sourc
       return std::unique_ptr<EvalFrameSource>(
           new DatasetEvalSource(source, (*probe)->size(), joints, masks, camera));
     }
-    case worker::SourceKind::kRendered: {
+    case SourceKind::kRendered: {
 #if POSEFOREST_HAS_RENDERER
       // The job's scene (poses, bodies in job order), as the training frames are rendered;
       // --people overrides the number of people.
       renderer::SceneConfig scene;
-      POSEFOREST_RETURN_IF_ERROR(worker::ApplySceneOptions(source, &scene));
+      POSEFOREST_RETURN_IF_ERROR(ApplySceneOptions(source, &scene));
       if (people > 0) scene.min_people = scene.max_people = people;
       auto r = renderer::SyntheticRenderer::Create(scene);
       if (!r.ok()) return r.status();
@@ -391,7 +390,7 @@ double Evaluation::MeanIoU() const {
   return sum / double(segmentation.size());
 }
 
-Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker::SourceSpec& source,
+Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const SourceSpec& source,
                                         const JointEvalOptions& options) {
   if (forest.num_parts != core::kNumParts)
     return Status(ErrorCode::kInvalidArgument, "forest has " + std::to_string(forest.num_parts) +
@@ -672,7 +671,7 @@ Status WritePrCurves(const Evaluation& e, const std::string& dir) {
 Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSource which) {
   NamedSource out;
   if (set.rfind("procedural:", 0) == 0) {
-    out.source.kind = worker::SourceKind::kProcedural;
+    out.source.kind = SourceKind::kProcedural;
     char* end = nullptr;
     const char* digits = set.c_str() + 11;
     out.source.seed = std::strtoull(digits, &end, 10);
@@ -683,7 +682,7 @@ Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSource whic
     return out;
   }
   if (set.size() > 10 && set.substr(set.size() - 10) == ".textproto") {
-    auto job = worker::LoadJob(set);
+    auto job = LoadJob(set);
     if (!job.ok()) return job.status();
     if (which == JobSource::kTraining) {
       out.source = job->source;
@@ -695,18 +694,17 @@ Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSource whic
     out.num_images = job->test_images;
     return out;
   }
-  out.source.kind = worker::SourceKind::kDataset;
+  out.source.kind = SourceKind::kDataset;
   out.source.folder = set;
-  auto probe = worker::MakeImageSource(out.source);
+  auto probe = MakeImageSource(out.source);
   if (!probe.ok()) return probe.status();
   out.num_images = int(std::min<uint64_t>((*probe)->size(), 1'000'000));
   return out;
 }
 
 Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
-    const core::Forest& forest, const worker::SourceSpec& source, int num_images, uint64_t first_index,
-    int threads, int people, const std::function<void(int done, int total)>& progress,
-    core::CameraIntrinsics* camera) {
+    const core::Forest& forest, const SourceSpec& source, int num_images, uint64_t first_index, int threads,
+    int people, const std::function<void(int done, int total)>& progress, core::CameraIntrinsics* camera) {
   if (!HasJointTaxonomy(forest))
     return Status(ErrorCode::kInvalidArgument,
                   "the forest has " + std::to_string(forest.num_parts) +
@@ -816,4 +814,4 @@ core::Status WriteConfusionPng(const ConfusionMatrix& m, const std::string& path
   return runtime::WriteRgbPng(path, size, size, rgb);
 }
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

@@ -20,7 +20,7 @@
 #include "runtime/skeleton.h"
 #include "runtime/proposal_tuning.h"
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 struct ConfusionMatrix {
   int num_parts = core::kNumParts;
@@ -46,7 +46,7 @@ struct EvalOptions {
 
 /// Classifies every frame with runtime::Classifier and accumulates the confusion matrix over
 /// body pixels (depth > 0 and a part label). Frames are independent of thread count.
-core::Result<ConfusionMatrix> EvaluateForest(const core::Forest& forest, const worker::SourceSpec& source,
+core::Result<ConfusionMatrix> EvaluateForest(const core::Forest& forest, const SourceSpec& source,
                                              const EvalOptions& options);
 
 /// The per-part accuracy table and the confusion matrix (percent of each truth row) as text.
@@ -84,8 +84,7 @@ class EvalFrameSource {
 
 /// `people` > 0 renders exactly that many people per frame (rendered sources only; others
 /// refuse it with InvalidArgument); 0 keeps the source's own setting.
-core::Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const worker::SourceSpec& source,
-                                                                   int people = 0);
+core::Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const SourceSpec& source, int people = 0);
 
 /// Reads joints_%06d.json as `poseforest render` writes it. Errors name the file.
 core::Result<std::vector<runtime::PersonJoints>> ReadJointsJson(const std::string& path);
@@ -181,7 +180,7 @@ struct Evaluation {
 
 /// Classifies every frame (confusion matrix over body pixels) and, when the source has joints
 /// and the forest the 31-part taxonomy, proposes joints and scores them (section 4's AP).
-core::Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const worker::SourceSpec& source,
+core::Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const SourceSpec& source,
                                               const JointEvalOptions& options);
 
 /// Per-joint AP table (mean shift, fast, ground-truth parts), mAP of each, the ratio
@@ -196,7 +195,7 @@ core::Status WritePrCurves(const Evaluation& e, const std::string& dir);
 
 /// A frame source named on the command line, and how many frames it suggests.
 struct NamedSource {
-  worker::SourceSpec source;
+  SourceSpec source;
   int num_images = 50;  ///< a job's test_set.num_images, a folder's frame count, else 50
 };
 /// Which source of a job config a JOB.textproto argument means.
@@ -210,8 +209,8 @@ core::Result<NamedSource> ResolveSourceArgument(const std::string& set, JobSourc
 /// Frames of another focal length than the forest's (a render folder's camera.txt) are classified
 /// with its offsets rescaled; `camera`, when given, receives the frames' camera (for the proposals).
 core::Result<std::vector<runtime::ValidationFrame>> MakeValidationFrames(
-    const core::Forest& forest, const worker::SourceSpec& source, int num_images, uint64_t first_index,
-    int threads, int people, const std::function<void(int done, int total)>& progress = {},
+    const core::Forest& forest, const SourceSpec& source, int num_images, uint64_t first_index, int threads,
+    int people, const std::function<void(int done, int total)>& progress = {},
     core::CameraIntrinsics* camera = nullptr);
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

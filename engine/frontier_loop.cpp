@@ -15,19 +15,19 @@ uint64_t OpenNode::total() const {
   return n;
 }
 
-bool WantsSplit(const worker::TrainParams& params, int depth, std::span<const uint64_t> parts) {
+bool WantsSplit(const TrainParams& params, int depth, std::span<const uint64_t> parts) {
   uint64_t n = 0;
   int present = 0;
   for (uint64_t c : parts) n += c, present += c > 0;
   return depth < params.max_depth && int64_t(n) >= params.min_samples_split && present > 1;
 }
 
-Status DecideNodes(ShardSet& shards, const worker::TrainParams& params, int tree, int level,
+Status DecideNodes(ShardSet& shards, const TrainParams& params, int tree, int level,
                    std::span<const OpenNode> frontier, std::span<const size_t> to_split,
                    uint64_t max_batch_bytes, std::vector<NodeDecision>* decisions,
                    const std::function<void(size_t decided, uint64_t batch_bytes)>& after_batch) {
   const int t_count = params.thresholds_per_feature;
-  const int cut_stride = worker::CutStride(t_count);
+  const int cut_stride = CutStride(t_count);
   for (size_t b0 = 0; b0 < to_split.size();) {
     // Batches bounded by histogram memory: the split choice is per node, so the batching does
     // not change any decision.
@@ -35,30 +35,30 @@ Status DecideNodes(ShardSet& shards, const worker::TrainParams& params, int tree
     size_t b1 = b0;
     while (b1 < to_split.size()) {
       const OpenNode& f = frontier[to_split[b1]];
-      worker::NodePlan plan;
+      NodePlan plan;
       plan.node = f.node;
       plan.position = f.position;
       plan.num_samples = f.total();
       plan.SetParts(f.parts);
-      plan.sample_bins = worker::UseSampleBins(plan.num_samples, t_count, plan.num_slots);
+      plan.sample_bins = UseSampleBins(plan.num_samples, t_count, plan.num_slots);
       plan.features.resize(size_t(params.candidate_features));  // sized for the byte count
-      const uint64_t bytes = worker::PlanHistogramBytes(plan, t_count);
+      const uint64_t bytes = PlanHistogramBytes(plan, t_count);
       if (!batch.plans.empty() && batch.bytes + bytes > max_batch_bytes) break;
       batch.bytes += bytes;
-      plan.features = worker::DrawFeatures(params, tree, f.position);
+      plan.features = DrawFeatures(params, tree, f.position);
       plan.cut_stride = cut_stride;
       batch.plans.push_back(std::move(plan));
       batch.parts.emplace_back(f.parts);
       ++b1;
     }
     // Each node's decision depends on its own histogram alone (thread-safe per node).
-    const HistogramSink decide = [&](size_t p, const worker::NodeHistogram& hist) {
+    const HistogramSink decide = [&](size_t p, const NodeHistogram& hist) {
       const size_t fi = to_split[b0 + p];
-      const worker::NodePlan& plan = batch.plans[p];
+      const NodePlan& plan = batch.plans[p];
       NodeDecision& d = (*decisions)[fi];
       d.tried = true;
       d.evaluations = plan.num_samples * uint64_t(plan.features.size());
-      d.choice = coordinator::FindBestSplit(hist, plan, frontier[fi].parts);
+      d.choice = FindBestSplit(hist, plan, frontier[fi].parts);
       d.split = d.choice.valid && d.choice.gain >= params.min_gain;
       if (d.split) d.offsets = plan.features[size_t(d.choice.candidate)];
     };
@@ -66,7 +66,7 @@ Status DecideNodes(ShardSet& shards, const worker::TrainParams& params, int tree
     std::vector<size_t> rest;  // plans that need pass 2
     for (size_t p = 0; p < batch.plans.size(); ++p) {
       if (batch.fused[p]) continue;
-      batch.plans[p].cuts = worker::DrawCuts(params, tree, batch.plans[p].position, batch.ranges[p]);
+      batch.plans[p].cuts = DrawCuts(params, tree, batch.plans[p].position, batch.ranges[p]);
       rest.push_back(p);
     }
     if (!rest.empty()) POSEFOREST_RETURN_IF_ERROR(shards.Histograms(tree, level, &batch, rest, decide));
@@ -76,7 +76,7 @@ Status DecideNodes(ShardSet& shards, const worker::TrainParams& params, int tree
   return Status::Ok();
 }
 
-Status RunFrontierLoop(ShardSet& shards, const worker::TrainParams& params, int tree, int first_level,
+Status RunFrontierLoop(ShardSet& shards, const TrainParams& params, int tree, int first_level,
                        std::vector<OpenNode> frontier, uint32_t next_node, uint64_t max_batch_bytes,
                        const FrontierLoopHooks& hooks) {
   for (int level = first_level; !frontier.empty(); ++level) {
@@ -98,7 +98,7 @@ Status RunFrontierLoop(ShardSet& shards, const worker::TrainParams& params, int 
     if (hooks.after_decide) POSEFOREST_RETURN_IF_ERROR(hooks.after_decide(level));
     // Children in frontier order: the breadth-first layout.
     std::vector<OpenNode> next;
-    std::vector<worker::SampleSet::Split> splits;
+    std::vector<SampleSet::Split> splits;
     for (size_t i = 0; i < frontier.size(); ++i) {
       const OpenNode& f = frontier[i];
       NodeDecision& d = decisions[i];
@@ -110,9 +110,9 @@ Status RunFrontierLoop(ShardSet& shards, const worker::TrainParams& params, int 
       const uint32_t left_node = next_node;
       next_node += 2;
       splits.push_back({f.node, d.offsets, d.choice.cut, left_node});
-      next.push_back({left_node, worker::LeftChildPosition(f.position), f.depth + 1,
-                      std::move(d.choice.left_parts), f.owner, left});
-      next.push_back({left_node + 1, worker::RightChildPosition(f.position), f.depth + 1,
+      next.push_back({left_node, LeftChildPosition(f.position), f.depth + 1, std::move(d.choice.left_parts),
+                      f.owner, left});
+      next.push_back({left_node + 1, RightChildPosition(f.position), f.depth + 1,
                       std::move(d.choice.right_parts), f.owner, left + 1});
     }
     POSEFOREST_RETURN_IF_ERROR(shards.ApplySplits(splits));

@@ -31,13 +31,13 @@ struct OpenNode {
 
 /// The rule for "try to split this node": above max_depth, at least min_samples_split samples,
 /// at least two parts present.
-bool WantsSplit(const worker::TrainParams& params, int depth, std::span<const uint64_t> parts);
+bool WantsSplit(const TrainParams& params, int depth, std::span<const uint64_t> parts);
 
 /// What the loop decided for one node.
 struct NodeDecision {
   bool tried = false;               ///< WantsSplit held and its histogram was searched
   bool split = false;               ///< tried, a valid split found with gain >= min_gain
-  coordinator::SplitChoice choice;  ///< tried only
+  SplitChoice choice;               ///< tried only
   core::FeatureOffsets offsets;     ///< split only: the chosen candidate
   uint64_t evaluations = 0;         ///< tried only: num_samples x candidates
 };
@@ -48,7 +48,7 @@ struct NodeDecision {
 /// each node independently. (*decisions)[i] (sized frontier.size()) is set for every i in
 /// to_split. `after_batch` (optional) is told how many of to_split are decided so far and the
 /// batch's histogram bytes.
-core::Status DecideNodes(ShardSet& shards, const worker::TrainParams& params, int tree, int level,
+core::Status DecideNodes(ShardSet& shards, const TrainParams& params, int tree, int level,
                          std::span<const OpenNode> frontier, std::span<const size_t> to_split,
                          uint64_t max_batch_bytes, std::vector<NodeDecision>* decisions,
                          const std::function<void(size_t decided, uint64_t batch_bytes)>& after_batch = {});
@@ -88,7 +88,7 @@ struct FrontierLoopHooks {
 /// WantsSplit, `place` in frontier order, children given sample-node ids next_node, next_node
 /// + 1, ... in that order (left first), ApplySplits, next level. `first_level` is what the
 /// shard set is told for the first level (counted up from there).
-core::Status RunFrontierLoop(ShardSet& shards, const worker::TrainParams& params, int tree, int first_level,
+core::Status RunFrontierLoop(ShardSet& shards, const TrainParams& params, int tree, int first_level,
                              std::vector<OpenNode> frontier, uint32_t next_node, uint64_t max_batch_bytes,
                              const FrontierLoopHooks& hooks);
 

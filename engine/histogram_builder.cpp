@@ -14,7 +14,7 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 void NodePlan::SetParts(std::span<const uint64_t> part_counts) {
   part_slot.assign(core::kNumParts, 0xFF);
@@ -913,4 +913,4 @@ void HistogramBuilder::BuildFused(const SampleSet& samples, const TrainParams& p
   evaluations_ += evals;
 }
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

@@ -13,7 +13,7 @@
 #include "runtime/core/body_parts.h"
 #include "runtime/core/feature.h"
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 /// What a worker needs to know about one frontier node (identical on every worker).
 struct NodePlan {
@@ -111,4 +111,4 @@ class HistogramBuilder {
   uint64_t evaluations_ = 0;
 };
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

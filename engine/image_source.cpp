@@ -21,7 +21,7 @@
 #include "renderer/synthetic_source.h"
 #endif
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 using core::ErrorCode;
 using core::Result;
@@ -378,4 +378,4 @@ Result<std::unique_ptr<ImageSource>> MakeImageSource(const SourceSpec& spec) {
   return Status(ErrorCode::kInternal, "unknown source kind");
 }
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

@@ -13,7 +13,7 @@
 #include "runtime/core/depth_image.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 /// A depth frame (mm, 0 = background) and its per-pixel part labels (kBackgroundLabel off
 /// the body). Both images have the same size.
@@ -57,4 +57,4 @@ LabelledFrame MakeProceduralFrame(const SourceSpec& spec, uint64_t index);
 /// the file. Sizes must agree; labels must be < 31 or 255.
 core::Result<LabelledFrame> ReadDatasetFrame(const std::string& folder, uint64_t index);
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

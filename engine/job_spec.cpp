@@ -14,7 +14,7 @@
 #include "runtime/core/body_parts.h"
 #include "runtime/core/crc32.h"
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 using core::ErrorCode;
 using core::Result;
@@ -446,9 +446,6 @@ std::string DescribeParams(const TrainParams& p) {
   return s.str();
 }
 
-}  // namespace poseforest::worker
-namespace poseforest::dist {
-
 std::string DefaultJobId(const v1::TrainerConfig& config) {
   std::string bytes;
   config.SerializeToString(&bytes);
@@ -458,4 +455,4 @@ std::string DefaultJobId(const v1::TrainerConfig& config) {
   return buf;
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::engine

@@ -15,7 +15,7 @@ namespace poseforest::v1 {
 class TrainerConfig;
 }
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 enum class SourceKind { kRendered, kDataset, kProcedural };
 
@@ -138,12 +138,8 @@ std::string DescribeBodies(const SourceSpec& spec);
 /// One-line human summary ("3 trees, depth 20, 1000 images/tree, ...").
 std::string DescribeParams(const TrainParams& params);
 
-}  // namespace poseforest::worker
-
-namespace poseforest::dist {
-
 /// "job-<crc32 of the serialized config>": the same job file gives the same id (--resume); the
 /// default job id of the coordinator and of the workers given the job file.
 std::string DefaultJobId(const v1::TrainerConfig& config);
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::engine

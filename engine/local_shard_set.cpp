@@ -8,9 +8,6 @@
 namespace poseforest::engine {
 
 using core::Status;
-using worker::NodeHistogram;
-using worker::NodePlan;
-using worker::ResponseRange;
 
 namespace {
 double Now() {
@@ -18,15 +15,15 @@ double Now() {
 }
 }  // namespace
 
-LocalShardSet::LocalShardSet(std::span<worker::SampleSet> shards, const worker::TrainParams& params,
-                             worker::HistogramBuilder& builder, int threads)
+LocalShardSet::LocalShardSet(std::span<SampleSet> shards, const TrainParams& params,
+                             HistogramBuilder& builder, int threads)
     : shards_(shards), params_(params), builder_(builder), threads_(threads) {}
 
 Status LocalShardSet::CountParts(uint32_t node, std::vector<uint64_t>* parts) {
   parts->assign(size_t(core::kNumParts), 0);
   std::vector<uint64_t> c(size_t(core::kNumParts));
-  for (const worker::SampleSet& s : shards_) {
-    const worker::NodeRange range = s.RangeOf(node);
+  for (const SampleSet& s : shards_) {
+    const NodeRange range = s.RangeOf(node);
     if (range.end <= range.begin) continue;
     std::fill(c.begin(), c.end(), 0);
     s.CountParts(range, core::kNumParts, c.data());
@@ -46,8 +43,7 @@ Status LocalShardSet::Ranges(int tree, int /*level*/, Batch* batch, const Histog
   std::vector<std::vector<NodePlan>> fused(shards_.size());
   for (size_t p = 0; p < n; ++p) {
     size_t s = 0;
-    while (s < shards_.size() && !worker::HistogramBuilder::CanFuse(shards_[s], params_, batch->plans[p]))
-      ++s;
+    while (s < shards_.size() && !HistogramBuilder::CanFuse(shards_[s], params_, batch->plans[p])) ++s;
     if (s == shards_.size()) {
       normal_at.push_back(p);
       normal.push_back(std::move(batch->plans[p]));
@@ -102,8 +98,8 @@ Status LocalShardSet::Histograms(int /*tree*/, int /*level*/, Batch* batch, std:
   return Status::Ok();
 }
 
-Status LocalShardSet::ApplySplits(std::span<const worker::SampleSet::Split> splits) {
-  for (worker::SampleSet& s : shards_) s.ApplySplits(splits, params_.constants, threads_);
+Status LocalShardSet::ApplySplits(std::span<const SampleSet::Split> splits) {
+  for (SampleSet& s : shards_) s.ApplySplits(splits, params_.constants, threads_);
   return Status::Ok();
 }
 

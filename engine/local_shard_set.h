@@ -16,8 +16,8 @@ class LocalShardSet final : public ShardSet {
  public:
   /// `threads` (>= 1): OpenMP threads for routing samples and handing histograms to the sink.
   /// All references must outlive the shard set.
-  LocalShardSet(std::span<worker::SampleSet> shards, const worker::TrainParams& params,
-                worker::HistogramBuilder& builder, int threads);
+  LocalShardSet(std::span<SampleSet> shards, const TrainParams& params, HistogramBuilder& builder,
+                int threads);
 
   core::Status CountParts(uint32_t node, std::vector<uint64_t>* parts) override;
   /// Ranges merged by min/max over shards (order-independent); a node whose samples all sit
@@ -27,19 +27,19 @@ class LocalShardSet final : public ShardSet {
   /// Histograms summed over shards (integer sums: order-independent).
   core::Status Histograms(int tree, int level, Batch* batch, std::span<const size_t> which,
                           const HistogramSink& sink) override;
-  core::Status ApplySplits(std::span<const worker::SampleSet::Split> splits) override;
+  core::Status ApplySplits(std::span<const SampleSet::Split> splits) override;
 
   double range_seconds() const { return range_seconds_; }          ///< wall time of pass 1 ranges
   double histogram_seconds() const { return histogram_seconds_; }  ///< wall time building histograms
 
  private:
   /// sink(which[j], hists[j]) for every j, in parallel (nodes are independent).
-  void Sink(std::span<const size_t> which, std::span<const worker::NodeHistogram> hists,
+  void Sink(std::span<const size_t> which, std::span<const NodeHistogram> hists,
             const HistogramSink& sink) const;
 
-  std::span<worker::SampleSet> shards_;
-  const worker::TrainParams& params_;
-  worker::HistogramBuilder& builder_;
+  std::span<SampleSet> shards_;
+  const TrainParams& params_;
+  HistogramBuilder& builder_;
   int threads_;
   double range_seconds_ = 0, histogram_seconds_ = 0;
 };

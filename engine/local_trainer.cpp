@@ -17,11 +17,10 @@
 #include "engine/split_search.h"
 #include "engine/tree_assembler.h"
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 using core::Result;
 using core::Status;
-using worker::SampleSet;
 
 namespace {
 
@@ -31,7 +30,7 @@ double Now() {
 
 }  // namespace
 
-LocalTrainer::LocalTrainer(worker::TrainParams params, LocalTrainerOptions options)
+LocalTrainer::LocalTrainer(TrainParams params, LocalTrainerOptions options)
     : params_(std::move(params)), options_(std::move(options)) {
   options_.num_shards = std::max(1, options_.num_shards);
   stats_.threads = params_.threads > 0 ? params_.threads : omp_get_max_threads();
@@ -68,14 +67,14 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
     // results land in per-frame slots, so the outcome does not depend on timing. Each frame is
     // compacted (CompactFrame: what features can read) and its labels dropped as soon as its
     // pixels are sampled, so whole frames never pile up.
-    std::vector<worker::CompactFrame> compact(static_cast<size_t>(ipt));
-    std::vector<std::vector<worker::PixelSample>> picked(static_cast<size_t>(ipt));
+    std::vector<CompactFrame> compact(static_cast<size_t>(ipt));
+    std::vector<std::vector<PixelSample>> picked(static_cast<size_t>(ipt));
     std::vector<Status> errors(static_cast<size_t>(threads));
     std::vector<std::thread> pool;
     for (int tid = 0; tid < threads; ++tid) {
       pool.emplace_back([&, tid] {
         try {
-          auto source = worker::MakeImageSource(params_.source);
+          auto source = MakeImageSource(params_.source);
           if (!source.ok()) {
             errors[size_t(tid)] = source.status();
             return;
@@ -87,10 +86,10 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
               errors[size_t(tid)] = frame.status();
               return;
             }
-            picked[size_t(i)] = worker::SamplePixels(
-                *frame, params_.pixels_per_image, params_.part_balance,
-                core::CounterRng(params_.seed, uint64_t(tree), index, worker::kSamplingStream));
-            compact[size_t(i)] = worker::CompactFrame::Of(frame->depth, params_.constants.background_mm);
+            picked[size_t(i)] =
+                SamplePixels(*frame, params_.pixels_per_image, params_.part_balance,
+                             core::CounterRng(params_.seed, uint64_t(tree), index, kSamplingStream));
+            compact[size_t(i)] = CompactFrame::Of(frame->depth, params_.constants.background_mm);
           }
         } catch (const std::exception& e) {
           errors[size_t(tid)] =
@@ -147,16 +146,16 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
   }
 
   // --- Level-wise growth: the frontier loop over the shards held here. ---
-  worker::HistogramBuilder builder(params_.constants, threads);
-  engine::LocalShardSet shard_set(shards, params_, builder, threads);
-  std::vector<engine::OpenNode> frontier(1);
+  HistogramBuilder builder(params_.constants, threads);
+  LocalShardSet shard_set(shards, params_, builder, threads);
+  std::vector<OpenNode> frontier(1);
   frontier[0].node = 0;
-  frontier[0].position = worker::kRootPosition;
+  frontier[0].position = kRootPosition;
   POSEFOREST_RETURN_IF_ERROR(shard_set.CountParts(0, &frontier[0].parts));
   TreeAssembler assembler(core::kNumParts);
-  engine::FrontierLoopHooks hooks;
+  FrontierLoopHooks hooks;
   // One tree: a node's sample-node id is its breadth-first index, the assembler's.
-  hooks.place = [&](const engine::OpenNode& f, engine::NodeDecision& d) -> Result<uint32_t> {
+  hooks.place = [&](const OpenNode& f, NodeDecision& d) -> Result<uint32_t> {
     POSEFOREST_CHECK(f.node == f.local);
     if (!d.split) {
       if (options_.leaf_counts) options_.leaf_counts(tree, assembler.num_leaves(), f.parts);
@@ -167,7 +166,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
   };
   uint64_t evals_before = builder.evaluations();
   double hist_before = shard_set.histogram_seconds();
-  hooks.level_done = [&](const engine::LevelDone& done) -> Status {
+  hooks.level_done = [&](const LevelDone& done) -> Status {
     stats_.peak_histogram_bytes =
         std::max(stats_.peak_histogram_bytes, done.max_batch_bytes * (shards.size() > 1 ? 2 : 1));
     const double level_hist_s = shard_set.histogram_seconds() - hist_before;
@@ -188,12 +187,12 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
     hist_before = shard_set.histogram_seconds();
     return Status::Ok();
   };
-  POSEFOREST_RETURN_IF_ERROR(engine::RunFrontierLoop(shard_set, params_, tree, 0, std::move(frontier), 1,
-                                                     params_.histogram_memory_bytes, hooks));
+  POSEFOREST_RETURN_IF_ERROR(RunFrontierLoop(shard_set, params_, tree, 0, std::move(frontier), 1,
+                                             params_.histogram_memory_bytes, hooks));
   stats_.range_seconds += shard_set.range_seconds();  // the shard set is this tree's
   stats_.histogram_seconds += shard_set.histogram_seconds();
   stats_.evaluations += builder.evaluations();
   return assembler.Finish();
 }
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

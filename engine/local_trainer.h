@@ -14,7 +14,7 @@
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 /// Reported once per finished level.
 struct LevelProgress {
@@ -52,7 +52,7 @@ struct TrainingStats {
 
 class LocalTrainer {
  public:
-  LocalTrainer(worker::TrainParams params, LocalTrainerOptions options);
+  LocalTrainer(TrainParams params, LocalTrainerOptions options);
 
   /// Trains params.num_trees trees. Errors: frame loading failures (naming the frame).
   core::Result<core::Forest> Train();
@@ -62,10 +62,10 @@ class LocalTrainer {
   const TrainingStats& stats() const { return stats_; }
 
  private:
-  worker::TrainParams params_;
+  TrainParams params_;
   LocalTrainerOptions options_;
   TrainingStats stats_;
   double start_ = 0;
 };
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

@@ -8,7 +8,7 @@
 #include "renderer/scene.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 /// Fills `scene` from a rendered `spec`: yaw range, 1..max_people people, the noise switch,
 /// distances (m), the pose library's selected poses, and the bodies: the procedural family when
@@ -19,4 +19,4 @@ namespace poseforest::worker {
 /// time) and copied from there. Errors are the loaders', naming the file.
 core::Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene);
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

@@ -8,7 +8,7 @@
 
 #include "runtime/core/body_parts.h"
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 namespace {
 /// New storage for a SampleSet's per-sample columns, filled in a new order (StartTree: by node;
@@ -322,4 +322,4 @@ uint64_t SampleSet::MemoryBytes() const {
   return bytes;
 }
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

@@ -13,7 +13,7 @@
 #include "runtime/core/feature.h"
 #include "runtime/core/rng.h"
 
-namespace poseforest::worker {
+namespace poseforest::engine {
 
 /// One sampled pixel of a frame.
 struct PixelSample {
@@ -187,4 +187,4 @@ class SampleSet {
   std::vector<NodeRange> ranges_;
 };
 
-}  // namespace poseforest::worker
+}  // namespace poseforest::engine

@@ -19,11 +19,11 @@ namespace poseforest::engine {
 /// One batch of frontier nodes whose histograms are built together (bounded by histogram
 /// memory; the batching changes no decision).
 struct Batch {
-  std::vector<worker::NodePlan> plans;           ///< features drawn; cuts set by pass 1 (fused) or the loop
+  std::vector<NodePlan> plans;                   ///< features drawn; cuts set by pass 1 (fused) or the loop
   std::vector<std::span<const uint64_t>> parts;  ///< kNumParts counts of each plan's node
   /// Pass 1's answer per plan: the response range of every candidate merged over all shards
   /// (empty for a fused plan).
-  std::vector<std::vector<worker::ResponseRange>> ranges;
+  std::vector<std::vector<ResponseRange>> ranges;
   /// Pass 1's answer per plan: 1 when one shard held all its samples and built it fused
   /// (cuts and histogram at once); such a plan skips pass 2.
   std::vector<uint8_t> fused;
@@ -32,7 +32,7 @@ struct Batch {
 
 /// Receives plan `p`'s histogram, complete over all shards and built with plans[p].cuts. Called
 /// once per plan; may be called from several threads at once for different plans.
-using HistogramSink = std::function<void(size_t p, const worker::NodeHistogram& hist)>;
+using HistogramSink = std::function<void(size_t p, const NodeHistogram& hist)>;
 
 class ShardSet {
  public:
@@ -53,7 +53,7 @@ class ShardSet {
 
   /// Routes the samples of every split node to its children (Split::left and left + 1);
   /// samples of nodes not split stay where they are.
-  virtual core::Status ApplySplits(std::span<const worker::SampleSet::Split> splits) = 0;
+  virtual core::Status ApplySplits(std::span<const SampleSet::Split> splits) = 0;
 };
 
 }  // namespace poseforest::engine

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 namespace {
 
@@ -55,7 +55,7 @@ double InformationGain(std::span<const uint64_t> left, std::span<const uint64_t>
   return Entropy(all) - double(nl) / n * Entropy(left) - double(nr) / n * Entropy(right);
 }
 
-SplitChoice FindBestSplit(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
+SplitChoice FindBestSplit(const NodeHistogram& hist, const NodePlan& plan,
                           std::span<const uint64_t> parent_parts) {
   const NLogN& nlogn = Table();
   const int slots = hist.num_slots, bins = hist.num_bins, stride = plan.cut_stride;
@@ -85,7 +85,7 @@ SplitChoice FindBestSplit(const worker::NodeHistogram& hist, const worker::NodeP
     const uint32_t* h = scratch.data();
     std::fill(left.begin(), left.end(), 0);
     uint64_t nl = 0;
-    for (int j = 0; j + 1 < bins && cuts[j] != worker::kNoCut; ++j) {
+    for (int j = 0; j + 1 < bins && cuts[j] != kNoCut; ++j) {
       // Threshold j sends bins 0..j left.
       for (int s = 0; s < slots; ++s) {
         left[size_t(s)] += h[j * slots + s];
@@ -125,7 +125,7 @@ SplitChoice FindBestSplit(const worker::NodeHistogram& hist, const worker::NodeP
   return best;
 }
 
-std::vector<double> BruteForceGains(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int k) {
+std::vector<double> BruteForceGains(const NodeHistogram& hist, const NodePlan& plan, int k) {
   const int slots = hist.num_slots, bins = hist.num_bins;
   const int32_t* cuts = &plan.cuts[size_t(k) * size_t(plan.cut_stride)];
   std::vector<uint32_t> scratch(static_cast<size_t>(bins) * size_t(slots));
@@ -133,7 +133,7 @@ std::vector<double> BruteForceGains(const worker::NodeHistogram& hist, const wor
   const uint32_t* h = scratch.data();
   std::vector<double> gains;
   for (int j = 0; j + 1 < bins; ++j) {
-    if (cuts[j] == worker::kNoCut) {
+    if (cuts[j] == kNoCut) {
       gains.push_back(std::numeric_limits<double>::quiet_NaN());
       continue;
     }
@@ -156,4 +156,4 @@ std::vector<double> BruteForceGains(const worker::NodeHistogram& hist, const wor
   return gains;
 }
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

@@ -8,7 +8,7 @@
 
 #include "engine/histogram_builder.h"
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 /// Shannon entropy in bits of a histogram of counts (0 for an empty one).
 double Entropy(std::span<const uint64_t> counts);
@@ -31,11 +31,11 @@ struct SplitChoice {
 /// largest gain; ties go to the lower candidate index, then the lower threshold index, so the
 /// choice depends on the counts alone. Only thresholds that put at least one sample on each
 /// side count. `parent_parts` (kNumParts) are the node's part counts.
-SplitChoice FindBestSplit(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
+SplitChoice FindBestSplit(const NodeHistogram& hist, const NodePlan& plan,
                           std::span<const uint64_t> parent_parts);
 
 /// Reference: the gain of every threshold computed directly from the definition (eq. 3-6)
 /// for candidate k, one value per cut (NaN for padding or one-sided cuts). For tests.
-std::vector<double> BruteForceGains(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int k);
+std::vector<double> BruteForceGains(const NodeHistogram& hist, const NodePlan& plan, int k);
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

@@ -18,7 +18,7 @@
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 /// One decided node of a subtree.
 struct SubtreeNode {
@@ -45,10 +45,9 @@ struct SubtreeOutput {
 /// `between`, if set, is called between histogram batches and between levels, when neither
 /// `samples` nor `builder` is in use (a worker answers the coordinator's rounds there instead of
 /// after the whole subtree); it must not touch either.
-core::Result<SubtreeOutput> TrainSubtree(worker::SampleSet& samples, uint32_t root_sample_node,
-                                         const worker::TrainParams& params, int tree, uint64_t root_position,
-                                         std::span<const uint64_t> root_parts,
-                                         worker::HistogramBuilder& builder,
+core::Result<SubtreeOutput> TrainSubtree(SampleSet& samples, uint32_t root_sample_node,
+                                         const TrainParams& params, int tree, uint64_t root_position,
+                                         std::span<const uint64_t> root_parts, HistogramBuilder& builder,
                                          const std::function<void()>& between = {});
 
 /// One root of TrainSubtrees.
@@ -63,10 +62,9 @@ struct SubtreeRoot {
 /// TrainSubtree's for roots[r] alone. Roots in increasing sample_node order; samples of other
 /// nodes are ignored. InvalidArgument naming the root whose counts do not match its samples.
 /// `between`: as for TrainSubtree.
-core::Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& samples,
-                                                       std::span<const SubtreeRoot> roots,
-                                                       const worker::TrainParams& params, int tree,
-                                                       worker::HistogramBuilder& builder,
+core::Result<std::vector<SubtreeOutput>> TrainSubtrees(SampleSet& samples, std::span<const SubtreeRoot> roots,
+                                                       const TrainParams& params, int tree,
+                                                       HistogramBuilder& builder,
                                                        const std::function<void()>& between = {});
 
 /// Checks a subtree received from elsewhere: nodes[0] is `root_position` with `root_parts`;
@@ -75,7 +73,7 @@ core::Result<std::vector<SubtreeOutput>> TrainSubtrees(worker::SampleSet& sample
 /// with fewer than two parts present; every node decided once. On success `*tree` (optional)
 /// gets the subtree laid out as TreeAssembler does. InvalidArgument naming the first problem.
 core::Status ValidateSubtree(std::span<const SubtreeNode> nodes, uint64_t root_position,
-                             std::span<const uint64_t> root_parts, const worker::TrainParams& params,
+                             std::span<const uint64_t> root_parts, const TrainParams& params,
                              core::Tree* tree);
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

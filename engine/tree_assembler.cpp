@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 TreeAssembler::TreeAssembler(int num_parts) : num_parts_(num_parts) {
   nodes_.emplace_back();
@@ -49,4 +49,4 @@ core::Tree TreeAssembler::Finish() {
   return tree;
 }
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

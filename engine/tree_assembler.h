@@ -8,7 +8,7 @@
 
 #include "runtime/core/forest.h"
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 class TreeAssembler {
  public:
@@ -37,4 +37,4 @@ class TreeAssembler {
   uint32_t num_leaves_ = 0;
 };
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

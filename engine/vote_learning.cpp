@@ -15,7 +15,7 @@
 #include "runtime/core/rng.h"
 #include "runtime/joint_votes.h"
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 using core::ErrorCode;
 using core::Result;
@@ -105,7 +105,7 @@ std::vector<float> Isotonic(const std::vector<float>& y, const std::vector<doubl
 
 }  // namespace
 
-Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const worker::TrainParams& job,
+Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const TrainParams& job,
                                            const VoteLearningOptions& options, VoteLearningReport* report) {
   const double t0 = Now();
   VoteLearningReport rep;
@@ -128,7 +128,7 @@ Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const wor
       return Status(ErrorCode::kInvalidArgument,
                     (*probe)->Describe() + ": the job's frames have no joints (votes need rendered frames)");
     // The frames must be the training frames: the first of tree 0 from the training source.
-    auto train_src = worker::MakeImageSource(job.source);
+    auto train_src = MakeImageSource(job.source);
     if (!train_src.ok()) return train_src.status();
     auto a = (*probe)->Frame(0);
     auto b = (*train_src)->Frame(0);
@@ -167,10 +167,9 @@ Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const wor
               return;
             }
             const core::CameraIntrinsics cam = (*src)->camera();
-            worker::LabelledFrame lf{frame->depth, frame->labels};
-            const auto picked = worker::SamplePixels(
-                lf, job.pixels_per_image, job.part_balance,
-                core::CounterRng(job.seed, uint64_t(t), index, worker::kSamplingStream));
+            LabelledFrame lf{frame->depth, frame->labels};
+            const auto picked = SamplePixels(lf, job.pixels_per_image, job.part_balance,
+                                             core::CounterRng(job.seed, uint64_t(t), index, kSamplingStream));
             for (const auto& person : frame->people) {
               Joints j;
               for (int k = 0; k < core::kNumJoints; ++k) j[size_t(k)] = person.position[size_t(k)];
@@ -386,4 +385,4 @@ Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const wor
   return table;
 }
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

@@ -21,7 +21,7 @@
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::coordinator {
+namespace poseforest::engine {
 
 struct VoteLearningOptions {
   float max_offset_m = 0.3f;       ///< longer training offsets are not kept (docs/runtime/votes.md)
@@ -33,7 +33,7 @@ struct VoteLearningOptions {
   int max_pixels_per_leaf = 64;    ///< a leaf's pixels beyond this are thinned evenly
   float min_weight = 0.1f;         ///< a mode holding less of the leaf's pixels is not kept
   int validation_frames = 60;      ///< 0: no calibration (every candidate's confidence is 0)
-  worker::SourceSpec validation;   ///< frames with joints, one person each (others skipped)
+  SourceSpec validation;           ///< frames with joints, one person each (others skipped)
   int threads = 0;                 ///< 0 = all cores
   /// Progress lines ("tree 1: rendered 200 / 300 frames (12 s)"); may be empty.
   std::function<void(const std::string&)> progress;
@@ -55,8 +55,8 @@ struct VoteLearningReport {
 /// The votes of `forest`, trained by `job`. Errors: a source without joints (procedural) or
 /// whose frames are not the training frames (kInvalidArgument), rendering failures, a forest of
 /// another tree count or a part set other than the paper's.
-core::Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const worker::TrainParams& job,
+core::Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const TrainParams& job,
                                                  const VoteLearningOptions& options,
                                                  VoteLearningReport* report = nullptr);
 
-}  // namespace poseforest::coordinator
+}  // namespace poseforest::engine

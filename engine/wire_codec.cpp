@@ -9,13 +9,13 @@
 #include <limits>
 #include <random>
 
-namespace poseforest::dist {
+namespace poseforest::engine {
 
 using core::ErrorCode;
 using core::Result;
 using core::Status;
 
-void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,
+void EncodeWireRuns(const NodeHistogram& hist, const NodePlan& plan, int num_parts,
                     google::protobuf::RepeatedField<uint64_t>* runs) {
   runs->Clear();
   const int slots = hist.num_slots, bins = hist.num_bins;
@@ -57,8 +57,8 @@ void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& p
   if (len_index >= 0) runs->Set(len_index, uint64_t(runs->size() - len_index - 1));
 }
 
-bool AddWireRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const dds::HistogramDims& dims,
-                 const worker::NodePlan& plan, worker::NodeHistogram* hist) {
+bool AddWireRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const proto::dds::HistogramDims& dims,
+                 const NodePlan& plan, NodeHistogram* hist) {
   const uint64_t cells = dims.cells();
   const uint64_t parts = dims.num_parts, slots = uint64_t(hist->num_slots);
   if (uint64_t(hist->num_candidates) * uint64_t(hist->num_bins) * parts != cells ||
@@ -107,4 +107,4 @@ Status GetFeatureSplit(const v1::FeatureSplit& s, core::FeatureOffsets* f, int32
   return Status::Ok();
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::engine

@@ -11,19 +11,19 @@
 #include "proto/dds/histogram_codec.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dist {
+namespace poseforest::engine {
 
-/// dds::EncodeHistogramRuns of the dense wire tensor (num_candidates x num_bins x num_parts; slot
+/// proto::dds::EncodeHistogramRuns of the dense wire tensor (num_candidates x num_bins x num_parts; slot
 /// -> part through plan.part_slot), the same runs to the byte, from the histogram's non-zero
 /// counts only: no dense num_parts-wide tensor is built or scanned, so the cost follows
 /// candidates x bins x parts present (and the samples for per-sample bins).
-void EncodeWireRuns(const worker::NodeHistogram& hist, const worker::NodePlan& plan, int num_parts,
+void EncodeWireRuns(const NodeHistogram& hist, const NodePlan& plan, int num_parts,
                     google::protobuf::RepeatedField<uint64_t>* runs);
 
 /// Adds a run-encoded wire tensor (dds/histogram_codec.h layout, `dims`) into `hist` without
 /// expanding it. False when the runs overrun the tensor or count a part absent from the node.
-bool AddWireRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const dds::HistogramDims& dims,
-                 const worker::NodePlan& plan, worker::NodeHistogram* hist);
+bool AddWireRuns(const google::protobuf::RepeatedField<uint64_t>& runs, const proto::dds::HistogramDims& dims,
+                 const NodePlan& plan, NodeHistogram* hist);
 
 /// Sets the 4 offsets + threshold of a wire FeatureSplit; threshold = cut + 0.5 (exact in float
 /// for |cut| < 2^22).
@@ -32,4 +32,4 @@ void SetFeatureSplit(const core::FeatureOffsets& f, int32_t cut, uint32_t left_c
 /// Inverse of SetFeatureSplit; InvalidArgument for a threshold that is not k + 0.5.
 core::Status GetFeatureSplit(const v1::FeatureSplit& s, core::FeatureOffsets* f, int32_t* cut);
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::engine

@@ -28,11 +28,11 @@
 #include "runtime/core/body_parts.h"
 #include "runtime/core/crc32.h"
 
-namespace poseforest::dist {
+namespace poseforest::worker {
 
 using core::ErrorCode;
 using core::Status;
-using dds::Topic;
+using proto::dds::Topic;
 
 namespace {
 double ThreadCpu() {
@@ -63,9 +63,9 @@ class CpuTimer {
 /// A frame as kept for training: what features can read of its depth (no labels: its sampled
 /// pixels carry their parts).
 struct FrameData {
-  worker::CompactFrame frame;
-  std::vector<worker::PixelSample> picked;
-  uint64_t Bytes() const { return frame.Bytes() + picked.size() * sizeof(worker::PixelSample); }
+  engine::CompactFrame frame;
+  std::vector<engine::PixelSample> picked;
+  uint64_t Bytes() const { return frame.Bytes() + picked.size() * sizeof(engine::PixelSample); }
 };
 
 /// Frames of one tree rendered for SubtreeTasks, least recently used dropped first to stay
@@ -114,13 +114,13 @@ struct TaskFrameCache {
   std::list<uint64_t> lru_;  ///< most recently used first
 };
 
-v1::RendererKind RendererOf(const worker::TrainParams& p) {
+v1::RendererKind RendererOf(const engine::TrainParams& p) {
   switch (p.source.kind) {
-    case worker::SourceKind::kRendered:
+    case engine::SourceKind::kRendered:
       return v1::RENDERER_KIND_EGL;
-    case worker::SourceKind::kDataset:
+    case engine::SourceKind::kDataset:
       return v1::RENDERER_KIND_DATASET;
-    case worker::SourceKind::kProcedural:
+    case engine::SourceKind::kProcedural:
       return v1::RENDERER_KIND_PROCEDURAL;
   }
   return v1::RENDERER_KIND_PROCEDURAL;
@@ -135,7 +135,7 @@ struct DistWorker::Live {
   std::atomic<uint64_t> shard_rendered{0}, shard_render_us{0}, shard_hits{0};
   std::atomic<uint64_t> task_rendered{0}, task_render_us{0}, task_hits{0};
   std::atomic<uint64_t> cache_evictions{0}, cache_bytes{0}, cache_capacity{0};
-  std::array<std::atomic<uint64_t>, dds::kNumTopics> sent{}, sent_bytes{}, received{};
+  std::array<std::atomic<uint64_t>, proto::dds::kNumTopics> sent{}, sent_bytes{}, received{};
   std::atomic<uint64_t> rejected{0}, stale{0}, inbox_bytes{0};
   mutable std::mutex mu;  ///< guards the job's ids and `cpu`
   std::string job_id, coordinator_id;
@@ -146,11 +146,11 @@ struct DistWorker::Impl {
   WorkerOptions& opt;
   std::atomic<bool>& stop;
   DistWorker::Live& live;  ///< what Stats() reads (the /metrics of `worker --http`)
-  std::unique_ptr<dds::DdsNode> node;
+  std::unique_ptr<proto::dds::DdsNode> node;
   WorkerCpu cpu;  ///< written by the receiving (Run's) thread only
 
   std::mutex send_mu;  // guards stamper + job identity used by the heartbeat thread
-  dds::EnvelopeStamper stamper;
+  proto::dds::EnvelopeStamper stamper;
   std::atomic<bool> has_job{false}, assigned_any{false};
   std::atomic<bool>& busy;  ///< live.busy: heartbeats and Stats() say how many threads are busy
   /// Marks the worker busy (its heartbeats say so) while a subtree task or batch runs.
@@ -166,10 +166,10 @@ struct DistWorker::Impl {
   std::atomic<v1::RendererKind> renderer{v1::RENDERER_KIND_PROCEDURAL};
   std::atomic<uint64_t> evaluations{0};  ///< sample x candidate evaluations binned (heartbeats)
 
-  dds::MessageGate job_gate;
-  std::unique_ptr<dds::MessageGate> gate;
+  proto::dds::MessageGate job_gate;
+  std::unique_ptr<proto::dds::MessageGate> gate;
   std::string job_id, coordinator_id;
-  worker::TrainParams params;
+  engine::TrainParams params;
 
   int tree = -1;
   int subtree_log_tree = -1;  ///< progress lines of subtree tasks: tree, count, nodes, seconds
@@ -189,18 +189,18 @@ struct DistWorker::Impl {
   /// The frames batches of SubtreeTasks of tree `task_set_tree` trained on, each copied into
   /// the set's probe buffer once (not once per batch); its samples are a batch's. Dropped and
   /// started again when the tree changes or its frames would pass task_cache_bytes.
-  worker::SampleSet task_set;
+  engine::SampleSet task_set;
   int task_set_tree = -1;
   std::map<uint64_t, uint32_t> task_set_frames;  ///< frame -> local id in task_set
   // Renders the few frames a SubtreeTask lacks on the receiving thread (Run's), created once
   // per job: creating a source (renderer context, pose library, bodies) costs seconds.
-  std::unique_ptr<worker::ImageSource> task_source;
+  std::unique_ptr<engine::ImageSource> task_source;
   int corrupt_left = 0;
-  worker::SampleSet samples;
-  std::unique_ptr<worker::HistogramBuilder> builder;
+  engine::SampleSet samples;
+  std::unique_ptr<engine::HistogramBuilder> builder;
   /// Subtree tasks' own builder: a round answered in the middle of a batch (ServeRounds) uses
   /// `builder` while the batch's TrainSubtrees counts its evaluations on this one.
-  std::unique_ptr<worker::HistogramBuilder> subtree_builder;
+  std::unique_ptr<engine::HistogramBuilder> subtree_builder;
   int applied_levels = 0;
 
   Impl(WorkerOptions& o, std::atomic<bool>& s, DistWorker::Live& l)
@@ -209,7 +209,7 @@ struct DistWorker::Impl {
         live(l),
         stamper("", o.worker_id, v1::SENDER_KIND_WORKER),
         busy(l.busy),
-        job_gate(dds::GateConfig{o.worker_id, "", 16, o.log}) {}
+        job_gate(proto::dds::GateConfig{o.worker_id, "", 16, o.log}) {}
 
   void Log(const std::string& m) { opt.log(m); }
 
@@ -220,10 +220,10 @@ struct DistWorker::Impl {
   }
 
   /// Counts a message the gate dropped (Stats()).
-  void CountDropped(const dds::MessageGate::Outcome& out) {
-    if (out.verdict == dds::MessageGate::Verdict::kRejected)
+  void CountDropped(const proto::dds::MessageGate::Outcome& out) {
+    if (out.verdict == proto::dds::MessageGate::Verdict::kRejected)
       ++live.rejected;
-    else if (out.verdict == dds::MessageGate::Verdict::kStale)
+    else if (out.verdict == proto::dds::MessageGate::Verdict::kStale)
       ++live.stale;
   }
 
@@ -235,7 +235,7 @@ struct DistWorker::Impl {
   static constexpr uint64_t kInboxMaxBytes = uint64_t(1) << 30;
   std::mutex inbox_mu;
   std::condition_variable inbox_cv;
-  std::deque<dds::ReceivedSample> inbox;
+  std::deque<proto::dds::ReceivedSample> inbox;
   uint64_t inbox_bytes = 0;
   double intake_cpu = 0;  ///< the intake thread's CPU (added to cpu.receive after Run)
 
@@ -249,9 +249,9 @@ struct DistWorker::Impl {
           continue;
         }
       }
-      std::optional<dds::ReceivedSample> s = node->Receive(std::chrono::milliseconds(50));
+      std::optional<proto::dds::ReceivedSample> s = node->Receive(std::chrono::milliseconds(50));
       if (!s) continue;
-      s->received_s = NowSeconds();
+      s->received_s = proto::dds::NowSeconds();
       ++live.received[size_t(s->topic)];
       std::lock_guard<std::mutex> lock(inbox_mu);
       inbox_bytes += s->bytes.size();
@@ -262,11 +262,11 @@ struct DistWorker::Impl {
   }
 
   /// The next sample the intake thread queued, waiting up to `timeout`.
-  std::optional<dds::ReceivedSample> Take(std::chrono::milliseconds timeout) {
+  std::optional<proto::dds::ReceivedSample> Take(std::chrono::milliseconds timeout) {
     std::unique_lock<std::mutex> lock(inbox_mu);
     if (!inbox_cv.wait_for(lock, timeout, [&] { return !inbox.empty() || stop; }) || inbox.empty())
       return std::nullopt;
-    dds::ReceivedSample s = std::move(inbox.front());
+    proto::dds::ReceivedSample s = std::move(inbox.front());
     inbox.pop_front();
     inbox_bytes -= s.bytes.size();
     live.inbox_bytes = inbox_bytes;
@@ -304,7 +304,7 @@ struct DistWorker::Impl {
   void HeartbeatLoop() {
     // (time, evaluations): the rate over the last ~10 s, from the start (work done before the
     // first heartbeat counts).
-    std::deque<std::pair<double, uint64_t>> recent{{NowSeconds(), evaluations.load()}};
+    std::deque<std::pair<double, uint64_t>> recent{{proto::dds::NowSeconds(), evaluations.load()}};
     while (!stop) {
       if (has_job) {
         v1::Envelope env;
@@ -324,7 +324,7 @@ struct DistWorker::Impl {
           h->set_frames_rendered(frames_rendered);
           h->set_shard_epoch(shard_epoch);
           h->set_received_shard_epoch(received_shard_epoch);
-          const double now = NowSeconds();
+          const double now = proto::dds::NowSeconds();
           const uint64_t e = evaluations;
           recent.emplace_back(now, e);
           while (recent.size() > 2 && now - recent[1].first >= 10) recent.pop_front();
@@ -346,7 +346,7 @@ struct DistWorker::Impl {
     const auto& job = env.job();
     if (!opt.job_id.empty() && env.job_id() != opt.job_id) return;
     if (has_job && env.job_id() == job_id && job.coordinator_id() == coordinator_id) return;
-    auto p = worker::ParamsFromConfig(job.config(), "job " + env.job_id());
+    auto p = engine::ParamsFromConfig(job.config(), "job " + env.job_id());
     if (!p.ok()) {
       Log("job " + env.job_id() + " refused: " + p.status().ToString());
       return;
@@ -361,11 +361,12 @@ struct DistWorker::Impl {
     params.threads = std::max(1, opt.threads);
     job_id = env.job_id();
     coordinator_id = job.coordinator_id();
-    gate = std::make_unique<dds::MessageGate>(dds::GateConfig{opt.worker_id, job_id, 16, opt.log});
+    gate =
+        std::make_unique<proto::dds::MessageGate>(proto::dds::GateConfig{opt.worker_id, job_id, 16, opt.log});
     gate->set_coordinator_id(coordinator_id);
     gate->set_num_parts(uint32_t(core::kNumParts));
-    builder = std::make_unique<worker::HistogramBuilder>(params.constants, params.threads);
-    subtree_builder = std::make_unique<worker::HistogramBuilder>(params.constants, params.threads);
+    builder = std::make_unique<engine::HistogramBuilder>(params.constants, params.threads);
+    subtree_builder = std::make_unique<engine::HistogramBuilder>(params.constants, params.threads);
     tree = -1;
     have_shard = false;
     cache.clear();
@@ -376,12 +377,12 @@ struct DistWorker::Impl {
                                                                uint64_t(::sysconf(_SC_PAGE_SIZE)));
     Log("task frame cache: " + std::to_string(task_cache.cap_bytes >> 20) + " MiB" +
         (opt.task_cache_bytes > 0 ? "" : " (auto: a tree's frames; --task-cache-mb to set)"));
-    task_set = worker::SampleSet{};
+    task_set = engine::SampleSet{};
     task_set_tree = -1;
     task_set_frames.clear();
     task_source.reset();
     corrupt_left = opt.corrupt_subtree_results;
-    samples = worker::SampleSet{};
+    samples = engine::SampleSet{};
     renderer = RendererOf(params);
     {
       std::lock_guard<std::mutex> lock(send_mu);
@@ -400,7 +401,7 @@ struct DistWorker::Impl {
     skip_below_epoch = 0;
     control_writer.clear();
     has_job = true;
-    Log("joined job " + job_id + " of " + coordinator_id + ": " + worker::DescribeParams(params));
+    Log("joined job " + job_id + " of " + coordinator_id + ": " + engine::DescribeParams(params));
   }
 
   Status LoadShard(const v1::ShardAssignment& s) {
@@ -434,9 +435,9 @@ struct DistWorker::Impl {
     for (uint64_t i : wanted)
       if (!cache.count(i)) missing.push_back(i);
     std::vector<FrameData> loaded;
-    const double t_render = NowSeconds();
+    const double t_render = proto::dds::NowSeconds();
     POSEFOREST_RETURN_IF_ERROR(LoadFrames(missing, &loaded, &cpu.shard));
-    const double render_s = NowSeconds() - t_render;
+    const double render_s = proto::dds::NowSeconds() - t_render;
     shard_render_unreported_s += render_s;
     live.shard_render_us += uint64_t(render_s * 1e6);
     for (size_t j = 0; j < missing.size(); ++j) cache[missing[j]] = std::move(loaded[j]);
@@ -444,7 +445,7 @@ struct DistWorker::Impl {
     live.shard_rendered += missing.size();
     live.shard_hits += wanted.size() - missing.size();
     cpu.shard_frames += missing.size();
-    samples = worker::SampleSet{};
+    samples = engine::SampleSet{};
     for (const auto& [i, f] : cache) {
       if (f.picked.empty()) continue;  // no body in view (as LocalTrainer)
       samples.AddFrame(i, f.frame, f.picked, params.constants);
@@ -474,7 +475,7 @@ struct DistWorker::Impl {
       pool.emplace_back([&, tid] {
         CpuTimer timer(&thread_cpu[size_t(tid)]);
         try {
-          auto source = worker::MakeImageSource(params.source);
+          auto source = engine::MakeImageSource(params.source);
           if (!source.ok()) {
             errors[size_t(tid)] = source.status();
             return;
@@ -486,10 +487,10 @@ struct DistWorker::Impl {
               errors[size_t(tid)] = frame.status();
               return;
             }
-            loaded[j].picked = worker::SamplePixels(
+            loaded[j].picked = engine::SamplePixels(
                 *frame, params.pixels_per_image, params.part_balance,
-                core::CounterRng(params.seed, uint64_t(tree), index, worker::kSamplingStream));
-            loaded[j].frame = worker::CompactFrame::Of(frame->depth, params.constants.background_mm);
+                core::CounterRng(params.seed, uint64_t(tree), index, engine::kSamplingStream));
+            loaded[j].frame = engine::CompactFrame::Of(frame->depth, params.constants.background_mm);
           }
         } catch (const std::exception& e) {
           errors[size_t(tid)] = Status(ErrorCode::kInternal, std::string("loading frames: ") + e.what());
@@ -505,12 +506,12 @@ struct DistWorker::Impl {
 
   Status ApplyDecisions(const v1::SplitDecisions& d) {
     CpuTimer timer(&cpu.decisions);
-    std::vector<worker::SampleSet::Split> splits;
+    std::vector<engine::SampleSet::Split> splits;
     for (const auto& n : d.nodes()) {
       if (n.kind_case() != v1::NodeDecision::kSplit) continue;
-      worker::SampleSet::Split s;
+      engine::SampleSet::Split s;
       s.node = n.node_id();
-      POSEFOREST_RETURN_IF_ERROR(GetFeatureSplit(n.split(), &s.offsets, &s.cut));
+      POSEFOREST_RETURN_IF_ERROR(engine::GetFeatureSplit(n.split(), &s.offsets, &s.cut));
       s.left_child = n.split().left_child();
       splits.push_back(s);
     }
@@ -527,18 +528,18 @@ struct DistWorker::Impl {
     if (req.num_candidates() != uint32_t(k) || req.num_thresholds() != uint32_t(t + 1) ||
         req.num_parts() != uint32_t(core::kNumParts))
       return Status(ErrorCode::kInvalidArgument, "request dimensions differ from the job's");
-    const double t0 = NowSeconds();
+    const double t0 = proto::dds::NowSeconds();
     const double cpu0 = ThreadCpu(), compute0 = cpu.level_compute;
     busy = true;
-    std::vector<worker::NodePlan> plans(static_cast<size_t>(n));
+    std::vector<engine::NodePlan> plans(static_cast<size_t>(n));
     for (int i = 0; i < n; ++i) {
       const v1::NodeSpec& spec = req.nodes(i);
-      worker::NodePlan& plan = plans[size_t(i)];
+      engine::NodePlan& plan = plans[size_t(i)];
       plan.node = req.node_ids(i);
       plan.position = spec.position();
       plan.num_samples = spec.num_samples();
       if (req.phase() == v1::PHASE_RANGES || req.phase() == v1::PHASE_HISTOGRAMS)
-        plan.features = worker::DrawFeatures(params, tree, plan.position);
+        plan.features = engine::DrawFeatures(params, tree, plan.position);
       if (req.phase() == v1::PHASE_HISTOGRAMS) {
         if (spec.part_counts_size() != core::kNumParts || spec.range_lo_size() != k ||
             spec.range_hi_size() != k) {
@@ -548,11 +549,11 @@ struct DistWorker::Impl {
         }
         std::vector<uint64_t> parts(spec.part_counts().begin(), spec.part_counts().end());
         plan.SetParts(parts);
-        plan.sample_bins = worker::UseSampleBins(plan.num_samples, t, plan.num_slots);
-        plan.cut_stride = worker::CutStride(t);
-        std::vector<worker::ResponseRange> ranges(static_cast<size_t>(k));
+        plan.sample_bins = engine::UseSampleBins(plan.num_samples, t, plan.num_slots);
+        plan.cut_stride = engine::CutStride(t);
+        std::vector<engine::ResponseRange> ranges(static_cast<size_t>(k));
         for (int c = 0; c < k; ++c) ranges[size_t(c)] = {spec.range_lo(c), spec.range_hi(c)};
-        plan.cuts = worker::DrawCuts(params, tree, plan.position, ranges);
+        plan.cuts = engine::DrawCuts(params, tree, plan.position, ranges);
       }
     }
     v1::Envelope env;
@@ -575,16 +576,16 @@ struct DistWorker::Impl {
     if (req.phase() == v1::PHASE_RANGES) {
       // Nodes held entirely here with a whole-node reference: one fused pass (LocalTrainer's
       // BuildFused), histogram and cuts sent now; the others: ranges.
-      std::vector<worker::NodePlan> normal, fused;
+      std::vector<engine::NodePlan> normal, fused;
       std::vector<std::pair<bool, size_t>> where(static_cast<size_t>(n));
       for (int i = 0; i < n; ++i) {
-        worker::NodePlan& plan = plans[size_t(i)];
-        if (worker::HistogramBuilder::CanFuse(samples, params, plan)) {
+        engine::NodePlan& plan = plans[size_t(i)];
+        if (engine::HistogramBuilder::CanFuse(samples, params, plan)) {
           std::vector<uint64_t> parts(static_cast<size_t>(core::kNumParts), 0);
           samples.CountParts(samples.RangeOf(plan.node), core::kNumParts, parts.data());
           plan.SetParts(parts);
-          plan.sample_bins = worker::UseSampleBins(plan.num_samples, t, plan.num_slots);
-          plan.cut_stride = worker::CutStride(t);
+          plan.sample_bins = engine::UseSampleBins(plan.num_samples, t, plan.num_slots);
+          plan.cut_stride = engine::CutStride(t);
           where[size_t(i)] = {true, fused.size()};
           fused.push_back(std::move(plan));
         } else {
@@ -592,8 +593,8 @@ struct DistWorker::Impl {
           normal.push_back(std::move(plan));
         }
       }
-      std::vector<std::vector<worker::ResponseRange>> ranges;
-      std::vector<worker::NodeHistogram> fused_hists;
+      std::vector<std::vector<engine::ResponseRange>> ranges;
+      std::vector<engine::NodeHistogram> fused_hists;
       {
         CpuTimer timer(&cpu.level_compute);
         if (!normal.empty()) builder->ComputeRanges(samples, params, tree, normal, &ranges);
@@ -614,20 +615,20 @@ struct DistWorker::Impl {
           }
           continue;
         }
-        const worker::NodePlan& plan = fused[j];
+        const engine::NodePlan& plan = fused[j];
         nh->set_node_id(plan.node);
         nh->set_samples(plan.num_samples);
         std::vector<uint64_t> parts(static_cast<size_t>(core::kNumParts), 0);
         samples.CountParts(samples.RangeOf(plan.node), core::kNumParts, parts.data());
         for (uint64_t c : parts) nh->add_part_counts(c);
-        EncodeWireRuns(fused_hists[j], plan, core::kNumParts, nh->mutable_runs());
+        engine::EncodeWireRuns(fused_hists[j], plan, core::kNumParts, nh->mutable_runs());
         r->set_fused(true);
         for (int c = 0; c < k; ++c) {
           uint32_t count = 0;
           int32_t prev = 0;
           for (int e = 0; e < plan.cut_stride; ++e) {
             const int32_t cut = plan.cuts[size_t(c) * size_t(plan.cut_stride) + size_t(e)];
-            if (cut == worker::kNoCut) break;
+            if (cut == engine::kNoCut) break;
             r->add_cut_deltas(count == 0 ? cut : cut - prev);
             prev = cut;
             ++count;
@@ -639,7 +640,7 @@ struct DistWorker::Impl {
       for (int i = 0; i < n; ++i) {
         add_empty_node(plans[size_t(i)].node);
         auto* rr = reply->add_ranges();
-        const worker::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
+        const engine::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
         rr->set_num_samples(r.end - r.begin);
         // Samples of a node are ordered by (frame, pixel): distinct frames are runs. The pixel
         // indices go along, so that a SubtreeTask needs no routing.
@@ -663,35 +664,35 @@ struct DistWorker::Impl {
       for (int i = 0; i < n; ++i) {
         add_empty_node(plans[size_t(i)].node);
         std::vector<uint64_t> parts(static_cast<size_t>(core::kNumParts), 0);
-        const worker::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
+        const engine::NodeRange r = samples.RangeOf(plans[size_t(i)].node);
         if (r.end > r.begin) samples.CountParts(r, core::kNumParts, parts.data());
         auto* rr = reply->add_ranges();
         for (uint64_t c : parts) rr->add_part_counts(c);
       }
     } else if (req.phase() == v1::PHASE_HISTOGRAMS) {
-      std::vector<worker::NodeHistogram> hists;
+      std::vector<engine::NodeHistogram> hists;
       {
         CpuTimer timer(&cpu.level_compute);
         builder->Build(samples, plans, t, &hists);
       }
       histograms_built = uint64_t(n);
       for (int i = 0; i < n; ++i) {
-        const worker::NodePlan& plan = plans[size_t(i)];
+        const engine::NodePlan& plan = plans[size_t(i)];
         auto* nh = reply->add_nodes();
         nh->set_node_id(plan.node);
-        const worker::NodeRange r = samples.RangeOf(plan.node);
+        const engine::NodeRange r = samples.RangeOf(plan.node);
         nh->set_samples(r.end - r.begin);
         std::vector<uint64_t> parts(static_cast<size_t>(core::kNumParts), 0);
         if (r.end > r.begin) samples.CountParts(r, core::kNumParts, parts.data());
         for (uint64_t c : parts) nh->add_part_counts(c);
-        EncodeWireRuns(hists[size_t(i)], plan, core::kNumParts, nh->mutable_runs());
+        engine::EncodeWireRuns(hists[size_t(i)], plan, core::kNumParts, nh->mutable_runs());
       }
     } else {
       busy = false;
       return Status(ErrorCode::kInvalidArgument, "unknown phase");
     }
     cpu.level_encode += ThreadCpu() - cpu0 - (cpu.level_compute - compute0);
-    reply->set_compute_micros(uint64_t((NowSeconds() - t0) * 1e6));
+    reply->set_compute_micros(uint64_t((proto::dds::NowSeconds() - t0) * 1e6));
     if (dispatch_received_s > 0 && t0 > dispatch_received_s)
       reply->set_queued_micros(uint64_t((t0 - dispatch_received_s) * 1e6));
     reply->set_render_micros(uint64_t(shard_render_unreported_s * 1e6));
@@ -718,7 +719,7 @@ struct DistWorker::Impl {
     if (missing.empty()) return Status::Ok();
     try {
       if (!task_source) {
-        auto source = worker::MakeImageSource(params.source);
+        auto source = engine::MakeImageSource(params.source);
         if (!source.ok()) return source.status();
         task_source = std::move(*source);
       }
@@ -727,9 +728,9 @@ struct DistWorker::Impl {
         auto frame = task_source->Frame(index);
         if (!frame.ok()) return frame.status();
         (*out)[j].picked =
-            worker::SamplePixels(*frame, params.pixels_per_image, params.part_balance,
-                                 core::CounterRng(params.seed, uint64_t(t), index, worker::kSamplingStream));
-        (*out)[j].frame = worker::CompactFrame::Of(frame->depth, params.constants.background_mm);
+            engine::SamplePixels(*frame, params.pixels_per_image, params.part_balance,
+                                 core::CounterRng(params.seed, uint64_t(t), index, engine::kSamplingStream));
+        (*out)[j].frame = engine::CompactFrame::Of(frame->depth, params.constants.background_mm);
       }
     } catch (const std::exception& e) {
       return Status(ErrorCode::kInternal, std::string("rendering frames: ") + e.what());
@@ -753,7 +754,7 @@ struct DistWorker::Impl {
     if (task.part_counts_size() != core::kNumParts)
       return Status(ErrorCode::kInvalidArgument, "part counts of the wrong length");
     if (task.position() >= (uint64_t(1) << 31) ||
-        worker::PositionDepth(task.position()) != int(task.depth()) || int(task.depth()) > params.max_depth)
+        engine::PositionDepth(task.position()) != int(task.depth()) || int(task.depth()) > params.max_depth)
       return Status(ErrorCode::kInvalidArgument, "position " + std::to_string(task.position()) +
                                                      " is not at depth " + std::to_string(task.depth()));
     for (const auto& r : task.ranges()) {
@@ -823,13 +824,13 @@ struct DistWorker::Impl {
     live.task_hits += wanted.size() - missing->size();
     {
       CpuTimer timer(&cpu.subtree_render);
-      const double t_render = NowSeconds();
+      const double t_render = proto::dds::NowSeconds();
       struct Mark {  // the wall time, however it ends
         double t0;
         double* sum;
         std::atomic<uint64_t>* micros;
         ~Mark() {
-          const double s = NowSeconds() - t0;
+          const double s = proto::dds::NowSeconds() - t0;
           *sum += s;
           *micros += uint64_t(s * 1e6);
         }
@@ -874,7 +875,7 @@ struct DistWorker::Impl {
     std::vector<uint64_t> wanted;
     POSEFOREST_RETURN_IF_ERROR(CheckTask(task, &wanted));
     const bool listed = Listed(task);
-    const double t0 = NowSeconds();
+    const double t0 = proto::dds::NowSeconds();
     const BusyScope busy_scope(busy);
     ++cpu.subtree_tasks;
     std::vector<uint64_t> missing;
@@ -882,14 +883,14 @@ struct DistWorker::Impl {
     std::vector<const FrameData*> src;
     POSEFOREST_RETURN_IF_ERROR(TaskFrames(t, wanted, &missing, &loaded, &src));
     std::optional<CpuTimer> route_timer(&cpu.subtree_route);
-    worker::SampleSet set;
+    engine::SampleSet set;
     {
       size_t pixels = 0, picked = 0;
       for (const FrameData* f : src) pixels += f->frame.pixels.size(), picked += f->picked.size();
       set.Reserve(wanted.size(), pixels, listed ? size_t(task.expected_samples()) : picked,
                   wanted.size() * size_t(std::max(0, params.source.height)));
       size_t delta_at = 0;
-      std::vector<worker::PixelSample> chosen;
+      std::vector<engine::PixelSample> chosen;
       for (size_t e = 0; e < wanted.size(); ++e) {
         const uint64_t i = wanted[e];
         const FrameData* f = src[e];
@@ -913,20 +914,20 @@ struct DistWorker::Impl {
     uint32_t at = 0;
     if (!listed)
       for (const auto& step : task.path()) {
-        worker::SampleSet::Split sp;
+        engine::SampleSet::Split sp;
         sp.node = at;
-        POSEFOREST_RETURN_IF_ERROR(GetFeatureSplit(step.split(), &sp.offsets, &sp.cut));
+        POSEFOREST_RETURN_IF_ERROR(engine::GetFeatureSplit(step.split(), &sp.offsets, &sp.cut));
         sp.left_child = at + 1;
-        set.ApplySplits(std::span<const worker::SampleSet::Split>(&sp, 1), params.constants, params.threads);
+        set.ApplySplits(std::span<const engine::SampleSet::Split>(&sp, 1), params.constants, params.threads);
         at = step.went_right() ? at + 2 : at + 1;
       }
     std::vector<uint64_t> parts(task.part_counts().begin(), task.part_counts().end());
-    const worker::NodeRange routed = set.RangeOf(at);
+    const engine::NodeRange routed = set.RangeOf(at);
     route_timer.reset();
     std::optional<CpuTimer> train_timer(&cpu.subtree_train);
     served_in_batch_s = 0;
-    auto out = coordinator::TrainSubtree(set, at, params, t, task.position(), parts, *subtree_builder,
-                                         [this] { PauseInSubtrees(); });
+    auto out = engine::TrainSubtree(set, at, params, t, task.position(), parts, *subtree_builder,
+                                    [this] { PauseInSubtrees(); });
     train_timer.reset();
     busy = false;
     if (!out.ok()) return out.status();
@@ -934,10 +935,10 @@ struct DistWorker::Impl {
   }
 
   /// Sends the SubtreeResult of `task` (+ the progress lines); t0: when the task started.
-  Status SendResult(const v1::SubtreeTask& task, const coordinator::SubtreeOutput& result, double t0,
+  Status SendResult(const v1::SubtreeTask& task, const engine::SubtreeOutput& result, double t0,
                     uint64_t num_samples, size_t num_frames, size_t rendered) {
     const int t = int(task.tree());
-    const coordinator::SubtreeOutput* out = &result;
+    const engine::SubtreeOutput* out = &result;
     std::optional<CpuTimer> encode_timer(&cpu.subtree_encode);
     v1::Envelope env;
     v1::SubtreeResult* res = env.mutable_subtree_result();
@@ -955,7 +956,7 @@ struct DistWorker::Impl {
     res->set_evaluations(out->evaluations);
     evaluations += out->evaluations;
     live.evaluations += out->evaluations;
-    for (const coordinator::SubtreeNode& n : out->nodes) {
+    for (const engine::SubtreeNode& n : out->nodes) {
       v1::SubtreeNode* sn = res->add_subtree_nodes();
       sn->set_position(n.position);
       sn->set_split(n.split);
@@ -982,7 +983,7 @@ struct DistWorker::Impl {
     subtree_nodes_done += out->nodes.size();
     // Wall seconds of subtree work: the tasks of a batch share one stretch of time, so each
     // adds only the time since the previous result (or its start), never the batch's whole.
-    const double now = NowSeconds();
+    const double now = proto::dds::NowSeconds();
     // Rounds answered in the middle of the batch (ServeRounds) are not subtree work.
     const double busy_s = std::max(0.0, now - std::max(t0, subtree_mark) - served_in_batch_s);
     served_in_batch_s = 0;
@@ -995,7 +996,7 @@ struct DistWorker::Impl {
       Log("tree " + std::to_string(t) + ": subtree at position " + std::to_string(task.position()) + " (" +
           std::to_string(num_samples) + " samples from " + std::to_string(num_frames) + " frames, " +
           std::to_string(rendered) + " rendered) -> " + std::to_string(out->nodes.size()) + " nodes in " +
-          std::to_string(NowSeconds() - t0) + " s");
+          std::to_string(proto::dds::NowSeconds() - t0) + " s");
     else if (subtree_done % 100 == 0)
       Log("tree " + std::to_string(t) + ": " + std::to_string(subtree_done) + " subtrees trained so far (" +
           std::to_string(subtree_nodes_done) + " nodes, " + std::to_string(subtree_s) +
@@ -1034,7 +1035,7 @@ struct DistWorker::Impl {
     }
     if (tasks.empty()) return;
     const int t = int(tasks[0]->tree());
-    const double t0 = NowSeconds();
+    const double t0 = proto::dds::NowSeconds();
     const BusyScope busy_scope(busy);
     cpu.subtree_tasks += tasks.size();
     ++cpu.subtree_batches;
@@ -1073,14 +1074,14 @@ struct DistWorker::Impl {
         (task_set.probe_pixels() + new_pixels) * sizeof(uint16_t) >
             std::max<uint64_t>(task_cache.cap_bytes, 1) ||
         task_set.probe_pixels() + new_pixels >= (size_t(1) << 30)) {
-      task_set = worker::SampleSet{};
+      task_set = engine::SampleSet{};
       task_set_frames.clear();
       task_set_tree = t;
       new_pixels = 0;
       for (const FrameData* f : src) new_pixels += f->frame.pixels.size();
     }
     task_set.ClearSamples();
-    worker::SampleSet& set = task_set;
+    engine::SampleSet& set = task_set;
     std::vector<uint32_t> node_of_sample;
     {
       size_t samples_total = 0;
@@ -1090,7 +1091,7 @@ struct DistWorker::Impl {
         if (!task_set_frames.count(wanted[w]))
           task_set_frames[wanted[w]] = set.AddFrameOnly(wanted[w], src[w]->frame, params.constants);
       node_of_sample.reserve(samples_total);
-      std::vector<worker::PixelSample> chosen, merged;
+      std::vector<engine::PixelSample> chosen, merged;
       std::vector<std::pair<uint64_t, uint32_t>> order;  // (pixel index, task) of `merged`
       for (size_t w = 0; w < wanted.size(); ++w) {
         const FrameData* f = src[w];
@@ -1108,7 +1109,7 @@ struct DistWorker::Impl {
             KeepTaskFrames(missing, loaded);
             return one_by_one(st);
           }
-          for (const worker::PixelSample& p : chosen) {
+          for (const engine::PixelSample& p : chosen) {
             order.push_back({uint64_t(p.y) * uint64_t(f->frame.width) + uint64_t(p.x), uint32_t(k)});
             merged.push_back(p);
           }
@@ -1117,7 +1118,7 @@ struct DistWorker::Impl {
         std::vector<size_t> idx(merged.size());
         for (size_t j = 0; j < idx.size(); ++j) idx[j] = j;
         std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return order[a] < order[b]; });
-        std::vector<worker::PixelSample> sorted;
+        std::vector<engine::PixelSample> sorted;
         sorted.reserve(merged.size());
         for (size_t j : idx) sorted.push_back(merged[j]), node_of_sample.push_back(order[j].second);
         if (!sorted.empty()) set.AddSamples(task_set_frames.at(wanted[w]), sorted, params.constants);
@@ -1126,7 +1127,7 @@ struct DistWorker::Impl {
     src.clear();
     KeepTaskFrames(missing, loaded);
     set.StartTree(node_of_sample);
-    std::vector<coordinator::SubtreeRoot> roots(tasks.size());
+    std::vector<engine::SubtreeRoot> roots(tasks.size());
     for (size_t k = 0; k < tasks.size(); ++k) {
       roots[k].sample_node = uint32_t(k);
       roots[k].position = tasks[k]->position();
@@ -1135,7 +1136,7 @@ struct DistWorker::Impl {
     route_timer.reset();
     std::optional<CpuTimer> train_timer(&cpu.subtree_train);
     served_in_batch_s = 0;
-    auto out = coordinator::TrainSubtrees(set, roots, params, t, *subtree_builder, [this] { PauseInSubtrees(); });
+    auto out = engine::TrainSubtrees(set, roots, params, t, *subtree_builder, [this] { PauseInSubtrees(); });
     train_timer.reset();
     if (!out.ok()) return one_by_one(out.status());
     busy = false;
@@ -1160,7 +1161,7 @@ struct DistWorker::Impl {
   }
 
   void ServeRounds() {
-    const double t_serve = NowSeconds(), cpu_serve = ThreadCpu();
+    const double t_serve = proto::dds::NowSeconds(), cpu_serve = ThreadCpu();
     const bool was_busy = busy;
     auto is_round = [&](const v1::Envelope& env) {
       if (!have_shard) return false;
@@ -1181,7 +1182,7 @@ struct DistWorker::Impl {
         ++served;
         continue;
       }
-      std::optional<dds::ReceivedSample> s = Take(std::chrono::milliseconds(0));
+      std::optional<proto::dds::ReceivedSample> s = Take(std::chrono::milliseconds(0));
       if (!s) break;
       if (s->topic == Topic::kJob || !gate) {
         pending.push_back({false, std::move(*s), {}, {}, 0});
@@ -1189,7 +1190,7 @@ struct DistWorker::Impl {
       }
       auto out = gate->Check(s->topic, s->bytes, s->writer_guid);
       CountDropped(out);
-      if (out.verdict != dds::MessageGate::Verdict::kAccepted) continue;
+      if (out.verdict != proto::dds::MessageGate::Verdict::kAccepted) continue;
       if (!is_round(out.envelope)) {
         pending.push_back({true, {}, std::move(out.envelope), std::move(out.sender), s->received_s});
         break;
@@ -1201,17 +1202,17 @@ struct DistWorker::Impl {
     busy = was_busy;
     if (served == 0) return;
     ++cpu.rounds_in_batches;
-    served_in_batch_s += NowSeconds() - t_serve;
+    served_in_batch_s += proto::dds::NowSeconds() - t_serve;
     // The subtree_train timer around the batch counts this thread's CPU; the answers counted
     // theirs in their own phases.
     cpu.subtree_train -= ThreadCpu() - cpu_serve;
   }
 
-  void OnSample(const dds::ReceivedSample& s) {
+  void OnSample(const proto::dds::ReceivedSample& s) {
     if (s.topic == Topic::kJob) {
       auto out = job_gate.Check(s.topic, s.bytes, s.writer_guid);
       CountDropped(out);
-      if (out.verdict == dds::MessageGate::Verdict::kAccepted) OnJob(out.envelope);
+      if (out.verdict == proto::dds::MessageGate::Verdict::kAccepted) OnJob(out.envelope);
       return;
     }
     if (!gate) return;
@@ -1219,7 +1220,7 @@ struct DistWorker::Impl {
     auto out = gate->Check(s.topic, s.bytes, s.writer_guid);
     gate_timer.reset();
     CountDropped(out);
-    if (out.verdict != dds::MessageGate::Verdict::kAccepted) return;
+    if (out.verdict != proto::dds::MessageGate::Verdict::kAccepted) return;
     if (s.topic == Topic::kControl && out.sender == coordinator_id) control_writer = s.writer_guid;
     dispatch_received_s = s.received_s;
     Dispatch(out.envelope, out.sender);
@@ -1232,7 +1233,7 @@ struct DistWorker::Impl {
     if (control_writer.empty()) return 0;
     uint64_t newest = 0;
     std::lock_guard<std::mutex> lock(inbox_mu);
-    for (const dds::ReceivedSample& q : inbox) {
+    for (const proto::dds::ReceivedSample& q : inbox) {
       // Assignments are small (a few ranges); big samples are replies, tasks or decisions.
       if (q.topic != Topic::kControl || q.writer_guid != control_writer || q.bytes.size() > (64u << 10)) continue;
       v1::Envelope peek;
@@ -1246,7 +1247,7 @@ struct DistWorker::Impl {
   /// Messages taken off DDS while collecting a batch of SubtreeTasks, handled next (in order).
   struct Pending {
     bool checked = false;  ///< passed the gate: env/sender; else a raw sample for OnSample
-    dds::ReceivedSample raw;
+    proto::dds::ReceivedSample raw;
     v1::Envelope env;
     std::string sender;
     double received_s = 0;  ///< when `env` was taken off DDS (checked ones)
@@ -1267,7 +1268,7 @@ struct DistWorker::Impl {
   /// other message is kept in `pending`. False: the test hook says die.
   bool DrainTasks(std::vector<v1::Envelope>* batch) {
     for (;;) {
-      std::optional<dds::ReceivedSample> more;
+      std::optional<proto::dds::ReceivedSample> more;
       {
         CpuTimer timer(&cpu.receive);
         more = Take(std::chrono::milliseconds(0));
@@ -1281,7 +1282,7 @@ struct DistWorker::Impl {
       auto out = gate->Check(more->topic, more->bytes, more->writer_guid);
       gate_timer.reset();
       CountDropped(out);
-      if (out.verdict != dds::MessageGate::Verdict::kAccepted) continue;
+      if (out.verdict != proto::dds::MessageGate::Verdict::kAccepted) continue;
       if (out.envelope.body_case() == v1::Envelope::kSubtreeTask &&
           out.envelope.subtree_task().tree() == batch->front().subtree_task().tree() &&
           Listed(out.envelope.subtree_task())) {
@@ -1397,22 +1398,22 @@ struct DistWorker::Impl {
         break;
     }
     if (!st.ok())
-      Log(std::string("dropped ") + dds::BodyName(env.body_case()) + " from " + sender + ": " +
+      Log(std::string("dropped ") + proto::dds::BodyName(env.body_case()) + " from " + sender + ": " +
           st.ToString());
   }
 };
 
-uint64_t TaskCacheBytesFor(const worker::TrainParams& params, uint64_t physical_bytes) {
-  const uint64_t frame = uint64_t(std::max(0, params.source.width)) * uint64_t(std::max(0, params.source.height)) *
-                             sizeof(uint16_t) +
-                         uint64_t(std::max(0, params.pixels_per_image)) * sizeof(worker::PixelSample);
+uint64_t TaskCacheBytesFor(const engine::TrainParams& params, uint64_t physical_bytes) {
+  const uint64_t frame = uint64_t(std::max(0, params.source.width)) *
+                             uint64_t(std::max(0, params.source.height)) * sizeof(uint16_t) +
+                         uint64_t(std::max(0, params.pixels_per_image)) * sizeof(engine::PixelSample);
   const uint64_t tree = frame * uint64_t(std::max(0, params.images_per_tree));
   const uint64_t floor = uint64_t(256) << 20;
   return std::max(floor, std::min(tree, physical_bytes / 8));
 }
 
-Status SelectListedSamples(std::span<const worker::PixelSample> picked, int width, uint64_t frame,
-                           std::span<const uint32_t> deltas, std::vector<worker::PixelSample>* out) {
+Status SelectListedSamples(std::span<const engine::PixelSample> picked, int width, uint64_t frame,
+                           std::span<const uint32_t> deltas, std::vector<engine::PixelSample>* out) {
   out->clear();
   uint64_t pixel = 0;
   size_t k = 0;
@@ -1434,7 +1435,7 @@ Status SelectListedSamples(std::span<const worker::PixelSample> picked, int widt
 
 DistWorker::DistWorker(WorkerOptions options)
     : options_(std::move(options)), live_(std::make_unique<Live>()) {
-  if (options_.worker_id.empty()) options_.worker_id = DefaultWorkerId();
+  if (options_.worker_id.empty()) options_.worker_id = proto::dds::DefaultWorkerId();
   if (!options_.log) {
     const std::string id = options_.worker_id;
     options_.log = [id](const std::string& m) { std::fprintf(stderr, "[%s] %s\n", id.c_str(), m.c_str()); };
@@ -1455,11 +1456,11 @@ Status DistWorker::Run() {
   Impl impl(options_, stop_, *live_);
   impl.cpu.process_at_start = process0;
   std::optional<CpuTimer> participant_timer(&impl.cpu.participant);
-  dds::NodeConfig node_config =
-      MakeNodeConfig(options_.domain, options_.transport, false, options_.worker_id, options_.lease,
-                     options_.udp_peers, options_.udp_interfaces, options_.transport_extras);
+  proto::dds::NodeConfig node_config = proto::dds::MakeNodeConfig(
+      options_.domain, options_.transport, false, options_.worker_id, options_.lease, options_.udp_peers,
+      options_.udp_interfaces, options_.transport_extras);
   node_config.log = options_.log;
-  auto node = dds::DdsNode::Create(node_config);
+  auto node = proto::dds::DdsNode::Create(node_config);
   if (!node.ok()) return node.status();
   impl.node = std::move(*node);
   participant_timer.reset();
@@ -1477,7 +1478,7 @@ Status DistWorker::Run() {
         impl.OnSample(p.raw);
       continue;
     }
-    std::optional<dds::ReceivedSample> s;
+    std::optional<proto::dds::ReceivedSample> s;
     {
       CpuTimer timer(&impl.cpu.receive);
       s = impl.Take(std::chrono::milliseconds(50));
@@ -1517,7 +1518,7 @@ WorkerStats DistWorker::Stats() const {
   s.frame_cache_evictions = l.cache_evictions;
   s.frame_cache_bytes = l.cache_bytes;
   s.frame_cache_capacity_bytes = l.cache_capacity;
-  for (size_t t = 0; t < size_t(dds::kNumTopics); ++t) {
+  for (size_t t = 0; t < size_t(proto::dds::kNumTopics); ++t) {
     s.messages_sent[t] = l.sent[t];
     s.bytes_sent[t] = l.sent_bytes[t];
     s.messages_received[t] = l.received[t];
@@ -1532,4 +1533,4 @@ WorkerStats DistWorker::Stats() const {
   return s;
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::worker

@@ -10,7 +10,7 @@
 // it arrives and queues it for Run() (so a worker busy training never leaves the coordinator's
 // control history full); a heartbeat thread publishes Hello/Heartbeat on the presence topic
 // (which also asserts its DDS liveliness) while the main thread computes. DDS listeners only
-// enqueue (dds::DdsNode).
+// enqueue (proto::dds::DdsNode).
 
 #include <array>
 #include <atomic>
@@ -29,12 +29,12 @@
 #include "proto/dds/topics.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dist {
+namespace poseforest::worker {
 
 struct WorkerOptions {
   std::string worker_id;  ///< unique sender id (DefaultWorkerId() when empty)
   uint32_t domain = 0;
-  dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
+  proto::dds::TransportKind transport = proto::dds::TransportKind::kSharedMemoryOnly;
   int threads = 1;             ///< OpenMP threads for frames and histograms
   std::string job_id;          ///< join only this job (empty: any)
   bool exit_when_done = true;  ///< return from Run() when the coordinator reports JOB_DONE
@@ -44,7 +44,7 @@ struct WorkerOptions {
   /// empty = loopback peer, every interface (MakeNodeConfig).
   std::vector<std::string> udp_peers, udp_interfaces;
   /// XML profile, discovery server, DDS-Security (the --dds-xml, --discovery-server, --security flags).
-  TransportExtras transport_extras;
+  proto::dds::TransportExtras transport_extras;
   /// Most bytes of frames of other shards kept between SubtreeTasks of a tree (rendered for one
   /// task, reused by the next ones); least recently used dropped first. Never changes a result.
   /// 0 (default): sized from the job (TaskCacheBytesFor), so that a tree's frames rendered for
@@ -152,8 +152,8 @@ struct WorkerStats {
   uint64_t frame_cache_evictions = 0;       ///< frames dropped from the task-frame cache (its cap)
   uint64_t frame_cache_bytes = 0;           ///< bytes the task-frame cache holds now
   uint64_t frame_cache_capacity_bytes = 0;  ///< its cap (WorkerOptions::task_cache_bytes, or auto)
-  /// Envelopes written and their serialized bytes, and samples taken off DDS, by dds::Topic.
-  std::array<uint64_t, dds::kNumTopics> messages_sent{}, bytes_sent{}, messages_received{};
+  /// Envelopes written and their serialized bytes, and samples taken off DDS, by proto::dds::Topic.
+  std::array<uint64_t, proto::dds::kNumTopics> messages_sent{}, bytes_sent{}, messages_received{};
   uint64_t messages_rejected = 0;  ///< dropped by the message gate: malformed or not allowed
   uint64_t messages_stale = 0;     ///< dropped by the message gate: outdated (older epoch or level)
   uint64_t inbox_bytes = 0;        ///< taken off DDS, queued for the training thread now
@@ -165,12 +165,12 @@ struct WorkerStats {
 /// are pixel indices y * width + x, ascending and delta-coded (the first absolute), each one of
 /// `picked`, the frame's sampled pixels (ascending, as SamplePixels returns them); `*out` gets
 /// those samples. InvalidArgument naming the frame and the pixel otherwise.
-core::Status SelectListedSamples(std::span<const worker::PixelSample> picked, int width, uint64_t frame,
-                                 std::span<const uint32_t> deltas, std::vector<worker::PixelSample>* out);
+core::Status SelectListedSamples(std::span<const engine::PixelSample> picked, int width, uint64_t frame,
+                                 std::span<const uint32_t> deltas, std::vector<engine::PixelSample>* out);
 
 /// The automatic task-frame cache of a job: every frame of one tree (depth + sampled pixels,
 /// as the cache keeps them), at most an eighth of `physical_bytes`, at least 256 MiB.
-uint64_t TaskCacheBytesFor(const worker::TrainParams& params, uint64_t physical_bytes);
+uint64_t TaskCacheBytesFor(const engine::TrainParams& params, uint64_t physical_bytes);
 
 class DistWorker {
  public:
@@ -198,4 +198,4 @@ class DistWorker {
   std::unique_ptr<Live> live_;
 };
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::worker

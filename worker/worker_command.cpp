@@ -24,7 +24,7 @@ namespace poseforest::cli {
 using core::Status;
 
 namespace {
-std::atomic<poseforest::dist::DistWorker*> g_worker{nullptr};
+std::atomic<poseforest::worker::DistWorker*> g_worker{nullptr};
 void OnWorkerSignal(int) {
   if (auto* w = g_worker.load()) w->Stop();
 }
@@ -81,12 +81,13 @@ int WorkerMain(int argc, char** argv) {
       return 2;
     }
     job_dds = std::move(*defaults);
-    if (job_id.empty()) job_id = dist::DefaultJobId(*config);
+    if (job_id.empty()) job_id = engine::DefaultJobId(*config);
   }
   auto domain = args.GetInt("domain", job_dds.values.count("domain") ? std::stol(job_dds.values["domain"]) : 0, 0, 232);
   auto threads = args.GetInt("threads", 1, 1, 1024);
   auto task_cache_mb = args.GetInt("task-cache-mb", 0, 0, 1 << 20);
-  auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return job_dds.Get(args, name); });
+  auto dds_flags =
+      proto::dds::ParseDdsFlags([&](const std::string& name) { return job_dds.Get(args, name); });
   if (!domain.ok() || !threads.ok() || !task_cache_mb.ok() || !dds_flags.ok()) {
     std::fprintf(stderr, "worker: %s\n",
                  (!domain.ok()           ? domain.status()
@@ -99,9 +100,9 @@ int WorkerMain(int argc, char** argv) {
   }
   // --http: the worker's own /metrics (off by default); its token and TLS files, checked here.
   const std::string http = args.GetOr("http", "off");
-  dist::HttpServerOptions http_opt;
+  proto::http::HttpServerOptions http_opt;
   if (http != "off") {
-    if (Status st = dist::ParseHttpAddress(http, &http_opt); !st.ok()) {
+    if (Status st = proto::http::ParseHttpAddress(http, &http_opt); !st.ok()) {
       std::fprintf(stderr, "worker: %s\n", st.message().c_str());
       return 2;
     }
@@ -112,7 +113,7 @@ int WorkerMain(int argc, char** argv) {
     return 2;
   }
   if (args.Has("http-token-file")) {
-    auto token = dist::ReadHttpTokenFile(*args.Get("http-token-file"));
+    auto token = proto::http::ReadHttpTokenFile(*args.Get("http-token-file"));
     if (!token.ok()) {
       std::fprintf(stderr, "worker: %s\n", token.status().message().c_str());
       return 2;
@@ -122,7 +123,7 @@ int WorkerMain(int argc, char** argv) {
   http_opt.tls_cert_file = args.GetOr("http-tls-cert", "");
   http_opt.tls_key_file = args.GetOr("http-tls-key", "");
   if (!http_opt.tls_cert_file.empty() || !http_opt.tls_key_file.empty()) {
-    if (Status st = dist::CheckHttpTlsFiles(http_opt.tls_cert_file, http_opt.tls_key_file); !st.ok()) {
+    if (Status st = proto::http::CheckHttpTlsFiles(http_opt.tls_cert_file, http_opt.tls_key_file); !st.ok()) {
       std::fprintf(stderr, "worker: %s\n", st.message().c_str());
       return 2;
     }
@@ -142,19 +143,19 @@ int WorkerMain(int argc, char** argv) {
   }
   if (!dds_flags->resolved.empty())  // resolved once: a name that moves later is not followed
     std::fprintf(stderr, "DDS host names resolved at start-up: %s\n", dds_flags->ResolvedText().c_str());
-  dist::WorkerOptions opt;
+  worker::WorkerOptions opt;
   opt.udp_peers = dds_flags->peers;
   opt.udp_interfaces = dds_flags->interfaces;
   opt.transport_extras = dds_flags->extras;
   opt.worker_id = args.GetOr("id", "");
-  if (opt.worker_id.empty()) opt.worker_id = dist::DefaultWorkerId();  // worker-HOST-PID-RANDOM
+  if (opt.worker_id.empty()) opt.worker_id = proto::dds::DefaultWorkerId();  // worker-HOST-PID-RANDOM
   opt.domain = uint32_t(*domain);
   opt.transport = dds_flags->transport;
   opt.threads = int(*threads);
   opt.task_cache_bytes = uint64_t(*task_cache_mb) << 20;
   opt.job_id = job_id;
   opt.exit_when_done = !args.Has("stay");
-  dist::DistWorker worker(opt);
+  worker::DistWorker worker(opt);
   g_worker = &worker;
   struct sigaction sa = {};
   sa.sa_handler = OnWorkerSignal;
@@ -179,16 +180,16 @@ int WorkerMain(int argc, char** argv) {
     }
   }
   // After `worker`: the server (its handler reads the worker) stops first.
-  std::unique_ptr<dist::HttpServer> metrics;
+  std::unique_ptr<proto::http::HttpServer> metrics;
   if (http != "off") {
     http_opt.log = [](const std::string& line) {
       std::fprintf(stderr, "worker: %s\n", line.c_str());
       std::fflush(stderr);
     };
     for (const std::string& w :
-         dist::HttpExposureWarnings(http_opt, http, "the worker's metrics", "the metrics"))
+         proto::http::HttpExposureWarnings(http_opt, http, "the worker's metrics", "the metrics"))
       std::fprintf(stderr, "worker: %s\n", w.c_str());
-    auto server = dist::HttpServer::Start(http_opt, dist::WorkerMetricsHandler(&worker));
+    auto server = proto::http::HttpServer::Start(http_opt, worker::WorkerMetricsHandler(&worker));
     if (!server.ok()) {
       std::fprintf(stderr, "worker: %s\n", server.status().ToString().c_str());
       return server.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;  // 1: port in use

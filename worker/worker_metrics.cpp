@@ -6,21 +6,21 @@
 #include "proto/dds/topics.h"
 #include "proto/http/prometheus_text.h"
 
-namespace poseforest::dist {
+namespace poseforest::worker {
 
 namespace {
 using Samples = std::vector<std::pair<std::string, double>>;
 
 std::string L(const char* name, const std::string& value) {
-  return std::string(name) + "=\"" + PromLabelValue(value) + "\"";
+  return std::string(name) + "=\"" + proto::http::PromLabelValue(value) + "\"";
 }
 
 /// One sample per DDS topic ("topic" label: job, control, replies, presence, status).
 template <typename Array>
 Samples ByTopic(const Array& counts) {
   Samples out;
-  for (dds::Topic t : dds::kAllTopics)
-    out.push_back({L("topic", dds::TopicShortName(t)), double(counts[size_t(t)])});
+  for (proto::dds::Topic t : proto::dds::kAllTopics)
+    out.push_back({L("topic", proto::dds::TopicShortName(t)), double(counts[size_t(t)])});
   return out;
 }
 }  // namespace
@@ -28,7 +28,7 @@ Samples ByTopic(const Array& counts) {
 std::string WorkerPrometheus(const WorkerStats& s) {
   std::string m;
   auto family = [&m](const char* name, const char* type, const char* help, const Samples& samples) {
-    AppendPromFamily(&m, name, type, help, samples);
+    proto::http::AppendPromFamily(&m, name, type, help, samples);
   };
   family("poseforest_build_info", "gauge", "The poseforest build serving these metrics (always 1).",
          {{L("version", POSEFOREST_BUILD_VERSION), 1}});
@@ -110,17 +110,18 @@ std::string WorkerPrometheus(const WorkerStats& s) {
          "each "
          "phase ends; the whole process (DDS, heartbeats, HTTP) is process_cpu_seconds_total.",
          cpu);
-  return m + ProcessMetrics();
+  return m + proto::http::ProcessMetrics();
 }
 
-HttpServer::Handler WorkerMetricsHandler(const DistWorker* worker) {
-  return [worker](const HttpRequest& req) -> HttpResponse {
+proto::http::HttpServer::Handler WorkerMetricsHandler(const DistWorker* worker) {
+  return [worker](const proto::http::HttpRequest& req) -> proto::http::HttpResponse {
     if (req.path == "/metrics")
       return {200, "text/plain; version=0.0.4; charset=utf-8",
-              WorkerPrometheus(worker->Stats()) + (req.server ? HttpServerMetrics(*req.server) : "")};
+              WorkerPrometheus(worker->Stats()) +
+                  (req.server ? proto::http::HttpServerMetrics(*req.server) : "")};
     if (req.path == "/healthz") return {200, "text/plain; charset=utf-8", "ok\n"};
     return {404, "text/plain; charset=utf-8", "404 Not Found: " + req.path + " (try /metrics, /healthz)\n"};
   };
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::worker

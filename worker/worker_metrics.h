@@ -10,7 +10,7 @@
 #include "proto/http/http_server.h"
 #include "worker/dist_worker.h"
 
-namespace poseforest::dist {
+namespace poseforest::worker {
 
 /// `stats` as Prometheus text: counters (`_total`, base units) and gauges, each with HELP and TYPE
 /// lines, then the process's CPU, memory and start time (ProcessMetrics). No `job` label (Prometheus
@@ -19,6 +19,6 @@ std::string WorkerPrometheus(const WorkerStats& stats);
 
 /// Routes "/metrics" (WorkerPrometheus of `worker->Stats()`, then the server's own counters) and
 /// "/healthz" ("ok"); anything else is a 404. `worker` is not owned and must outlive the server.
-HttpServer::Handler WorkerMetricsHandler(const DistWorker* worker);
+proto::http::HttpServer::Handler WorkerMetricsHandler(const DistWorker* worker);
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::worker

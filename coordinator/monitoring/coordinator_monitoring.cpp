@@ -6,7 +6,7 @@
 
 #include "coordinator/monitoring/dashboard.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator::monitoring {
 
 core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Start(
     const JobInfo& job, const std::string& http, const std::string& event_log, const std::string& http_token,
@@ -22,8 +22,8 @@ core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Star
   }
   m->fanout_ = ObserverFanOut(targets);
   if (http != "off") {
-    HttpServerOptions opt;
-    POSEFOREST_RETURN_IF_ERROR(ParseHttpAddress(http, &opt));
+    proto::http::HttpServerOptions opt;
+    POSEFOREST_RETURN_IF_ERROR(proto::http::ParseHttpAddress(http, &opt));
     opt.bearer_token = http_token;
     opt.tls_cert_file = tls_cert;
     opt.tls_key_file = tls_key;
@@ -31,11 +31,11 @@ core::Result<std::unique_ptr<CoordinatorMonitoring>> CoordinatorMonitoring::Star
       std::fprintf(stderr, "coordinator: %s\n", line.c_str());
       std::fflush(stderr);
     };
-    for (const std::string& w :
-         HttpExposureWarnings(opt, http, "the job's status, metrics and dashboard", "the job's status"))
+    for (const std::string& w : proto::http::HttpExposureWarnings(
+             opt, http, "the job's status, metrics and dashboard", "the job's status"))
       std::fprintf(stderr, "coordinator: %s\n", w.c_str());
     std::fflush(stderr);
-    auto server = HttpServer::Start(opt, StatusHandler(m->model_.get()));
+    auto server = proto::http::HttpServer::Start(opt, StatusHandler(m->model_.get()));
     if (!server.ok()) return server.status();
     m->http_ = std::move(*server);
     m->model_->SetUrl(m->http_->url() + "/");
@@ -55,4 +55,4 @@ void CoordinatorMonitoring::Finish(bool ok, const std::string& message, double l
     std::this_thread::sleep_for(std::chrono::duration<double>(linger_s));
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator::monitoring

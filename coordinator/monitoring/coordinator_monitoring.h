@@ -10,7 +10,7 @@
 #include "coordinator/monitoring/status_model.h"
 #include "proto/http/http_server.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator::monitoring {
 
 /// Default of `coordinator --http`: loopback, a free port chosen by the kernel (printed).
 inline constexpr const char* kDefaultHttp = "127.0.0.1:0";
@@ -43,8 +43,8 @@ class CoordinatorMonitoring {
   CoordinatorMonitoring() : fanout_({}) {}
   std::unique_ptr<StatusModel> model_;
   std::unique_ptr<EventLog> log_;
-  std::unique_ptr<HttpServer> http_;
+  std::unique_ptr<proto::http::HttpServer> http_;
   ObserverFanOut fanout_;
 };
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator::monitoring

@@ -2,7 +2,7 @@
 
 #include "proto/http/prometheus_text.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator::monitoring {
 
 namespace {
 // Everything inline: the page works from a machine with no other network access. The script
@@ -209,18 +209,18 @@ const std::string& DashboardHtml() {
   return html;
 }
 
-HttpServer::Handler StatusHandler(const StatusModel* model) {
-  return [model](const HttpRequest& req) -> HttpResponse {
+proto::http::HttpServer::Handler StatusHandler(const StatusModel* model) {
+  return [model](const proto::http::HttpRequest& req) -> proto::http::HttpResponse {
     if (req.path == "/" || req.path == "/index.html")
       return {200, "text/html; charset=utf-8", DashboardHtml()};
     if (req.path == "/status.json") return {200, "application/json", model->Json()};
     if (req.path == "/metrics")
       return {200, "text/plain; version=0.0.4; charset=utf-8",
-              model->Prometheus() + (req.server ? HttpServerMetrics(*req.server) : "")};
+              model->Prometheus() + (req.server ? proto::http::HttpServerMetrics(*req.server) : "")};
     if (req.path == "/healthz") return {200, "text/plain; charset=utf-8", "ok\n"};
     return {404, "text/plain; charset=utf-8",
             "404 Not Found: " + req.path + " (try /, /status.json, /metrics)\n"};
   };
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator::monitoring

@@ -9,12 +9,12 @@
 #include "proto/http/http_server.h"
 #include "proto/http/prometheus_text.h"  // HttpServerMetrics (/metrics ends with the server's counters)
 
-namespace poseforest::dist {
+namespace poseforest::coordinator::monitoring {
 
 /// The dashboard page (no external resources).
 const std::string& DashboardHtml();
 
 /// Routes requests to `model` (not owned; must outlive the server).
-HttpServer::Handler StatusHandler(const StatusModel* model);
+proto::http::HttpServer::Handler StatusHandler(const StatusModel* model);
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator::monitoring

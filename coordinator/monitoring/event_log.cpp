@@ -9,7 +9,7 @@
 
 #include "coordinator/monitoring/status_model.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator::monitoring {
 
 using core::ErrorCode;
 using core::Status;
@@ -93,4 +93,4 @@ void EventLog::OnStatus(const v1::StatusEvent& s) {
   Write(std::move(e));
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator::monitoring

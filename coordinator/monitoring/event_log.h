@@ -14,7 +14,7 @@
 #include "poseforest/v1/status.pb.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator::monitoring {
 
 class EventLog : public CoordinatorObserver {
  public:
@@ -38,4 +38,4 @@ class EventLog : public CoordinatorObserver {
   DistLevelStats last_level_;
 };
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator::monitoring

@@ -218,23 +218,24 @@ v1::JobStatus StatusAsJobStatus(const v1::StatusEvent& e, const std::string& job
 /// every 2 s). Every event carries the figures of the coordinator's /status.json and its newest
 /// 64 levels, so the view is the one of --url (`levels`: the per-level table of those); the last
 /// events are listed below it.
-int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job_id, bool once,
+int MonitorDds(uint32_t domain, const proto::dds::DdsFlags& dds_flags, std::string job_id, bool once,
                long interval_ms, long timeout_s, bool levels) {
   if (!dds_flags.resolved.empty())  // once: a name that moves later is not followed
     std::fprintf(stderr, "DDS host names resolved at start-up: %s\n", dds_flags.ResolvedText().c_str());
-  dds::NodeConfig cfg;
+  proto::dds::NodeConfig cfg;
   cfg.domain_id = domain;
   cfg.participant_name = "monitor-" + std::to_string(::getpid());
-  dist::ApplyDdsFlags(dds_flags, &cfg);
-  cfg.read_topics = {dds::Topic::kJob, dds::Topic::kStatus};
-  auto node = dds::DdsNode::Create(cfg);
+  proto::dds::ApplyDdsFlags(dds_flags, &cfg);
+  cfg.read_topics = {proto::dds::Topic::kJob, proto::dds::Topic::kStatus};
+  auto node = proto::dds::DdsNode::Create(cfg);
   if (!node.ok()) {
     std::fprintf(stderr, "monitor: %s\n", node.status().ToString().c_str());
     return 1;
   }
   // Hostile or garbled status events (NaN or negative rates, absurd counts) are dropped here
   // and counted; the count is shown.
-  dds::MessageGate gate(dds::GateConfig{cfg.participant_name, job_id, 16, [](const std::string&) {}});
+  proto::dds::MessageGate gate(
+      proto::dds::GateConfig{cfg.participant_name, job_id, 16, [](const std::string&) {}});
   std::string coordinator;
   int trees = 0, depth = 0;
   v1::StatusEvent last;
@@ -255,10 +256,10 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
       out +=
           "job " + (job_id.empty() ? std::string("-") : job_id) + "  state waiting (no status event yet)\n";
     } else {
-      const double age = std::clamp(dist::UnixSeconds() - t_last, 0.0, 5.0);
+      const double age = std::clamp(coordinator::monitoring::UnixSeconds() - t_last, 0.0, 5.0);
       const int rows = last.levels_size();
       out += Render(StatusAsJobStatus(last, job_id, trees, depth, age), levels,
-                    rows >= dist::StatusModel::kMaxStatusLevels
+                    rows >= coordinator::monitoring::StatusModel::kMaxStatusLevels
                         ? "the newest " + std::to_string(rows) + " (all of them: --url)"
                         : "");
     }
@@ -278,7 +279,7 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
     auto s = (*node)->Receive(std::chrono::milliseconds(50));
     if (s) {
       auto out = gate.Check(s->topic, s->bytes, s->writer_guid);
-      if (out.verdict == dds::MessageGate::Verdict::kAccepted) {
+      if (out.verdict == proto::dds::MessageGate::Verdict::kAccepted) {
         last_heard = std::chrono::steady_clock::now();
         const v1::Envelope& env = out.envelope;
         if (env.has_job() && (job_id.empty() || env.job_id() == job_id)) {
@@ -291,10 +292,11 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
         } else if (env.has_status()) {
           last = env.status();
           have_status = true;
-          t_last = s->source_timestamp_ns > 0 ? double(s->source_timestamp_ns) * 1e-9 : dist::UnixSeconds();
+          t_last = s->source_timestamp_ns > 0 ? double(s->source_timestamp_ns) * 1e-9
+                                              : coordinator::monitoring::UnixSeconds();
           if (last.kind() != v1::STATUS_KIND_PROGRESS) {
-            events.push_back(dist::StatusKindName(last.kind()) + " tree " + std::to_string(last.tree()) +
-                             " level " + std::to_string(last.level()) +
+            events.push_back(coordinator::monitoring::StatusKindName(last.kind()) + " tree " +
+                             std::to_string(last.tree()) + " level " + std::to_string(last.level()) +
                              (last.worker_id().empty() ? "" : " " + last.worker_id()) +
                              (last.message().empty() ? "" : " (" + last.message() + ")"));
             while (events.size() > 8) events.pop_front();
@@ -331,7 +333,7 @@ int MonitorDds(uint32_t domain, const dist::DdsFlags& dds_flags, std::string job
 int MonitorMain(int argc, char** argv) {
   std::set<std::string> value_options = {"url",       "http-token-file", "http-ca-file", "interval-ms",
                                          "timeout-s", "domain",          "job"};
-  for (const char* o : dist::kDdsValueOptions) value_options.insert(o);  // the DDS transport flags
+  for (const char* o : proto::dds::kDdsValueOptions) value_options.insert(o);  // the DDS transport flags
   Args args(value_options, {"once", "levels", "help"});
   if (Status st = args.Parse(argc, argv);
       !st.ok() || args.Has("help") || !args.positional().empty() || args.Has("url") == args.Has("domain")) {
@@ -379,7 +381,7 @@ int MonitorMain(int argc, char** argv) {
   }
   if (args.Has("domain")) {
     auto domain = args.GetInt("domain", 0, 0, 232);
-    auto dds_flags = dist::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
+    auto dds_flags = proto::dds::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
     if (!domain.ok() || !dds_flags.ok()) {
       std::fprintf(stderr, "monitor: %s\n",
                    (!domain.ok() ? domain.status() : dds_flags.status()).message().c_str());
@@ -390,7 +392,7 @@ int MonitorMain(int argc, char** argv) {
   }
   std::string token;
   if (args.Has("http-token-file")) {
-    auto t = dist::ReadHttpTokenFile(*args.Get("http-token-file"));
+    auto t = proto::http::ReadHttpTokenFile(*args.Get("http-token-file"));
     if (!t.ok()) {
       std::fprintf(stderr, "monitor: %s\n", t.status().message().c_str());
       return 2;
@@ -405,7 +407,7 @@ int MonitorMain(int argc, char** argv) {
       std::fprintf(stderr, "monitor: --http-ca-file is for https:// URLs (%s)\n", url.c_str());
       return 2;
     }
-    if (Status ca = dist::CheckHttpCaFile(ca_file); !ca.ok()) {
+    if (Status ca = proto::http::CheckHttpCaFile(ca_file); !ca.ok()) {
       std::fprintf(stderr, "monitor: %s\n", ca.message().c_str());
       return 2;
     }
@@ -415,7 +417,7 @@ int MonitorMain(int argc, char** argv) {
   auto last_ok = std::chrono::steady_clock::now();
   std::string last_state;
   for (;;) {
-    auto body = dist::HttpGet(url + "/status.json", std::chrono::milliseconds(5000), token, ca_file);
+    auto body = proto::http::HttpGet(url + "/status.json", std::chrono::milliseconds(5000), token, ca_file);
     v1::JobStatus status;
     Status st = body.ok() ? Status::Ok() : body.status();
     if (st.ok()) {

@@ -8,7 +8,7 @@
 
 #include "proto/http/prometheus_text.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator::monitoring {
 
 namespace {
 double SteadySeconds() {
@@ -433,7 +433,7 @@ std::string StatusModel::Prometheus() const {
   // Prometheus attaches its own `job` label (the scrape job) to every sample; a target's own
   // `job` label would clash with it (renamed exported_job, or overriding it with honor_labels), so
   // ours is exported_job from the start.
-  const std::string job = "exported_job=\"" + PromLabelValue(info_.job_id) + "\"";
+  const std::string job = "exported_job=\"" + proto::http::PromLabelValue(info_.job_id) + "\"";
   std::string m =
       "# HELP poseforest_build_info The poseforest build serving these metrics (always 1).\n"
       "# TYPE poseforest_build_info gauge\n"
@@ -442,7 +442,7 @@ std::string StatusModel::Prometheus() const {
                     const std::vector<std::pair<std::string, double>>& samples) {
     m += "# HELP " + name + " " + help + "\n# TYPE " + name + " " + type + "\n";
     for (const auto& [labels, v] : samples)
-      m += name + "{" + job + (labels.empty() ? "" : "," + labels) + "} " + PromNumber(v) + "\n";
+      m += name + "{" + job + (labels.empty() ? "" : "," + labels) + "} " + proto::http::PromNumber(v) + "\n";
   };
   const double eta = Eta();
   std::vector<std::pair<std::string, double>> states;
@@ -492,11 +492,12 @@ std::string StatusModel::Prometheus() const {
   for (const char* s : {"joined", "training", "lost", "evicted", "done"}) by_state[s] = 0;
   for (const auto& [id, w] : workers_) ++by_state[w.state];
   std::vector<std::pair<std::string, double>> ws;
-  for (const auto& [s, n] : by_state) ws.push_back({"state=\"" + PromLabelValue(s) + "\"", double(n)});
+  for (const auto& [s, n] : by_state)
+    ws.push_back({"state=\"" + proto::http::PromLabelValue(s) + "\"", double(n)});
   metric("poseforest_workers", "gauge", "Workers by state.", ws);
   std::vector<std::pair<std::string, double>> up, rate, evals, bytes, seen;
   for (const auto& [id, w] : workers_) {
-    const std::string l = "worker=\"" + PromLabelValue(id) + "\"";
+    const std::string l = "worker=\"" + proto::http::PromLabelValue(id) + "\"";
     up.push_back({l, w.state == "training" || w.state == "joined" ? 1 : 0});
     rate.push_back({l, WorkerRate(w, now)});
     evals.push_back({l, double(w.evaluations)});
@@ -507,7 +508,7 @@ std::string StatusModel::Prometheus() const {
   for (const auto& [id, w] : workers_) {
     if (w.task_tree < 0) continue;
     const std::string l =
-        "worker=\"" + PromLabelValue(id) + "\",tree=\"" + std::to_string(w.task_tree) + "\"";
+        "worker=\"" + proto::http::PromLabelValue(id) + "\",tree=\"" + std::to_string(w.task_tree) + "\"";
     task_rendered.push_back({l, double(w.task_rendered)});
     task_cached.push_back({l, double(w.task_cached)});
     task_evicted.push_back({l, double(w.task_evicted)});
@@ -529,4 +530,4 @@ std::string StatusModel::Prometheus() const {
   return m;
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator::monitoring

@@ -16,7 +16,7 @@
 #include "coordinator/dist_coordinator.h"
 #include "poseforest/v1/status.pb.h"
 
-namespace poseforest::dist {
+namespace poseforest::coordinator::monitoring {
 
 /// What the status model knows about the job before it starts.
 struct JobInfo {
@@ -168,4 +168,4 @@ std::string StatusKindName(v1::StatusKind kind);
 /// Seconds since the Unix epoch (wall clock).
 double UnixSeconds();
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::coordinator::monitoring

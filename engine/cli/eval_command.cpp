@@ -274,7 +274,7 @@ int EvalMain(int argc, char** argv) {
     return 2;
   }
   const std::string set = *args.Get("test-set");
-  auto named = coordinator::ResolveSourceArgument(set, coordinator::JobSource::kTestSet);
+  auto named = engine::ResolveSourceArgument(set, engine::JobSource::kTestSet);
   if (!named.ok()) {
     std::fprintf(stderr, "poseforest eval: --test-set %s\n", named.status().ToString().c_str());
     return named.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
@@ -285,7 +285,7 @@ int EvalMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest eval: %s\n", forest.status().ToString().c_str());
     return 1;
   }
-  coordinator::JointEvalOptions eo;
+  engine::JointEvalOptions eo;
   eo.num_images = num_images;
   eo.first_index = uint64_t(*first);
   eo.threads = int(*threads);
@@ -296,15 +296,15 @@ int EvalMain(int argc, char** argv) {
   eo.votes = !args.Has("no-votes");
   eo.fast = method == "both";
   eo.rescale = !args.Has("no-rescale");
-  eo.segment = segment == "on"    ? coordinator::JointEvalOptions::Segment::kOn
-               : segment == "off" ? coordinator::JointEvalOptions::Segment::kOff
-                                  : coordinator::JointEvalOptions::Segment::kAuto;
+  eo.segment = segment == "on"    ? engine::JointEvalOptions::Segment::kOn
+               : segment == "off" ? engine::JointEvalOptions::Segment::kOff
+                                  : engine::JointEvalOptions::Segment::kAuto;
   const bool quiet = args.Has("quiet");
   if (!quiet)
     eo.progress = [](int done, int total) {
       if (done % 25 == 0 || done == total) std::fprintf(stderr, "eval: %d / %d frames\n", done, total);
     };
-  auto e = coordinator::EvaluateForestJoints(*forest, named->source, eo);
+  auto e = engine::EvaluateForestJoints(*forest, named->source, eo);
   if (!e.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n", e.status().ToString().c_str());
     return e.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
@@ -312,11 +312,11 @@ int EvalMain(int argc, char** argv) {
   std::printf("forest %s on %s, %d frames", args.Get("forest")->c_str(), set.c_str(), num_images);
   if (eo.pixel_stride > 1) std::printf(", pixel stride %d", eo.pixel_stride);
   std::printf("\n\n");
-  std::fputs(coordinator::FormatConfusionText(e->confusion).c_str(), stdout);
+  std::fputs(engine::FormatConfusionText(e->confusion).c_str(), stdout);
   std::printf("\n");
-  std::fputs(coordinator::FormatAccuracyTable(e->confusion).c_str(), stdout);
+  std::fputs(engine::FormatAccuracyTable(e->confusion).c_str(), stdout);
   if (auto png = args.Get("png")) {
-    if (auto st = coordinator::WriteConfusionPng(e->confusion, *png); !st.ok()) {
+    if (auto st = engine::WriteConfusionPng(e->confusion, *png); !st.ok()) {
       std::fprintf(stderr, "poseforest eval: %s\n", st.ToString().c_str());
       return 1;
     }
@@ -327,15 +327,15 @@ int EvalMain(int argc, char** argv) {
     if (!e->has_joints) {
       std::printf("no joint average precision: %s has no ground-truth joints\n", set.c_str());
     } else {
-      std::fputs(coordinator::FormatJointApTable(*e).c_str(), stdout);
+      std::fputs(engine::FormatJointApTable(*e).c_str(), stdout);
       std::printf("\n");
-      std::fputs(coordinator::FormatSkeletonTable(*e).c_str(), stdout);
+      std::fputs(engine::FormatSkeletonTable(*e).c_str(), stdout);
       std::printf("ms/frame: classify %.1f, mean shift %.1f", e->classify_ms / e->frames,
                   e->mean_shift_ms / e->frames);
       if (e->ran_fast) std::printf(", fast clustering %.1f", e->fast_ms / e->frames);
       std::printf("\n");
       if (auto dir = args.Get("pr-png")) {
-        if (auto st = coordinator::WritePrCurves(*e, *dir); !st.ok()) {
+        if (auto st = engine::WritePrCurves(*e, *dir); !st.ok()) {
           std::fprintf(stderr, "poseforest eval: %s\n", st.ToString().c_str());
           return 1;
         }
@@ -366,8 +366,7 @@ int EvalMain(int argc, char** argv) {
         e->segmentation.size(), e->MeanIoU(), good, e->frames_right_count, e->frames,
         e->segment_ms / std::max(1, e->frames));
     const bool ap = e->has_joints && method != "none";
-    auto line = [&](const char* what, const coordinator::ConfusionMatrix& m,
-                    const runtime::JointApEvaluator& j) {
+    auto line = [&](const char* what, const engine::ConfusionMatrix& m, const runtime::JointApEvaluator& j) {
       std::printf("  %-44s average per-class accuracy %6.2f%%", what, 100.0 * m.AveragePerClassAccuracy());
       if (ap) std::printf(", mAP %.3f", j.MeanAveragePrecision());
       std::printf("\n");

@@ -19,9 +19,9 @@ core::Result<v1::TrainerConfig> ReadJobConfig(const std::string& path) {
   if (!in) return Status(core::ErrorCode::kIo, "cannot read " + path);
   std::stringstream text;
   text << in.rdbuf();
-  auto config = worker::ParseJobText(text.str(), path);
+  auto config = engine::ParseJobText(text.str(), path);
   if (!config.ok()) return config.status();
-  worker::ResolveJobPaths(path, &*config);
+  engine::ResolveJobPaths(path, &*config);
   return config;
 }
 
@@ -67,7 +67,7 @@ core::Result<JobDds> JobDdsDefaults(const v1::TrainerConfig& config, const std::
 
 /// `names` plus the DDS value options, for Args.
 std::set<std::string> WithDdsOptions(std::set<std::string> names) {
-  for (const char* o : dist::kDdsValueOptions) names.insert(o);
+  for (const char* o : proto::dds::kDdsValueOptions) names.insert(o);
   return names;
 }
 

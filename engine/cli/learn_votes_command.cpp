@@ -73,7 +73,7 @@ int LearnVotesMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest learn-votes: need --forest, --job and --out\n\n%s", kUsage);
     return 2;
   }
-  coordinator::VoteLearningOptions opt;
+  engine::VoteLearningOptions opt;
   auto max_offset = GetReal(args, "max-offset-m", opt.max_offset_m, 0.05, 3.0);
   auto leaf_bw = GetReal(args, "leaf-bandwidth-m", opt.leaf_bandwidth_m, 0.005, 0.5);
   auto vote_bw = GetReal(args, "vote-bandwidth-m", opt.vote_bandwidth_m, 0.005, 0.5);
@@ -91,12 +91,12 @@ int LearnVotesMain(int argc, char** argv) {
       std::fprintf(stderr, "poseforest learn-votes: %s\n", r->status().message().c_str());
       return 2;
     }
-  auto job = worker::LoadJob(*args.Get("job"));
+  auto job = engine::LoadJob(*args.Get("job"));
   if (!job.ok()) {
     std::fprintf(stderr, "poseforest learn-votes: %s\n", job.status().ToString().c_str());
     return job.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
   }
-  if (job->source.kind == worker::SourceKind::kProcedural) {
+  if (job->source.kind == engine::SourceKind::kProcedural) {
     std::fprintf(stderr, "poseforest learn-votes: %s: procedural frames have no joints\n",
                  args.Get("job")->c_str());
     return 2;
@@ -115,14 +115,14 @@ int LearnVotesMain(int argc, char** argv) {
   opt.validation_frames = int(*frames);
   opt.threads = int(*threads);
   opt.validation = job->source;
-  if (opt.validation.kind == worker::SourceKind::kRendered)
+  if (opt.validation.kind == engine::SourceKind::kRendered)
     opt.validation.seed = *seed >= 0 ? uint64_t(*seed) : job->source.seed + 1000003;
   if (!quiet)
     opt.progress = [](const std::string& line) {
       std::fprintf(stderr, "learn-votes: %s\n", line.c_str());
     };
-  coordinator::VoteLearningReport rep;
-  auto votes = coordinator::LearnOffsetVotes(*forest, *job, opt, &rep);
+  engine::VoteLearningReport rep;
+  auto votes = engine::LearnOffsetVotes(*forest, *job, opt, &rep);
   if (!votes.ok()) {
     std::fprintf(stderr, "poseforest learn-votes: %s\n", votes.status().ToString().c_str());
     return votes.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;

@@ -58,22 +58,22 @@ int TrainMain(int argc, char** argv) {
                  (!threads.ok() ? threads.status() : shards.status()).message().c_str());
     return 2;
   }
-  auto params = worker::LoadJob(args.positional()[0]);
+  auto params = engine::LoadJob(args.positional()[0]);
   if (!params.ok()) {
     std::fprintf(stderr, "poseforest train: %s\n", params.status().ToString().c_str());
     return 2;
   }
   if (*threads >= 0) params->threads = int(*threads);
   const bool quiet = args.Has("quiet");
-  std::printf("job %s: %s\n", args.positional()[0].c_str(), worker::DescribeParams(*params).c_str());
-  coordinator::LocalTrainerOptions opt;
+  std::printf("job %s: %s\n", args.positional()[0].c_str(), engine::DescribeParams(*params).c_str());
+  engine::LocalTrainerOptions opt;
   opt.num_shards = int(*shards);
   opt.log = [](const std::string& m) {
     std::printf("%s\n", m.c_str());
     std::fflush(stdout);
   };
   if (!quiet) {
-    opt.progress = [](const coordinator::LevelProgress& p) {
+    opt.progress = [](const engine::LevelProgress& p) {
       std::printf(
           "tree %d level %2d: %6zu nodes (%6zu split), %10llu samples, %.3g evaluations/s, %.1f s, %llu "
           "MiB\n",
@@ -82,7 +82,7 @@ int TrainMain(int argc, char** argv) {
       std::fflush(stdout);
     };
   }
-  coordinator::LocalTrainer trainer(*params, opt);
+  engine::LocalTrainer trainer(*params, opt);
   auto forest = trainer.Train();
   if (!forest.ok()) {
     std::fprintf(stderr, "poseforest train: %s\n", forest.status().ToString().c_str());
@@ -108,10 +108,10 @@ int TrainMain(int argc, char** argv) {
       static_cast<unsigned long long>(s.peak_sample_bytes / uint64_t(std::max(1, params->images_per_tree))),
       double(s.peak_histogram_bytes) / 1048576.0);
   if (params->has_test_set) {
-    coordinator::EvalOptions eo;
+    engine::EvalOptions eo;
     eo.num_images = params->test_images;
     eo.threads = params->threads;
-    auto m = coordinator::EvaluateForest(*forest, params->test_source, eo);
+    auto m = engine::EvaluateForest(*forest, params->test_source, eo);
     if (!m.ok()) {
       std::fprintf(stderr, "poseforest train: test set: %s\n", m.status().ToString().c_str());
       return 1;

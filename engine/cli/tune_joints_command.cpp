@@ -93,20 +93,20 @@ int TuneJointsMain(int argc, char** argv) {
   }
   const bool tune_ms = method != "fast", tune_fast = method != "meanshift";
   const std::string set = *args.Get("validation");
-  auto named = coordinator::ResolveSourceArgument(
-      set, from == "test" ? coordinator::JobSource::kTestSet : coordinator::JobSource::kTraining);
+  auto named = engine::ResolveSourceArgument(
+      set, from == "test" ? engine::JobSource::kTestSet : engine::JobSource::kTraining);
   if (!named.ok()) {
     std::fprintf(stderr, "poseforest tune-joints: --validation %s\n", named.status().ToString().c_str());
     return named.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
   }
-  worker::SourceSpec source = named->source;
+  engine::SourceSpec source = named->source;
   std::string what;
-  if (source.kind == worker::SourceKind::kRendered) {
+  if (source.kind == engine::SourceKind::kRendered) {
     source.seed = *seed >= 0 ? uint64_t(*seed) : source.seed + 1000003;
     what = "rendered seed " + std::to_string(source.seed) + ", " +
            (from == "test" ? "the job's test_set source (held-out clips)"
                            : "the job's training source (train clips, frames not trained on)");
-  } else if (source.kind == worker::SourceKind::kDataset) {
+  } else if (source.kind == engine::SourceKind::kDataset) {
     what = "folder " + source.folder;
   } else {
     std::fprintf(stderr, "poseforest tune-joints: --validation %s: procedural frames have no joints\n",
@@ -125,7 +125,7 @@ int TuneJointsMain(int argc, char** argv) {
   if (!quiet) std::printf("validation: %d frames, %s\n", n, what.c_str());
   std::fflush(stdout);
   core::CameraIntrinsics camera;
-  auto valid = coordinator::MakeValidationFrames(
+  auto valid = engine::MakeValidationFrames(
       *forest, source, n, 0, int(*threads), int(*people),
       [&](int d, int t) {
         if (!quiet && (d % 20 == 0 || d == t))

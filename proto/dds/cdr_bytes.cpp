@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cstring>
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 void EncodeCdrBytes(std::span<const uint8_t> bytes, uint8_t* out) {
   const uint32_t n = static_cast<uint32_t>(bytes.size());
@@ -36,4 +36,4 @@ bool DecodeCdrBytes(std::span<const uint8_t> payload, std::vector<uint8_t>* byte
   return ok;
 }
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

@@ -8,7 +8,7 @@
 #include <span>
 #include <vector>
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 inline constexpr uint32_t kCdrHeaderBytes = 8;  ///< encapsulation (4) + sequence length (4)
 inline constexpr uint32_t kMaxSampleBytes = 256u << 20;
@@ -21,4 +21,4 @@ void EncodeCdrBytes(std::span<const uint8_t> bytes, uint8_t* out);
 /// drop it and blame its writer instead of Fast DDS discarding it silently.
 bool DecodeCdrBytes(std::span<const uint8_t> payload, std::vector<uint8_t>* bytes);
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

@@ -15,7 +15,7 @@
 #include "proto/dds/node_config.h"
 #include "proto/dds/xml_profile_check.h"
 
-namespace poseforest::dist {
+namespace poseforest::proto::dds {
 
 using core::ErrorCode;
 using core::Result;
@@ -47,7 +47,7 @@ std::optional<std::string> Env(const char* name) {
 }  // namespace
 
 Result<std::vector<std::string>> ResolveIPv4(const std::string& name) {
-  if (dds::IsIPv4Address(name)) return std::vector<std::string>{name};
+  if (IsIPv4Address(name)) return std::vector<std::string>{name};
   addrinfo hints{};
   hints.ai_family = AF_INET;
   hints.ai_socktype = SOCK_DGRAM;
@@ -81,19 +81,19 @@ std::string DdsFlags::ResolvedText() const {
 std::string DdsFlags::Label() const {
   std::string s;
   switch (transport) {
-    case dds::TransportKind::kDefault:
+    case TransportKind::kDefault:
       s = "default";
       break;
-    case dds::TransportKind::kSharedMemoryOnly:
+    case TransportKind::kSharedMemoryOnly:
       s = "shm";
       break;
-    case dds::TransportKind::kUdpOnly:
+    case TransportKind::kUdpOnly:
       s = "udp";
       break;
-    case dds::TransportKind::kDiscoveryClient:
+    case TransportKind::kDiscoveryClient:
       s = "discovery-server";
       break;
-    case dds::TransportKind::kXmlProfile:
+    case TransportKind::kXmlProfile:
       s = "xml:" + extras.xml_profile;
       break;
   }
@@ -104,13 +104,13 @@ std::string DdsFlags::Label() const {
 std::string DdsFlags::Describe() const {
   std::string s;
   switch (transport) {
-    case dds::TransportKind::kDefault:
+    case TransportKind::kDefault:
       s = "shared memory + UDP (--profile default)";
       break;
-    case dds::TransportKind::kSharedMemoryOnly:
+    case TransportKind::kSharedMemoryOnly:
       s = "shared memory (--profile shm)";
       break;
-    case dds::TransportKind::kUdpOnly: {
+    case TransportKind::kUdpOnly: {
       s = "UDP, initial peers ";
       std::string list;
       for (const auto& p : peers.empty() ? std::vector<std::string>{"127.0.0.1"} : peers)
@@ -118,22 +118,22 @@ std::string DdsFlags::Describe() const {
       s += list;
       break;
     }
-    case dds::TransportKind::kDiscoveryClient: {
+    case TransportKind::kDiscoveryClient: {
       // Each server with the id and GUID prefix the client expects of it (--check-config).
-      auto servers = dds::ParseDiscoveryServers(extras.discovery_server);
+      auto servers = ParseDiscoveryServers(extras.discovery_server);
       if (!servers.ok()) {
         s = "UDP, discovery server " + extras.discovery_server;
         break;
       }
       s = servers->size() == 1 ? "UDP, discovery server " : "UDP, discovery servers ";
       for (size_t i = 0; i < servers->size(); ++i) {
-        const dds::DiscoveryServerAddress& a = (*servers)[i];
-        s += (i ? ", " : "") + dds::FormatDiscoveryServers({a}) + " (id " + std::to_string(a.id) +
-             ", GUID prefix " + dds::DiscoveryServerGuidPrefix(a.id) + ")";
+        const DiscoveryServerAddress& a = (*servers)[i];
+        s += (i ? ", " : "") + FormatDiscoveryServers({a}) + " (id " + std::to_string(a.id) +
+             ", GUID prefix " + DiscoveryServerGuidPrefix(a.id) + ")";
       }
       break;
     }
-    case dds::TransportKind::kXmlProfile:
+    case TransportKind::kXmlProfile:
       s = "Fast DDS XML profile " + extras.xml_profile + " of " + extras.xml_file;
       break;
   }
@@ -155,20 +155,20 @@ std::vector<std::string> DdsFlags::TransportArgs() const {
   };
   std::vector<std::string> a;
   switch (transport) {
-    case dds::TransportKind::kDefault:
+    case TransportKind::kDefault:
       a = {"--profile", "default"};
       break;
-    case dds::TransportKind::kSharedMemoryOnly:
+    case TransportKind::kSharedMemoryOnly:
       a = {"--profile", "shm"};
       break;
-    case dds::TransportKind::kUdpOnly:
+    case TransportKind::kUdpOnly:
       a = {"--profile", "udp"};
       if (!peers.empty()) a.insert(a.end(), {"--peers", join(peers)});
       break;
-    case dds::TransportKind::kDiscoveryClient:
+    case TransportKind::kDiscoveryClient:
       a = {"--discovery-server", extras.discovery_server};
       break;
-    case dds::TransportKind::kXmlProfile:
+    case TransportKind::kXmlProfile:
       a = {"--dds-xml", extras.xml_file, "--dds-profile", extras.xml_profile};
       break;
   }
@@ -176,7 +176,7 @@ std::vector<std::string> DdsFlags::TransportArgs() const {
   return a;
 }
 
-Result<dds::SecurityFiles> SecurityFilesIn(const std::string& dir, const std::string& flag) {
+Result<SecurityFiles> SecurityFilesIn(const std::string& dir, const std::string& flag) {
   std::error_code ec;
   fs::path d = fs::path(Absolute(dir));
   if (d.filename().empty()) d = d.parent_path();  // "ca/worker-1/": the parent is ca, not worker-1
@@ -184,7 +184,7 @@ Result<dds::SecurityFiles> SecurityFilesIn(const std::string& dir, const std::st
     return Status(ErrorCode::kIo, flag + " " + dir +
                                       ": not a directory (expected the folder of cert.pem, key.pem, "
                                       "permissions.p7s made by deploy/security/make-test-ca.sh)");
-  dds::SecurityFiles s;
+  SecurityFiles s;
   std::string missing;
   auto own = [&](const char* name, std::string* out) {
     if (Readable(d / name))
@@ -243,12 +243,12 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
                    ")");
 
   if (xml) {
-    f.transport = dds::TransportKind::kXmlProfile;
+    f.transport = TransportKind::kXmlProfile;
     if (xml->empty()) return invalid(xml_source + ": empty file name");
     if (xml_profile->empty()) return invalid(profile_source + ": empty profile name");
     f.extras.xml_file = Absolute(*xml);
     f.extras.xml_profile = *xml_profile;
-    auto info = dds::CheckXmlParticipantProfile(f.extras.xml_file, f.extras.xml_profile);
+    auto info = CheckXmlParticipantProfile(f.extras.xml_file, f.extras.xml_profile);
     if (!info.ok())
       return Status(info.status().code(),
                     xml_source + *xml + " " + profile_source + *xml_profile + ": " + info.status().message());
@@ -261,14 +261,14 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
                      " contradicts it (leave --profile out)");
     if (peers)
       return invalid("--peers cannot be combined with --discovery-server (the server introduces the peers)");
-    auto list = dds::ParseDiscoveryServers(*server);
+    auto list = ParseDiscoveryServers(*server);
     if (!list.ok()) return invalid("--discovery-server " + *server + ": " + list.status().message());
     // Names -> their first address (one server is one locator); then no two entries may meet at
     // one address and port, which ParseDiscoveryServers could only check for what was written.
     std::vector<std::string> written;
-    for (dds::DiscoveryServerAddress& a : *list) {
-      written.push_back(dds::FormatDiscoveryServers({a}));
-      if (dds::IsIPv4Address(a.host)) continue;
+    for (DiscoveryServerAddress& a : *list) {
+      written.push_back(FormatDiscoveryServers({a}));
+      if (IsIPv4Address(a.host)) continue;
       auto addresses = ResolveIPv4(a.host);
       if (!addresses.ok())
         return Status(addresses.status().code(),
@@ -281,13 +281,13 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
         if ((*list)[i].host == (*list)[j].host && (*list)[i].port == (*list)[j].port)
           return invalid("--discovery-server " + *server + ": " + written[i] + " and " + written[j] +
                          " are the same address " + (*list)[i].host + ":" + std::to_string((*list)[i].port));
-    f.transport = dds::TransportKind::kDiscoveryClient;
-    f.extras.discovery_server = dds::FormatDiscoveryServers(*list);
+    f.transport = TransportKind::kDiscoveryClient;
+    f.extras.discovery_server = FormatDiscoveryServers(*list);
   } else {
     auto kind = ParseProfile(profile.value_or("shm"));
     if (!kind.ok()) return kind.status();
     f.transport = *kind;
-    if (peers && f.transport != dds::TransportKind::kUdpOnly) return invalid("--peers needs --profile udp");
+    if (peers && f.transport != TransportKind::kUdpOnly) return invalid("--peers needs --profile udp");
     if (peers) {
       auto list = ParseAddressList(*peers, "peers", true, true);
       if (!list.ok()) return list.status();
@@ -298,7 +298,7 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
         const std::string host = item.substr(0, colon),
                           port = colon == std::string::npos ? "" : item.substr(colon);
         std::vector<std::string> addresses = {host};
-        if (!dds::IsIPv4Address(host)) {
+        if (!IsIPv4Address(host)) {
           auto resolved = ResolveIPv4(host);
           if (!resolved.ok())
             return Status(resolved.status().code(), "--peers " + *peers + ": " + resolved.status().message());
@@ -314,7 +314,7 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
     }
   }
   if (interfaces) {
-    if (f.transport != dds::TransportKind::kUdpOnly && f.transport != dds::TransportKind::kDiscoveryClient)
+    if (f.transport != TransportKind::kUdpOnly && f.transport != TransportKind::kDiscoveryClient)
       return invalid("--interfaces needs --profile udp or --discovery-server");
     auto list = ParseAddressList(*interfaces, "interfaces", false);
     if (!list.ok()) return list.status();
@@ -330,14 +330,13 @@ Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(co
   return f;
 }
 
-void ApplyDdsFlags(const DdsFlags& flags, dds::NodeConfig* c) {
+void ApplyDdsFlags(const DdsFlags& flags, NodeConfig* c) {
   c->transport = flags.transport;
-  if (flags.transport == dds::TransportKind::kUdpOnly) {
+  if (flags.transport == TransportKind::kUdpOnly) {
     c->initial_peers = flags.peers.empty() ? std::vector<std::string>{"127.0.0.1"} : flags.peers;
     c->peer_participant_ids = 16;
   }
-  if (flags.transport == dds::TransportKind::kUdpOnly ||
-      flags.transport == dds::TransportKind::kDiscoveryClient)
+  if (flags.transport == TransportKind::kUdpOnly || flags.transport == TransportKind::kDiscoveryClient)
     c->interface_whitelist = flags.interfaces;
   if (!flags.extras.discovery_server.empty()) c->discovery_server = flags.extras.discovery_server;
   c->xml_file = flags.extras.xml_file;
@@ -347,4 +346,4 @@ void ApplyDdsFlags(const DdsFlags& flags, dds::NodeConfig* c) {
   c->write_block_slice = flags.extras.write_block_slice;
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::proto::dds

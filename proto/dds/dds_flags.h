@@ -27,17 +27,17 @@
 #include "proto/dds/dds_node.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dist {
+namespace poseforest::proto::dds {
 
 /// Transport settings beyond the profile, peers and interfaces; empty fields are unused.
 struct TransportExtras {
   std::string xml_file;     ///< kXmlProfile: absolute path of the Fast DDS XML file
   std::string xml_profile;  ///< kXmlProfile: participant profile name in it
   /// kDiscoveryClient: the servers, canonical "a.b.c.d:port" (id 0) or "ID@a.b.c.d:port", comma-
-  /// separated (dds::FormatDiscoveryServers); one id-0 server is "a.b.c.d:port" as before.
+  /// separated (FormatDiscoveryServers); one id-0 server is "a.b.c.d:port" as before.
   std::string discovery_server;
-  dds::SecurityFiles security;  ///< DDS-Security on any transport when enabled() (absolute paths)
-  /// Flow-control settings of the keep-all topics (dds::NodeConfig): tests lower them to fill a
+  SecurityFiles security;  ///< DDS-Security on any transport when enabled() (absolute paths)
+  /// Flow-control settings of the keep-all topics (NodeConfig): tests lower them to fill a
   /// history at CI size; 0 / the default: the node's.
   int keep_all_max_samples = 0;
   std::chrono::milliseconds write_block_slice{10000};
@@ -65,7 +65,7 @@ core::Result<std::vector<std::string>> ResolveIPv4(const std::string& name);
 
 /// Checked DDS settings of one command line.
 struct DdsFlags {
-  dds::TransportKind transport = dds::TransportKind::kSharedMemoryOnly;
+  TransportKind transport = TransportKind::kSharedMemoryOnly;
   /// kUdpOnly: initial peers (empty: 127.0.0.1); kUdpOnly / kDiscoveryClient: local interfaces.
   /// IPv4 addresses ("a.b.c.d[:port]"): host names of --peers are replaced by all their addresses.
   std::vector<std::string> peers, interfaces;
@@ -107,11 +107,10 @@ core::Result<DdsFlags> ParseDdsFlags(
 /// (make-test-ca.sh OUT writes OUT/NAME/{cert.pem,key.pem,permissions.p7s} and the shared
 /// files in OUT; a mounted Kubernetes Secret holds all six in one folder). Paths are absolute.
 /// Errors name each missing file and where it was looked for.
-core::Result<dds::SecurityFiles> SecurityFilesIn(const std::string& dir,
-                                                 const std::string& flag = "--security");
+core::Result<SecurityFiles> SecurityFilesIn(const std::string& dir, const std::string& flag = "--security");
 
 /// Sets `config`'s transport, peers, interfaces, XML profile, discovery server and security
 /// from `flags` (kUdpOnly without peers: 127.0.0.1, participant ids 0..15).
-void ApplyDdsFlags(const DdsFlags& flags, dds::NodeConfig* config);
+void ApplyDdsFlags(const DdsFlags& flags, NodeConfig* config);
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::proto::dds

@@ -33,7 +33,7 @@
 
 #include "proto/dds/proto_bytes_type.h"
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 namespace fdds = eprosima::fastdds::dds;
 namespace frtps = eprosima::fastrtps::rtps;
@@ -741,4 +741,4 @@ std::string DdsNode::participant_guid() const { return ToString(impl_->participa
 
 const NodeConfig& DdsNode::config() const { return impl_->config; }
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

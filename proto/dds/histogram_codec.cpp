@@ -3,7 +3,7 @@
 #include <limits>
 #include <string>
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 using core::ErrorCode;
 using core::Status;
@@ -107,4 +107,4 @@ Status ValidateNodeHistogram(const poseforest::v1::NodeHistogram& node, const Hi
   return Status::Ok();
 }
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

@@ -10,7 +10,7 @@
 #include "poseforest/v1/wire.pb.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 /// Dimensions of one node's histogram tensor.
 struct HistogramDims {
@@ -36,4 +36,4 @@ core::Result<std::vector<uint32_t>> DecodeHistogramRuns(const google::protobuf::
 /// candidate's counts sum to `samples` and part_counts (num_parts entries) sum to `samples`.
 core::Status ValidateNodeHistogram(const poseforest::v1::NodeHistogram& node, const HistogramDims& dims);
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

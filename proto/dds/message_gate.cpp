@@ -7,7 +7,7 @@
 
 #include "runtime/core/crc32.h"
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 namespace v1 = poseforest::v1;
 using core::ErrorCode;
@@ -493,4 +493,4 @@ const MessageGate::SenderStats* MessageGate::stats(const std::string& sender) co
   return it == stats_.end() ? nullptr : &it->second;
 }
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

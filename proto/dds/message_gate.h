@@ -21,7 +21,7 @@
 #include "proto/dds/topics.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 /// Protocol version this build speaks (major).
 inline constexpr poseforest::v1::ProtocolVersion kProtocolVersion = poseforest::v1::PROTOCOL_VERSION_1;
@@ -148,4 +148,4 @@ class MessageGate {
   uint64_t total_rejected_ = 0;
 };
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

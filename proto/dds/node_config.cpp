@@ -9,24 +9,23 @@
 #include <limits>
 #include <random>
 
-namespace poseforest::dist {
+namespace poseforest::proto::dds {
 
 using core::ErrorCode;
 using core::Result;
 using core::Status;
 
-Result<dds::TransportKind> ParseProfile(const std::string& name) {
-  if (name == "shm") return dds::TransportKind::kSharedMemoryOnly;
-  if (name == "udp") return dds::TransportKind::kUdpOnly;
-  if (name == "default") return dds::TransportKind::kDefault;
+Result<TransportKind> ParseProfile(const std::string& name) {
+  if (name == "shm") return TransportKind::kSharedMemoryOnly;
+  if (name == "udp") return TransportKind::kUdpOnly;
+  if (name == "default") return TransportKind::kDefault;
   return Status(ErrorCode::kInvalidArgument, "--profile " + name + ": expected shm, udp or default");
 }
 
-dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bool coordinator,
-                               const std::string& name, std::chrono::milliseconds lease,
-                               const std::vector<std::string>& peers,
-                               const std::vector<std::string>& interfaces, const TransportExtras& extras) {
-  dds::NodeConfig c;
+NodeConfig MakeNodeConfig(uint32_t domain, TransportKind transport, bool coordinator, const std::string& name,
+                          std::chrono::milliseconds lease, const std::vector<std::string>& peers,
+                          const std::vector<std::string>& interfaces, const TransportExtras& extras) {
+  NodeConfig c;
   c.domain_id = domain;
   c.participant_name = name;
   c.liveliness_lease = lease;
@@ -36,7 +35,6 @@ dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bo
   flags.interfaces = interfaces;
   flags.extras = extras;
   ApplyDdsFlags(flags, &c);
-  using dds::Topic;
   if (coordinator) {
     c.write_topics = {Topic::kJob, Topic::kControl, Topic::kStatus};
     c.read_topics = {Topic::kReplies, Topic::kPresence};
@@ -64,7 +62,7 @@ Result<std::vector<std::string>> ParseAddressList(const std::string& value, cons
     // More than one ':' (or a '['): an IPv6 address, which CheckHost refuses with its reason.
     const bool v6 = item.find('[') != std::string::npos || item.find(':') != item.rfind(':');
     const size_t colon = v6 ? std::string::npos : item.find(':');
-    if (Status host = dds::CheckHost(item.substr(0, colon), allow_names); !host.ok())
+    if (Status host = CheckHost(item.substr(0, colon), allow_names); !host.ok())
       return bad(item, host.message() + " (expected " + form + ")");
     if (colon != std::string::npos) {
       const std::string port = item.substr(colon + 1);
@@ -96,4 +94,4 @@ std::string DefaultWorkerId() {
   return "worker-" + std::string(host) + "-" + std::to_string(::getpid()) + "-" + suffix;
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::proto::dds

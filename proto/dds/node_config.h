@@ -12,11 +12,11 @@
 #include "proto/dds/dds_node.h"
 #include "runtime/core/result.h"
 
-namespace poseforest::dist {
+namespace poseforest::proto::dds {
 
 /// Transport profile names accepted by --profile: "shm" (shared memory only), "udp" (UDPv4 only,
 /// loopback + interfaces), "default" (shared memory + UDP). Errors name the bad value.
-core::Result<dds::TransportKind> ParseProfile(const std::string& name);
+core::Result<TransportKind> ParseProfile(const std::string& name);
 
 /// Participant settings of a trainer node on `domain` with `transport`, reading/writing the topics
 /// of a coordinator (`coordinator` true) or a worker. `lease`: presence liveliness lease.
@@ -25,14 +25,13 @@ core::Result<dds::TransportKind> ParseProfile(const std::string& name);
 /// (kUdpOnly, kDiscoveryClient). `extras`: the XML profile (kXmlProfile), the discovery server
 /// (kDiscoveryClient) and DDS-Security credentials (any transport) of the --dds-xml,
 /// --discovery-server and --security flags (dds_flags.h).
-dds::NodeConfig MakeNodeConfig(uint32_t domain, dds::TransportKind transport, bool coordinator,
-                               const std::string& name, std::chrono::milliseconds lease,
-                               const std::vector<std::string>& peers = {},
-                               const std::vector<std::string>& interfaces = {},
-                               const TransportExtras& extras = {});
+NodeConfig MakeNodeConfig(uint32_t domain, TransportKind transport, bool coordinator, const std::string& name,
+                          std::chrono::milliseconds lease, const std::vector<std::string>& peers = {},
+                          const std::vector<std::string>& interfaces = {},
+                          const TransportExtras& extras = {});
 
 /// Splits a comma-separated --peers / --interfaces value; InvalidArgument naming `flag` and the
-/// entry for one that is not an IPv4 address, or with `allow_names` a host name (dds::CheckHost;
+/// entry for one that is not an IPv4 address, or with `allow_names` a host name (CheckHost;
 /// the names are kept as written: ParseDdsFlags resolves them), with an optional :port when
 /// `allow_port`. IPv6 addresses are refused by name.
 core::Result<std::vector<std::string>> ParseAddressList(const std::string& value, const std::string& flag,
@@ -48,4 +47,4 @@ double NowSeconds();
 /// of one process always differ and those of different processes differ but by chance (2^-24).
 std::string DefaultWorkerId();
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::proto::dds

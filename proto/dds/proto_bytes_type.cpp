@@ -3,7 +3,7 @@
 #include "proto/dds/cdr_bytes.h"
 #include "proto/dds/topics.h"
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 ProtoBytesType::ProtoBytesType() {
   setName(kEnvelopeTypeName);
@@ -48,4 +48,4 @@ void ProtoBytesType::deleteData(void* data) { delete static_cast<ProtoBytesSampl
 
 bool ProtoBytesType::getKey(void*, eprosima::fastrtps::rtps::InstanceHandle_t*, bool) { return false; }
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

@@ -14,7 +14,7 @@
 
 #include "proto/dds/cdr_bytes.h"
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 /// The sample type handed to DataWriter::write / DataReader::take.
 struct ProtoBytesSample {
@@ -38,4 +38,4 @@ class ProtoBytesType : public eprosima::fastdds::dds::TopicDataType {
   bool is_plain() const override { return false; }
 };
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

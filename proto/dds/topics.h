@@ -20,7 +20,7 @@
 #include <optional>
 #include <string_view>
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 enum class Topic : uint8_t { kJob = 0, kControl, kReplies, kPresence, kStatus };
 inline constexpr int kNumTopics = 5;
@@ -52,4 +52,4 @@ inline constexpr const char* TopicName(Topic t) {
 /// Short name for logs ("control").
 inline constexpr const char* TopicShortName(Topic t) { return TopicName(t) + 11; }
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

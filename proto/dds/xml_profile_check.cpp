@@ -7,7 +7,7 @@
 #include <regex>
 #include <sstream>
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 namespace fdds = eprosima::fastdds::dds;
 using core::ErrorCode;
@@ -61,4 +61,4 @@ core::Result<XmlProfileInfo> CheckXmlParticipantProfile(const std::string& xml_f
   return info;
 }
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

@@ -8,7 +8,7 @@
 
 #include "runtime/core/result.h"
 
-namespace poseforest::dds {
+namespace poseforest::proto::dds {
 
 struct XmlProfileInfo {
   /// The profile sets DDS-Security properties (dds.sec.*) itself.
@@ -28,4 +28,4 @@ core::Result<XmlProfileInfo> CheckXmlParticipantProfile(const std::string& xml_f
 /// of the text, for error messages and listings).
 std::vector<std::string> ParticipantProfileNames(const std::string& xml_text);
 
-}  // namespace poseforest::dds
+}  // namespace poseforest::proto::dds

@@ -30,7 +30,7 @@
 // cpp-httplib with its OpenSSL support (CPPHTTPLIB_OPENSSL_SUPPORT comes with the pkg-config target).
 #include <httplib.h>
 
-namespace poseforest::dist {
+namespace poseforest::proto::http {
 
 using core::ErrorCode;
 using core::Result;
@@ -1243,4 +1243,4 @@ Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds ti
   return body;
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::proto::http

@@ -27,7 +27,7 @@
 
 #include "runtime/core/result.h"
 
-namespace poseforest::dist {
+namespace poseforest::proto::http {
 
 class HttpServer;
 
@@ -160,4 +160,4 @@ class HttpServer {
 core::Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout,
                                   const std::string& bearer_token = "", const std::string& ca_file = "");
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::proto::http

@@ -11,7 +11,7 @@
 
 #include "proto/http/http_server.h"
 
-namespace poseforest::dist {
+namespace poseforest::proto::http {
 
 std::string PromLabelValue(std::string_view s) {
   std::string out;
@@ -122,4 +122,4 @@ std::string ProcessMetrics() {
   return out;
 }
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::proto::http

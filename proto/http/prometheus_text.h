@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-namespace poseforest::dist {
+namespace poseforest::proto::http {
 
 class HttpServer;
 
@@ -37,4 +37,4 @@ std::string HttpServerMetrics(const HttpServer& server);
 /// process_start_time_seconds (Unix time; from /proc, absent where it cannot be read).
 std::string ProcessMetrics();
 
-}  // namespace poseforest::dist
+}  // namespace poseforest::proto::http

@@ -21,7 +21,7 @@
 #include "tests/support/dds_domain.h"
 #include "worker/dist_worker.h"
 
-namespace poseforest::dist::testing {
+namespace poseforest::coordinator::testing {
 
 /// A fresh directory under the system temp dir ("<name>-<pid>"), removed with its contents.
 struct TempDir {
@@ -62,13 +62,13 @@ inline std::string TinyJobText(int trees = 2, int depth = 6, uint64_t subtree_ma
 
 struct Job {
   v1::TrainerConfig config;
-  worker::TrainParams params;
+  engine::TrainParams params;
 };
 
 inline Job ParseJob(const std::string& text) {
-  auto c = worker::ParseJobText(text, "tiny.textproto");
+  auto c = engine::ParseJobText(text, "tiny.textproto");
   if (!c.ok()) throw std::runtime_error(c.status().ToString());
-  auto p = worker::ParamsFromConfig(*c, "tiny.textproto");
+  auto p = engine::ParamsFromConfig(*c, "tiny.textproto");
   if (!p.ok()) throw std::runtime_error(p.status().ToString());
   p->threads = 1;
   return {*c, *p};
@@ -76,7 +76,7 @@ inline Job ParseJob(const std::string& text) {
 
 /// SerializeForest bytes of LocalTrainer on `job` (one shard).
 inline std::vector<uint8_t> ReferenceBytes(const Job& job) {
-  coordinator::LocalTrainer trainer(job.params, {});
+  engine::LocalTrainer trainer(job.params, {});
   auto forest = trainer.Train();
   if (!forest.ok()) throw std::runtime_error(forest.status().ToString());
   return core::SerializeForest(*forest);
@@ -95,22 +95,22 @@ class ThreadWorkers {
       Add(domain, job_id, "tw-" + std::to_string(::getpid()) + "-" + std::to_string(i));
   }
   void Add(uint32_t domain, const std::string& job_id, const std::string& id) {
-    WorkerOptions o;
+    worker::WorkerOptions o;
     o.worker_id = id;
     o.domain = domain;
     o.job_id = job_id;
     Add(std::move(o));
   }
   /// A worker with the caller's options (test hooks); threads 1, stays after the job.
-  void Add(WorkerOptions o) {
+  void Add(worker::WorkerOptions o) {
     o.threads = 1;
     o.exit_when_done = false;
     if (!std::getenv("POSEFOREST_TEST_VERBOSE")) o.log = [](const std::string&) {};
-    workers_.push_back(std::make_unique<DistWorker>(o));
-    DistWorker* w = workers_.back().get();
+    workers_.push_back(std::make_unique<worker::DistWorker>(o));
+    worker::DistWorker* w = workers_.back().get();
     threads_.emplace_back([w] { (void)w->Run(); });
   }
-  DistWorker& worker(size_t i) { return *workers_[i]; }
+  worker::DistWorker& worker(size_t i) { return *workers_[i]; }
   void Stop(size_t i) {
     workers_[i]->Stop();
     if (threads_[i].joinable()) threads_[i].join();
@@ -120,8 +120,8 @@ class ThreadWorkers {
   }
 
  private:
-  std::vector<std::unique_ptr<DistWorker>> workers_;
+  std::vector<std::unique_ptr<worker::DistWorker>> workers_;
   std::vector<std::thread> threads_;
 };
 
-}  // namespace poseforest::dist::testing
+}  // namespace poseforest::coordinator::testing

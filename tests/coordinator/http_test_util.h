@@ -22,7 +22,7 @@
 #include "tests/coordinator/dist_test_util.h"
 #include "tests/support/process.h"
 
-namespace poseforest::dist::testing {
+namespace poseforest::coordinator::testing {
 
 /// Collects the lines a server logs (HttpServerOptions::log; called on the serving thread).
 class LogLines {
@@ -130,4 +130,4 @@ inline std::string ElementText(const std::string& dom, const std::string& id) {
   return dom.substr(open + 1, close - open - 1);
 }
 
-}  // namespace poseforest::dist::testing
+}  // namespace poseforest::coordinator::testing

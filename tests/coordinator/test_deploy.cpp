@@ -39,9 +39,9 @@
 #include "tests/proto/dds_test_util.h"
 
 using namespace poseforest;
-using namespace poseforest::dist::testing;
-using poseforest::dds::testing::Child;
-using poseforest::dds::testing::HelperDir;
+using namespace poseforest::coordinator::testing;
+using poseforest::proto::dds::testing::Child;
+using poseforest::proto::dds::testing::HelperDir;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
@@ -156,18 +156,18 @@ TEST_CASE(
     "deploy: host names in --discovery-server and --peers, resolved once at start-up; unknown names refused",
     "[deploy][integration]") {
   // `localhost` comes from /etc/hosts (no DNS query); the IPv4 address, not ::1.
-  auto local = dist::ResolveIPv4("localhost");
+  auto local = proto::dds::ResolveIPv4("localhost");
   REQUIRE(local.ok());
   CHECK(std::find(local->begin(), local->end(), "127.0.0.1") != local->end());
-  for (const std::string& a : *local) CHECK(dds::IsIPv4Address(a));
-  CHECK(*dist::ResolveIPv4("10.1.2.3") == std::vector<std::string>{"10.1.2.3"});
+  for (const std::string& a : *local) CHECK(proto::dds::IsIPv4Address(a));
+  CHECK(*proto::dds::ResolveIPv4("10.1.2.3") == std::vector<std::string>{"10.1.2.3"});
   for (const char* ok : {"localhost", "coordinator-0.poseforest",
                          "dds-discovery.poseforest.svc.cluster.local.", "10.0.0.1", "a1"})
-    CHECK(dds::CheckHost(ok, true).ok());
+    CHECK(proto::dds::CheckHost(ok, true).ok());
   for (const char* bad :
        {"10.0.0", "10.0.0.256", "-x.local", "x-.local", "a..b", "a_b", "::1", "fe80::1", "", "host.123"})
-    CHECK_FALSE(dds::CheckHost(bad, true).ok());
-  CHECK_FALSE(dds::CheckHost("localhost", false).ok());
+    CHECK_FALSE(proto::dds::CheckHost(bad, true).ok());
+  CHECK_FALSE(proto::dds::CheckHost("localhost", false).ok());
 
   TempDir dir("pf-deploy-names");
   const auto reference = WriteJobAndTrain(dir.path);

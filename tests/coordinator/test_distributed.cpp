@@ -15,15 +15,18 @@
 #include "tests/coordinator/dist_test_util.h"
 
 using namespace poseforest;
-using namespace poseforest::dist;
-using namespace poseforest::dist::testing;
+using namespace poseforest::engine;
+using namespace poseforest::proto::dds;
+using namespace poseforest::worker;
+using namespace poseforest::coordinator;
+using namespace poseforest::coordinator::testing;
 
 namespace {
 /// The naive reference of EncodeWireRuns: the dense wire tensor (num_candidates x num_bins x
 /// num_parts) of a node histogram built with `plan`; slot -> part through plan.part_slot.
-std::vector<uint32_t> ToWireCounts(const worker::NodeHistogram& hist, const worker::NodePlan& plan,
+std::vector<uint32_t> ToWireCounts(const engine::NodeHistogram& hist, const engine::NodePlan& plan,
                                    int num_parts) {
-  const worker::NodeHistogram dense = hist.sample_bins ? hist.ToDense() : hist;
+  const engine::NodeHistogram dense = hist.sample_bins ? hist.ToDense() : hist;
   const size_t k_count = size_t(dense.num_candidates), bins = size_t(dense.num_bins),
                slots = size_t(dense.num_slots);
   std::vector<int> part_of_slot(slots, 0);
@@ -108,19 +111,19 @@ TEST_CASE("a garbage writer on the replies and presence topics does not break th
   const uint32_t domain = Domain(11);
   const std::string job_id = "t-garbage";
   ThreadWorkers workers(2, domain, job_id);
-  dds::NodeConfig gc;
+  proto::dds::NodeConfig gc;
   gc.domain_id = domain;
   gc.participant_name = "garbage";
-  gc.transport = dds::TransportKind::kSharedMemoryOnly;
+  gc.transport = proto::dds::TransportKind::kSharedMemoryOnly;
   gc.liveliness_lease = CoordinatorOptions{}.lease;  // a longer offered lease would not match
-  gc.write_topics = {dds::Topic::kReplies, dds::Topic::kPresence};
-  auto garbage = dds::DdsNode::Create(gc);
+  gc.write_topics = {proto::dds::Topic::kReplies, proto::dds::Topic::kPresence};
+  auto garbage = proto::dds::DdsNode::Create(gc);
   REQUIRE(garbage.ok());
   std::atomic<bool> done{false};
   std::atomic<int> sent{0}, sent_matched{0};  // sent_matched: while a reader was matched
   std::thread writer([&] {
     std::mt19937 rng(3);
-    dds::EnvelopeStamper stamper(job_id, "evil", v1::SENDER_KIND_WORKER);
+    proto::dds::EnvelopeStamper stamper(job_id, "evil", v1::SENDER_KIND_WORKER);
     int i = 0;
     while (!done) {
       std::string bytes;
@@ -135,16 +138,16 @@ TEST_CASE("a garbage writer on the replies and presence topics does not break th
           auto* h = env.mutable_histogram();
           h->set_epoch(1);
           h->set_num_candidates(100000);
-          bytes = stamper.Seal(dds::Topic::kReplies, env);
+          bytes = stamper.Seal(proto::dds::Topic::kReplies, env);
           break;
         }
         default: {  // a hello with an invalid capacity
           v1::Envelope env;
           env.mutable_hello()->mutable_capacity()->set_threads(0);
-          bytes = stamper.Seal(dds::Topic::kPresence, env);
+          bytes = stamper.Seal(proto::dds::Topic::kPresence, env);
         }
       }
-      const dds::Topic topic = i % 3 == 0 ? dds::Topic::kPresence : dds::Topic::kReplies;
+      const proto::dds::Topic topic = i % 3 == 0 ? proto::dds::Topic::kPresence : proto::dds::Topic::kReplies;
       const bool matched = (*garbage)->MatchedReaders(topic) > 0;
       (void)(*garbage)->Publish(topic, bytes);
       ++sent;
@@ -243,18 +246,18 @@ TEST_CASE("a registered worker that sends bad replies is evicted; its frames go 
   const uint32_t domain = Domain(19);
   const std::string job_id = "t-evict";
   ThreadWorkers workers(2, domain, job_id);
-  dds::NodeConfig gc;
+  proto::dds::NodeConfig gc;
   gc.domain_id = domain;
   gc.participant_name = "liar";
-  gc.transport = dds::TransportKind::kSharedMemoryOnly;
+  gc.transport = proto::dds::TransportKind::kSharedMemoryOnly;
   gc.liveliness_lease = CoordinatorOptions{}.lease;  // a longer offered lease would not match
-  gc.write_topics = {dds::Topic::kReplies, dds::Topic::kPresence};
-  gc.read_topics = {dds::Topic::kControl};
-  auto liar = dds::DdsNode::Create(gc);
+  gc.write_topics = {proto::dds::Topic::kReplies, proto::dds::Topic::kPresence};
+  gc.read_topics = {proto::dds::Topic::kControl};
+  auto liar = proto::dds::DdsNode::Create(gc);
   REQUIRE(liar.ok());
   std::atomic<bool> done{false};
   std::thread writer([&] {
-    dds::EnvelopeStamper stamper(job_id, "liar", v1::SENDER_KIND_WORKER);
+    proto::dds::EnvelopeStamper stamper(job_id, "liar", v1::SENDER_KIND_WORKER);
     bool assigned = false;
     while (!done) {
       uint64_t request_epoch = 0;
@@ -270,7 +273,8 @@ TEST_CASE("a registered worker that sends bad replies is evicted; its frames go 
                            : presence.mutable_hello()->mutable_capacity();
       cap->set_threads(1);
       cap->set_renderer(v1::RENDERER_KIND_PROCEDURAL);
-      (void)(*liar)->Publish(dds::Topic::kPresence, stamper.Seal(dds::Topic::kPresence, presence));
+      (void)(*liar)->Publish(proto::dds::Topic::kPresence,
+                             stamper.Seal(proto::dds::Topic::kPresence, presence));
       for (int i = 0; request_epoch != 0 && i < 20; ++i) {  // answers of the wrong shape
         v1::Envelope env;
         auto* h = env.mutable_histogram();
@@ -278,7 +282,7 @@ TEST_CASE("a registered worker that sends bad replies is evicted; its frames go 
         h->set_num_candidates(1);
         h->set_num_bins(2);
         h->set_num_parts(31);
-        (void)(*liar)->Publish(dds::Topic::kReplies, stamper.Seal(dds::Topic::kReplies, env));
+        (void)(*liar)->Publish(proto::dds::Topic::kReplies, stamper.Seal(proto::dds::Topic::kReplies, env));
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
@@ -304,10 +308,10 @@ TEST_CASE("EncodeWireRuns gives the runs of EncodeHistogramRuns(ToWireCounts(...
     std::vector<uint64_t> part_counts(core::kNumParts, 0);
     const int present = 1 + int(rng() % core::kNumParts);
     for (int i = 0; i < present; ++i) part_counts[rng() % core::kNumParts] = 1;
-    worker::NodePlan plan;
+    engine::NodePlan plan;
     plan.SetParts(part_counts);
     const bool per_sample = trial % 3 == 0;
-    worker::NodeHistogram h;
+    engine::NodeHistogram h;
     h.Reset(uint32_t(trial), k, bins, plan.num_slots, per_sample);
     // Densities from empty to full, so that runs, isolated zeros and long gaps all occur.
     const uint32_t density = rng() % 101;
@@ -323,7 +327,7 @@ TEST_CASE("EncodeWireRuns gives the runs of EncodeHistogramRuns(ToWireCounts(...
     }
     google::protobuf::RepeatedField<uint64_t> direct, reference;
     EncodeWireRuns(h, plan, core::kNumParts, &direct);
-    dds::EncodeHistogramRuns(ToWireCounts(h, plan, core::kNumParts), &reference);
+    proto::dds::EncodeHistogramRuns(ToWireCounts(h, plan, core::kNumParts), &reference);
     INFO("trial " << trial << ": " << k << " candidates, " << bins << " bins, " << plan.num_slots << " slots"
                   << (per_sample ? ", per-sample bins" : ""));
     REQUIRE(std::vector<uint64_t>(direct.begin(), direct.end()) ==
@@ -355,14 +359,14 @@ TEST_CASE("DistWorker without an id gets worker-HOST-PID-RANDOM, a different one
 
 TEST_CASE("discovery server lists: [ID@]IP[:PORT], GUID prefixes of fast-discovery-server -i ID",
           "[distributed][unit]") {
-  CHECK(dds::DiscoveryServerGuidPrefix(0) == "44.53.00.5f.45.50.52.4f.53.49.4d.41");
-  CHECK(dds::DiscoveryServerGuidPrefix(1) == "44.53.01.5f.45.50.52.4f.53.49.4d.41");
-  CHECK(dds::DiscoveryServerGuidPrefix(200) == "44.53.c8.5f.45.50.52.4f.53.49.4d.41");
-  CHECK(dds::DiscoveryServerGuidPrefix(256).empty());
-  auto list = dds::ParseDiscoveryServers("10.0.0.1,3@10.0.0.2:7000,0@10.0.0.3:11811x");
+  CHECK(proto::dds::DiscoveryServerGuidPrefix(0) == "44.53.00.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(proto::dds::DiscoveryServerGuidPrefix(1) == "44.53.01.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(proto::dds::DiscoveryServerGuidPrefix(200) == "44.53.c8.5f.45.50.52.4f.53.49.4d.41");
+  CHECK(proto::dds::DiscoveryServerGuidPrefix(256).empty());
+  auto list = proto::dds::ParseDiscoveryServers("10.0.0.1,3@10.0.0.2:7000,0@10.0.0.3:11811x");
   REQUIRE_FALSE(list.ok());
   CHECK(list.status().message().find("'0@10.0.0.3:11811x' has port '11811x'") != std::string::npos);
-  list = dds::ParseDiscoveryServers("10.0.0.1,3@10.0.0.2:7000,,");
+  list = proto::dds::ParseDiscoveryServers("10.0.0.1,3@10.0.0.2:7000,,");
   REQUIRE(list.ok());
   REQUIRE(list->size() == 2);
   CHECK((*list)[0].id == 0);
@@ -372,6 +376,7 @@ TEST_CASE("discovery server lists: [ID@]IP[:PORT], GUID prefixes of fast-discove
   CHECK((*list)[1].id_given);
   CHECK((*list)[1].host == "10.0.0.2");
   CHECK((*list)[1].port == 7000);
-  CHECK(dds::FormatDiscoveryServers(*list) == "10.0.0.1:11811,3@10.0.0.2:7000");
-  CHECK(dds::FormatDiscoveryServers(*dds::ParseDiscoveryServers("0@10.0.0.1")) == "10.0.0.1:11811");
+  CHECK(proto::dds::FormatDiscoveryServers(*list) == "10.0.0.1:11811,3@10.0.0.2:7000");
+  CHECK(proto::dds::FormatDiscoveryServers(*proto::dds::ParseDiscoveryServers("0@10.0.0.1")) ==
+        "10.0.0.1:11811");
 }

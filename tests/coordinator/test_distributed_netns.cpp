@@ -26,8 +26,8 @@
 #include "tests/support/process.h"
 
 using namespace poseforest;
-using poseforest::dds::testing::Child;
-using poseforest::dds::testing::HelperDir;
+using poseforest::proto::dds::testing::Child;
+using poseforest::proto::dds::testing::HelperDir;
 using poseforest::testing::NetnsTopology;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
@@ -68,7 +68,7 @@ struct NetRun {
   std::filesystem::path dir;
   std::vector<uint8_t> reference;
   NetnsTopology topo{"pfdn"};
-  uint32_t domain = dist::testing::Domain(41);
+  uint32_t domain = coordinator::testing::Domain(41);
   std::string job_id = "netns-" + std::to_string(::getpid());
 
   explicit NetRun(const std::string& name) {

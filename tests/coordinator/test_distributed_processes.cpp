@@ -16,10 +16,9 @@
 #include "tests/support/process.h"
 
 using namespace poseforest;
-using namespace poseforest::dist;
-using namespace poseforest::dist::testing;
-using poseforest::dds::testing::Child;
-using poseforest::dds::testing::HelperDir;
+using namespace poseforest::coordinator::testing;
+using poseforest::proto::dds::testing::Child;
+using poseforest::proto::dds::testing::HelperDir;
 using namespace std::chrono_literals;
 
 namespace {

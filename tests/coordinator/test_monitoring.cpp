@@ -38,10 +38,12 @@
 #include "tests/support/process.h"
 
 using namespace poseforest;
-using namespace poseforest::dist;
-using namespace poseforest::dist::testing;
-using poseforest::dds::testing::Child;
-using poseforest::dds::testing::HelperDir;
+using namespace poseforest::proto::http;
+using namespace poseforest::coordinator;
+using namespace poseforest::coordinator::monitoring;
+using namespace poseforest::coordinator::testing;
+using poseforest::proto::dds::testing::Child;
+using poseforest::proto::dds::testing::HelperDir;
 using namespace std::chrono_literals;
 namespace pb = google::protobuf;
 namespace fs = std::filesystem;
@@ -576,7 +578,7 @@ TEST_CASE("export after a stopped job: finished trees + the tree in progress as 
   // Tree 0 is the finished job's tree 0 (same job, same seed): check against LocalTrainer.
   auto job = ParseJob(SmokeJob());
   job.params.threads = 2;
-  coordinator::LocalTrainer trainer(job.params, {});
+  engine::LocalTrainer trainer(job.params, {});
   auto full = trainer.Train();
   REQUIRE(full.ok());
   auto exported = core::LoadForest((dir.path / "leaves.pff").string());
@@ -777,45 +779,45 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
   const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
   // Heartbeat: evaluations_per_s must be finite, 0..1e13; evaluations at most 2^62.
   v1::Heartbeat hb;
-  *hb.mutable_capacity() = poseforest::dds::testing::Capacity(2);
+  *hb.mutable_capacity() = poseforest::proto::dds::testing::Capacity(2);
   hb.set_evaluations(123456);
   hb.set_evaluations_per_s(5e6);
-  CHECK(poseforest::dds::ValidateHeartbeat(hb).ok());
+  CHECK(poseforest::proto::dds::ValidateHeartbeat(hb).ok());
   for (double bad : {nan, inf, -inf, -1.0, 2e13, 1e300}) {
     v1::Heartbeat h = hb;
     h.set_evaluations_per_s(bad);
     INFO(bad);
-    CHECK_FALSE(poseforest::dds::ValidateHeartbeat(h).ok());
+    CHECK_FALSE(poseforest::proto::dds::ValidateHeartbeat(h).ok());
   }
   {
     v1::Heartbeat h = hb;
     h.set_evaluations(uint64_t(1) << 63);
-    CHECK_FALSE(poseforest::dds::ValidateHeartbeat(h).ok());
+    CHECK_FALSE(poseforest::proto::dds::ValidateHeartbeat(h).ok());
   }
 
   // The coordinator's gate drops them, counts them against the sender, and flags it.
   {
     std::vector<std::string> log;
-    poseforest::dds::MessageGate gate(
-        poseforest::dds::GateConfig{"coord", "job-1", 2, [&](const std::string& l) { log.push_back(l); }});
-    poseforest::dds::EnvelopeStamper w("job-1", "w-hostile", v1::SENDER_KIND_WORKER);
+    poseforest::proto::dds::MessageGate gate(poseforest::proto::dds::GateConfig{
+        "coord", "job-1", 2, [&](const std::string& l) { log.push_back(l); }});
+    poseforest::proto::dds::EnvelopeStamper w("job-1", "w-hostile", v1::SENDER_KIND_WORKER);
     auto send = [&](double rate) {
       v1::Envelope env;
       *env.mutable_heartbeat() = hb;
       env.mutable_heartbeat()->set_evaluations_per_s(rate);
-      const std::string bytes = w.Seal(poseforest::dds::Topic::kPresence, env);
+      const std::string bytes = w.Seal(poseforest::proto::dds::Topic::kPresence, env);
       return gate.Check(
-          poseforest::dds::Topic::kPresence,
+          poseforest::proto::dds::Topic::kPresence,
           std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
           "p1|writer1");
     };
-    CHECK(send(1e6).verdict == poseforest::dds::MessageGate::Verdict::kAccepted);
+    CHECK(send(1e6).verdict == poseforest::proto::dds::MessageGate::Verdict::kAccepted);
     auto out = send(nan);
-    CHECK(out.verdict == poseforest::dds::MessageGate::Verdict::kRejected);
+    CHECK(out.verdict == poseforest::proto::dds::MessageGate::Verdict::kRejected);
     CHECK(out.sender == "w-hostile");
     CHECK(out.detail.find("evaluations_per_s") != std::string::npos);
-    CHECK(send(-5).verdict == poseforest::dds::MessageGate::Verdict::kRejected);
-    CHECK(send(1e300).verdict == poseforest::dds::MessageGate::Verdict::kRejected);
+    CHECK(send(-5).verdict == poseforest::proto::dds::MessageGate::Verdict::kRejected);
+    CHECK(send(1e300).verdict == poseforest::proto::dds::MessageGate::Verdict::kRejected);
     CHECK(gate.total_rejected() == 3);
     CHECK(gate.TakeOffenders() == std::vector<std::string>{"w-hostile"});  // budget 2
     REQUIRE(!log.empty());
@@ -849,7 +851,7 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
   lv->set_evaluations_per_s(5e7);
   lv->set_seconds(0.02);
   lv->set_workers(2);
-  CHECK(poseforest::dds::ValidateStatus(ok).ok());
+  CHECK(poseforest::proto::dds::ValidateStatus(ok).ok());
   std::vector<std::pair<std::string, std::function<void(v1::StatusEvent&)>>> hostile = {
       {"NaN samples/s", [&](v1::StatusEvent& e) { e.set_samples_per_s(nan); }},
       {"negative evaluations/s", [&](v1::StatusEvent& e) { e.set_evaluations_per_s(-1); }},
@@ -888,7 +890,7 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
     v1::StatusEvent e = ok;
     spoil(e);
     INFO(name);
-    CHECK_FALSE(poseforest::dds::ValidateStatus(e).ok());
+    CHECK_FALSE(poseforest::proto::dds::ValidateStatus(e).ok());
   }
 
   // The status model fills events the gate accepts, whatever it was fed: a 300-byte worker id
@@ -924,7 +926,7 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
   filled.set_kind(v1::STATUS_KIND_PROGRESS);
   model.FillStatus(&filled);
   INFO(filled.DebugString());
-  CHECK(poseforest::dds::ValidateStatus(filled).ok());
+  CHECK(poseforest::proto::dds::ValidateStatus(filled).ok());
   CHECK(filled.level() == 2);
   CHECK(filled.level_nodes_done() == 1);
   CHECK(filled.level_nodes_total() == 4);
@@ -963,7 +965,7 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
     v1::StatusEvent e;
     e.set_kind(v1::STATUS_KIND_PROGRESS);
     many.FillStatus(&e);
-    CHECK(poseforest::dds::ValidateStatus(e).ok());
+    CHECK(poseforest::proto::dds::ValidateStatus(e).ok());
     REQUIRE(e.levels_size() == StatusModel::kMaxStatusLevels);
     CHECK(e.levels(0).tree() == 0);  // level 20 of tree 0 = the 21st of 84: 84 - 64 = 20 left out
     CHECK(e.levels(0).level() == 20);
@@ -978,7 +980,7 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
   done.set_kind(v1::STATUS_KIND_JOB_DONE);
   model.OnStatus(done);
   model.FillStatus(&done);
-  CHECK(poseforest::dds::ValidateStatus(done).ok());
+  CHECK(poseforest::proto::dds::ValidateStatus(done).ok());
   CHECK(done.workers(0).state() == v1::WORKER_STATE_DONE);
   CHECK(done.workers(0).evaluations_per_s() == 0);
   CHECK(done.eta_s() == 0);
@@ -995,46 +997,47 @@ TEST_CASE("a live job: status events carry the figures, a worker's hostile heart
   ThreadWorkers workers(2, domain, job_id);
   // A participant that speaks as worker "rogue-w" with well-formed heartbeats whose throughput
   // figures are NaN, negative or huge.
-  dds::NodeConfig rc;
+  proto::dds::NodeConfig rc;
   rc.domain_id = domain;
   rc.participant_name = "rogue";
-  rc.transport = dds::TransportKind::kSharedMemoryOnly;
+  rc.transport = proto::dds::TransportKind::kSharedMemoryOnly;
   rc.liveliness_lease = CoordinatorOptions{}.lease;
-  rc.write_topics = {dds::Topic::kPresence};
-  auto rogue = dds::DdsNode::Create(rc);
+  rc.write_topics = {proto::dds::Topic::kPresence};
+  auto rogue = proto::dds::DdsNode::Create(rc);
   REQUIRE(rogue.ok());
   // A reader of the status topic, through its own gate, as `monitor --domain` reads it.
-  dds::NodeConfig sc;
+  proto::dds::NodeConfig sc;
   sc.domain_id = domain;
   sc.participant_name = "status-reader";
-  sc.transport = dds::TransportKind::kSharedMemoryOnly;
-  sc.read_topics = {dds::Topic::kStatus};
-  auto reader = dds::DdsNode::Create(sc);
+  sc.transport = proto::dds::TransportKind::kSharedMemoryOnly;
+  sc.read_topics = {proto::dds::Topic::kStatus};
+  auto reader = proto::dds::DdsNode::Create(sc);
   REQUIRE(reader.ok());
   std::atomic<bool> done{false};
   std::atomic<int> sent{0};
   std::thread rogue_thread([&] {
-    dds::EnvelopeStamper stamper(job_id, "rogue-w", v1::SENDER_KIND_WORKER);
+    proto::dds::EnvelopeStamper stamper(job_id, "rogue-w", v1::SENDER_KIND_WORKER);
     const double bad[] = {std::numeric_limits<double>::quiet_NaN(), -1.0, 1e300,
                           std::numeric_limits<double>::infinity()};
     for (int i = 0; !done; ++i) {
       v1::Envelope env;
       auto* hb = env.mutable_heartbeat();
-      *hb->mutable_capacity() = poseforest::dds::testing::Capacity(1);
+      *hb->mutable_capacity() = poseforest::proto::dds::testing::Capacity(1);
       hb->set_evaluations_per_s(bad[i % 4]);
-      (void)(*rogue)->Publish(dds::Topic::kPresence, stamper.Seal(dds::Topic::kPresence, env));
+      (void)(*rogue)->Publish(proto::dds::Topic::kPresence, stamper.Seal(proto::dds::Topic::kPresence, env));
       ++sent;
       std::this_thread::sleep_for(20ms);
     }
   });
   std::vector<v1::StatusEvent> events;
   std::thread status_thread([&] {
-    dds::MessageGate gate(dds::GateConfig{"status-reader", job_id, 16, [](const std::string&) {}});
+    proto::dds::MessageGate gate(
+        proto::dds::GateConfig{"status-reader", job_id, 16, [](const std::string&) {}});
     while (!done) {
       auto s = (*reader)->Receive(50ms);
       if (!s) continue;
       auto out = gate.Check(s->topic, s->bytes, s->writer_guid);
-      if (out.verdict == dds::MessageGate::Verdict::kAccepted && out.envelope.has_status())
+      if (out.verdict == proto::dds::MessageGate::Verdict::kAccepted && out.envelope.has_status())
         events.push_back(out.envelope.status());
     }
   });

@@ -15,8 +15,10 @@
 #include "tests/coordinator/dist_test_util.h"
 
 using namespace poseforest;
-using namespace poseforest::dist;
-using namespace poseforest::dist::testing;
+using namespace poseforest::proto::dds;
+using namespace poseforest::worker;
+using namespace poseforest::coordinator;
+using namespace poseforest::coordinator::testing;
 
 namespace {
 CoordinatorOptions Options(uint32_t domain, int min_workers) {
@@ -70,14 +72,14 @@ constexpr uint64_t kSubtreeMax = 300;
 }  // namespace
 
 TEST_CASE("heap positions: children, parents and depths", "[distributed][unit]") {
-  CHECK(worker::LeftChildPosition(0) == 1);
-  CHECK(worker::RightChildPosition(0) == 2);
-  CHECK(worker::ParentPosition(5) == 2);
-  CHECK(worker::ParentPosition(6) == 2);
-  CHECK(worker::PositionDepth(0) == 0);
-  CHECK(worker::PositionDepth(2) == 1);
-  CHECK(worker::PositionDepth(6) == 2);
-  CHECK(worker::PositionDepth((uint64_t(1) << 31) - 2) == 30);  // deepest node of a depth-30 tree
+  CHECK(engine::LeftChildPosition(0) == 1);
+  CHECK(engine::RightChildPosition(0) == 2);
+  CHECK(engine::ParentPosition(5) == 2);
+  CHECK(engine::ParentPosition(6) == 2);
+  CHECK(engine::PositionDepth(0) == 0);
+  CHECK(engine::PositionDepth(2) == 1);
+  CHECK(engine::PositionDepth(6) == 2);
+  CHECK(engine::PositionDepth((uint64_t(1) << 31) - 2) == 30);  // deepest node of a depth-30 tree
 }
 
 TEST_CASE("with subtree hand-off the forest is byte-identical to LocalTrainer with 1, 2, 3 workers",
@@ -465,7 +467,7 @@ TEST_CASE("subtree tasks: listed samples or routing, a task-frame cache that evi
   const std::vector<uint8_t> reference = ReferenceBytes(job);
   // A frame of the tiny job: 96 x 72 depth + 150 samples; the cap holds one, so nearly every
   // frame a task renders pushes another out.
-  constexpr uint64_t kFrameBytes = 96 * 72 * 2 + 150 * sizeof(worker::PixelSample);
+  constexpr uint64_t kFrameBytes = 96 * 72 * 2 + 150 * sizeof(engine::PixelSample);
   for (const bool lists : {true, false}) {
     DYNAMIC_SECTION((lists ? "samples listed in the task" : "samples routed along the path")) {
       const uint32_t domain = Domain(lists ? 48 : 49);
@@ -512,8 +514,8 @@ TEST_CASE("subtree tasks: listed samples or routing, a task-frame cache that evi
 TEST_CASE("a SubtreeTask's listed samples are checked against the frame's sampled pixels",
           "[distributed][unit]") {
   // Sampled pixels (ascending) of a 10-pixel-wide frame: indices 1, 5 and 12.
-  const std::vector<worker::PixelSample> picked = {{1, 0, 3}, {5, 0, 4}, {2, 1, 5}};
-  std::vector<worker::PixelSample> out;
+  const std::vector<engine::PixelSample> picked = {{1, 0, 3}, {5, 0, 4}, {2, 1, 5}};
+  std::vector<engine::PixelSample> out;
   auto select = [&](std::vector<uint32_t> deltas) {
     return SelectListedSamples(picked, 10, 7, deltas, &out);
   };
@@ -539,22 +541,22 @@ TEST_CASE("a SubtreeTask's listed samples are checked against the frame's sample
 TEST_CASE("TrainSubtrees: several roots in one sample set give each root's TrainSubtree result",
           "[distributed][unit]") {
   const Job job = ParseJob(TinyJobText(1, 8, 0));
-  const worker::TrainParams& p = job.params;
-  auto source = worker::MakeImageSource(p.source);
+  const engine::TrainParams& p = job.params;
+  auto source = engine::MakeImageSource(p.source);
   REQUIRE(source.ok());
   // Root A: the samples of the even frames, at heap position 3; root B: the odd frames', at 5.
-  worker::SampleSet all, even, odd;
+  engine::SampleSet all, even, odd;
   std::vector<uint32_t> node_of_sample;
   std::vector<uint64_t> parts_a(size_t(core::kNumParts), 0), parts_b(size_t(core::kNumParts), 0);
   for (uint64_t i = 0; i < 12; ++i) {
     auto frame = (*source)->Frame(i);
     REQUIRE(frame.ok());
-    const auto picked = worker::SamplePixels(*frame, p.pixels_per_image, p.part_balance,
-                                             core::CounterRng(p.seed, 0, i, worker::kSamplingStream));
+    const auto picked = engine::SamplePixels(*frame, p.pixels_per_image, p.part_balance,
+                                             core::CounterRng(p.seed, 0, i, engine::kSamplingStream));
     if (picked.empty()) continue;
     all.AddFrame(i, frame->depth, picked, p.constants);
     (i % 2 ? odd : even).AddFrame(i, frame->depth, picked, p.constants);
-    for (const worker::PixelSample& s : picked) {
+    for (const engine::PixelSample& s : picked) {
       node_of_sample.push_back(uint32_t(i % 2));
       ++(i % 2 ? parts_b : parts_a)[s.part];
     }
@@ -564,21 +566,21 @@ TEST_CASE("TrainSubtrees: several roots in one sample set give each root's Train
   odd.StartTree(0);
   REQUIRE(all.RangeOf(0).end - all.RangeOf(0).begin == even.num_samples());
   REQUIRE(all.RangeOf(1).end - all.RangeOf(1).begin == odd.num_samples());
-  worker::HistogramBuilder b1(p.constants, 1), b2(p.constants, 1), b3(p.constants, 1);
-  auto a = coordinator::TrainSubtree(even, 0, p, 0, 3, parts_a, b1);
-  auto b = coordinator::TrainSubtree(odd, 0, p, 0, 5, parts_b, b2);
+  engine::HistogramBuilder b1(p.constants, 1), b2(p.constants, 1), b3(p.constants, 1);
+  auto a = engine::TrainSubtree(even, 0, p, 0, 3, parts_a, b1);
+  auto b = engine::TrainSubtree(odd, 0, p, 0, 5, parts_b, b2);
   REQUIRE(a.ok());
   REQUIRE(b.ok());
   // Counts that do not match a root's samples: an error naming that root (checked before any
   // training, so `all` is untouched).
   std::vector<uint64_t> off_by_one = parts_b;
   ++off_by_one[0];
-  const std::vector<coordinator::SubtreeRoot> wrong = {{0, 3, parts_a}, {1, 5, off_by_one}};
-  auto bad = coordinator::TrainSubtrees(all, wrong, p, 0, b3);
+  const std::vector<engine::SubtreeRoot> wrong = {{0, 3, parts_a}, {1, 5, off_by_one}};
+  auto bad = engine::TrainSubtrees(all, wrong, p, 0, b3);
   CHECK_FALSE(bad.ok());
   CHECK_THAT(bad.status().message(), Catch::Contains("position 5"));
-  const std::vector<coordinator::SubtreeRoot> roots = {{0, 3, parts_a}, {1, 5, parts_b}};
-  auto both = coordinator::TrainSubtrees(all, roots, p, 0, b3);
+  const std::vector<engine::SubtreeRoot> roots = {{0, 3, parts_a}, {1, 5, parts_b}};
+  auto both = engine::TrainSubtrees(all, roots, p, 0, b3);
   INFO(both.status().ToString());
   REQUIRE(both.ok());
   REQUIRE(both->size() == 2);
@@ -606,19 +608,19 @@ TEST_CASE("a worker's task set: frames added once in any order, samples per batc
   // (here in reverse order, as tasks ask for them), then each batch adds its samples, trains,
   // and clears them. Every subtree equals the one trained on a fresh set built with AddFrame.
   const Job job = ParseJob(TinyJobText(1, 8, 0));
-  const worker::TrainParams& p = job.params;
-  auto source = worker::MakeImageSource(p.source);
+  const engine::TrainParams& p = job.params;
+  auto source = engine::MakeImageSource(p.source);
   REQUIRE(source.ok());
   std::vector<core::DepthImage> depth;
-  std::vector<std::vector<worker::PixelSample>> picked;
+  std::vector<std::vector<engine::PixelSample>> picked;
   for (uint64_t i = 0; i < 12; ++i) {
     auto frame = (*source)->Frame(i);
     REQUIRE(frame.ok());
     depth.push_back(frame->depth);
-    picked.push_back(worker::SamplePixels(*frame, p.pixels_per_image, p.part_balance,
-                                          core::CounterRng(p.seed, 0, i, worker::kSamplingStream)));
+    picked.push_back(engine::SamplePixels(*frame, p.pixels_per_image, p.part_balance,
+                                          core::CounterRng(p.seed, 0, i, engine::kSamplingStream)));
   }
-  worker::SampleSet kept;
+  engine::SampleSet kept;
   std::vector<uint32_t> local(12);
   for (uint64_t i = 12; i-- > 0;) local[i] = kept.AddFrameOnly(i, depth[i], p.constants);
   CHECK(kept.num_frames() == 12);
@@ -626,21 +628,21 @@ TEST_CASE("a worker's task set: frames added once in any order, samples per batc
   // Batch 1: the even frames; batch 2: frames 3..10. Each against a fresh set.
   for (const auto& frames :
        {std::vector<uint64_t>{0, 2, 4, 6, 8, 10}, std::vector<uint64_t>{3, 4, 5, 6, 7, 8, 9, 10}}) {
-    worker::SampleSet fresh;
+    engine::SampleSet fresh;
     std::vector<uint64_t> parts(size_t(core::kNumParts), 0);
     kept.ClearSamples();
     for (uint64_t i : frames) {
       if (picked[i].empty()) continue;
       fresh.AddFrame(i, depth[i], picked[i], p.constants);
       kept.AddSamples(local[i], depth[i], picked[i], p.constants);
-      for (const worker::PixelSample& s : picked[i]) ++parts[s.part];
+      for (const engine::PixelSample& s : picked[i]) ++parts[s.part];
     }
     REQUIRE(kept.num_samples() == fresh.num_samples());
     fresh.StartTree(0);
     kept.StartTree(0);
-    worker::HistogramBuilder b1(p.constants, 1), b2(p.constants, 1);
-    auto a = coordinator::TrainSubtree(fresh, 0, p, 0, 4, parts, b1);
-    auto b = coordinator::TrainSubtree(kept, 0, p, 0, 4, parts, b2);
+    engine::HistogramBuilder b1(p.constants, 1), b2(p.constants, 1);
+    auto a = engine::TrainSubtree(fresh, 0, p, 0, 4, parts, b1);
+    auto b = engine::TrainSubtree(kept, 0, p, 0, 4, parts, b2);
     REQUIRE(a.ok());
     REQUIRE(b.ok());
     CHECK(a->nodes.size() > 3);
@@ -655,12 +657,12 @@ TEST_CASE("a worker's task set: frames added once in any order, samples per batc
 
 TEST_CASE("the automatic task-frame cache holds a tree's frames within an eighth of memory",
           "[distributed][unit]") {
-  worker::TrainParams p;
+  engine::TrainParams p;
   p.source.width = 640;
   p.source.height = 480;
   p.pixels_per_image = 2000;
   p.images_per_tree = 2000;
-  const uint64_t frame = 640 * 480 * 2 + 2000 * sizeof(worker::PixelSample);
+  const uint64_t frame = 640 * 480 * 2 + 2000 * sizeof(engine::PixelSample);
   // The 2,000-image tree of issue 13 (13,029 evictions at the old 256 MiB): all of it fits.
   CHECK(TaskCacheBytesFor(p, uint64_t(24) << 30) == 2000 * frame);
   CHECK(TaskCacheBytesFor(p, uint64_t(4) << 30) == uint64_t(512) << 20);  // an eighth of 4 GiB

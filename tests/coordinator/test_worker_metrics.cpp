@@ -29,10 +29,12 @@
 #include "worker/worker_metrics.h"
 
 using namespace poseforest;
-using namespace poseforest::dist;
-using namespace poseforest::dist::testing;
-using poseforest::dds::testing::Child;
-using poseforest::dds::testing::HelperDir;
+using namespace poseforest::proto::http;
+using namespace poseforest::worker;
+using namespace poseforest::coordinator;
+using namespace poseforest::coordinator::testing;
+using poseforest::proto::dds::testing::Child;
+using poseforest::proto::dds::testing::HelperDir;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
@@ -132,9 +134,9 @@ TEST_CASE("worker metrics: text format, escaping and promtool's lint", "[worker]
   s.frame_cache_evictions = 2;
   s.frame_cache_bytes = 1 << 20;
   s.frame_cache_capacity_bytes = 256 << 20;
-  s.messages_sent[size_t(dds::Topic::kReplies)] = 10;
-  s.bytes_sent[size_t(dds::Topic::kReplies)] = 123456;
-  s.messages_received[size_t(dds::Topic::kControl)] = 11;
+  s.messages_sent[size_t(proto::dds::Topic::kReplies)] = 10;
+  s.bytes_sent[size_t(proto::dds::Topic::kReplies)] = 123456;
+  s.messages_received[size_t(proto::dds::Topic::kControl)] = 11;
   s.messages_rejected = 1;
   s.cpu.level_compute = 1.5;
   SECTION("before a job: no job_info series") {
@@ -192,11 +194,11 @@ TEST_CASE("DistWorker::Stats() while a job runs: never going down, the coordinat
     WorkerStats last;
     while (!done) {
       const WorkerStats s = worker.Stats();
-      const bool down =
-          s.evaluations < last.evaluations || s.histograms < last.histograms ||
-          s.bytes_sent[size_t(dds::Topic::kReplies)] < last.bytes_sent[size_t(dds::Topic::kReplies)] ||
-          s.shard_frames.rendered < last.shard_frames.rendered ||
-          s.cpu.level_compute < last.cpu.level_compute || s.cpu.receive < last.cpu.receive;
+      const bool down = s.evaluations < last.evaluations || s.histograms < last.histograms ||
+                        s.bytes_sent[size_t(proto::dds::Topic::kReplies)] <
+                            last.bytes_sent[size_t(proto::dds::Topic::kReplies)] ||
+                        s.shard_frames.rendered < last.shard_frames.rendered ||
+                        s.cpu.level_compute < last.cpu.level_compute || s.cpu.receive < last.cpu.receive;
       went_down += down ? 1 : 0;
       last = s;
       ++reads;
@@ -232,10 +234,10 @@ TEST_CASE("DistWorker::Stats() while a job runs: never going down, the coordinat
   CHECK(s.busy_threads == 0);
   CHECK(evaluations > 0);
   CHECK(s.evaluations >= evaluations);  // the worker counts as it computes, the coordinator as it merges
-  CHECK(s.bytes_sent[size_t(dds::Topic::kReplies)] >= bytes_received);
-  CHECK(s.messages_sent[size_t(dds::Topic::kPresence)] > 0);  // heartbeats
-  CHECK(s.messages_received[size_t(dds::Topic::kControl)] > 0);
-  CHECK(s.messages_received[size_t(dds::Topic::kJob)] > 0);
+  CHECK(s.bytes_sent[size_t(proto::dds::Topic::kReplies)] >= bytes_received);
+  CHECK(s.messages_sent[size_t(proto::dds::Topic::kPresence)] > 0);  // heartbeats
+  CHECK(s.messages_received[size_t(proto::dds::Topic::kControl)] > 0);
+  CHECK(s.messages_received[size_t(proto::dds::Topic::kJob)] > 0);
   CHECK(s.rounds[1] > 0);   // histograms
   CHECK(s.rounds[2] == 1);  // the census of the one tree
   CHECK(s.histograms > 0);

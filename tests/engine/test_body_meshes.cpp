@@ -25,11 +25,11 @@ size_t Foreground(const core::LabelImage& labels) {
   return n;
 }
 
-core::Forest TrainWith(worker::TrainParams params, int threads, int shards) {
+core::Forest TrainWith(engine::TrainParams params, int threads, int shards) {
   params.threads = threads;
-  coordinator::LocalTrainerOptions opt;
+  engine::LocalTrainerOptions opt;
   opt.num_shards = shards;
-  coordinator::LocalTrainer trainer(params, opt);
+  engine::LocalTrainer trainer(params, opt);
   auto forest = trainer.Train();
   REQUIRE(forest.ok());
   return std::move(forest).value();
@@ -49,18 +49,18 @@ TEST_CASE("a job whose only bodies are rigged meshes renders them, trains and ev
          "                    body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } }\n"
          "test_set { source { rendered { seed: 4 kinect_noise: false procedural_bodies: false\n"
          "                    body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } } num_images: 2 }\n";
-  auto params = worker::LoadJob(job.string());
+  auto params = engine::LoadJob(job.string());
   REQUIRE(params.ok());
   REQUIRE(params->source.body_meshes.size() == 1);
 
   // The frames show the mesh: they differ from the same job's frames with procedural bodies.
-  auto meshes = worker::MakeImageSource(params->source);
+  auto meshes = engine::MakeImageSource(params->source);
   REQUIRE(meshes.ok());
   CHECK_THAT((*meshes)->Describe(), Catch::EndsWith("bodies: mesh CesiumMan.glb"));
-  worker::SourceSpec procedural = params->source;
+  engine::SourceSpec procedural = params->source;
   procedural.body_meshes.clear();
   procedural.procedural_bodies = true;
-  auto plain = worker::MakeImageSource(procedural);
+  auto plain = engine::MakeImageSource(procedural);
   REQUIRE(plain.ok());
   int differ = 0;
   for (uint64_t i = 0; i < 3; ++i) {
@@ -81,10 +81,10 @@ TEST_CASE("a job whose only bodies are rigged meshes renders them, trains and ev
   CHECK(core::SerializeForest(one) == core::SerializeForest(two));
 
   // Evaluation (eval, tune-joints) renders the job's test set with the same bodies as training would.
-  auto eval = coordinator::MakeEvalFrameSource(params->test_source);
+  auto eval = engine::MakeEvalFrameSource(params->test_source);
   REQUIRE(eval.ok());
   CHECK_THAT((*eval)->Describe(), Catch::Contains("bodies: mesh CesiumMan.glb"));
-  auto train_view = worker::MakeImageSource(params->test_source);
+  auto train_view = engine::MakeImageSource(params->test_source);
   REQUIRE(train_view.ok());
   auto e = (*eval)->Frame(1);
   auto t = (*train_view)->Frame(1);
@@ -93,10 +93,10 @@ TEST_CASE("a job whose only bodies are rigged meshes renders them, trains and ev
   CHECK(e->depth.pixels == t->depth.pixels);
   CHECK(e->labels.pixels == t->labels.pixels);
   CHECK(e->people.size() == 1);
-  coordinator::EvalOptions eo;
+  engine::EvalOptions eo;
   eo.num_images = params->test_images;
   eo.threads = 2;
-  auto m = coordinator::EvaluateForest(one, params->test_source, eo);
+  auto m = engine::EvaluateForest(one, params->test_source, eo);
   REQUIRE(m.ok());
   uint64_t pixels = 0;
   for (int c = 0; c < m->num_parts; ++c) pixels += m->TruthTotal(c);
@@ -109,21 +109,21 @@ TEST_CASE("the job's order of body_meshes is the scene's order of bodies", "[tra
   const std::string cesium = (meshes / "cesium_man" / "CesiumMan.glb").string(),
                     female = (meshes / "quaternius_casual_female" / "Casual_Female.gltf").string();
   auto params = [&](const std::string& first, const std::string& second) {
-    auto config = worker::ParseJobText(
+    auto config = engine::ParseJobText(
         "images_per_tree: 4 source { rendered { seed: 8 kinect_noise: false "
         "procedural_bodies: false body_meshes: \"" +
             first + "\" body_meshes: \"" + second + "\" } }",
         "job.textproto");
     REQUIRE(config.ok());
-    auto p = worker::ParamsFromConfig(*config, "job.textproto");
+    auto p = engine::ParamsFromConfig(*config, "job.textproto");
     REQUIRE(p.ok());
     return *p;
   };
-  const worker::TrainParams ab = params(cesium, female), ba = params(female, cesium);
+  const engine::TrainParams ab = params(cesium, female), ba = params(female, cesium);
   REQUIRE(ab.source.body_meshes == std::vector<std::string>{cesium, female});
-  auto a1 = worker::MakeImageSource(ab.source);
-  auto a2 = worker::MakeImageSource(ab.source);
-  auto b = worker::MakeImageSource(ba.source);
+  auto a1 = engine::MakeImageSource(ab.source);
+  auto a2 = engine::MakeImageSource(ab.source);
+  auto b = engine::MakeImageSource(ba.source);
   REQUIRE(a1.ok());
   REQUIRE(a2.ok());
   REQUIRE(b.ok());

@@ -90,14 +90,14 @@ core::DepthImage MakeFrame(int kind, std::mt19937& rng, uint16_t bg, int w = kW,
 }
 
 /// Up to `n` body pixels (depth > 0) of `d`, row-major, random parts.
-std::vector<worker::PixelSample> Pick(const core::DepthImage& d, int n, std::mt19937& rng) {
+std::vector<engine::PixelSample> Pick(const core::DepthImage& d, int n, std::mt19937& rng) {
   std::vector<uint32_t> body;
   for (uint32_t i = 0; i < d.pixels.size(); ++i)
     if (d.pixels[i] != 0) body.push_back(i);
   std::shuffle(body.begin(), body.end(), rng);
   body.resize(std::min(body.size(), size_t(n)));
   std::sort(body.begin(), body.end());
-  std::vector<worker::PixelSample> out;
+  std::vector<engine::PixelSample> out;
   for (uint32_t i : body)
     out.push_back({int(i % uint32_t(d.width)), int(i / uint32_t(d.width)), uint8_t(rng() % core::kNumParts)});
   return out;
@@ -118,7 +118,7 @@ std::vector<core::FeatureOffsets> Features(int n, int reach, std::mt19937& rng) 
 struct Fixture {
   core::FeatureConstants c;
   std::vector<core::DepthImage> full;  ///< per local frame
-  worker::SampleSet set;
+  engine::SampleSet set;
   explicit Fixture(uint32_t seed, int frames, int pixels, bool mixed_sizes = false) {
     std::mt19937 rng(seed);
     for (int i = 0; i < frames; ++i) {
@@ -128,7 +128,7 @@ struct Fixture {
       if (i % 2)
         set.AddFrame(uint64_t(i), full.back(), Pick(full.back(), pixels, rng), c);
       else
-        set.AddFrame(uint64_t(i), worker::CompactFrame::Of(full.back(), c.background_mm),
+        set.AddFrame(uint64_t(i), engine::CompactFrame::Of(full.back(), c.background_mm),
                      Pick(full.back(), pixels, rng), c);
     }
     set.StartTree(0);
@@ -146,7 +146,7 @@ TEST_CASE("a compact frame reads as the full frame everywhere, off the frame too
   for (int kind = 0; kind < 5; ++kind) {
     for (int rep = 0; rep < 4; ++rep) {
       const core::DepthImage d = MakeFrame(kind, rng, bg);
-      const worker::CompactFrame cf = worker::CompactFrame::Of(d, bg);
+      const engine::CompactFrame cf = engine::CompactFrame::Of(d, bg);
       REQUIRE(cf.rows.size() == size_t(kH));
       for (int y = -3; y < kH + 3; ++y)
         for (int x = -3; x < kW + 3; ++x)
@@ -186,20 +186,20 @@ TEST_CASE("the histogram builder's kernels on compact frames equal the naive eva
   const int thresholds = GENERATE(12, 50);
   const int reach = GENERATE(200, 3000, 32767);
   Fixture fx(23, 20, 100);
-  worker::TrainParams p;
+  engine::TrainParams p;
   p.seed = 5;
   p.thresholds_per_feature = thresholds;
   p.threshold_reference_pixels = 1000000;  // ranges over whole nodes (vector kernels)
   p.constants = fx.c;
   std::mt19937 rng(uint32_t(reach + thresholds));
-  worker::HistogramBuilder builder(p.constants, 2);
+  engine::HistogramBuilder builder(p.constants, 2);
 
   // Checks every kernel on the set's current nodes: ranges, dense and per-sample histograms,
   // and the fused pass where it applies, against core::FeatureResponse on the full frames.
   auto check_level = [&](int level) {
-    std::vector<worker::NodePlan> plans;
+    std::vector<engine::NodePlan> plans;
     for (const auto& r : fx.set.ranges()) {
-      worker::NodePlan plan;
+      engine::NodePlan plan;
       plan.node = r.node;
       plan.position = r.node;
       plan.num_samples = r.end - r.begin;
@@ -207,30 +207,30 @@ TEST_CASE("the histogram builder's kernels on compact frames equal the naive eva
       fx.set.CountParts(r, core::kNumParts, parts.data());
       plan.SetParts(parts);
       plan.features = Features(70, reach, rng);
-      plan.cut_stride = worker::CutStride(thresholds);
+      plan.cut_stride = engine::CutStride(thresholds);
       plans.push_back(std::move(plan));
     }
-    std::vector<std::vector<worker::ResponseRange>> ranges;
+    std::vector<std::vector<engine::ResponseRange>> ranges;
     builder.ComputeRanges(fx.set, p, 0, plans, &ranges);
     for (size_t q = 0; q < plans.size(); ++q) {
       const auto& pl = plans[q];
-      const worker::NodeRange r = fx.set.RangeOf(pl.node);
-      std::vector<worker::ResponseRange> naive(pl.features.size());
+      const engine::NodeRange r = fx.set.RangeOf(pl.node);
+      std::vector<engine::ResponseRange> naive(pl.features.size());
       for (size_t k = 0; k < pl.features.size(); ++k)
         for (uint64_t i = r.begin; i < r.end; ++i) naive[k].Add(fx.Naive(i, pl.features[k]));
       INFO("level " << level << " node " << pl.node << " samples " << pl.num_samples);
       CHECK(naive == ranges[q]);
-      plans[q].cuts = worker::DrawCuts(p, 0, pl.position, ranges[q]);
+      plans[q].cuts = engine::DrawCuts(p, 0, pl.position, ranges[q]);
     }
-    std::vector<worker::NodeHistogram> dense, sparse;
+    std::vector<engine::NodeHistogram> dense, sparse;
     builder.Build(fx.set, plans, thresholds, &dense);
-    std::vector<worker::NodePlan> sparse_plans = plans;
+    std::vector<engine::NodePlan> sparse_plans = plans;
     for (auto& pl : sparse_plans) pl.sample_bins = true;
     builder.Build(fx.set, sparse_plans, thresholds, &sparse);
     for (size_t q = 0; q < plans.size(); ++q) {
       const auto& pl = plans[q];
-      const worker::NodeRange r = fx.set.RangeOf(pl.node);
-      worker::NodeHistogram naive;
+      const engine::NodeRange r = fx.set.RangeOf(pl.node);
+      engine::NodeHistogram naive;
       naive.Reset(pl.node, int(pl.features.size()), thresholds + 1, pl.num_slots);
       for (size_t k = 0; k < pl.features.size(); ++k) {
         const int32_t* cuts = &pl.cuts[k * size_t(pl.cut_stride)];
@@ -247,17 +247,17 @@ TEST_CASE("the histogram builder's kernels on compact frames equal the naive eva
       CHECK(naive == sparse[q].ToDense());
     }
     // The fused single-shard pass (small nodes).
-    std::vector<worker::NodePlan> fusable;
+    std::vector<engine::NodePlan> fusable;
     for (auto pl : plans) {
       pl.cuts.clear();
-      if (worker::HistogramBuilder::CanFuse(fx.set, p, pl)) fusable.push_back(std::move(pl));
+      if (engine::HistogramBuilder::CanFuse(fx.set, p, pl)) fusable.push_back(std::move(pl));
     }
     if (!fusable.empty()) {
-      std::vector<worker::NodeHistogram> fused;
+      std::vector<engine::NodeHistogram> fused;
       builder.BuildFused(fx.set, p, 0, fusable, &fused);
       for (size_t q = 0; q < fusable.size(); ++q) {
         const auto it = std::find_if(plans.begin(), plans.end(),
-                                     [&](const worker::NodePlan& pl) { return pl.node == fusable[q].node; });
+                                     [&](const engine::NodePlan& pl) { return pl.node == fusable[q].node; });
         CHECK(fusable[q].cuts == it->cuts);
         CHECK(fused[q] == dense[size_t(it - plans.begin())]);
       }
@@ -269,7 +269,7 @@ TEST_CASE("the histogram builder's kernels on compact frames equal the naive eva
   // partition of ApplySplits against the naive responses on the way.
   for (int level = 0; level < 4; ++level) {
     check_level(level);
-    std::vector<worker::SampleSet::Split> splits;
+    std::vector<engine::SampleSet::Split> splits;
     std::vector<std::pair<uint64_t, bool>> expect;  // (uid, goes left) per sample
     uint32_t next = 1u << (level + 1);
     for (const auto& r : fx.set.ranges()) {

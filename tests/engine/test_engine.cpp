@@ -12,8 +12,8 @@ using namespace poseforest;
 
 namespace {
 
-worker::TrainParams ProceduralParams() {
-  worker::TrainParams p;
+engine::TrainParams ProceduralParams() {
+  engine::TrainParams p;
   p.seed = 2026;
   p.num_trees = 2;
   p.max_depth = 10;
@@ -24,18 +24,18 @@ worker::TrainParams ProceduralParams() {
   p.max_probe_offset_pixel_m = 80;
   p.min_samples_split = 4;
   p.threshold_reference_pixels = 120;
-  p.source.kind = worker::SourceKind::kProcedural;
+  p.source.kind = engine::SourceKind::kProcedural;
   p.source.seed = 77;
   p.source.width = 160;
   p.source.height = 120;
   return p;
 }
 
-std::vector<uint8_t> TrainBytes(worker::TrainParams p, int threads, int shards) {
+std::vector<uint8_t> TrainBytes(engine::TrainParams p, int threads, int shards) {
   p.threads = threads;
-  coordinator::LocalTrainerOptions o;
+  engine::LocalTrainerOptions o;
   o.num_shards = shards;
-  coordinator::LocalTrainer trainer(p, o);
+  engine::LocalTrainer trainer(p, o);
   auto forest = trainer.Train();
   REQUIRE(forest.ok());
   return core::SerializeForest(*forest);
@@ -44,28 +44,28 @@ std::vector<uint8_t> TrainBytes(worker::TrainParams p, int threads, int shards) 
 }  // namespace
 
 TEST_CASE("the forest is byte-identical across thread counts and shard counts", "[training][determinism]") {
-  const worker::TrainParams p = ProceduralParams();
+  const engine::TrainParams p = ProceduralParams();
   const std::vector<uint8_t> one = TrainBytes(p, 1, 1);
   CHECK(TrainBytes(p, 2, 1) == one);
   CHECK(TrainBytes(p, 1, 3) == one);
   CHECK(TrainBytes(p, 2, 3) == one);
   // Batching the frontier by histogram memory (here: one node per batch) changes nothing.
-  worker::TrainParams small_batches = p;
+  engine::TrainParams small_batches = p;
   small_batches.histogram_memory_bytes = 1;
   CHECK(TrainBytes(small_batches, 2, 2) == one);
   // A different job seed gives a different forest (the check above is not vacuous).
-  worker::TrainParams q = p;
+  engine::TrainParams q = p;
   q.seed = p.seed + 1;
   CHECK(TrainBytes(q, 2, 1) != one);
 }
 
 TEST_CASE("a trained forest loads and classifies far better than chance", "[training][engine]") {
-  worker::TrainParams p = ProceduralParams();
+  engine::TrainParams p = ProceduralParams();
   p.threads = 2;
-  std::vector<coordinator::LevelProgress> levels;
-  coordinator::LocalTrainerOptions o;
-  o.progress = [&](const coordinator::LevelProgress& lp) { levels.push_back(lp); };
-  coordinator::LocalTrainer trainer(p, o);
+  std::vector<engine::LevelProgress> levels;
+  engine::LocalTrainerOptions o;
+  o.progress = [&](const engine::LevelProgress& lp) { levels.push_back(lp); };
+  engine::LocalTrainer trainer(p, o);
   auto forest = trainer.Train();
   REQUIRE(forest.ok());
   REQUIRE(forest->trees.size() == 2);
@@ -87,13 +87,13 @@ TEST_CASE("a trained forest loads and classifies far better than chance", "[trai
   CHECK(core::SerializeForest(*loaded) == core::SerializeForest(*forest));
 
   // Training frames (every body pixel, not only the sampled ones) and held-out frames.
-  coordinator::EvalOptions eo;
+  engine::EvalOptions eo;
   eo.num_images = p.images_per_tree;
   eo.threads = 2;
-  auto train = coordinator::EvaluateForest(*loaded, p.source, eo);
+  auto train = engine::EvaluateForest(*loaded, p.source, eo);
   REQUIRE(train.ok());
   eo.first_index = 1000;
-  auto held_out = coordinator::EvaluateForest(*loaded, p.source, eo);
+  auto held_out = engine::EvaluateForest(*loaded, p.source, eo);
   REQUIRE(held_out.ok());
   const double chance = 1.0 / 31.0;
   INFO("train " << train->AveragePerClassAccuracy() << " held-out " << held_out->AveragePerClassAccuracy());
@@ -121,7 +121,7 @@ TEST_CASE("a tiny separable problem is learned perfectly", "[training][engine]")
     std::snprintf(name, sizeof(name), "labels_%06d.png", i);
     REQUIRE(runtime::WriteLabelPng((dir / name).string(), labels).ok());
   }
-  worker::TrainParams p;
+  engine::TrainParams p;
   p.seed = 5;
   p.num_trees = 1;
   p.max_depth = 8;
@@ -132,21 +132,21 @@ TEST_CASE("a tiny separable problem is learned perfectly", "[training][engine]")
   p.max_probe_offset_pixel_m = 20;  // up to 10 pixels at 2 m
   p.min_samples_split = 2;
   p.threads = 2;
-  p.source.kind = worker::SourceKind::kDataset;
+  p.source.kind = engine::SourceKind::kDataset;
   p.source.folder = dir.string();
-  coordinator::LocalTrainer trainer(p, {});
+  engine::LocalTrainer trainer(p, {});
   auto forest = trainer.Train();
   REQUIRE(forest.ok());
   CHECK(trainer.stats().samples == 6 * 8 * 32);
-  coordinator::EvalOptions eo;
+  engine::EvalOptions eo;
   eo.num_images = 6;
-  auto m = coordinator::EvaluateForest(*forest, p.source, eo);
+  auto m = engine::EvaluateForest(*forest, p.source, eo);
   REQUIRE(m.ok());
   CHECK(m->PartsPresent() == 2);
   CHECK(m->AveragePerClassAccuracy() == 1.0);
   // The text and picture outputs of `poseforest eval` for it.
-  CHECK_THAT(coordinator::FormatAccuracyTable(*m), Catch::Contains("average per-class accuracy: 100.00%"));
-  REQUIRE(coordinator::WriteConfusionPng(*m, (dir / "confusion.png").string()).ok());
+  CHECK_THAT(engine::FormatAccuracyTable(*m), Catch::Contains("average per-class accuracy: 100.00%"));
+  REQUIRE(engine::WriteConfusionPng(*m, (dir / "confusion.png").string()).ok());
   auto png = core::ReadFileBytes((dir / "confusion.png").string());
   REQUIRE(png.ok());
   auto decoded = runtime::DecodePng(*png, "confusion.png");
@@ -155,10 +155,10 @@ TEST_CASE("a tiny separable problem is learned perfectly", "[training][engine]")
 }
 
 TEST_CASE("frame loading errors name the frame", "[training][engine]") {
-  worker::TrainParams p = ProceduralParams();
-  p.source.kind = worker::SourceKind::kDataset;
+  engine::TrainParams p = ProceduralParams();
+  p.source.kind = engine::SourceKind::kDataset;
   p.source.folder = (testing::ScratchDir("no-frames") / "nothing").string();
-  coordinator::LocalTrainer trainer(p, {});
+  engine::LocalTrainer trainer(p, {});
   auto forest = trainer.Train();
   REQUIRE_FALSE(forest.ok());
   CHECK_THAT(forest.status().message(), Catch::Contains("nothing"));

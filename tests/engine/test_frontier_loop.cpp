@@ -17,8 +17,8 @@ using namespace poseforest;
 
 namespace {
 
-worker::TrainParams Params() {
-  worker::TrainParams p;
+engine::TrainParams Params() {
+  engine::TrainParams p;
   p.seed = 17;
   p.max_depth = 8;
   p.images_per_tree = 8;
@@ -29,7 +29,7 @@ worker::TrainParams Params() {
   p.min_samples_split = 4;
   p.threshold_reference_pixels = 100;
   p.threads = 2;
-  p.source.kind = worker::SourceKind::kProcedural;
+  p.source.kind = engine::SourceKind::kProcedural;
   p.source.seed = 5;
   p.source.width = 160;
   p.source.height = 120;
@@ -37,16 +37,16 @@ worker::TrainParams Params() {
 }
 
 /// Tree 0's frames spread over `num_shards` shards in contiguous blocks (as LocalTrainer does).
-std::vector<worker::SampleSet> Shards(const worker::TrainParams& p, int num_shards) {
-  auto source = worker::MakeImageSource(p.source);
+std::vector<engine::SampleSet> Shards(const engine::TrainParams& p, int num_shards) {
+  auto source = engine::MakeImageSource(p.source);
   REQUIRE(source.ok());
-  std::vector<worker::SampleSet> shards(static_cast<size_t>(num_shards));
+  std::vector<engine::SampleSet> shards(static_cast<size_t>(num_shards));
   for (int i = 0; i < p.images_per_tree; ++i) {
     auto frame = (*source)->Frame(uint64_t(i));
     REQUIRE(frame.ok());
     const auto picked =
-        worker::SamplePixels(*frame, p.pixels_per_image, p.part_balance,
-                             core::CounterRng(p.seed, 0, uint64_t(i), worker::kSamplingStream));
+        engine::SamplePixels(*frame, p.pixels_per_image, p.part_balance,
+                             core::CounterRng(p.seed, 0, uint64_t(i), engine::kSamplingStream));
     if (picked.empty()) continue;
     shards[size_t(i * num_shards / p.images_per_tree)].AddFrame(uint64_t(i), frame->depth, picked,
                                                                 p.constants);
@@ -80,12 +80,12 @@ struct Run {
 /// the children's part counts from `parts_of`.
 Run Grow(int num_shards, const std::map<uint64_t, Placed>* decided_elsewhere = nullptr, int stop_after = -1,
          const std::map<uint64_t, std::vector<uint64_t>>* parts_of = nullptr) {
-  const worker::TrainParams p = Params();
-  std::vector<worker::SampleSet> shards = Shards(p, num_shards);
-  worker::HistogramBuilder builder(p.constants, 2);
+  const engine::TrainParams p = Params();
+  std::vector<engine::SampleSet> shards = Shards(p, num_shards);
+  engine::HistogramBuilder builder(p.constants, 2);
   engine::LocalShardSet set(shards, p, builder, 2);
   std::vector<engine::OpenNode> frontier(1);
-  frontier[0].position = worker::kRootPosition;
+  frontier[0].position = engine::kRootPosition;
   REQUIRE(set.CountParts(0, &frontier[0].parts).ok());
   Run run;
   uint32_t next_local = 1;
@@ -103,8 +103,8 @@ Run Grow(int num_shards, const std::map<uint64_t, Placed>* decided_elsewhere = n
         d.offsets = it->second.offsets;
         d.choice.cut = it->second.cut;
         if (d.split) {
-          d.choice.left_parts = parts_of->at(worker::LeftChildPosition(f.position));
-          d.choice.right_parts = parts_of->at(worker::RightChildPosition(f.position));
+          d.choice.left_parts = parts_of->at(engine::LeftChildPosition(f.position));
+          d.choice.right_parts = parts_of->at(engine::RightChildPosition(f.position));
         }
       }
     }

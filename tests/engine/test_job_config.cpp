@@ -11,10 +11,10 @@ using namespace poseforest;
 
 namespace {
 
-core::Result<worker::TrainParams> Parse(const std::string& text) {
-  auto config = worker::ParseJobText(text, "job.textproto");
+core::Result<engine::TrainParams> Parse(const std::string& text) {
+  auto config = engine::ParseJobText(text, "job.textproto");
   if (!config.ok()) return config.status();
-  return worker::ParamsFromConfig(*config, "job.textproto");
+  return engine::ParamsFromConfig(*config, "job.textproto");
 }
 
 std::string ErrorOf(const std::string& text) {
@@ -36,7 +36,7 @@ TEST_CASE("a minimal job gets the paper's defaults", "[training][config]") {
   CHECK(p->thresholds_per_feature == 50);
   CHECK(p->max_probe_offset_pixel_m == 129.0);
   CHECK(p->max_offset_units() == 129 * 32);
-  CHECK(p->source.kind == worker::SourceKind::kProcedural);
+  CHECK(p->source.kind == engine::SourceKind::kProcedural);
   CHECK(p->source.seed == 4);
   CHECK_FALSE(p->has_test_set);
 }
@@ -55,12 +55,12 @@ TEST_CASE("a full job parses every field", "[training][config]") {
   CHECK(p->max_depth == 12);
   CHECK(p->min_gain == 0.01);
   CHECK(p->histogram_memory_bytes == (uint64_t(64) << 20));
-  CHECK(p->source.kind == worker::SourceKind::kRendered);
+  CHECK(p->source.kind == engine::SourceKind::kRendered);
   CHECK(p->source.rotation_range_deg == 180.0);
   CHECK(p->source.max_people == 2);
   CHECK_FALSE(p->source.kinect_noise);
   REQUIRE(p->has_test_set);
-  CHECK(p->test_source.kind == worker::SourceKind::kDataset);
+  CHECK(p->test_source.kind == engine::SourceKind::kDataset);
   CHECK(p->test_source.folder == "/tmp/test");
   CHECK(p->test_images == 10);
 }
@@ -100,15 +100,15 @@ TEST_CASE("LoadJob reads a file and names it in errors", "[training][config]") {
   const auto dir = testing::ScratchDir("job-config");
   const auto path = (dir / "job.textproto").string();
   std::ofstream(path) << "# a comment\nimages_per_tree: 3\nsource { procedural { seed: 9 } }\n";
-  auto p = worker::LoadJob(path);
+  auto p = engine::LoadJob(path);
   REQUIRE(p.ok());
   CHECK(p->images_per_tree == 3);
-  auto missing = worker::LoadJob((dir / "missing.textproto").string());
+  auto missing = engine::LoadJob((dir / "missing.textproto").string());
   REQUIRE_FALSE(missing.ok());
   CHECK(missing.status().code() == core::ErrorCode::kIo);
   CHECK_THAT(missing.status().message(), Catch::Contains("missing.textproto"));
   std::ofstream(path) << "images_per_tree: 3\nthresholds_per_feature: 0\nsource { procedural { } }\n";
-  auto bad = worker::LoadJob(path);
+  auto bad = engine::LoadJob(path);
   REQUIRE_FALSE(bad.ok());
   CHECK_THAT(bad.status().message(), Catch::Contains(path) && Catch::Contains("thresholds_per_feature"));
 }
@@ -125,16 +125,16 @@ source { rendered { pose_library: "poses/lib.pfposes" clips: CLIP_SET_TRAIN test
                     split_seed: 9 makehuman_kit: "kit" procedural_bodies: false } }
 test_set { source { rendered { pose_library: "poses/lib.pfposes" clips: CLIP_SET_TEST } } }
 )";
-  auto p = worker::LoadJob(path);
+  auto p = engine::LoadJob(path);
   REQUIRE(p.ok());
   CHECK(p->source.pose_library == (dir / "poses" / "lib.pfposes").string());
-  CHECK(p->source.clips == worker::ClipSet::kTrain);
+  CHECK(p->source.clips == engine::ClipSet::kTrain);
   CHECK(p->source.test_fraction == 0.25);
   CHECK(p->source.split_seed == 9);
   CHECK(p->source.makehuman_kit == (dir / "kit").string());
   CHECK_FALSE(p->source.procedural_bodies);
   REQUIRE(p->has_test_set);
-  CHECK(p->test_source.clips == worker::ClipSet::kTest);
+  CHECK(p->test_source.clips == engine::ClipSet::kTest);
   CHECK(p->test_source.test_fraction == 0.2);  // defaults
   CHECK(p->test_source.split_seed == 0);
   CHECK(p->test_source.procedural_bodies);
@@ -144,7 +144,7 @@ test_set { source { rendered { pose_library: "poses/lib.pfposes" clips: CLIP_SET
   auto plain = Parse("images_per_tree: 5 source { rendered { } }");
   REQUIRE(plain.ok());
   CHECK(plain->source.pose_library.empty());
-  CHECK(plain->source.clips == worker::ClipSet::kAll);
+  CHECK(plain->source.clips == engine::ClipSet::kAll);
   CHECK(plain->source.procedural_bodies);
   std::filesystem::remove_all(dir);
 }
@@ -174,7 +174,7 @@ TEST_CASE("bad mocap options give errors naming the field and the path", "[train
   // A relative path that does not exist next to the job file: the error names the resolved path.
   const auto job = (dir / "job.textproto").string();
   std::ofstream(job) << "images_per_tree: 3 source { rendered { pose_library: \"nope.pfposes\" } }\n";
-  auto bad = worker::LoadJob(job);
+  auto bad = engine::LoadJob(job);
   REQUIRE_FALSE(bad.ok());
   CHECK_THAT(bad.status().message(), Catch::Contains(job) &&
                                          Catch::Contains("source.rendered.pose_library") &&
@@ -197,19 +197,19 @@ TEST_CASE("body_meshes name rigged meshes, with paths relative to the job file",
       << cesium.string()
       << "\" procedural_bodies: false } }\n"
          "test_set { source { rendered { body_meshes: \"meshes/cesium_man/CesiumMan.glb\" } } }\n";
-  auto p = worker::LoadJob(path);
+  auto p = engine::LoadJob(path);
   REQUIRE(p.ok());
   // Job order, relative paths against the job's folder, absolute ones as given.
   REQUIRE(p->source.body_meshes.size() == 2);
   CHECK(p->source.body_meshes[0] == (dir / "meshes" / "cesium_man" / "CesiumMan.glb").string());
   CHECK(p->source.body_meshes[1] == cesium.string());
   CHECK_FALSE(p->source.procedural_bodies);  // the meshes are bodies enough
-  CHECK(worker::DescribeBodies(p->source) == "mesh CesiumMan.glb + mesh CesiumMan.glb");
+  CHECK(engine::DescribeBodies(p->source) == "mesh CesiumMan.glb + mesh CesiumMan.glb");
   REQUIRE(p->has_test_set);
   REQUIRE(p->test_source.body_meshes.size() == 1);
   CHECK(p->test_source.procedural_bodies);
-  CHECK(worker::DescribeBodies(p->test_source) == "mesh CesiumMan.glb + procedural");
-  CHECK(worker::DescribeBodies(worker::SourceSpec{}) == "");
+  CHECK(engine::DescribeBodies(p->test_source) == "mesh CesiumMan.glb + procedural");
+  CHECK(engine::DescribeBodies(engine::SourceSpec{}) == "");
   fs::remove_all(dir);
 }
 
@@ -222,7 +222,7 @@ TEST_CASE("body_meshes that cannot be bodies are refused naming the field and th
     std::ofstream(path) << "images_per_tree: 3 source { procedural { } }\n"
                            "test_set { source { rendered { "
                         << meshes << " procedural_bodies: false } } }\n";
-    auto p = worker::LoadJob(path);
+    auto p = engine::LoadJob(path);
     REQUIRE_FALSE(p.ok());
     CHECK(p.status().code() == core::ErrorCode::kInvalidArgument);
     CHECK_THAT(p.status().message(), Catch::Contains(path));
@@ -344,7 +344,7 @@ TEST_CASE("body_bone_map: a rig no built-in name map knows (Rigify names) become
     const auto path = (dir / "job.textproto").string();
     std::ofstream(path) << "images_per_tree: 3 source { rendered { body_meshes: \"rigify_female.gltf\" " << map
                         << " } }\n";
-    return worker::LoadJob(path);
+    return engine::LoadJob(path);
   };
   // Without a map: refused, naming the rig's bones and the missing joints.
   auto refused = job("");
@@ -387,7 +387,7 @@ TEST_CASE("sitting and leaning shares reach the scene", "[training][config][real
   auto sl = Parse("images_per_tree: 5 source { rendered { sitting_share: 0.3 leaning_share: 0.6 } }");
   REQUIRE(sl.ok());
   renderer::SceneConfig scene;
-  REQUIRE(worker::ApplySceneOptions(sl->source, &scene).ok());
+  REQUIRE(engine::ApplySceneOptions(sl->source, &scene).ok());
   CHECK(scene.sit_share == 0.3);
   CHECK(scene.lean_share == 0.6);
 }
@@ -397,7 +397,7 @@ TEST_CASE("the sensor fields (issue 22): defaults classic, values, the noise the
           "[training][config][realism]") {
   auto d = Parse("images_per_tree: 5 source { rendered { } }");
   REQUIRE(d.ok());
-  CHECK(d->source.sensor == worker::DepthSensor::kKinectV1);
+  CHECK(d->source.sensor == engine::DepthSensor::kKinectV1);
   CHECK_FALSE(d->source.flying_pixels.has_value());
   CHECK_FALSE(d->source.range_holes.has_value());
   CHECK_FALSE(d->source.grazing_holes.has_value());
@@ -405,7 +405,7 @@ TEST_CASE("the sensor fields (issue 22): defaults classic, values, the noise the
       "images_per_tree: 5 source { rendered { flying_pixels: 0.4 range_holes: 0.1 grazing_holes: 0.6 "
       "sensor: DEPTH_SENSOR_KINECT_V2 } }");
   REQUIRE(c.ok());
-  CHECK(c->source.sensor == worker::DepthSensor::kKinectV2);
+  CHECK(c->source.sensor == engine::DepthSensor::kKinectV2);
   CHECK(c->source.flying_pixels == 0.4);
   CHECK(c->source.range_holes == 0.1);
   CHECK(c->source.grazing_holes == 0.6);
@@ -417,7 +417,7 @@ TEST_CASE("the sensor fields (issue 22): defaults classic, values, the noise the
 #if POSEFOREST_HAS_RENDERER
   // Unset: the classic Kinect v1 model, every new effect off (frames as before the fields).
   renderer::SceneConfig classic;
-  REQUIRE(worker::ApplySceneOptions(d->source, &classic).ok());
+  REQUIRE(engine::ApplySceneOptions(d->source, &classic).ok());
   const renderer::NoiseConfig v1;
   CHECK(classic.noise.principle == renderer::DepthPrinciple::kStructuredLight);
   CHECK(classic.noise.flying_pixels == 0);
@@ -428,7 +428,7 @@ TEST_CASE("the sensor fields (issue 22): defaults classic, values, the noise the
   CHECK(classic.noise.disparity_sigma_px == v1.disparity_sigma_px);
   // Kinect v2: time of flight at the render camera's focal length, the job's shares.
   renderer::SceneConfig tof;
-  REQUIRE(worker::ApplySceneOptions(c->source, &tof).ok());
+  REQUIRE(engine::ApplySceneOptions(c->source, &tof).ok());
   CHECK(tof.noise.principle == renderer::DepthPrinciple::kTimeOfFlight);
   CHECK(tof.noise.flying_pixels == 0.4);
   CHECK(tof.noise.range_dropout == 0.1);
@@ -439,7 +439,7 @@ TEST_CASE("the sensor fields (issue 22): defaults classic, values, the noise the
   auto a = Parse("images_per_tree: 5 source { rendered { sensor: DEPTH_SENSOR_AZURE_KINECT_NFOV } }");
   REQUIRE(a.ok());
   renderer::SceneConfig azure;
-  REQUIRE(worker::ApplySceneOptions(a->source, &azure).ok());
+  REQUIRE(engine::ApplySceneOptions(a->source, &azure).ok());
   const renderer::NoiseConfig azure_preset = renderer::SensorNoise(renderer::DepthSensor::kAzureKinectNfov).noise;
   CHECK(azure.noise.flying_pixels == azure_preset.flying_pixels);
 #endif

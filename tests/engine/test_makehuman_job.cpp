@@ -16,10 +16,11 @@ namespace {
 
 std::string Kit() { return (testing::DataDir() / "meshes" / "makehuman_hm08_kit").string(); }
 
-core::Result<worker::TrainParams> Params(const std::string& rendered_fields) {
-  auto config = worker::ParseJobText("images_per_tree: 5 source { rendered { " + rendered_fields + " } }", "job.txt");
+core::Result<engine::TrainParams> Params(const std::string& rendered_fields) {
+  auto config =
+      engine::ParseJobText("images_per_tree: 5 source { rendered { " + rendered_fields + " } }", "job.txt");
   REQUIRE(config.ok());
-  return worker::ParamsFromConfig(*config, "job.txt");
+  return engine::ParamsFromConfig(*config, "job.txt");
 }
 
 std::string ErrorOf(const std::string& rendered_fields) {
@@ -39,7 +40,7 @@ TEST_CASE("MakeHuman body job fields: defaults off, validation, the clothes fold
   CHECK(defaults->source.makehuman_body_seed == 1);
   CHECK(defaults->source.makehuman_clothed_share == 0.0);
   CHECK(defaults->source.makehuman_clothes.empty());
-  CHECK(worker::DescribeBodies(defaults->source) == "MakeHuman + procedural");
+  CHECK(engine::DescribeBodies(defaults->source) == "MakeHuman + procedural");
 
   // One field each turns them on; the clothes folder defaults to the kit's sibling.
   auto on = Params(kit + "makehuman_sampled_bodies: 40 makehuman_clothed_share: 0.5 makehuman_body_seed: 9");
@@ -49,7 +50,8 @@ TEST_CASE("MakeHuman body job fields: defaults off, validation, the clothes fold
   CHECK(on->source.makehuman_body_seed == 9);
   CHECK(on->source.makehuman_clothed_share == 0.5);
   CHECK(fs::equivalent(on->source.makehuman_clothes, testing::DataDir() / "meshes" / "makehuman_clothes"));
-  CHECK(worker::DescribeBodies(on->source) == "MakeHuman (18 presets + 40 sampled, 0.5 clothed) + procedural");
+  CHECK(engine::DescribeBodies(on->source) ==
+        "MakeHuman (18 presets + 40 sampled, 0.5 clothed) + procedural");
   auto trailing = Params("makehuman_kit: \"" + Kit() + "/\" makehuman_clothed_share: 1");
   REQUIRE(trailing.ok());
   CHECK(fs::equivalent(trailing->source.makehuman_clothes, testing::DataDir() / "meshes" / "makehuman_clothes"));
@@ -78,11 +80,12 @@ TEST_CASE("MakeHuman body job fields: defaults off, validation, the clothes fold
   fs::remove_all(dir);
 
   // Relative clothes paths resolve against the job file like the kit.
-  auto config = worker::ParseJobText("images_per_tree: 5 source { rendered { makehuman_kit: \"k\" "
-                                     "makehuman_clothes: \"c\" makehuman_clothed_share: 1 } }",
-                                     "x");
+  auto config = engine::ParseJobText(
+      "images_per_tree: 5 source { rendered { makehuman_kit: \"k\" "
+      "makehuman_clothes: \"c\" makehuman_clothed_share: 1 } }",
+      "x");
   REQUIRE(config.ok());
-  worker::ResolveJobPaths("/jobs/a/job.textproto", &*config);
+  engine::ResolveJobPaths("/jobs/a/job.textproto", &*config);
   CHECK(config->source().rendered().makehuman_clothes() == "/jobs/a/c");
 }
 
@@ -93,10 +96,10 @@ TEST_CASE("a rendered source with sampled, clothed MakeHuman bodies renders them
                   "kinect_noise: false seed: 4");
   INFO(p.status().ToString());
   REQUIRE(p.ok());
-  auto a = worker::MakeImageSource(p->source);
+  auto a = engine::MakeImageSource(p->source);
   if (!a.ok()) WARN("no renderer: " << a.status().ToString());
   REQUIRE(a.ok());
-  auto b = worker::MakeImageSource(p->source);  // another thread's source: the cached bodies
+  auto b = engine::MakeImageSource(p->source);  // another thread's source: the cached bodies
   REQUIRE(b.ok());
   for (uint64_t i = 0; i < 3; ++i) {
     auto fa = (*a)->Frame(i);

@@ -66,33 +66,33 @@ TEST_CASE("a tiny job with a mocap pose library trains and evaluates on its test
          "test_set { source { rendered { seed: 4 pose_library: \"poses/small.pfposes\"\n"
          "                    clips: CLIP_SET_TEST test_fraction: 0.5"
       << seed << " } } num_images: 2 }\n";
-  auto params = worker::LoadJob(job.string());
+  auto params = engine::LoadJob(job.string());
   REQUIRE(params.ok());
   CHECK(params->source.pose_library == (dir / "poses" / "small.pfposes").string());
 
   // The source describes itself with its clips; both clip sets are non-empty.
-  auto train_source = worker::MakeImageSource(params->source);
+  auto train_source = engine::MakeImageSource(params->source);
   REQUIRE(train_source.ok());
   CHECK_THAT((*train_source)->Describe(), Catch::Contains("train clips of"));
-  auto test_source = worker::MakeImageSource(params->test_source);
+  auto test_source = engine::MakeImageSource(params->test_source);
   REQUIRE(test_source.ok());
 
-  coordinator::LocalTrainer trainer(*params, {});
+  engine::LocalTrainer trainer(*params, {});
   auto forest = trainer.Train();
   REQUIRE(forest.ok());
   REQUIRE(forest->trees.size() == 1);
   CHECK(trainer.stats().samples > 0);
-  coordinator::EvalOptions eo;
+  engine::EvalOptions eo;
   eo.num_images = params->test_images;
   eo.threads = 2;
-  auto m = coordinator::EvaluateForest(*forest, params->test_source, eo);
+  auto m = engine::EvaluateForest(*forest, params->test_source, eo);
   REQUIRE(m.ok());
   uint64_t pixels = 0;
   for (int c = 0; c < m->num_parts; ++c) pixels += m->TruthTotal(c);
   CHECK(pixels > 100);
 
   // Same job, same forest (the shared library cache does not change frames).
-  coordinator::LocalTrainer again(*params, {});
+  engine::LocalTrainer again(*params, {});
   auto forest2 = again.Train();
   REQUIRE(forest2.ok());
   CHECK(core::SerializeForest(*forest2) == core::SerializeForest(*forest));
@@ -103,12 +103,12 @@ TEST_CASE("a rendered source with an empty clip selection fails naming the libra
           "[training][mocap][data]") {
   const fs::path dir = testing::ScratchDir("mocap-train-empty");
   const fs::path lib = WriteLibrary(dir);
-  worker::SourceSpec spec;
-  spec.kind = worker::SourceKind::kRendered;
+  engine::SourceSpec spec;
+  spec.kind = engine::SourceKind::kRendered;
   spec.pose_library = lib.string();
-  spec.clips = worker::ClipSet::kTest;
+  spec.clips = engine::ClipSet::kTest;
   spec.test_fraction = 0;  // no test clips at all
-  auto src = worker::MakeImageSource(spec);
+  auto src = engine::MakeImageSource(spec);
   REQUIRE_FALSE(src.ok());
   CHECK_THAT(src.status().message(), Catch::Contains(lib.string()) && Catch::Contains("test clips"));
   fs::remove_all(dir);
@@ -117,17 +117,17 @@ TEST_CASE("a rendered source with an empty clip selection fails naming the libra
 TEST_CASE("a rendered source with MakeHuman bodies and library poses gives labelled frames",
           "[training][mocap][egl][data]") {
   const fs::path dir = testing::ScratchDir("mocap-train-mh");
-  worker::SourceSpec spec;
-  spec.kind = worker::SourceKind::kRendered;
+  engine::SourceSpec spec;
+  spec.kind = engine::SourceKind::kRendered;
   spec.seed = 6;
   spec.kinect_noise = false;
   spec.pose_library = WriteLibrary(dir).string();
   spec.makehuman_kit = (testing::DataDir() / "meshes" / "makehuman_hm08_kit").string();
   spec.procedural_bodies = false;
-  auto a = worker::MakeImageSource(spec);
+  auto a = engine::MakeImageSource(spec);
   REQUIRE(a.ok());
   CHECK_THAT((*a)->Describe(), Catch::Contains("MakeHuman"));
-  auto b = worker::MakeImageSource(spec);  // second source: bodies and poses from the cache
+  auto b = engine::MakeImageSource(spec);  // second source: bodies and poses from the cache
   REQUIRE(b.ok());
   for (uint64_t i = 0; i < 2; ++i) {
     auto fa = (*a)->Frame(i);

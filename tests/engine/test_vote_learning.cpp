@@ -28,16 +28,16 @@ const char* kJob =
     "source { rendered { seed: 1 } }\n"
     "test_set { source { rendered { seed: 99 } } num_images: 4 }\n";
 
-worker::TrainParams Job() {
-  auto c = worker::ParseJobText(kJob, "job.textproto");
+engine::TrainParams Job() {
+  auto c = engine::ParseJobText(kJob, "job.textproto");
   REQUIRE(c.ok());
-  auto p = worker::ParamsFromConfig(*c, "job.textproto");
+  auto p = engine::ParamsFromConfig(*c, "job.textproto");
   REQUIRE(p.ok());
   return *p;
 }
 
-core::Forest Train(const worker::TrainParams& job) {
-  auto forest = coordinator::LocalTrainer(job, coordinator::LocalTrainerOptions{}).Train();
+core::Forest Train(const engine::TrainParams& job) {
+  auto forest = engine::LocalTrainer(job, engine::LocalTrainerOptions{}).Train();
   REQUIRE(forest.ok());
   return std::move(*forest);
 }
@@ -46,14 +46,14 @@ core::Forest Train(const worker::TrainParams& job) {
 
 TEST_CASE("learn-votes: the votes place the joints of the frames they were learned from; same table on 1 and 2 threads",
           "[votes][egl]") {
-  const worker::TrainParams job = Job();
+  const engine::TrainParams job = Job();
   const core::Forest forest = Train(job);
-  coordinator::VoteLearningOptions opt;
+  engine::VoteLearningOptions opt;
   opt.validation = job.source;  // the training frames themselves: tree 0's first frames
   opt.validation_frames = 8;
   opt.threads = 1;
-  coordinator::VoteLearningReport rep;
-  auto one = coordinator::LearnOffsetVotes(forest, job, opt, &rep);
+  engine::VoteLearningReport rep;
+  auto one = engine::LearnOffsetVotes(forest, job, opt, &rep);
   REQUIRE(one.ok());
   REQUIRE(one->trees.size() == 2);
   CHECK(rep.pixels > 0);
@@ -84,12 +84,12 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
       CHECK(one->precision[size_t(j) * bins + b] >= one->precision[size_t(j) * bins + b - 1]);
 
   opt.threads = 2;
-  auto two = coordinator::LearnOffsetVotes(forest, job, opt);
+  auto two = engine::LearnOffsetVotes(forest, job, opt);
   REQUIRE(two.ok());
   CHECK(*two == *one);
 
   // The candidates of a training frame: the head's most confident one is near the head.
-  auto src = coordinator::MakeEvalFrameSource(job.source);
+  auto src = engine::MakeEvalFrameSource(job.source);
   REQUIRE(src.ok());
   auto frame = (*src)->Frame(0);
   REQUIRE(frame.ok());
@@ -112,21 +112,21 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
 }
 
 TEST_CASE("learn-votes refuses a procedural job and a forest of another job", "[votes][egl]") {
-  worker::TrainParams job = Job();
+  engine::TrainParams job = Job();
   const core::Forest forest = Train(job);
-  coordinator::VoteLearningOptions opt;
+  engine::VoteLearningOptions opt;
   opt.validation = job.source;
   opt.validation_frames = 0;
-  worker::TrainParams other = job;
+  engine::TrainParams other = job;
   other.num_trees = 3;
-  auto wrong = coordinator::LearnOffsetVotes(forest, other, opt);
+  auto wrong = engine::LearnOffsetVotes(forest, other, opt);
   REQUIRE_FALSE(wrong.ok());
   CHECK(wrong.status().code() == core::ErrorCode::kInvalidArgument);
   CHECK_THAT(wrong.status().message(), Catch::Contains("not the forest of this job"));
-  worker::TrainParams procedural = job;
-  procedural.source = worker::SourceSpec{};
-  procedural.source.kind = worker::SourceKind::kProcedural;
-  auto proc = coordinator::LearnOffsetVotes(forest, procedural, opt);
+  engine::TrainParams procedural = job;
+  procedural.source = engine::SourceSpec{};
+  procedural.source.kind = engine::SourceKind::kProcedural;
+  auto proc = engine::LearnOffsetVotes(forest, procedural, opt);
   REQUIRE_FALSE(proc.ok());
   CHECK(proc.status().code() == core::ErrorCode::kInvalidArgument);
   CHECK_THAT(proc.status().message(), Catch::Contains("no joints"));

@@ -14,8 +14,8 @@ using namespace poseforest;
 
 namespace {
 
-worker::TrainParams SmallParams() {
-  worker::TrainParams p;
+engine::TrainParams SmallParams() {
+  engine::TrainParams p;
   p.seed = 11;
   p.images_per_tree = 4;
   p.pixels_per_image = 300;
@@ -23,19 +23,19 @@ worker::TrainParams SmallParams() {
   p.thresholds_per_feature = 12;
   p.max_probe_offset_pixel_m = 60;
   p.threshold_reference_pixels = 100;
-  p.source.kind = worker::SourceKind::kProcedural;
+  p.source.kind = engine::SourceKind::kProcedural;
   p.source.seed = 5;
   p.source.width = 160;
   p.source.height = 120;
   return p;
 }
 
-worker::SampleSet MakeSamples(const worker::TrainParams& p, int first, int count) {
-  worker::SampleSet set;
+engine::SampleSet MakeSamples(const engine::TrainParams& p, int first, int count) {
+  engine::SampleSet set;
   for (int i = first; i < first + count; ++i) {
-    worker::LabelledFrame f = worker::MakeProceduralFrame(p.source, uint64_t(i));
-    auto px = worker::SamplePixels(f, p.pixels_per_image, 1.0,
-                                   core::CounterRng(p.seed, 0, uint64_t(i), worker::kSamplingStream));
+    engine::LabelledFrame f = engine::MakeProceduralFrame(p.source, uint64_t(i));
+    auto px = engine::SamplePixels(f, p.pixels_per_image, 1.0,
+                                   core::CounterRng(p.seed, 0, uint64_t(i), engine::kSamplingStream));
     set.AddFrame(uint64_t(i), std::move(f.depth), px, p.constants);
   }
   set.StartTree(0);
@@ -43,45 +43,45 @@ worker::SampleSet MakeSamples(const worker::TrainParams& p, int first, int count
 }
 
 /// The procedural depth frame of sample i, generated afresh (independent of the set's storage).
-const core::DepthImage& FrameOf(const worker::TrainParams& p, const worker::SampleSet& set, size_t i) {
+const core::DepthImage& FrameOf(const engine::TrainParams& p, const engine::SampleSet& set, size_t i) {
   static std::map<std::pair<uint64_t, uint64_t>, core::DepthImage> cache;
   const auto key = std::make_pair(p.source.seed, set.frame_index(i));
   auto it = cache.find(key);
   if (it == cache.end())
-    it = cache.emplace(key, worker::MakeProceduralFrame(p.source, key.second).depth).first;
+    it = cache.emplace(key, engine::MakeProceduralFrame(p.source, key.second).depth).first;
   return it->second;
 }
 
 /// Eq. 1 at sample i by core::FeatureResponse on the regenerated frame.
-int32_t NaiveResponse(const worker::TrainParams& p, const worker::SampleSet& set, size_t i,
+int32_t NaiveResponse(const engine::TrainParams& p, const engine::SampleSet& set, size_t i,
                       const core::FeatureOffsets& f) {
   return core::FeatureResponse(FrameOf(p, set, i), set.x()[i], set.y()[i], f, p.constants);
 }
 
-worker::NodePlan PlanFor(const worker::TrainParams& p, const worker::SampleSet& s, uint32_t node) {
-  worker::NodePlan plan;
+engine::NodePlan PlanFor(const engine::TrainParams& p, const engine::SampleSet& s, uint32_t node) {
+  engine::NodePlan plan;
   plan.node = node;
   plan.position = node;  // any key works as long as plan, DrawFeatures and DrawCuts agree
-  const worker::NodeRange r = s.RangeOf(node);
+  const engine::NodeRange r = s.RangeOf(node);
   plan.num_samples = r.end - r.begin;
   std::vector<uint64_t> parts(core::kNumParts);
   s.CountParts(r, core::kNumParts, parts.data());
   plan.SetParts(parts);
-  plan.features = worker::DrawFeatures(p, 0, node);
-  plan.cut_stride = worker::CutStride(p.thresholds_per_feature);
+  plan.features = engine::DrawFeatures(p, 0, node);
+  plan.cut_stride = engine::CutStride(p.thresholds_per_feature);
   return plan;
 }
 
 }  // namespace
 
 TEST_CASE("pixel sampling is deterministic, on the body, and balances parts", "[training][sampling]") {
-  worker::SourceSpec spec;
+  engine::SourceSpec spec;
   spec.seed = 3;
   spec.width = 320;
   spec.height = 240;
-  const worker::LabelledFrame f = worker::MakeProceduralFrame(spec, 7);
-  const core::CounterRng rng(1, 0, 7, worker::kSamplingStream);
-  const auto a = worker::SamplePixels(f, 620, 1.0, rng), b = worker::SamplePixels(f, 620, 1.0, rng);
+  const engine::LabelledFrame f = engine::MakeProceduralFrame(spec, 7);
+  const core::CounterRng rng(1, 0, 7, engine::kSamplingStream);
+  const auto a = engine::SamplePixels(f, 620, 1.0, rng), b = engine::SamplePixels(f, 620, 1.0, rng);
   REQUIRE(a.size() == 620);
   REQUIRE(a.size() == b.size());
   std::map<int, int> per_part, pixels_per_part;
@@ -99,12 +99,12 @@ TEST_CASE("pixel sampling is deterministic, on the body, and balances parts", "[
   // No duplicates.
   for (size_t i = 1; i < a.size(); ++i) CHECK((a[i].y * 10000 + a[i].x) > (a[i - 1].y * 10000 + a[i - 1].x));
   // Another key draws other pixels.
-  const auto c = worker::SamplePixels(f, 620, 1.0, core::CounterRng(2, 0, 7, worker::kSamplingStream));
+  const auto c = engine::SamplePixels(f, 620, 1.0, core::CounterRng(2, 0, 7, engine::kSamplingStream));
   int same = 0;
   for (size_t i = 0; i < c.size(); ++i) same += (c[i].x == a[i].x && c[i].y == a[i].y);
   CHECK(same < int(c.size()));
   // Fewer body pixels than asked: all of them.
-  CHECK(worker::SamplePixels(f, 10'000'000, 1.0, rng).size() ==
+  CHECK(engine::SamplePixels(f, 10'000'000, 1.0, rng).size() ==
         size_t(std::count_if(f.labels.pixels.begin(), f.labels.pixels.end(),
                              [](uint8_t l) { return l < core::kNumParts; })));
 }
@@ -114,21 +114,21 @@ TEST_CASE("histogram builder equals a naive evaluator, for any thread count", "[
   // reference size makes the range pass cover whole nodes (sample-major kernel).
   const int thresholds = GENERATE(12, 50, 100);
   const uint64_t reference = GENERATE(100, 100000);
-  worker::TrainParams p = SmallParams();
+  engine::TrainParams p = SmallParams();
   p.thresholds_per_feature = thresholds;
   p.threshold_reference_pixels = reference;
-  const worker::SampleSet set = MakeSamples(p, 0, 4);
-  std::vector<worker::NodePlan> plans{PlanFor(p, set, 0)};
-  worker::HistogramBuilder b1(p.constants, 1), b2(p.constants, 2);
-  std::vector<std::vector<worker::ResponseRange>> r1, r2;
+  const engine::SampleSet set = MakeSamples(p, 0, 4);
+  std::vector<engine::NodePlan> plans{PlanFor(p, set, 0)};
+  engine::HistogramBuilder b1(p.constants, 1), b2(p.constants, 2);
+  std::vector<std::vector<engine::ResponseRange>> r1, r2;
   b1.ComputeRanges(set, p, 0, plans, &r1);
   b2.ComputeRanges(set, p, 0, plans, &r2);
   REQUIRE(r1 == r2);
   // Naive ranges over the reference subsample.
-  const worker::ReferenceSelector sel(p, 0, 0, plans[0].num_samples);
+  const engine::ReferenceSelector sel(p, 0, 0, plans[0].num_samples);
   size_t selected = 0;
   for (size_t k = 0; k < plans[0].features.size(); ++k) {
-    worker::ResponseRange naive;
+    engine::ResponseRange naive;
     for (size_t i = 0; i < set.num_samples(); ++i) {
       if (!sel.Selected(set.uid(i))) continue;
       selected += k == 0;
@@ -143,8 +143,8 @@ TEST_CASE("histogram builder equals a naive evaluator, for any thread count", "[
   } else {
     CHECK(selected == set.num_samples());
   }
-  plans[0].cuts = worker::DrawCuts(p, 0, 0, r1[0]);
-  std::vector<worker::NodeHistogram> h1, h2;
+  plans[0].cuts = engine::DrawCuts(p, 0, 0, r1[0]);
+  std::vector<engine::NodeHistogram> h1, h2;
   b1.Build(set, plans, p.thresholds_per_feature, &h1);
   b2.Build(set, plans, p.thresholds_per_feature, &h2);
   REQUIRE(h1 == h2);
@@ -153,7 +153,7 @@ TEST_CASE("histogram builder equals a naive evaluator, for any thread count", "[
   std::vector<std::vector<int32_t>> responses(set.num_samples());
   for (size_t i = 0; i < set.num_samples(); ++i)
     for (const auto& f : plans[0].features) responses[i].push_back(NaiveResponse(p, set, i, f));
-  worker::NodeHistogram naive;
+  engine::NodeHistogram naive;
   naive.Reset(0, int(plans[0].features.size()), p.thresholds_per_feature + 1, plans[0].num_slots);
   for (size_t k = 0; k < plans[0].features.size(); ++k) {
     const int32_t* cuts = &plans[0].cuts[k * size_t(plans[0].cut_stride)];
@@ -167,9 +167,9 @@ TEST_CASE("histogram builder equals a naive evaluator, for any thread count", "[
   }
   CHECK(naive == h1[0]);
   // The per-sample-bins form counts the same.
-  std::vector<worker::NodePlan> sparse_plans = plans;
+  std::vector<engine::NodePlan> sparse_plans = plans;
   sparse_plans[0].sample_bins = true;
-  std::vector<worker::NodeHistogram> hs1, hs2;
+  std::vector<engine::NodeHistogram> hs1, hs2;
   b1.Build(set, sparse_plans, p.thresholds_per_feature, &hs1);
   b2.Build(set, sparse_plans, p.thresholds_per_feature, &hs2);
   CHECK(hs1 == hs2);
@@ -180,8 +180,8 @@ TEST_CASE("histogram builder equals a naive evaluator, for any thread count", "[
   for (size_t k = 0; k < plans[0].features.size(); ++k) {
     const int32_t* cuts = &plans[0].cuts[k * size_t(plans[0].cut_stride)];
     for (int j = 0; j + 1 < plans[0].cut_stride; ++j)
-      CHECK((cuts[j] < cuts[j + 1] || cuts[j + 1] == worker::kNoCut));
-    if (cuts[0] != worker::kNoCut) {
+      CHECK((cuts[j] < cuts[j + 1] || cuts[j + 1] == engine::kNoCut));
+    if (cuts[0] != engine::kNoCut) {
       CHECK(cuts[0] >= r1[0][k].lo);
       CHECK(cuts[0] < r1[0][k].hi);
     }
@@ -189,11 +189,11 @@ TEST_CASE("histogram builder equals a naive evaluator, for any thread count", "[
 }
 
 TEST_CASE("shards' histograms sum to the whole set's", "[training][histogram]") {
-  const worker::TrainParams p = SmallParams();
-  const worker::SampleSet all = MakeSamples(p, 0, 4), s0 = MakeSamples(p, 0, 1), s1 = MakeSamples(p, 1, 3);
-  std::vector<worker::NodePlan> plans{PlanFor(p, all, 0)};
-  worker::HistogramBuilder b(p.constants, 2);
-  std::vector<std::vector<worker::ResponseRange>> ra, r0, r1;
+  const engine::TrainParams p = SmallParams();
+  const engine::SampleSet all = MakeSamples(p, 0, 4), s0 = MakeSamples(p, 0, 1), s1 = MakeSamples(p, 1, 3);
+  std::vector<engine::NodePlan> plans{PlanFor(p, all, 0)};
+  engine::HistogramBuilder b(p.constants, 2);
+  std::vector<std::vector<engine::ResponseRange>> ra, r0, r1;
   b.ComputeRanges(all, p, 0, plans, &ra);
   b.ComputeRanges(s0, p, 0, plans, &r0);
   b.ComputeRanges(s1, p, 0, plans, &r1);
@@ -201,8 +201,8 @@ TEST_CASE("shards' histograms sum to the whole set's", "[training][histogram]") 
     r0[0][k].Merge(r1[0][k]);
     CHECK(r0[0][k] == ra[0][k]);
   }
-  plans[0].cuts = worker::DrawCuts(p, 0, 0, ra[0]);
-  std::vector<worker::NodeHistogram> ha, h0, h1;
+  plans[0].cuts = engine::DrawCuts(p, 0, 0, ra[0]);
+  std::vector<engine::NodeHistogram> ha, h0, h1;
   b.Build(all, plans, p.thresholds_per_feature, &ha);
   b.Build(s0, plans, p.thresholds_per_feature, &h0);
   b.Build(s1, plans, p.thresholds_per_feature, &h1);
@@ -213,27 +213,27 @@ TEST_CASE("shards' histograms sum to the whole set's", "[training][histogram]") 
 TEST_CASE(
     "ApplySplits moves samples by the split and the sibling histogram by subtraction equals a direct build",
     "[training][histogram]") {
-  const worker::TrainParams p = SmallParams();
-  worker::SampleSet set = MakeSamples(p, 0, 4);
+  const engine::TrainParams p = SmallParams();
+  engine::SampleSet set = MakeSamples(p, 0, 4);
   const size_t n = set.num_samples();
-  std::vector<worker::NodePlan> plans{PlanFor(p, set, 0)};
-  worker::HistogramBuilder b(p.constants, 2);
-  std::vector<std::vector<worker::ResponseRange>> r;
+  std::vector<engine::NodePlan> plans{PlanFor(p, set, 0)};
+  engine::HistogramBuilder b(p.constants, 2);
+  std::vector<std::vector<engine::ResponseRange>> r;
   b.ComputeRanges(set, p, 0, plans, &r);
-  plans[0].cuts = worker::DrawCuts(p, 0, 0, r[0]);
-  std::vector<worker::NodeHistogram> parent;
+  plans[0].cuts = engine::DrawCuts(p, 0, 0, r[0]);
+  std::vector<engine::NodeHistogram> parent;
   b.Build(set, plans, p.thresholds_per_feature, &parent);
   // Split the root by candidate 0 at its middle cut; count the expected left side directly.
   const core::FeatureOffsets f = plans[0].features[0];
   const int32_t cut = plans[0].cuts[3];
-  REQUIRE(cut != worker::kNoCut);
+  REQUIRE(cut != engine::kNoCut);
   std::vector<uint64_t> uid_left, uid_right;
   for (size_t i = 0; i < n; ++i) {
     (NaiveResponse(p, set, i, f) < float(cut) + 0.5f ? uid_left : uid_right).push_back(set.uid(i));
   }
   REQUIRE(!uid_left.empty());
   REQUIRE(!uid_right.empty());
-  const worker::SampleSet::Split split{0, f, cut, 1};
+  const engine::SampleSet::Split split{0, f, cut, 1};
   set.ApplySplits(std::span(&split, 1), p.constants, 2);
   REQUIRE(set.ranges().size() == 2);
   CHECK(set.ranges()[0].node == 1);
@@ -244,18 +244,18 @@ TEST_CASE(
   CHECK(got_left == uid_left);  // order kept: (frame, pixel)
   CHECK(got_right == uid_right);
   // Children with the parent's candidates and cuts: right = parent - left.
-  worker::NodePlan left_plan = plans[0], right_plan = plans[0];
+  engine::NodePlan left_plan = plans[0], right_plan = plans[0];
   left_plan.node = 1;
   right_plan.node = 2;
-  std::vector<worker::NodeHistogram> left, right;
+  std::vector<engine::NodeHistogram> left, right;
   b.Build(set, std::span(&left_plan, 1), p.thresholds_per_feature, &left);
   b.Build(set, std::span(&right_plan, 1), p.thresholds_per_feature, &right);
-  worker::NodeHistogram by_subtraction;
+  engine::NodeHistogram by_subtraction;
   by_subtraction.node = 2;
   by_subtraction.SetDifference(parent[0], left[0]);
   CHECK(by_subtraction == right[0]);
   // A leaf drops its samples.
-  const worker::SampleSet::Split only_left{1, f, cut, 3};
+  const engine::SampleSet::Split only_left{1, f, cut, 3};
   set.ApplySplits(std::span(&only_left, 1), p.constants, 1);
   uint64_t kept = 0;
   for (const auto& rg : set.ranges()) kept += rg.end - rg.begin;
@@ -265,16 +265,16 @@ TEST_CASE(
 
 TEST_CASE("small nodes: sample-major kernels and per-sample bins equal the naive evaluator",
           "[training][histogram]") {
-  worker::TrainParams p = SmallParams();
+  engine::TrainParams p = SmallParams();
   p.thresholds_per_feature = GENERATE(8, 50, 100);  // 100: the scalar paths
   p.threshold_reference_pixels = 1000000;
-  worker::SampleSet set = MakeSamples(p, 0, 4);
+  engine::SampleSet set = MakeSamples(p, 0, 4);
   // Four levels of splits at each node's middle response: 16 nodes of ~75 samples.
   for (int level = 0; level < 4; ++level) {
-    std::vector<worker::SampleSet::Split> splits;
+    std::vector<engine::SampleSet::Split> splits;
     uint32_t next = uint32_t(set.ranges().back().node) + 1;
     for (const auto& r : set.ranges()) {
-      const auto f = worker::DrawFeatures(p, 0, r.node)[0];
+      const auto f = engine::DrawFeatures(p, 0, r.node)[0];
       std::vector<int32_t> resp;
       for (uint64_t i = r.begin; i < r.end; ++i)
         resp.push_back(set.Response(i, f, p.constants.background_mm));
@@ -285,21 +285,21 @@ TEST_CASE("small nodes: sample-major kernels and per-sample bins equal the naive
     set.ApplySplits(splits, p.constants, 2);
   }
   REQUIRE(set.ranges().size() >= 8);
-  std::vector<worker::NodePlan> plans;
+  std::vector<engine::NodePlan> plans;
   for (const auto& r : set.ranges()) plans.push_back(PlanFor(p, set, r.node));
-  worker::HistogramBuilder b(p.constants, 2);
-  std::vector<std::vector<worker::ResponseRange>> rr;
+  engine::HistogramBuilder b(p.constants, 2);
+  std::vector<std::vector<engine::ResponseRange>> rr;
   b.ComputeRanges(set, p, 0, plans, &rr);
-  for (size_t q = 0; q < plans.size(); ++q) plans[q].cuts = worker::DrawCuts(p, 0, plans[q].node, rr[q]);
-  std::vector<worker::NodeHistogram> dense, sparse;
+  for (size_t q = 0; q < plans.size(); ++q) plans[q].cuts = engine::DrawCuts(p, 0, plans[q].node, rr[q]);
+  std::vector<engine::NodeHistogram> dense, sparse;
   b.Build(set, plans, p.thresholds_per_feature, &dense);
   // The fused single-shard pass derives the same cuts and counts.
-  std::vector<worker::NodePlan> fused_plans = plans;
+  std::vector<engine::NodePlan> fused_plans = plans;
   for (auto& plan : fused_plans) {
-    REQUIRE(worker::HistogramBuilder::CanFuse(set, p, plan));
+    REQUIRE(engine::HistogramBuilder::CanFuse(set, p, plan));
     plan.cuts.clear();
   }
-  std::vector<worker::NodeHistogram> fused;
+  std::vector<engine::NodeHistogram> fused;
   b.BuildFused(set, p, 0, fused_plans, &fused);
   for (size_t q = 0; q < plans.size(); ++q) {
     CHECK(fused_plans[q].cuts == plans[q].cuts);
@@ -308,12 +308,12 @@ TEST_CASE("small nodes: sample-major kernels and per-sample bins equal the naive
   for (auto& plan : plans) plan.sample_bins = true;
   b.Build(set, plans, p.thresholds_per_feature, &sparse);
   fused_plans = plans;
-  std::vector<worker::NodeHistogram> fused_sparse;
+  std::vector<engine::NodeHistogram> fused_sparse;
   b.BuildFused(set, p, 0, fused_plans, &fused_sparse);
   for (size_t q = 0; q < plans.size(); ++q) CHECK(fused_sparse[q] == sparse[q]);
   for (size_t q = 0; q < plans.size(); ++q) {
-    const worker::NodeRange r = set.RangeOf(plans[q].node);
-    worker::NodeHistogram naive;
+    const engine::NodeRange r = set.RangeOf(plans[q].node);
+    engine::NodeHistogram naive;
     naive.Reset(plans[q].node, int(plans[q].features.size()), p.thresholds_per_feature + 1,
                 plans[q].num_slots);
     for (uint64_t i = r.begin; i < r.end; ++i) {
@@ -338,22 +338,22 @@ TEST_CASE("16-bit binning: saturated responses and cuts at the int16 limits equa
   // A far background (60000 mm) makes responses reach +-6e4, beyond int16: candidates whose cuts
   // all lie in [-32767, 32766] are binned in 16-bit lanes on saturated responses, the others by
   // the int32 kernels. 1 frame (300 samples): the sample-major kernels; 4 frames: candidate-major.
-  worker::TrainParams p = SmallParams();
+  engine::TrainParams p = SmallParams();
   p.constants.background_mm = 60000;
   p.thresholds_per_feature = GENERATE(8, 50);
   const int frames = GENERATE(1, 4);
-  const worker::SampleSet set = MakeSamples(p, 0, frames);
-  worker::NodePlan plan = PlanFor(p, set, 0);
+  const engine::SampleSet set = MakeSamples(p, 0, frames);
+  engine::NodePlan plan = PlanFor(p, set, 0);
   const int stride = plan.cut_stride, t = p.thresholds_per_feature;
   // Hand-made cuts per candidate (ascending, unique, padded): at the int16 limits [-32767, 32766]
   // (16-bit kernels on saturated responses) or one past them (int32 kernels). mixed == 0: every
   // candidate at the limits (every kernel takes its 16-bit form); mixed == 1: k % 3 == 0 at the
   // limits, k % 3 == 1 past them, k % 3 == 2 drawn from the ranges (which reach beyond int16).
   const int mixed = GENERATE(0, 1);
-  worker::HistogramBuilder b(p.constants, 2);
-  std::vector<std::vector<worker::ResponseRange>> rr;
+  engine::HistogramBuilder b(p.constants, 2);
+  std::vector<std::vector<engine::ResponseRange>> rr;
   b.ComputeRanges(set, p, 0, std::span(&plan, 1), &rr);
-  plan.cuts = worker::DrawCuts(p, 0, 0, rr[0]);
+  plan.cuts = engine::DrawCuts(p, 0, 0, rr[0]);
   size_t saturated = 0;
   for (size_t k = 0; k < plan.features.size(); ++k) {
     if (mixed && k % 3 == 2) continue;
@@ -361,15 +361,15 @@ TEST_CASE("16-bit binning: saturated responses and cuts at the int16 limits equa
     std::vector<int32_t> cuts{past ? -32768 : -32767, -20000, -500, 0, 500, 20000, past ? 32767 : 32766};
     cuts.resize(std::min<size_t>(cuts.size(), size_t(t)));
     int32_t* c = &plan.cuts[k * size_t(stride)];
-    std::fill(c, c + stride, worker::kNoCut);
+    std::fill(c, c + stride, engine::kNoCut);
     std::copy(cuts.begin(), cuts.end(), c);
   }
-  std::vector<worker::NodeHistogram> dense, sparse;
+  std::vector<engine::NodeHistogram> dense, sparse;
   b.Build(set, std::span(&plan, 1), t, &dense);
-  worker::NodePlan sparse_plan = plan;
+  engine::NodePlan sparse_plan = plan;
   sparse_plan.sample_bins = true;
   b.Build(set, std::span(&sparse_plan, 1), t, &sparse);
-  worker::NodeHistogram naive;
+  engine::NodeHistogram naive;
   naive.Reset(0, int(plan.features.size()), t + 1, plan.num_slots);
   for (size_t i = 0; i < set.num_samples(); ++i) {
     for (size_t k = 0; k < plan.features.size(); ++k) {
@@ -388,12 +388,12 @@ TEST_CASE("16-bit binning: saturated responses and cuts at the int16 limits equa
   // two-phase build on the same node.
   if (frames == 1) {
     p.threshold_reference_pixels = 1000000;
-    worker::NodePlan two = PlanFor(p, set, 0), fused = two;
+    engine::NodePlan two = PlanFor(p, set, 0), fused = two;
     b.ComputeRanges(set, p, 0, std::span(&two, 1), &rr);
-    two.cuts = worker::DrawCuts(p, 0, 0, rr[0]);
-    std::vector<worker::NodeHistogram> h2, hf;
+    two.cuts = engine::DrawCuts(p, 0, 0, rr[0]);
+    std::vector<engine::NodeHistogram> h2, hf;
     b.Build(set, std::span(&two, 1), t, &h2);
-    REQUIRE(worker::HistogramBuilder::CanFuse(set, p, fused));
+    REQUIRE(engine::HistogramBuilder::CanFuse(set, p, fused));
     b.BuildFused(set, p, 0, std::span(&fused, 1), &hf);
     CHECK(fused.cuts == two.cuts);
     CHECK(hf[0] == h2[0]);

@@ -25,7 +25,7 @@
 
 extern char** environ;
 
-namespace poseforest::dds::testing {
+namespace poseforest::proto::dds::testing {
 
 /// A domain no parallel test process uses (tests/support/dds_domain.h); the same `offset` gives
 /// the same domain within a process. (Keys 1000+: apart from the distributed tests' Domain().)
@@ -196,4 +196,4 @@ class Child {
   std::string buffer_, output_;
 };
 
-}  // namespace poseforest::dds::testing
+}  // namespace poseforest::proto::dds::testing

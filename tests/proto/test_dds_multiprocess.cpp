@@ -13,7 +13,7 @@
 #include "proto/dds/message_gate.h"
 #include "tests/proto/dds_test_util.h"
 
-namespace pd = poseforest::dds;
+namespace pd = poseforest::proto::dds;
 namespace v1 = poseforest::v1;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;

@@ -17,7 +17,7 @@
 #include "tests/support/netns.h"
 #include "tests/support/process.h"
 
-namespace pdt = poseforest::dds::testing;
+namespace pdt = poseforest::proto::dds::testing;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 

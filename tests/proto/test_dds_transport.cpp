@@ -12,7 +12,7 @@
 #include "proto/dds/message_gate.h"
 #include "tests/proto/dds_test_util.h"
 
-namespace pd = poseforest::dds;
+namespace pd = poseforest::proto::dds;
 namespace v1 = poseforest::v1;
 using namespace std::chrono_literals;
 using pd::testing::TestDomain;
