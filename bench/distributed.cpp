@@ -58,14 +58,14 @@
 //                   busy process costs through the shared L3 (docs/distributed/service.md)
 // POSEFOREST_BENCH_WORKER_WRAP="CMD ARGS": worker processes run under CMD (a profiler).
 //   --commands-only [--keep-logs DIR]  only the two commands as users run them (no in-process
-//                   runs: for big jobs, e.g. issue 13's 2,000 images per tree), --repeat R pairs;
+//                   runs: for big jobs, e.g. 2,000 images per tree), --repeat R pairs;
 //                   per pair the wall and CPU of each, the forests compared, and a per-level
 //                   table both ways from their logs with the service's level time split into
 //                   the rounds (the critical worker's computing, its request queued while it
 //                   was busy, traffic), merge, waiting for subtree results and other, beside
 //                   the workers' subtree and rendering seconds. Above the last line: the
-//                   median wall ratio (service / engine; issue 13's goal: at most 1.10).
-//   --scale N,N,..  many workers on one machine (issue 24; docs/distributed/scaling.md): instead
+//                   median wall ratio (service / engine; the goal: at most 1.10).
+//   --scale N,N,..  many workers on one machine (docs/distributed/scaling.md): instead
 //                   of the runs above, the engine once (the reference forest) and then one service
 //                   run per N (1..64) worker processes, 1 thread each, subtree hand-off off unless
 //                   --subtree-max S is given (every level by histogram rounds: the coordinator's
@@ -307,7 +307,7 @@ struct LevelTimes {
 
 /// --commands-only: the two commands as users run them on JOB, R pairs (alternating which runs
 /// first), forests compared byte for byte, per-level times both ways from their logs, wall and
-/// CPU ratios. For jobs far too big for the in-process runs (issue 13's 2,000-image job).
+/// CPU ratios. For jobs far too big for the in-process runs (a 2,000-image job).
 int CommandsOnly(const std::string& job_path_in, const std::string& text, const std::string& cli, int n, int repeat,
                  uint32_t domain, const std::string& keep_logs) {
   const auto tmp = std::filesystem::temp_directory_path();
@@ -563,7 +563,7 @@ int NeighbourProcess(int argc, char** argv) {
 
 namespace {
 
-// ---- --scale: many worker processes on one machine, one job (issue 24) ----
+// ---- --scale: many worker processes on one machine, one job ----
 
 /// One level of one --scale run, as the coordinator saw it.
 struct ScaleLevel {

@@ -266,7 +266,7 @@ struct DistCoordinator::Impl {
     }
     // Everything already queued is taken before the heartbeat check below: after a long merge
     // the presence samples that arrived meanwhile wait behind replies, and one sample per call
-    // made a busy coordinator take live workers for lost (seen in the 2,000-image run of issue 13).
+    // made a busy coordinator take live workers for lost (seen in a 2,000-image run).
     for (auto s = node->Receive(timeout); s; s = node->Receive(std::chrono::milliseconds(0))) {
       auto out = gate->Check(s->topic, s->bytes, s->writer_guid);
       if (out.verdict == Verdict::kStale) ++stale_count;
@@ -678,7 +678,7 @@ struct DistCoordinator::Impl {
 
   /// Sends the SubtreeTasks that SendTask queued: one SubtreeTasks message per worker, split
   /// only to stay under kSubtreeTasksMaxBytes, so a level's hand-off costs a few samples per
-  /// worker however many nodes it hands off (issue 13).
+  /// worker however many nodes it hands off (one sample per node filled a busy worker's control history).
   Status FlushTasks() {
     std::map<std::string, std::vector<v1::SubtreeTask>> out;
     out.swap(task_outbox);

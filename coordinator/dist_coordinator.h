@@ -54,7 +54,7 @@ struct DistLevelStats {
   uint64_t subtree_task_messages = 0;    ///< SubtreeTasks messages that carried them (a few per worker)
   double mean_entropy = 0;      ///< bits: part entropy of the frontier nodes, weighted by samples
   double mean_gain = 0;         ///< bits: mean information gain of the splits chosen (0: none)
-  // Where the level's wall time went (issue 13 item 2). Per request/reply round the worker
+  // Where the level's wall time went (the per-level table). Per request/reply round the worker
   // whose reply completed it (the largest queued + compute) is the critical one; the round's
   // wall time = its queued + its compute + traffic.
   int rounds = 0;                     ///< request/reply rounds (ranges, histograms, frames)

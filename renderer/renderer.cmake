@@ -34,6 +34,6 @@ if(TARGET poseforest_assets)  # also pictures of the asset bodies (render_docs O
   target_link_libraries(render_docs PRIVATE poseforest::assets)
   target_compile_definitions(render_docs PRIVATE POSEFOREST_DOCS_WITH_ASSETS=1)
 endif()
-# docs/renderer/sensor_models.png (issue 22; run by hand: sensor_docs docs/renderer/sensor_models.png).
+# docs/renderer/sensor_models.png (run by hand: sensor_docs docs/renderer/sensor_models.png).
 add_executable(sensor_docs ${CMAKE_CURRENT_LIST_DIR}/tools/sensor_docs.cpp)
 target_link_libraries(sensor_docs PRIVATE poseforest::renderer poseforest::warnings)

@@ -50,7 +50,7 @@ core::Result<std::shared_ptr<const std::vector<Pose>>> LoadPoseSelection(const P
 /// to it (see SceneConfig::bodies). Errors: the kit loader's (naming the file).
 core::Result<std::vector<BodyMesh>> MakeHumanPresetBodies(const std::filesystem::path& kit_dir);
 
-/// MakeHuman bodies beyond the 18 presets (issue 22): continuously sampled shapes, and clothes,
+/// MakeHuman bodies beyond the 18 presets: continuously sampled shapes, and clothes,
 /// hair and shoes. Every body is a pure function of these options and the kit (and the clothes
 /// folder), so every worker of a job builds the identical set.
 struct MakeHumanBodyOptions {

@@ -181,7 +181,7 @@ struct DistWorker::Impl {
   // Frames of other shards rendered for SubtreeTasks, kept for the tree's later tasks within
   // WorkerOptions::task_cache_bytes.
   TaskFrameCache task_cache;
-  /// Task frames of tree task_tree (read by the heartbeat thread: /metrics, issue 13).
+  /// Task frames of tree task_tree (read by the heartbeat thread for /metrics).
   std::atomic<uint32_t> task_tree{0};
   std::atomic<uint64_t> tree_task_rendered{0}, tree_task_cached{0}, tree_task_evictions{0};
   uint64_t tree_evictions_at_start = 0;
@@ -227,7 +227,7 @@ struct DistWorker::Impl {
       ++live.stale;
   }
 
-  // DDS intake (issue 13): a thread of its own takes every sample off the DDS readers as it
+  // DDS intake: a thread of its own takes every sample off the DDS readers as it
   // arrives and queues it here, whatever the training thread is doing. A worker deep in a long
   // batch of subtree tasks thus never leaves the coordinator's keep-all control history full
   // (which made the coordinator's writes fail). Bounded in bytes against a flood: past
@@ -1150,8 +1150,8 @@ struct DistWorker::Impl {
 
   /// Called by a subtree batch between its histogram batches and levels: answers the level
   /// requests (and applies the decisions) of this worker's shard that are queued at the front,
-  /// so the coordinator's rounds do not wait for the whole batch (issue 13 item 2: in the run of
-  /// record, rounds waited 883 of 1,917 s for workers busy in subtree batches). Only those: the
+  /// so the coordinator's rounds do not wait for the whole batch (in a 2,000-image run,
+  /// rounds waited 883 of 1,917 s for workers busy in subtree batches). Only those: the
   /// first other message (an assignment, a task, a job) stops it and waits its turn in `pending`.
   /// The batch uses its own sample set and subtree_builder, so answering from the shard's set
   /// with `builder` is safe here; the answers and the subtrees are what they would be in order.
@@ -1315,7 +1315,7 @@ struct DistWorker::Impl {
         assigned_any = true;  // heartbeats (with the epochs) from now on, also while it loads
         // A newer assignment for us already queued (the coordinator sent it again while we were
         // busy): load that one only. Loading each in turn, slower than the coordinator re-sent
-        // them, was the livelock of issue 13's run of record. The decisions replayed and the
+        // them, livelocked a 2,000-image run. The decisions replayed and the
         // level requests between the two are obsolete: the newer one is followed by its own.
         if (const uint64_t newer = NewerQueuedShard(e); newer > 0) {
           skip_below_epoch = std::max(skip_below_epoch, newer);

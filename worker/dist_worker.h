@@ -49,7 +49,7 @@ struct WorkerOptions {
   /// task, reused by the next ones); least recently used dropped first. Never changes a result.
   /// 0 (default): sized from the job (TaskCacheBytesFor), so that a tree's frames rendered for
   /// tasks are rendered once: at 256 MiB a 2,000-image tree rendered frames again and again
-  /// (13,029 evictions, issue 13).
+  /// (13,029 evictions).
   uint64_t task_cache_bytes = 0;
   std::function<void(const std::string&)> log;  ///< default: stderr with the worker id
   /// Tests: called when a SubtreeTask arrives; returning true makes the worker drop the task and

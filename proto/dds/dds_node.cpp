@@ -618,7 +618,7 @@ Status DdsNode::Publish(Topic topic, const void* data, size_t size) {
   // A full keep-all history makes write() wait up to one slice for the slowest matched reader to
   // acknowledge. A reader that is still matched is alive as far as DDS knows (a dead peer is
   // unmatched when its participant lease runs out, and its unacknowledged samples no longer hold
-  // the history), so it is waited for: a busy peer never fails the job (issue 13: a worker in a
+  // the history), so it is waited for: a busy peer never fails the job (a worker in a
   // long subtree batch made the coordinator's write fail after 10 s).
   const auto start = std::chrono::steady_clock::now();
   bool waited = false;

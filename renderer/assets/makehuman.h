@@ -54,7 +54,7 @@ const std::vector<MakeHumanParams>& MakeHumanPresets();
 /// N(0, 0.03)) clamped to +-8 %, weight + N(0, 0.06) clamped to [0, 1]. Deterministic in `rng`.
 MakeHumanParams VaryMakeHuman(const MakeHumanParams& base, core::RngStream& rng);
 
-/// A continuously sampled body (issue 22): macro values drawn from an adult-heavy population
+/// A continuously sampled body (more varied than the 18 presets): macro values drawn from an adult-heavy population
 /// (about 12 % children 6-12 years, 10 % teens 13-17, 63 % adults 18-64, 15 % 65-90; mostly
 /// clearly male or female, 10 % anywhere between; weight and muscle spread over the whole range,
 /// heavier and less muscular with age) and a height_scale that brings MakeHuman's short child

@@ -260,7 +260,7 @@ int RenderMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest render: %s\n", st.message().c_str());
     return 2;
   }
-  // The sensor's noise model (issue 22) and, unless a camera is given, its size and intrinsics.
+  // The sensor's noise model and, unless a camera is given, its size and intrinsics.
   renderer::DepthSensor sensor = renderer::DepthSensor::kKinectV1;
   if (auto name = args.Get("sensor"); name && !renderer::ParseDepthSensor(*name, &sensor)) {
     std::fprintf(stderr, "poseforest render: --sensor takes kinect-v1, kinect-v2 or azure-nfov, not '%s'\n",

@@ -270,7 +270,7 @@ int main(int argc, char** argv) {
       return Fail(st);
     std::printf("wrote %s/asset_bodies.png\n", out.c_str());
 
-    // 6. MakeHuman bodies in MakeHuman clothes, hair and shoes (issue 22): a skirt, long hair, an
+    // 6. MakeHuman bodies in MakeHuman clothes, hair and shoes: a skirt, long hair, an
     //    open jacket, dungarees, a suit and a hat among them, then two sampled clothed bodies; per
     //    body, clean depth and parts in the rest pose (from the front left) and in a procedural
     //    pose (from behind).

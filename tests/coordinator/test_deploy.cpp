@@ -21,7 +21,7 @@
 //    services' names as hosts, internal network only, images built by their Dockerfiles,
 //    Prometheus's config through promtool and its targets the services' --http ports (the live
 //    cluster run is scripts/compose-test.sh, not part of ctest: it needs a container engine);
-//  - the rendered deploy/k8s is what operators expect (issue 24): the coordinator a batch/v1 Job
+//  - the rendered deploy/k8s is what operators expect: the coordinator a batch/v1 Job
 //    (OnFailure) resuming from a checkpoint on a PersistentVolumeClaim, the forest on that volume;
 //    the workers scaled by replicas, with readiness and liveness probes.
 
@@ -784,7 +784,7 @@ std::string ClaimHolding(const Json& workload, const Json& container, const std:
 /// True when the JSON value is an integer of at least `min`.
 bool IntAtLeast(const Json& v, int min) { return v.is_number_integer() && v.get<int64_t>() >= min; }
 
-/// What operators expect of the rendered deploy/k8s (issue 24): the coordinator a batch/v1 Job,
+/// What operators expect of the rendered deploy/k8s: the coordinator a batch/v1 Job,
 /// done when it completes once, whose restarted container resumes from a checkpoint on a
 /// PersistentVolumeClaim (the forest on that volume too); the workers a set scaled by replicas,
 /// with readiness and liveness probes. One line per problem; none when all of that holds.

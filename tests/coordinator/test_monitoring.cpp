@@ -138,7 +138,7 @@ void CheckPrometheusSyntax(const std::string& text) {
     }
   }
   CHECK(samples > 20);
-  // Prometheus sets `job` itself: none of ours (issue 17); the build's own series.
+  // Prometheus sets `job` itself: none of ours (it would clash); the build's own series.
   CHECK(text.find("{job=") == std::string::npos);
   CHECK(text.find(",job=") == std::string::npos);
   CHECK(text.find("poseforest_build_info{version=\"") != std::string::npos);
@@ -1124,7 +1124,7 @@ TEST_CASE("a live job: status events carry the figures, a worker's hostile heart
   for (const v1::WorkerStatus& w : last.workers()) CHECK(w.state() == v1::WORKER_STATE_DONE);
 }
 
-// Issue 13: frames rendered again for subtree tasks and task-cache evictions, per worker and
+// Frames rendered again for subtree tasks and task-cache evictions, per worker and
 // tree, from the workers' heartbeats into /metrics (a cache that thrashes shows here).
 TEST_CASE("/metrics shows each worker's subtree-task frames of the current tree", "[monitoring][unit]") {
   StatusModel model({"job-1", 0, "shm", 2, 4, 10, 100, 20, 8, ""});
@@ -1147,7 +1147,7 @@ TEST_CASE("/metrics shows each worker's subtree-task frames of the current tree"
   CHECK(m.find("poseforest_worker_task_cache_evictions{exported_job=\"job-1\",worker=\"w-a\",tree=\"2\"} 91") != std::string::npos);
 }
 
-// Issue 17: one schema for status (proto/poseforest/v1/status.proto). /status.json and the event
+// One schema for status (proto/poseforest/v1/status.proto). /status.json and the event
 // log parse strictly into JobStatus / JobEvent, with the key names and JSON types users have
 // always read (the dashboard's script, `monitor`, their own scripts).
 TEST_CASE("/status.json parses strictly into JobStatus, with the names and types users read",

@@ -46,7 +46,7 @@ struct HandOff {
   }
 };
 
-/// The level's time split (issue 13 item 2) adds up: each round's critical worker computing +
+/// The level's time split (the per-level table) adds up: each round's critical worker computing +
 /// its request queued + traffic is the rounds' wall time, and rounds + merge + waiting for
 /// subtrees fit in the level's wall time. Summed over a run.
 struct TimeSplit {
@@ -198,7 +198,7 @@ TEST_CASE("a worker lost while it holds a subtree task: the task goes to another
   CHECK(core::SerializeForest(*forest) == reference);
 }
 
-// Issue 13: a 6,000-image job died with "DataWriter::write failed on poseforest/control (history
+// A 6,000-image job died with "DataWriter::write failed on poseforest/control (history
 // full for 10 s ...)": each small node went out as its own SubtreeTask sample, every worker's
 // reader gets every control sample, and a worker busy in a long batch read none of them, so
 // the keep-all history filled and the coordinator's write failed. At CI size: histories of 4
@@ -261,7 +261,7 @@ TEST_CASE("a worker busy in a subtree batch never fails the job (small control h
   CHECK(core::SerializeForest(*forest) == reference);
 }
 
-// Issue 13 item 2: in the run of record the rounds of levels 7-13 waited 883 of 1,917 s for
+// In a 2,000-image run the rounds of levels 7-13 waited 883 of 1,917 s for
 // workers busy in subtree batches ("busy before it"). A worker now answers queued rounds at
 // every pause of a batch (between its histogram batches and levels). Here each pause sleeps
 // 150 ms, so a batch takes seconds: the rounds' requests must not wait for whole batches.
@@ -304,7 +304,7 @@ TEST_CASE("a worker answers queued rounds in the middle of its subtree batch; sa
   CHECK(coordinator.workers_lost() == 0);
 }
 
-// Issue 13's 2,000-image run: a coordinator busy for longer than the heartbeat timeout (a long
+// Seen in a 2,000-image run: a coordinator busy for longer than the heartbeat timeout (a long
 // merge on a loaded machine) took a live worker for lost, because it handled one queued sample
 // and then checked the heartbeats, the rest of them still queued. Here the coordinator sleeps
 // 3 s after each level with a 2 s heartbeat timeout; the workers heartbeat all along.
@@ -332,7 +332,7 @@ TEST_CASE("a coordinator busy past the heartbeat timeout does not take live work
   CHECK(core::SerializeForest(*forest) == reference);
 }
 
-// Issue 13's run of record stopped in tree 2 on a livelock: after a pause the coordinator sent a
+// A 2,000-image run stopped in tree 2 on a livelock: after a pause the coordinator sent a
 // worker's ShardAssignment again every 3 s, each with a new epoch, and the worker loaded each in
 // turn, each load slower than 3 s. Here the worker is busy for 3.5 s when its first assignment
 // arrives (a re-send queues behind it) and every load takes 3.2 s. Before the fix it loaded
@@ -663,7 +663,7 @@ TEST_CASE("the automatic task-frame cache holds a tree's frames within an eighth
   p.pixels_per_image = 2000;
   p.images_per_tree = 2000;
   const uint64_t frame = 640 * 480 * 2 + 2000 * sizeof(engine::PixelSample);
-  // The 2,000-image tree of issue 13 (13,029 evictions at the old 256 MiB): all of it fits.
+  // A 2,000-image tree (13,029 evictions at the old 256 MiB): all of it fits.
   CHECK(TaskCacheBytesFor(p, uint64_t(24) << 30) == 2000 * frame);
   CHECK(TaskCacheBytesFor(p, uint64_t(4) << 30) == uint64_t(512) << 20);  // an eighth of 4 GiB
   p.images_per_tree = 12;

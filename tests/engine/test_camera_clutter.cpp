@@ -1,4 +1,4 @@
-// Issue 14, renderer side, through a trained forest: (1) frames rendered with another camera's
+// Cameras and clutter, renderer side, through a trained forest: (1) frames rendered with another camera's
 // focal length classify about as well as the training camera's once the runtime rescales the
 // forest's offsets (its FOCL focal length), and clearly worse without; (2) `poseforest eval` on a
 // cluttered `poseforest render` folder scores the runtime segmentation (IoU per person) and the

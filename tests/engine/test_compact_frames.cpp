@@ -1,4 +1,4 @@
-// Compact frames (issue 13, memory per training image): a SampleSet keeps per row only the span
+// Compact frames (memory per training image): a SampleSet keeps per row only the span
 // of pixels that do not read background_mm. Every response, through SampleSet::Response and
 // through the histogram builder's vector kernels, must equal core::FeatureResponse on the full
 // frame: probes off the frame, off a row's span, on empty rows, on frames without background.

@@ -393,7 +393,7 @@ TEST_CASE("sitting and leaning shares reach the scene", "[training][config][real
 }
 #endif
 
-TEST_CASE("the sensor fields (issue 22): defaults classic, values, the noise they make, bad values named",
+TEST_CASE("the sensor fields: defaults classic, values, the noise they make, bad values named",
           "[training][config][realism]") {
   auto d = Parse("images_per_tree: 5 source { rendered { } }");
   REQUIRE(d.ok());

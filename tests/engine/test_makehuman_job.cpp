@@ -1,4 +1,4 @@
-// Issue 22, bodies: the job fields for sampled and clothed MakeHuman bodies
+// Bodies: the job fields for sampled and clothed MakeHuman bodies
 // (RenderedSource fields 21-24): defaults, validation, and a rendered source that uses them.
 #include <catch2/catch.hpp>
 

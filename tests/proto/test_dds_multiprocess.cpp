@@ -193,7 +193,7 @@ TEST_CASE("AUTOMATIC liveliness with other workers alive (Fast DDS 2.9 defect, i
   if (crowd && *crowd <= kMaxDetectMs) WARN("AUTOMATIC liveliness works here: the Fast DDS defect is fixed");
 }
 
-// Issue 13: a full keep-all writer history waits for a reader that is alive but slow (here a
+// A full keep-all writer history waits for a reader that is alive but slow (here a
 // reader process stopped with SIGSTOP, which acknowledges nothing), instead of failing after one
 // write slice; and a writer is released when its reader's process dies (SIGKILL: its participant
 // lease ends, the reader is unmatched, nothing is left to wait for).

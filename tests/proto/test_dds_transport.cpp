@@ -319,7 +319,7 @@ TEST_CASE("configuration errors are reported, not crashes", "[dds][unit]") {
   CHECK(r.status().message().find("cannot read security file /nonexistent/ca.pem") != std::string::npos);
 }
 
-// Issue 13: a 6,000-image job failed with "DataWriter::write failed on poseforest/control
+// A 6,000-image job failed with "DataWriter::write failed on poseforest/control
 // (history full for 10 s ...)": a worker busy in a long subtree batch read nothing, its keep-all
 // reader history (as small as the writer's) filled, and Fast DDS 2.9 never asks again for a
 // sample a full reader history rejected, so the writer stalled for good. Readers now hold far

@@ -1,4 +1,4 @@
-// The renderer's camera model and clutter (issue 14): frames rendered with another camera's
+// The renderer's camera model and clutter: frames rendered with another camera's
 // intrinsics, and a floor, walls, boxes and occluders with ground-truth person masks, through
 // SyntheticRenderer (real EGL rendering) and `poseforest render`, run in-process.
 #include <algorithm>

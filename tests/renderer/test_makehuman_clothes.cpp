@@ -1,4 +1,4 @@
-// Issue 22, bodies: MakeHuman bodies sampled continuously over the macro targets, and MakeHuman
+// Bodies: MakeHuman bodies sampled continuously over the macro targets, and MakeHuman
 // clothes, hair and shoes (.mhclo proxies) fitted to them, skinned and part-labelled.
 #include <catch2/catch.hpp>
 

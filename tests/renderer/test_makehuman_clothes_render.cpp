@@ -1,4 +1,4 @@
-// Issue 22, bodies: clothed and sampled MakeHuman bodies through the SyntheticRenderer.
+// Bodies: clothed and sampled MakeHuman bodies through the SyntheticRenderer.
 #include <catch2/catch.hpp>
 
 #include <chrono>

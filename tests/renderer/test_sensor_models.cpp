@@ -1,4 +1,4 @@
-// Sensor models beyond the classic Kinect v1 noise (issue 22): mixed / flying pixels at depth
+// Sensor models beyond the classic Kinect v1 noise: mixed / flying pixels at depth
 // edges, holes growing with depth and on grazing surfaces, time-of-flight presets; and that the
 // classic model, with all of them off, is byte for byte what it was.
 #include <algorithm>
@@ -15,7 +15,7 @@ using namespace poseforest::renderer;
 
 namespace {
 
-// The noise model as it was before issue 22 (renderer/scene.cpp at that time), verbatim: the
+// The noise model as it was before the sensor models (renderer/scene.cpp at that time), verbatim: the
 // reference the classic path must still match byte for byte.
 void ClassicNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* depth, core::LabelImage* labels) {
   if (!noise.enabled) return;

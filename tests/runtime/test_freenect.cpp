@@ -97,7 +97,7 @@ TEST_CASE("the 9 real Kinect frames through a fakenect recording and libfreenect
     CHECK(core::CountForeground(read) == core::CountForeground(*original));
   }
 
-  // `live` on the same stream (issue 15): one JSON Lines record per frame, each with the person.
+  // `live` on the same stream: one JSON Lines record per frame, each with the person.
   REQUIRE(core::SaveForest(testing::MakeRandomForest({.max_depth = 8, .nodes_per_tree = 500}),
                            (dir / "f.pff").string())
               .ok());

@@ -1,4 +1,4 @@
-// `poseforest live` as a user runs it (issue 15): the real program on the real Kinect frames
+// `poseforest live` as a user runs it: the real program on the real Kinect frames
 // (shared/data/real) and the PCL person cloud, JSON Lines checked by Python's json module, the
 // pictures decoded, a clean stop on SIGTERM / SIGINT with its summary, usage errors, and the
 // live page in headless Chromium. The forest is a random one (the frames' skeletons are then

@@ -1,4 +1,4 @@
-// Skeletons (issue 15): the confidence calibration and its forest section (format 1.4, JCAL),
+// Skeletons: the confidence calibration and its forest section (format 1.4, JCAL),
 // per-person joints from masks with the tracked / not-tracked rules, person ids over a
 // sequence, One Euro smoothing and the JSON Lines record.
 #include <catch2/catch.hpp>
