@@ -1,5 +1,5 @@
-// Worker pieces: pixel sampling, the histogram builder against a naive evaluator, ranges,
-// ApplySplits, and the sibling histogram by subtraction.
+// The histogram builder and what it reads: pixel sampling, the builder against a naive evaluator,
+// ranges, ApplySplits, and the sibling histogram by subtraction.
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <map>
