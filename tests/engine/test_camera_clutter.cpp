@@ -84,15 +84,21 @@ TEST_CASE("frames of another focal length classify like the training camera's af
   REQUIRE(v1.ok());
   const double acc_v1 = PixelAccuracy(*forest, **v1, 77, 8);
   // 640x480 at fx = fy = 365 (a wide lens; about the Kinect v2's and the Azure WFOV's class), and
-  // the Azure Kinect NFOV preset (640x576, fx 417, fy 452: non-square, both axes rescaled).
-  for (const std::string name : {"fx365", "azure-nfov"}) {
+  // a non-square 640x576 at fx 417, fy 452 (what the Azure NFOV's documented field of view gives:
+  // both axes rescaled, by different ratios). The Azure NFOV preset itself (504 px, from factory
+  // calibrations) is too near the training camera's 575.8 for the 5-point margin below: it is
+  // checked in "the renderer takes a camera model" (test_render_clutter).
+  for (const std::string name : {"fx365", "nonsquare"}) {
     renderer::SceneConfig other = kinect;
     if (name == "fx365") {
       other.camera.fx = other.camera.fy = 365.0;
     } else {
-      auto preset = runtime::CameraPreset(name);
-      REQUIRE(preset.ok());
-      other.camera = preset->intrinsics;
+      other.camera.width = 640;
+      other.camera.height = 576;
+      other.camera.fx = 417.0;
+      other.camera.fy = 452.1;
+      other.camera.cx = 319.5;
+      other.camera.cy = 287.5;
     }
     auto r = renderer::SyntheticRenderer::Create(other);
     REQUIRE(r.ok());
