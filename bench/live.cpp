@@ -10,7 +10,7 @@
 // The forest: --forest F, else scripts/accuracy-recipe.sh's 4,000-image-per-tree forest
 // (out/accuracy-4000/forest_tuned.pff, then forest.pff); it says which it ran.
 //
-//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--no-votes]
+//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--no-votes] [--no-tracking-model]
 //                    [--checksum]
 //
 // --pixel-stride N: classify and propose from every N-th pixel in x and y (`live --pixel-stride`;
@@ -74,7 +74,7 @@ double Percentile(std::vector<double> v, double q) {
 int main(int argc, char** argv) {
   int threads = 2, num_frames = 30, pixel_stride = 2;  // pixel stride: `poseforest live`'s default
   double seconds = 5.0;
-  bool checksum = false, votes = true;
+  bool checksum = false, votes = true, tracking_model = true;
   std::string forest_path;
   for (int i = 1; i < argc; i += 2) {
     if (!std::strcmp(argv[i], "--checksum")) {
@@ -84,6 +84,11 @@ int main(int argc, char** argv) {
     }
     if (!std::strcmp(argv[i], "--no-votes")) {
       votes = false;
+      --i;
+      continue;
+    }
+    if (!std::strcmp(argv[i], "--no-tracking-model")) {
+      tracking_model = false;
       --i;
       continue;
     }
@@ -168,6 +173,10 @@ int main(int argc, char** argv) {
   options.num_threads = threads;
   options.pixel_stride = pixel_stride;
   options.votes = votes;
+  options.skeleton.use_tracking_model = tracking_model;
+  std::printf("tracking decision: %s\n", !forest->tracking_model ? "the hand-set rules (none in the forest)"
+                                          : tracking_model        ? "learned (the forest's, format 1.6)"
+                                                                  : "the hand-set rules (--no-tracking-model)");
   std::printf("offset votes: %s\n", !forest->offset_votes ? "none in the forest"
                                      : votes            ? "on (the forest's, format 1.5)"
                                                         : "off (--no-votes)");

@@ -482,12 +482,14 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const Source
         runtime::SkeletonOptions so;
         so.fit = options.skeleton_fit;
         so.agree_radius_m = options.agree_radius_m;
+        so.use_tracking_model = options.tracking_model;
         // The forest's offset votes (format 1.5), when it has them and they are not turned off.
         std::vector<runtime::PersonVotes> votes;
         if (options.votes && classifier.forest().offset_votes)
           votes = runtime::CastVotes(classifier.forest(), frame->depth, mask, 1, ms.camera, {}, &out);
+        const auto& model = classifier.forest().tracking_model;
         const auto skeletons = runtime::BuildSkeletons(proposals, mask, 1, frame->depth, ms.camera, calibration, so,
-                                                       votes.empty() ? nullptr : &votes);
+                                                       votes.empty() ? nullptr : &votes, model ? &*model : nullptr);
         if (!skeletons.empty()) {
           auto& acc = e.skeleton;
           ++acc.frames;

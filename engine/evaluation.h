@@ -99,6 +99,8 @@ struct JointEvalOptions {
   int pixel_stride = 1;
   /// The skeleton uses the forest's offset votes (format 1.5) when it has them.
   bool votes = true;
+  /// The skeleton's tracked decision is the forest's learned model (format 1.6) when it has one.
+  bool tracking_model = true;
   /// How the skeleton (the `skeleton accuracy` table) picks its joints (runtime::SkeletonFit).
   runtime::SkeletonFit skeleton_fit = runtime::SkeletonFit::kGreedy;
   float agree_radius_m = runtime::SkeletonOptions{}.agree_radius_m;  ///< SkeletonOptions::agree_radius_m

@@ -148,7 +148,8 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
                                      int num_people, const core::DepthImage& depth,
                                      const core::CameraIntrinsics& camera,
                                      const core::ConfidenceCalibration* calibration,
-                                     const SkeletonOptions& options, const std::vector<PersonVotes>* votes) {
+                                     const SkeletonOptions& options, const std::vector<PersonVotes>* votes,
+                                     const core::TrackingModel* tracking) {
   std::vector<Skeleton> out;
   if (num_people <= 0 || masks.empty() || masks.width != depth.width || masks.height != depth.height)
     return out;
@@ -171,6 +172,13 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
     s.mask_label = label;
     s.pixels = count[size_t(label)];
     s.centroid_m = (sum[size_t(label)] / count[size_t(label)]).cast<float>();
+    // Per joint, what the candidates say before one is chosen (cues of the tracking model):
+    // a proposal on the mask, a usable vote candidate, and how far apart the best of each lie.
+    struct CandidateCues {
+      bool has_proposal = false, has_vote = false;
+      Eigen::Vector3f proposal{0, 0, 0}, vote{0, 0, 0};
+    };
+    std::array<CandidateCues, core::kNumJoints> cand_cues{};
     // The mask's depth at a pixel (nearest mask pixel within the margin), 0 = off it.
     auto mask_depth_px = [&](const Eigen::Vector2f& pixel) {
       const int px = int(std::lround(pixel.x())), py = int(std::lround(pixel.y()));
@@ -244,10 +252,14 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
         for (const JointProposal& p : proposals[size_t(j)])
           if (const int d = mask_depth_at(p); d != 0) {
             place(j, p, d);
+            cand_cues[size_t(j)].has_proposal = true;
+            cand_cues[size_t(j)].proposal = p.position;
             break;
           }
         const auto v = usable_votes(j);
         if (v.empty()) continue;
+        cand_cues[size_t(j)].has_vote = true;
+        cand_cues[size_t(j)].vote = v[0].vote->position;
         SkeletonJoint& joint = s.joints[size_t(j)];
         const bool agree = joint.found && options.agree_radius_m > 0 &&
                            (joint.position_m - v[0].vote->position).norm() <= options.agree_radius_m;
@@ -296,6 +308,12 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
           cand_depth[size_t(j)].push_back(u.mask_depth);
           vote_of[size_t(j)].push_back(u);
         }
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        if (first_on_mask[size_t(j)])
+          cand_cues[size_t(j)].has_proposal = true, cand_cues[size_t(j)].proposal = first_on_mask[size_t(j)]->position;
+        if (!vote_of[size_t(j)].empty())
+          cand_cues[size_t(j)].has_vote = true, cand_cues[size_t(j)].vote = vote_of[size_t(j)][0].vote->position;
+      }
       const auto chosen = FitSkeleton(cands, options);
       for (int j = 0; j < core::kNumJoints; ++j) {
         const int c = chosen[size_t(j)];
@@ -310,25 +328,69 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
       }
     }
     // Cut by the image border: which sides the mask touches.
-    if (options.edge_margin_m > 0) {
-      bool left = false, right = false, top = false, bottom = false;
-      for (int y = 0; y < masks.height; ++y) {
-        left |= masks.at(0, y) == label;
-        right |= masks.at(masks.width - 1, y) == label;
-      }
-      for (int x = 0; x < masks.width; ++x) {
-        top |= masks.at(x, 0) == label;
-        bottom |= masks.at(x, masks.height - 1) == label;
-      }
-      for (SkeletonJoint& joint : s.joints) {
-        if (!joint.tracked || !(joint.position_m.z() > 0)) continue;
-        const float margin = float(camera.fx) * options.edge_margin_m / joint.position_m.z();
-        const float x = joint.pixel.x(), y = joint.pixel.y();
-        if ((left && x < margin) || (right && x > float(masks.width - 1) - margin) || (top && y < margin) ||
-            (bottom && y > float(masks.height - 1) - margin))
-          joint.tracked = false;
-      }
+    bool left = false, right = false, top = false, bottom = false;
+    for (int y = 0; y < masks.height; ++y) {
+      left |= masks.at(0, y) == label;
+      right |= masks.at(masks.width - 1, y) == label;
     }
+    for (int x = 0; x < masks.width; ++x) {
+      top |= masks.at(x, 0) == label;
+      bottom |= masks.at(x, masks.height - 1) == label;
+    }
+    auto near_cut_edge = [&](const SkeletonJoint& joint, float margin_m) {
+      if (!(joint.position_m.z() > 0)) return false;
+      const float margin = float(camera.fx) * margin_m / joint.position_m.z();
+      const float x = joint.pixel.x(), y = joint.pixel.y();
+      return (left && x < margin) || (right && x > float(masks.width - 1) - margin) || (top && y < margin) ||
+             (bottom && y > float(masks.height - 1) - margin);
+    };
+    // The tracking model's cues of every found joint (whether or not a model decides).
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      SkeletonJoint& joint = s.joints[size_t(j)];
+      joint.base_confidence = joint.confidence;
+      if (!joint.found) continue;
+      const CandidateCues& cc = cand_cues[size_t(j)];
+      core::TrackingFeatures& f = joint.cues;
+      f[core::kFeatVoted] = joint.voted;
+      f[core::kFeatHasProposal] = cc.has_proposal;
+      f[core::kFeatHasVote] = cc.has_vote;
+      const float pv = cc.has_proposal && cc.has_vote ? (cc.proposal - cc.vote).norm() : 0.5f;
+      f[core::kFeatProposalVoteGap] = std::min(pv, 0.5f);
+      f[core::kFeatAgreed] = cc.has_proposal && cc.has_vote && pv <= options.agree_radius_m;
+      f[core::kFeatNearCutEdge] = near_cut_edge(joint, 0.15f);
+      const int d = mask_depth_px(joint.pixel);
+      f[core::kFeatDepthGap] = d ? std::min(0.5f, std::abs(joint.position_m.z() - float(d) * 1e-3f)) : 0.5f;
+    }
+    for (const auto& [a, b] : SkeletonBones()) {
+      SkeletonJoint& parent = s.joints[size_t(a)];
+      SkeletonJoint& child = s.joints[size_t(b)];
+      if (!child.found || !parent.found) continue;
+      const auto [lo, hi] = BoneLengthRange(a, b);
+      const float len = (parent.position_m - child.position_m).norm();
+      const bool ok = len >= lo && len <= hi;
+      child.cues[core::kFeatBoneOk] = ok;
+      child.cues[core::kFeatBoneBad] = !ok;
+      child.cues[core::kFeatParentLogit] = core::ClampedLogit(parent.base_confidence);
+      parent.cues[core::kFeatChildrenOk] += ok;
+    }
+    if (tracking && options.use_tracking_model) {
+      // The learned decision: P(within 0.1 m) from all the cues; tracked when likely enough and
+      // at the surface's depth (a joint behind the surface stays inferred or not tracked).
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        SkeletonJoint& joint = s.joints[size_t(j)];
+        if (!joint.found) continue;
+        joint.confidence = tracking->Probability(j, joint.base_confidence, joint.cues);
+        const int d = mask_depth_px(joint.pixel);
+        const bool at_surface = d && std::abs(joint.position_m.z() - float(d) * 1e-3f) <= options.max_depth_gap_m;
+        joint.tracked = at_surface && joint.confidence >= options.track_probability;
+        if (joint.tracked) joint.inferred = false;
+      }
+      out.push_back(std::move(s));
+      continue;
+    }
+    if (options.edge_margin_m > 0)
+      for (SkeletonJoint& joint : s.joints)
+        if (joint.tracked && near_cut_edge(joint, options.edge_margin_m)) joint.tracked = false;
     // Bones from the neck outwards (SkeletonBones lists parents before children).
     if (options.check_bone_lengths || options.require_tracked_parent)
       for (const auto& [a, b] : SkeletonBones()) {

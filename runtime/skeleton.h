@@ -10,7 +10,9 @@
 // joint is *tracked* only if it has such a proposal, the proposal's support and calibrated
 // confidence reach their minimums, its depth agrees with the mask's depth there, it is not at an
 // image border that cuts the person, and its bone to its parent joint has a possible length: an
-// upper-body frame whose legs are out of view gets no invented knees.
+// upper-body frame whose legs are out of view gets no invented knees. A forest with a learned
+// tracking decision (core::TrackingModel, format 1.6) replaces those rules: its P(within 0.1 m)
+// of the joint, from the confidence and the same cues, is the confidence, and P >= 0.5 tracks.
 
 #include <Eigen/Core>
 #include <array>
@@ -24,6 +26,7 @@
 #include "runtime/core/camera.h"
 #include "runtime/core/confidence_calibration.h"
 #include "runtime/core/depth_image.h"
+#include "runtime/core/tracking_model.h"
 #include "runtime/joint_proposals.h"
 #include "runtime/joint_votes.h"
 
@@ -72,6 +75,13 @@ struct SkeletonOptions {
   /// A joint whose bone to its tracked parent (SkeletonBones: towards the head) is outside the
   /// lengths an adult or child can have (BoneLengthRange) is not tracked.
   bool check_bone_lengths = true;
+  /// With a forest's learned tracking decision (core::TrackingModel, format 1.6): a joint's
+  /// confidence is the model's P(within 0.1 m of the truth), and it is tracked when that reaches
+  /// track_probability and it lies at the surface's depth; min_confidence, min_support_m2, the
+  /// image-border, bone-length and tracked-parent rules are then cues of the model, not vetoes.
+  /// false (`--no-tracking-model`) keeps the rules.
+  bool use_tracking_model = true;
+  float track_probability = 0.5f;
   /// A joint below the shoulders (elbow, wrist, hand, knee, ankle, foot) is tracked only if its
   /// parent is: a foot found below knees that are not tracked is a guess.
   bool require_tracked_parent = true;
@@ -97,6 +107,12 @@ struct SkeletonJoint {
   /// a hidden joint the body model puts there (Azure Kinect's "LOW: predicted"). Never with
   /// `tracked`.
   bool inferred = false;
+  /// The calibrated confidence of its proposal or vote candidate (before the tracking model;
+  /// equal to `confidence` without one).
+  float base_confidence = 0;
+  /// The tracking model's cues for this joint (core::TrackingFeature order), filled for every
+  /// found joint whether or not a model is applied: `learn-votes` fits the model on them.
+  core::TrackingFeatures cues{};
 };
 
 /// A joint's state as every output names it (Azure Kinect Body Tracking's confidence levels):
@@ -158,13 +174,16 @@ std::string DescribeConfidence(const core::ConfidenceCalibration* calibration);
 /// when given, adds vote candidates: greedy takes one over the proposals when it is more
 /// confident; kinematic weighs them with the proposals in the fit. A joint placed by a vote is
 /// tracked only if its calibrated confidence reaches min_confidence and it lies at the mask's
-/// depth (a hidden joint's vote is found, not tracked).
+/// depth (a hidden joint's vote is found, not tracked). `tracking` (the forest's learned
+/// decision), when given and options.use_tracking_model, decides tracked instead of the rules
+/// (SkeletonOptions::use_tracking_model).
 std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks,
                                      int num_people, const core::DepthImage& depth,
                                      const core::CameraIntrinsics& camera,
                                      const core::ConfidenceCalibration* calibration,
                                      const SkeletonOptions& options,
-                                     const std::vector<PersonVotes>* votes = nullptr);
+                                     const std::vector<PersonVotes>* votes = nullptr,
+                                     const core::TrackingModel* tracking = nullptr);
 
 /// Person ids over a sequence and the optional smoothing. Not thread-safe; one per stream.
 class SkeletonTracker {

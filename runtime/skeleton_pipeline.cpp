@@ -101,7 +101,8 @@ void SkeletonPipeline::Process(const Frame& frame, SkeletonFrame* out) {
   out->times.votes_ms = MsSince(t0);
   t0 = std::chrono::steady_clock::now();
   auto skeletons = BuildSkeletons(out->proposals, out->masks, out->num_people, *out->depth, cam, calibration_,
-                                  options_.skeleton, out->votes.empty() ? nullptr : &out->votes);
+                                  options_.skeleton, out->votes.empty() ? nullptr : &out->votes,
+                                  forest->tracking_model ? &*forest->tracking_model : nullptr);
   out->skeletons = tracker_.Update(std::move(skeletons), frame.timestamp_s, cam);
   out->times.skeletons_ms += MsSince(t0);
 }

@@ -86,6 +86,8 @@ options:
                     confident proposal on the person) or kinematic (one fit per person choosing
                     among each joint's proposals with bone lengths; runtime/skeleton.h)
   --no-votes        the skeleton ignores the forest's offset votes (format 1.5, `learn-votes`)
+  --no-tracking-model  the skeleton's hand-set tracking rules instead of the forest's learned
+                    tracking decision (format 1.6, `learn-votes`; runtime/core/tracking_model.h)
   --agree-radius M  a joint whose part proposal and best vote candidate lie within M metres
                     of each other gets their combined confidence (default 0.1; 0: off;
                     runtime/skeleton.h SkeletonOptions::agree_radius_m)
@@ -173,6 +175,7 @@ int EvalRealMain(const Args& args) {
   if (!ParseFit(args, &options.skeleton.fit)) return 2;
   if (!ParseAgreeRadius(args, &options.skeleton.agree_radius_m)) return 2;
   options.votes = !args.Has("no-votes");
+  options.skeleton.use_tracking_model = !args.Has("no-tracking-model");
   runtime::FrameSourceOptions source_options;
   source_options.camera = labels->camera;
   source_options.camera_given = true;
@@ -233,7 +236,7 @@ int EvalRealMain(const Args& args) {
 int EvalMain(int argc, char** argv) {
   Args args({"forest", "test-set", "images", "first", "threads", "png", "people", "method", "pr-png",
              "segment", "pixel-stride", "real-labels", "png-dir", "fit", "agree-radius"},
-            {"help", "quiet", "per-person", "no-rescale", "no-votes"});
+            {"help", "quiet", "per-person", "no-rescale", "no-votes", "no-tracking-model"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -294,6 +297,7 @@ int EvalMain(int argc, char** argv) {
   if (!ParseFit(args, &eo.skeleton_fit)) return 2;
   if (!ParseAgreeRadius(args, &eo.agree_radius_m)) return 2;
   eo.votes = !args.Has("no-votes");
+  eo.tracking_model = !args.Has("no-tracking-model");
   eo.fast = method == "both";
   eo.rescale = !args.Has("no-rescale");
   eo.segment = segment == "on"    ? engine::JointEvalOptions::Segment::kOn

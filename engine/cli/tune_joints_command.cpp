@@ -211,6 +211,13 @@ int TuneJointsMain(int argc, char** argv) {
       std::printf("\n");
     }
   }
+  // The tracking decision (format 1.6) was fitted on the confidences of the old parameters and
+  // calibration: it would misread the new ones.
+  if (tuned.tracking_model) {
+    tuned.tracking_model.reset();
+    std::printf("\nthe forest's tracking decision (JTRK) was fitted for the old parameters: dropped; run "
+                "`poseforest learn-votes --tracking-only` to fit it again\n");
+  }
   if (auto st = core::SaveForest(tuned, *args.Get("out")); !st.ok()) {
     std::fprintf(stderr, "poseforest tune-joints: %s\n", st.ToString().c_str());
     return 1;

@@ -16,7 +16,8 @@ indices, thresholds, leaf sums), and prints its format version, trees, depth, no
 bytes, feature constants and the joint-proposal parameters stored by `poseforest tune-joints`,
 one set per method (JPAR: mean shift, JPFC: the fast clustering; means over joints) and which
 set each method runs with, and the offset votes stored by `poseforest learn-votes` (JVOT: votes,
-trees, max offset, bandwidths, calibration bins). Exit status 1 if any file is invalid.
+trees, max offset, bandwidths, calibration bins) and its tracking decision (JTRK: the learned
+weights of the cues). Exit status 1 if any file is invalid.
 
 options:
   --parts   also list the part table
@@ -109,6 +110,14 @@ int InspectMain(int argc, char** argv) {
           bins ? ("calibration " + std::to_string(bins) + " bins").c_str() : "no calibration");
     } else {
       std::printf("  offset votes: none (the skeleton uses part proposals only)\n");
+    }
+    if (const auto& model = f.tracking_model) {
+      std::printf("  tracking decision (JTRK): learned on %u validation joints; cue weights:", model->samples);
+      for (int k = 0; k < core::kNumTrackingFeatures; ++k)
+        std::printf(" %s %.2f%s", core::TrackingFeatureName(k), double(model->shared[size_t(k)]),
+                    k + 1 < core::kNumTrackingFeatures ? "," : "\n");
+    } else {
+      std::printf("  tracking decision: the hand-set rules (no JTRK section)\n");
     }
     if (args.Has("joints")) {
       std::printf("  %-17s %26s   %26s\n", "", "mean shift: b, lambda, zeta",

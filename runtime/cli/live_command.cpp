@@ -79,7 +79,11 @@ skeletons:
                        bone lengths (runtime/skeleton.h)
   --no-votes           ignore the forest's offset votes (format 1.5, `learn-votes`); by default
                        a forest with votes gives every joint vote candidates too
-  --min-confidence C   a joint is tracked only with a confidence >= C (default 0.3)
+  --no-tracking-model  the hand-set tracking rules (--min-confidence, --min-support, the image
+                       border, bone lengths, a tracked parent) instead of the forest's learned
+                       tracking decision (format 1.6, `learn-votes`), which tracks a joint when
+                       its P(within 0.1 m) >= --track-probability (default 0.5)
+  --min-confidence C   without a tracking model: tracked only with a confidence >= C (default 0.3)
   --min-support S      ... and a proposal support >= S m^2 (default 0.0001)
   --max-match M        a person moving more than M metres between frames gets a new id (0.5)
   --smooth             One Euro filter on tracked joints (Casiez et al. 2012), with
@@ -164,7 +168,7 @@ int LiveMain(int argc, char** argv) {
   std::set<std::string> value_options = {"forest",         "source",
                                          "jsonl",          "png-dir",
                                          "http",           "method",
-                                         "min-confidence", "min-support",
+                                         "min-confidence", "track-probability", "min-support",
                                          "max-match",      "smooth-min-cutoff",
                                          "smooth-beta",    "smooth-d-cutoff",
                                          "max-frames",     "threads",
@@ -174,7 +178,7 @@ int LiveMain(int argc, char** argv) {
                                          "dds-frame-id",   "dds-wait",
                                          "pixel-stride",   "fit"};
   for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
-  Args args(value_options, {"help", "quiet", "smooth", "loop", "dds", "no-votes"});
+  Args args(value_options, {"help", "quiet", "smooth", "loop", "dds", "no-votes", "no-tracking-model"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest live: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -239,16 +243,19 @@ int LiveMain(int argc, char** argv) {
     sk.fit = *parsed;
   }
   options.votes = !args.Has("no-votes");
+  sk.use_tracking_model = !args.Has("no-tracking-model");
   {
     auto min_conf = GetDouble(args, "min-confidence", sk.min_confidence, 0.0, 1.0);
+    auto track_p = GetDouble(args, "track-probability", sk.track_probability, 0.0, 1.0);
     auto min_support = GetDouble(args, "min-support", sk.min_support_m2, 0.0, 10.0);
     auto max_match = GetDouble(args, "max-match", sk.max_match_distance_m, 0.0, 100.0);
     auto min_cutoff = GetDouble(args, "smooth-min-cutoff", sk.min_cutoff_hz, 1e-6, 1000.0);
     auto beta = GetDouble(args, "smooth-beta", sk.beta, 0.0, 1000.0);
     auto d_cutoff = GetDouble(args, "smooth-d-cutoff", sk.d_cutoff_hz, 1e-6, 1000.0);
-    for (const auto* r : {&min_conf, &min_support, &max_match, &min_cutoff, &beta, &d_cutoff})
+    for (const auto* r : {&min_conf, &track_p, &min_support, &max_match, &min_cutoff, &beta, &d_cutoff})
       if (!r->ok()) return UsageError(r->status().message());
     sk.min_confidence = float(*min_conf), sk.min_support_m2 = float(*min_support);
+    sk.track_probability = float(*track_p);
     sk.max_match_distance_m = float(*max_match);
     sk.smooth = args.Has("smooth");
     sk.min_cutoff_hz = *min_cutoff, sk.beta = *beta, sk.d_cutoff_hz = *d_cutoff;

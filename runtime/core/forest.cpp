@@ -73,6 +73,8 @@ Status ValidateForest(const Forest& forest, const std::string& source) {
     for (const Tree& t : forest.trees) num_leaves.push_back(t.num_leaves);
     POSEFOREST_RETURN_IF_ERROR(ValidateOffsetVotes(*forest.offset_votes, num_leaves, source + ": JVOT"));
   }
+  if (forest.tracking_model)
+    POSEFOREST_RETURN_IF_ERROR(ValidateTrackingModel(*forest.tracking_model, source + ": JTRK"));
   for (const bool fast : {false, true}) {
     const auto& params = fast ? forest.fast_proposal_params : forest.proposal_params;
     if (!params) continue;

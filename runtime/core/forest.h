@@ -15,6 +15,7 @@
 #include "runtime/core/confidence_calibration.h"
 #include "runtime/core/feature.h"
 #include "runtime/core/offset_votes.h"
+#include "runtime/core/tracking_model.h"
 #include "runtime/core/proposal_params.h"
 #include "runtime/core/result.h"
 
@@ -109,6 +110,9 @@ struct Forest {
   /// Offset votes learned by `learn-votes` (format >= 1.5, section JVOT): per leaf, offsets to
   /// the joints (runtime/joint_votes.h casts them). Absent: the skeleton uses part proposals only.
   std::optional<OffsetVotes> offset_votes;
+  /// The learned tracking decision (format >= 1.6, section JTRK), fitted by `learn-votes` on
+  /// validation renders. Absent: the skeleton's hand-set tracking rules.
+  std::optional<TrackingModel> tracking_model;
 
   int leaf_stride() const { return LeafStride(num_parts); }
   /// Maximum depth over trees.

@@ -39,6 +39,8 @@ constexpr uint32_t kTagFastJointParams = Tag("JPFC");  // the fast clustering (1
 constexpr uint32_t kTagFocal = Tag("FOCL");            // training camera's focal lengths (1.3)
 constexpr uint32_t kTagCalibration = Tag("JCAL");      // joint confidence calibration (1.4)
 constexpr uint32_t kTagOffsetVotes = Tag("JVOT");      // offset votes (1.5)
+constexpr uint32_t kTagTracking = Tag("JTRK");         // learned tracking decision (1.6)
+// JTRK: u32 joints, u32 cues, u32 samples, joints x f32 intercept, joints x f32 slope, cues x f32.
 // JVOT: u32 trees, u32 joints, f32 max offset, joints x f32 bandwidth, u32 calibration bins.
 constexpr uint32_t kVotesHeadSize = 16 + 4 * uint32_t(kNumJoints);
 constexpr uint32_t kVoteSize = 8;  // i16 dx, dy, dz (mm), u8 joint, u8 weight
@@ -140,7 +142,8 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   w.U32(kHeaderSize);
   const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
                                  (forest.fast_proposal_params ? 1 : 0) + 1 +
-                                 (forest.confidence_calibration ? 1 : 0) + (forest.offset_votes ? 1 : 0);
+                                 (forest.confidence_calibration ? 1 : 0) + (forest.offset_votes ? 1 : 0) +
+                                 (forest.tracking_model ? 1 : 0);
   w.U32(section_count);
   while (w.size() < kHeaderSize) w.U8(0);
 
@@ -238,6 +241,18 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
     EndSection(w, at);
   }
 
+  // JTRK (1.6): the tracking decision learn-votes fitted; older readers skip it.
+  if (const auto& model = forest.tracking_model) {
+    at = BeginSection(w, kTagTracking, 0);
+    w.U32(uint32_t(kNumJoints));
+    w.U32(uint32_t(kNumTrackingFeatures));
+    w.U32(model->samples);
+    for (float v : model->intercept) w.F32(v);
+    for (float v : model->slope) w.F32(v);
+    for (float v : model->shared) w.F32(v);
+    EndSection(w, at);
+  }
+
   const uint64_t file_size = w.size() + kTrailerSize;
   w.PatchU64(16, file_size);
   const uint32_t crc = Crc32(w.bytes().data(), w.size());
@@ -284,7 +299,8 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
 
   Forest forest;
   forest.part_names.clear();
-  bool have_meta = false, have_focal = false, have_calibration = false, have_votes = false;
+  bool have_meta = false, have_focal = false, have_calibration = false, have_votes = false,
+       have_tracking = false;
   uint32_t tree_count = 0, stride = 0;
   const auto body = bytes.subspan(header_size, bytes.size() - kTrailerSize - header_size);
   Reader r(body);
@@ -463,6 +479,26 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
         return loss(where + "JVOT has " + std::to_string(p.remaining()) + " bytes after its last tree");
       forest.offset_votes = std::move(votes);
       have_votes = true;
+    } else if (tag == kTagTracking) {
+      if (have_tracking) return loss(where + "second JTRK section");
+      const size_t need = 12 + 4 * (2 * size_t(kNumJoints) + size_t(kNumTrackingFeatures));
+      if (p.remaining() != need)
+        return loss(where + "JTRK holds " + std::to_string(p.remaining()) + " bytes, expected " +
+                    std::to_string(need) + " (" + std::to_string(kNumJoints) + " joints, " +
+                    std::to_string(kNumTrackingFeatures) + " cues)");
+      const uint32_t joints = p.U32();
+      const uint32_t cues = p.U32();
+      if (joints != uint32_t(kNumJoints) || cues != uint32_t(kNumTrackingFeatures))
+        return loss(where + "JTRK holds " + std::to_string(joints) + " joints and " + std::to_string(cues) +
+                    " cues, expected " + std::to_string(kNumJoints) + " and " +
+                    std::to_string(kNumTrackingFeatures));
+      TrackingModel model;
+      model.samples = p.U32();
+      for (float& v : model.intercept) v = p.F32();
+      for (float& v : model.slope) v = p.F32();
+      for (float& v : model.shared) v = p.F32();
+      forest.tracking_model = model;
+      have_tracking = true;
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");

@@ -21,7 +21,7 @@ inline constexpr uint16_t kFormatMajor = 1;
 /// 1.4 added the optional JCAL section (joint confidence calibration); older readers skip it.
 /// 1.5 added the optional JVOT section (per-leaf offset votes to the joints); older readers skip it.
 /// Every file is written with the newest minor version, whichever optional sections it holds.
-inline constexpr uint16_t kFormatMinor = 5;
+inline constexpr uint16_t kFormatMinor = 6;
 
 /// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
 std::vector<uint8_t> SerializeForest(const Forest& forest);

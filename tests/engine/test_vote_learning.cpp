@@ -3,13 +3,16 @@
 // depend on the number of threads, bad inputs are refused - and the command end to end (the
 // forest keeps its trees, `inspect` shows the votes, `eval` uses them or not).
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <cstring>
 #include <fstream>
+#include <random>
 #include <string>
 
 #include "engine/evaluation.h"
 #include "engine/job_spec.h"
 #include "engine/local_trainer.h"
+#include "engine/tracking_learning.h"
 #include "engine/vote_learning.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/forest_format.h"
@@ -109,6 +112,83 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
   const auto none = runtime::CastVotes(forest, frame->depth, mask, 1, (*src)->camera());
   REQUIRE(none.size() == 1);
   for (const auto& c : none[0]) CHECK(c.empty());
+
+  // The tracking decision of the forest with its votes, on frames after the calibration's:
+  // fitted on every found joint, the same model on 1 and 2 threads.
+  engine::TrackingLearningOptions to;
+  to.validation = job.source;
+  to.first_index = 8;
+  to.frames = 6;
+  to.threads = 1;
+  engine::TrackingLearningReport trep;
+  auto m1 = engine::LearnTrackingModel(with, to, &trep);
+  REQUIRE(m1.ok());
+  CHECK(trep.frames == 6);
+  CHECK(trep.samples > 6 * 8);  // most of 16 joints found per frame
+  CHECK(int(m1->samples) == trep.samples);
+  CHECK(trep.iterations > 1);
+  CHECK(trep.model_within > 0);
+  CHECK(core::ValidateTrackingModel(*m1, "model").ok());
+  to.threads = 2;
+  auto m2 = engine::LearnTrackingModel(with, to);
+  REQUIRE(m2.ok());
+  CHECK(*m2 == *m1);
+  // A procedural source has no joints.
+  to.validation = engine::SourceSpec{};
+  to.validation.kind = engine::SourceKind::kProcedural;
+  auto refused = engine::LearnTrackingModel(with, to);
+  REQUIRE_FALSE(refused.ok());
+  CHECK_THAT(refused.status().message(), Catch::Contains("no joints"));
+}
+
+TEST_CASE("the tracking decision's fit recovers the weights that made its labels, deterministically",
+          "[tracking]") {
+  // Samples drawn from a known model: every joint a_j = 0.5 - 0.1 j, b_j = 1; cut edge -2,
+  // impossible bone -1.5, the proposal-vote gap -3 per metre; the other cues 0.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<float> u(0, 1);
+  std::vector<int> joints;
+  std::vector<float> conf;
+  std::vector<core::TrackingFeatures> cues;
+  std::vector<uint8_t> labels;
+  auto truth = [](int j, float c, const core::TrackingFeatures& f) {
+    const double z = 0.5 - 0.1 * j + core::ClampedLogit(c) - 2.0 * f[core::kFeatNearCutEdge] -
+                     1.5 * f[core::kFeatBoneBad] - 3.0 * f[core::kFeatProposalVoteGap];
+    return 1 / (1 + std::exp(-z));
+  };
+  for (int i = 0; i < 40000; ++i) {
+    core::TrackingFeatures f{};
+    const int j = i % core::kNumJoints;
+    const float c = 0.02f + 0.96f * u(rng);
+    f[core::kFeatNearCutEdge] = u(rng) < 0.2f;
+    f[core::kFeatBoneBad] = u(rng) < 0.3f;
+    f[core::kFeatBoneOk] = 1 - f[core::kFeatBoneBad];
+    f[core::kFeatProposalVoteGap] = 0.5f * u(rng);
+    f[core::kFeatHasProposal] = 1;
+    f[core::kFeatHasVote] = u(rng) < 0.5f;
+    joints.push_back(j);
+    conf.push_back(c);
+    cues.push_back(f);
+    labels.push_back(u(rng) < truth(j, c, f));
+  }
+  int steps = 0;
+  const core::TrackingModel m = engine::FitTrackingModel(joints, conf, cues, labels, 1.0, &steps);
+  CHECK(steps > 2);
+  CHECK(steps < 50);
+  CHECK(m.samples == 40000);
+  // bone ok + bone impossible = 1 = has proposal: only their differences are determined, so
+  // compare what the model predicts, and the weights that are identified.
+  CHECK(m.shared[core::kFeatNearCutEdge] == Approx(-2.0).margin(0.25));
+  CHECK(m.shared[core::kFeatProposalVoteGap] == Approx(-3.0).margin(0.6));
+  CHECK(m.shared[core::kFeatBoneBad] - m.shared[core::kFeatBoneOk] == Approx(-1.5).margin(0.25));
+  CHECK(m.shared[core::kFeatHasVote] == Approx(0.0).margin(0.25));
+  for (int j = 0; j < core::kNumJoints; ++j) CHECK(m.slope[size_t(j)] == Approx(1.0).margin(0.3));
+  double worst = 0;
+  for (size_t i = 0; i < 2000; ++i)
+    worst = std::max(worst, std::abs(m.Probability(joints[i], conf[i], cues[i]) - truth(joints[i], conf[i], cues[i])));
+  CHECK(worst < 0.12);
+  // The same samples, the same model, bit for bit.
+  CHECK(engine::FitTrackingModel(joints, conf, cues, labels, 1.0) == m);
 }
 
 TEST_CASE("learn-votes refuses a procedural job and a forest of another job", "[votes][egl]") {
@@ -141,12 +221,13 @@ TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect a
   INFO(train.output);
   REQUIRE(train.exit_code == 0);
   auto learn = RunPoseforest("learn-votes --forest " + forest + " --job " + job + " --out " + voted +
-                             " --validation-frames 4");
+                             " --validation-frames 4 --tracking-frames 5");
   INFO(learn.output);
   REQUIRE(learn.exit_code == 0);
   CHECK_THAT(learn.output, Catch::Contains("learn-votes: tree 1: 16 / 16 training frames") &&
                                Catch::Contains("votes: ") && Catch::Contains("calibration (4 validation frames") &&
-                               Catch::Contains("learn-votes: wrote " + voted));
+                               Catch::Contains("learn-votes: wrote " + voted) &&
+                               Catch::Contains("tracking decision (5 validation frames"));
   auto before = core::LoadForest(forest);
   auto after = core::LoadForest(voted);
   REQUIRE(before.ok());
@@ -161,12 +242,34 @@ TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect a
     CHECK(std::memcmp(a.data(), b.data(), a.size() * sizeof(core::Node)) == 0);
     CHECK(after->trees[t].leaves == before->trees[t].leaves);
   }
+  REQUIRE(after->tracking_model.has_value());
+  CHECK_FALSE(before->tracking_model.has_value());
   auto inspect = RunPoseforest("inspect " + voted);
   CHECK(inspect.exit_code == 0);
-  CHECK_THAT(inspect.output, Catch::Contains("offset votes (JVOT): "));
+  CHECK_THAT(inspect.output, Catch::Contains("offset votes (JVOT): ") &&
+                                 Catch::Contains("tracking decision (JTRK): learned on " +
+                                                 std::to_string(after->tracking_model->samples)));
+  auto inspect_plain = RunPoseforest("inspect " + forest);
+  CHECK_THAT(inspect_plain.output, Catch::Contains("tracking decision: the hand-set rules (no JTRK section)"));
+  // --tracking-only keeps the votes and fits the same model again: the same file.
+  const std::string again = (dir / "again.pff").string();
+  auto only = RunPoseforest("learn-votes --tracking-only --forest " + voted + " --job " + job + " --out " + again +
+                            " --validation-frames 4 --tracking-frames 5");
+  INFO(only.output);
+  REQUIRE(only.exit_code == 0);
+  CHECK_THAT(only.output, Catch::Contains("tracking decision (5 validation frames"));
+  CHECK_THAT(only.output, !Catch::Contains("training frames"));  // no votes learned again
+  CHECK(core::ReadFileBytes(again).value() == core::ReadFileBytes(voted).value());
+  auto no_votes = RunPoseforest("learn-votes --tracking-only --forest " + forest + " --job " + job + " --out " + again);
+  CHECK(no_votes.exit_code == 2);
+  CHECK_THAT(no_votes.output, Catch::Contains("--tracking-only: " + forest + " has no offset votes to keep"));
+  auto no_frames = RunPoseforest("learn-votes --tracking-only --forest " + voted + " --job " + job + " --out " + again +
+                                 " --tracking-frames 0");
+  CHECK(no_frames.exit_code == 2);
+  CHECK_THAT(no_frames.output, Catch::Contains("--tracking-only needs --tracking-frames > 0"));
   // eval's skeleton table with and without the votes (both run; the numbers are the figures'
   // business, not this test's).
-  for (const std::string extra : {"", " --no-votes"}) {
+  for (const std::string extra : {"", " --no-votes", " --no-tracking-model"}) {
     auto eval = RunPoseforest("eval --forest " + voted + " --test-set " + job + " --images 3 --quiet" + extra);
     INFO(eval.output);
     CHECK(eval.exit_code == 0);

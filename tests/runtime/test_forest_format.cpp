@@ -2,7 +2,9 @@
 // offset, with and without a repaired checksum) that must give errors, never crashes.
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <filesystem>
 
 #include "runtime/core/crc32.h"
@@ -577,7 +579,7 @@ TEST_CASE(
     "[format][votes]") {
   core::Forest forest = testing::MakeRandomForest(SmallSpec(31));
   const auto without = core::SerializeForest(forest);
-  CHECK(without[10] == 5);  // every file is written as the newest minor version
+  CHECK(without[10] == core::kFormatMinor);  // every file is written as the newest minor version
   auto plain = core::ParseForest(without, "plain.pff");
   REQUIRE(plain.ok());
   CHECK_FALSE(plain->offset_votes.has_value());
@@ -588,7 +590,7 @@ TEST_CASE(
   REQUIRE(core::ValidateForest(forest, "mem").ok());
   const auto bytes = core::SerializeForest(forest);
   CHECK(bytes[10] == core::kFormatMinor);
-  CHECK(core::kFormatMinor == 5);
+  CHECK(core::kFormatMinor == 6);
   // Head (16 + 16 x 4 bytes), calibration (3 x 8), per tree (8 + (L + 1) x 4 + V x 8), padding.
   size_t payload = 16 + 16 * 4 + 3 * 4 * 17;
   for (size_t t = 0; t < forest.trees.size(); ++t)
@@ -840,4 +842,128 @@ TEST_CASE("offset votes (format 1.5, JVOT): every byte of them rewritten behind 
   // Truncating the file anywhere inside the section is an error too.
   for (size_t len = start; len < bytes.size(); ++len)
     CHECK_FALSE(core::ParseForest(std::span(bytes.data(), len), "cut.pff").ok());
+}
+
+namespace {
+
+// A JTRK payload: joints, cues, samples, then intercepts, slopes and shared weights.
+std::vector<uint8_t> TrackingPayload(const core::TrackingModel& m, uint32_t joints = core::kNumJoints,
+                                     uint32_t cues = core::kNumTrackingFeatures) {
+  std::vector<uint8_t> out;
+  auto u32 = [&](uint32_t v) {
+    for (int i = 0; i < 4; ++i) out.push_back(uint8_t(v >> (8 * i)));
+  };
+  auto f32 = [&](float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, 4);
+    u32(u);
+  };
+  u32(joints);
+  u32(cues);
+  u32(m.samples);
+  for (float v : m.intercept) f32(v);
+  for (float v : m.slope) f32(v);
+  for (float v : m.shared) f32(v);
+  return out;
+}
+
+core::TrackingModel SomeTrackingModel() {
+  core::TrackingModel m;
+  for (int j = 0; j < core::kNumJoints; ++j) m.intercept[size_t(j)] = 0.1f * float(j) - 0.5f, m.slope[size_t(j)] = 0.8f;
+  for (int k = 0; k < core::kNumTrackingFeatures; ++k) m.shared[size_t(k)] = 0.25f * float(k % 5) - 0.5f;
+  m.samples = 1234;
+  return m;
+}
+
+}  // namespace
+
+TEST_CASE("the tracking decision (format 1.6, JTRK) round trips; files without it have none", "[format][tracking]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(41));
+  const auto without = core::SerializeForest(forest);
+  auto plain = core::ParseForest(without, "plain.pff");
+  REQUIRE(plain.ok());
+  CHECK_FALSE(plain->tracking_model.has_value());
+  forest.tracking_model = SomeTrackingModel();
+  const auto bytes = core::SerializeForest(forest);
+  // The section: 16-byte header, 12 + 4 x (16 + 16 + cues) bytes, padded to 8.
+  const size_t payload = 12 + 4 * (2 * core::kNumJoints + core::kNumTrackingFeatures);
+  CHECK(bytes.size() == without.size() + 16 + (payload + 7) / 8 * 8);
+  CHECK(WithSection(without, "JTRK", 0, TrackingPayload(*forest.tracking_model)) == bytes);
+  auto parsed = core::ParseForest(bytes, "trk.pff");
+  REQUIRE(parsed.ok());
+  REQUIRE(parsed->tracking_model.has_value());
+  CHECK(*parsed->tracking_model == *forest.tracking_model);
+  CHECK(core::SerializeForest(*parsed) == bytes);
+  const auto dir = testing::ScratchDir("format-tracking");
+  const std::string path = (dir / "trk.pff").string();
+  REQUIRE(core::SaveForest(forest, path).ok());
+  auto loaded = core::LoadForest(path);
+  REQUIRE(loaded.ok());
+  CHECK(loaded->tracking_model == forest.tracking_model);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("corrupt or truncated JTRK sections give errors naming the file and the section",
+          "[format][tracking][hostile]") {
+  const core::Forest forest = testing::MakeRandomForest(SmallSpec(42));
+  const auto plain = core::SerializeForest(forest);
+  const core::TrackingModel model = SomeTrackingModel();
+  const auto payload = TrackingPayload(model);
+  auto expect = [](const std::vector<uint8_t>& bytes, const std::string& text) {
+    auto r = core::ParseForest(bytes, "bad.pff");
+    REQUIRE_FALSE(r.ok());
+    INFO(r.status().ToString());
+    CHECK(r.status().code() == ErrorCode::kDataLoss);
+    CHECK_THAT(r.status().message(), Catch::StartsWith("bad.pff: ") && Catch::Contains("JTRK") &&
+                                         Catch::Contains(text));
+  };
+  for (size_t n = 0; n < payload.size(); n += 3)
+    expect(WithSection(plain, "JTRK", 0, {payload.begin(), payload.begin() + std::ptrdiff_t(n)}),
+           "JTRK holds " + std::to_string(n) + " bytes, expected " + std::to_string(payload.size()));
+  auto longer = payload;
+  longer.resize(longer.size() + 4);
+  expect(WithSection(plain, "JTRK", 0, longer), "bytes, expected");
+  // Another cue count (a newer model this reader cannot apply) or joint count.
+  auto more_cues = TrackingPayload(model, core::kNumJoints, core::kNumTrackingFeatures + 1);
+  more_cues.resize(payload.size());
+  expect(WithSection(plain, "JTRK", 0, more_cues), "cues, expected");
+  auto joints = TrackingPayload(model, 15);
+  expect(WithSection(plain, "JTRK", 0, joints), "holds 15 joints");
+  // Weights that are not numbers, or absurd.
+  for (const float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), 5e3f}) {
+    core::TrackingModel m = model;
+    m.shared[3] = bad;
+    expect(WithSection(plain, "JTRK", 0, TrackingPayload(m)), "cue 'has proposal'");
+    m = model;
+    m.slope[7] = bad;
+    expect(WithSection(plain, "JTRK", 0, TrackingPayload(m)), "joint 7");
+  }
+  // Twice.
+  auto once = WithSection(plain, "JTRK", 0, payload);
+  expect(WithSection(once, "JTRK", 0, payload), "second JTRK section");
+  // The good payload alone loads.
+  auto ok = core::ParseForest(once, "ok.pff");
+  REQUIRE(ok.ok());
+  CHECK(ok->tracking_model == model);
+}
+
+TEST_CASE("the tracking model's probability: sigmoid of intercept, slope on the confidence's logit, and cues",
+          "[tracking]") {
+  core::TrackingModel m;
+  core::TrackingFeatures f{};
+  CHECK(m.Probability(0, 0.7f, f) == Approx(0.5));  // all weights 0
+  m.intercept[2] = 1.0f;
+  m.slope[2] = 2.0f;
+  m.shared[core::kFeatNearCutEdge] = -3.0f;
+  const double logit = std::log(0.7 / 0.3);
+  CHECK(m.Probability(2, 0.7f, f) == Approx(1 / (1 + std::exp(-(1 + 2 * logit)))).epsilon(1e-5));
+  f[core::kFeatNearCutEdge] = 1;
+  CHECK(m.Probability(2, 0.7f, f) == Approx(1 / (1 + std::exp(-(1 + 2 * logit - 3)))).epsilon(1e-5));
+  // The confidence is clamped to [0.01, 0.99] before its logit.
+  CHECK(m.Probability(2, 1.0f, f) == m.Probability(2, 0.99f, f));
+  CHECK(m.Probability(2, 0.0f, f) == m.Probability(2, 0.01f, f));
+  CHECK(m.Probability(-1, 0.7f, f) == 0);
+  CHECK(m.Probability(core::kNumJoints, 0.7f, f) == 0);
+  CHECK(std::string(core::TrackingFeatureName(core::kFeatDepthGap)) == "depth gap");
+  CHECK(std::string(core::TrackingFeatureName(99)) == "?");
 }

@@ -262,6 +262,89 @@ TEST_CASE("skeletons: no knees at the border that cuts an upper body, bone lengt
   CHECK(s[0].joints[size_t(J::kLKnee)].tracked);
 }
 
+TEST_CASE("skeletons with a learned tracking decision: the cues, P as confidence, tracked at P >= 0.5",
+          "[skeleton][tracking]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 200, 100, 440, 479, 1500);  // an upper body at 1.5 m, cut by the bottom edge
+  runtime::FrameProposals proposals{};
+  const float big = 0.01f * float(cam.fx * cam.fy);
+  using J = core::Joint;
+  auto put = [&](J j, int x, int y, float z = 1.54f) { proposals[size_t(j)] = {At(cam, x, y, z, big)}; };
+  put(J::kNeck, 320, 180);
+  put(J::kHead, 320, 120);
+  put(J::kLShoulder, 380, 200);
+  put(J::kRShoulder, 260, 200);
+  put(J::kLElbow, 420, 300);
+  put(J::kRElbow, 262, 205);        // 1.3 cm from its shoulder: an impossible bone
+  put(J::kLKnee, 380, 460);         // at the bottom edge that cuts the person
+  put(J::kRKnee, 262, 400, 2.0f);   // 0.5 m behind the surface
+  const auto cal = RampCalibration();
+  runtime::SkeletonOptions opt;
+  // Without a model: the rules, and the cues filled all the same.
+  auto rules = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
+  REQUIRE(rules.size() == 1);
+  const auto& r = rules[0].joints;
+  CHECK_FALSE(r[size_t(J::kLKnee)].tracked);
+  CHECK_FALSE(r[size_t(J::kRElbow)].tracked);
+  const float c = cal.Confidence(int(J::kNeck), 0.01f);
+  for (const auto& joint : r) {
+    if (!joint.found) continue;
+    CHECK(joint.base_confidence == Approx(c));
+    CHECK(joint.cues[core::kFeatHasProposal] == 1);
+    CHECK(joint.cues[core::kFeatHasVote] == 0);
+    CHECK(joint.cues[core::kFeatProposalVoteGap] == 0.5f);
+    CHECK(joint.cues[core::kFeatVoted] == 0);
+  }
+  CHECK(r[size_t(J::kLKnee)].cues[core::kFeatNearCutEdge] == 1);
+  CHECK(r[size_t(J::kLElbow)].cues[core::kFeatNearCutEdge] == 0);
+  CHECK(r[size_t(J::kRElbow)].cues[core::kFeatBoneBad] == 1);
+  CHECK(r[size_t(J::kLElbow)].cues[core::kFeatBoneOk] == 1);
+  CHECK(r[size_t(J::kLElbow)].cues[core::kFeatParentLogit] == Approx(core::ClampedLogit(c)));
+  CHECK(r[size_t(J::kNeck)].cues[core::kFeatParentLogit] == 0);  // the root
+  // The neck's children at possible lengths: head and both shoulders.
+  CHECK(r[size_t(J::kNeck)].cues[core::kFeatChildrenOk] == 3);
+  CHECK(r[size_t(J::kRKnee)].cues[core::kFeatDepthGap] == Approx(0.5f));
+  CHECK(r[size_t(J::kHead)].cues[core::kFeatDepthGap] == Approx(0.04f).margin(0.005f));
+
+  // A model that trusts everything but cut edges a little: the knee at the cut edge is tracked
+  // (the rules drop it), the knee behind the surface is not (found, not at the surface).
+  core::TrackingModel model;
+  model.intercept.fill(2.0f);
+  model.shared[core::kFeatNearCutEdge] = -1.0f;
+  auto learned = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  const auto& m = learned[0].joints;
+  for (J j : {J::kNeck, J::kHead, J::kLShoulder, J::kRShoulder, J::kLElbow, J::kRElbow, J::kLKnee}) {
+    INFO(core::JointName(int(j)));
+    CHECK(m[size_t(j)].tracked);
+    CHECK(m[size_t(j)].confidence == Approx(model.Probability(int(j), c, m[size_t(j)].cues)));
+    CHECK(m[size_t(j)].base_confidence == Approx(c));
+  }
+  CHECK(m[size_t(J::kLKnee)].confidence == Approx(1 / (1 + std::exp(-1.0))));
+  CHECK(m[size_t(J::kRKnee)].found);
+  CHECK_FALSE(m[size_t(J::kRKnee)].tracked);
+  CHECK_FALSE(m[size_t(J::kLWrist)].found);
+  // Cut edges weigh more: P = sigmoid(2 - 3) < 0.5, the edge knee is not tracked; the threshold
+  // moves the decision.
+  model.shared[core::kFeatNearCutEdge] = -3.0f;
+  learned = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  CHECK_FALSE(learned[0].joints[size_t(J::kLKnee)].tracked);
+  CHECK(learned[0].joints[size_t(J::kLElbow)].tracked);
+  opt.track_probability = 0.2f;
+  learned = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  CHECK(learned[0].joints[size_t(J::kLKnee)].tracked);
+  // A model that distrusts everything tracks nothing; use_tracking_model = false restores the rules.
+  model.intercept.fill(-5.0f);
+  learned = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  for (const auto& joint : learned[0].joints) CHECK_FALSE(joint.tracked);
+  opt.use_tracking_model = false;
+  learned = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    CHECK(learned[0].joints[size_t(j)].tracked == r[size_t(j)].tracked);
+    CHECK(learned[0].joints[size_t(j)].confidence == r[size_t(j)].confidence);
+  }
+}
+
 TEST_CASE("person ids stay with the nearest centroid over a sequence", "[skeleton]") {
   const auto cam = core::CameraIntrinsics::KinectV1();
   runtime::SkeletonOptions opt;

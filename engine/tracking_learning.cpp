@@ -1,0 +1,182 @@
+#include "engine/tracking_learning.h"
+
+#include <Eigen/Dense>
+
+#include <chrono>
+#include <cmath>
+
+#include "engine/evaluation.h"
+#include "runtime/classifier.h"
+#include "runtime/joint_proposals.h"
+#include "runtime/joint_votes.h"
+
+namespace poseforest::engine {
+
+using core::ErrorCode;
+using core::Status;
+
+namespace {
+
+// Parameter layout: [intercept x joints | slope x joints | shared cues].
+constexpr int kParams = 2 * core::kNumJoints + core::kNumTrackingFeatures;
+
+void Design(int joint, float confidence, const core::TrackingFeatures& f, Eigen::VectorXd* x) {
+  x->setZero(kParams);
+  (*x)[joint] = 1.0;
+  (*x)[core::kNumJoints + joint] = core::ClampedLogit(confidence);
+  for (int k = 0; k < core::kNumTrackingFeatures; ++k) (*x)[2 * core::kNumJoints + k] = f[size_t(k)];
+}
+
+}  // namespace
+
+core::TrackingModel FitTrackingModel(const std::vector<int>& joints, const std::vector<float>& confidences,
+                                     const std::vector<core::TrackingFeatures>& cues,
+                                     const std::vector<uint8_t>& labels, double l2, int* iterations) {
+  const size_t n = joints.size();
+  Eigen::VectorXd w = Eigen::VectorXd::Zero(kParams), x(kParams);
+  int it = 0;
+  // Newton's method on the penalized log-likelihood (convex: it converges from zero); the
+  // samples are summed in their order, so the result does not depend on threads.
+  for (; it < 50; ++it) {
+    Eigen::VectorXd g = l2 * w;
+    Eigen::MatrixXd h = l2 * Eigen::MatrixXd::Identity(kParams, kParams);
+    for (size_t i = 0; i < n; ++i) {
+      Design(joints[i], confidences[i], cues[i], &x);
+      const double p = 1.0 / (1.0 + std::exp(-x.dot(w)));
+      g += (p - double(labels[i])) * x;
+      h.selfadjointView<Eigen::Lower>().rankUpdate(x, p * (1 - p));
+    }
+    const Eigen::VectorXd step = h.selfadjointView<Eigen::Lower>().ldlt().solve(g);
+    w -= step;
+    if (step.lpNorm<Eigen::Infinity>() < 1e-6) {
+      ++it;
+      break;
+    }
+  }
+  if (iterations) *iterations = it;
+  core::TrackingModel m;
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    m.intercept[size_t(j)] = float(w[j]);
+    m.slope[size_t(j)] = float(w[core::kNumJoints + j]);
+  }
+  for (int k = 0; k < core::kNumTrackingFeatures; ++k) m.shared[size_t(k)] = float(w[2 * core::kNumJoints + k]);
+  m.samples = uint32_t(n);
+  return m;
+}
+
+core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
+                                                     const TrackingLearningOptions& options,
+                                                     TrackingLearningReport* report) {
+  const auto t0 = std::chrono::steady_clock::now();
+  TrackingLearningReport rep;
+  if (options.frames <= 0) return Status(ErrorCode::kInvalidArgument, "tracking model: no validation frames asked");
+  auto src = MakeEvalFrameSource(options.validation);
+  if (!src.ok()) return src.status();
+  if (!(*src)->has_joints())
+    return Status(ErrorCode::kInvalidArgument, (*src)->Describe() + ": validation frames have no joints");
+  const core::CameraIntrinsics cam = (*src)->camera();
+  runtime::Classifier classifier(forest);
+  runtime::ClassifyOptions copt;
+  copt.num_threads = options.threads;
+  copt.want_foreground_distributions = true;
+  copt.want_foreground_leaves = forest.offset_votes.has_value();
+  runtime::ProposalOptions po;
+  po.params = forest.ProposalParamsFor(false).params;
+  po.num_threads = options.threads;
+  po.camera = cam;
+  const core::ConfidenceCalibration* calibration =
+      forest.confidence_calibration &&
+              forest.confidence_calibration->method == core::ConfidenceCalibration::Method::kMeanShift
+          ? &*forest.confidence_calibration
+          : nullptr;
+  runtime::VoteOptions vo;
+  vo.threads = options.threads;
+  std::vector<int> joints;
+  std::vector<float> confidences;
+  std::vector<core::TrackingFeatures> cues;
+  std::vector<uint8_t> labels, visible;
+  std::vector<uint8_t> rules_tracked;
+  runtime::Classification out;
+  for (int i = 0; i < options.frames; ++i) {
+    auto frame = (*src)->Frame(options.first_index + uint64_t(i));
+    if (!frame.ok()) return frame.status();
+    if ((i + 1) % 50 == 0 && options.progress)
+      options.progress("tracking model: " + std::to_string(i + 1) + " / " + std::to_string(options.frames) +
+                       " validation frames");
+    if (frame->people.size() != 1) continue;
+    ++rep.frames;
+    const bool has_mask = frame->person_masks.pixels.size() == frame->depth.pixels.size();
+    core::LabelImage mask(frame->depth.width, frame->depth.height, 0);
+    for (size_t k = 0; k < mask.pixels.size(); ++k)
+      mask.pixels[k] = has_mask ? (frame->person_masks.pixels[k] == 1) : (frame->depth.pixels[k] ? 1 : 0);
+    classifier.Classify(frame->depth, copt, &out);
+    const auto proposals = runtime::ProposeJointsFromClassification(frame->depth, out, po);
+    std::vector<runtime::PersonVotes> votes;
+    if (forest.offset_votes) votes = runtime::CastVotes(forest, frame->depth, mask, 1, cam, vo, &out);
+    const auto skeletons = runtime::BuildSkeletons(proposals, mask, 1, frame->depth, cam, calibration,
+                                                   options.skeleton, votes.empty() ? nullptr : &votes);
+    if (skeletons.empty()) continue;
+    const auto& truth = frame->people[0];
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      const runtime::SkeletonJoint& joint = skeletons[0].joints[size_t(j)];
+      if (!joint.found) continue;
+      joints.push_back(j);
+      confidences.push_back(joint.base_confidence);
+      cues.push_back(joint.cues);
+      labels.push_back((joint.position_m - truth.position[size_t(j)]).norm() <= 0.1f);
+      visible.push_back(truth.visible[size_t(j)]);
+      rules_tracked.push_back(joint.tracked);
+    }
+    // Visible joints the skeleton did not find count against both decisions.
+    for (int j = 0; j < core::kNumJoints; ++j)
+      if (!skeletons[0].joints[size_t(j)].found && truth.visible[size_t(j)]) {
+        joints.push_back(-1 - j);  // a marker: scored, not fitted
+        confidences.push_back(0);
+        cues.push_back({});
+        labels.push_back(0);
+        visible.push_back(1);
+          rules_tracked.push_back(0);
+      }
+  }
+  if (rep.frames == 0)
+    return Status(ErrorCode::kInvalidArgument, (*src)->Describe() + ": no one-person validation frame");
+  std::vector<int> fj;
+  std::vector<float> fc;
+  std::vector<core::TrackingFeatures> ff;
+  std::vector<uint8_t> fl;
+  for (size_t i = 0; i < joints.size(); ++i)
+    if (joints[i] >= 0) fj.push_back(joints[i]), fc.push_back(confidences[i]), ff.push_back(cues[i]), fl.push_back(labels[i]);
+  core::TrackingModel model = FitTrackingModel(fj, fc, ff, fl, options.l2, &rep.iterations);
+  rep.samples = int(fj.size());
+  // In-sample figures, rules against model (the same positions; only the decision differs).
+  std::array<double, core::kNumJoints> vis{}, rules_hit{}, model_hit{};
+  double rules_tr = 0, rules_ok = 0, model_tr = 0, model_ok = 0;
+  for (size_t i = 0; i < joints.size(); ++i) {
+    const int j = joints[i] >= 0 ? joints[i] : -1 - joints[i];
+    const bool model_tracked =
+        joints[i] >= 0 && model.Probability(j, confidences[i], cues[i]) >= options.skeleton.track_probability &&
+        cues[i][core::kFeatDepthGap] <= options.skeleton.max_depth_gap_m;
+    if (visible[i]) {
+      vis[size_t(j)] += 1;
+      rules_hit[size_t(j)] += rules_tracked[i] && labels[i];
+      model_hit[size_t(j)] += model_tracked && labels[i];
+    }
+    rules_tr += rules_tracked[i], rules_ok += rules_tracked[i] && labels[i];
+    model_tr += model_tracked, model_ok += model_tracked && labels[i];
+  }
+  int scored = 0;
+  for (int j = 0; j < core::kNumJoints; ++j)
+    if (vis[size_t(j)] > 0) {
+      rep.rules_within += rules_hit[size_t(j)] / vis[size_t(j)];
+      rep.model_within += model_hit[size_t(j)] / vis[size_t(j)];
+      ++scored;
+    }
+  if (scored) rep.rules_within /= scored, rep.model_within /= scored;
+  rep.rules_precision = rules_tr > 0 ? rules_ok / rules_tr : 0;
+  rep.model_precision = model_tr > 0 ? model_ok / model_tr : 0;
+  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (report) *report = rep;
+  return model;
+}
+
+}  // namespace poseforest::engine

@@ -1,0 +1,56 @@
+#pragma once
+// Fitting the learned tracking decision (core::TrackingModel, format 1.6) on validation renders.
+//
+// Each validation frame (one person) is classified, its joints proposed and voted as `live` does,
+// and its skeleton built with the hand-set rules' choice of positions; every joint the skeleton
+// found gives one sample: its joint, calibrated confidence and cues (SkeletonJoint::cues), and
+// whether it lies within 0.1 m of the true joint. Logistic regression (Newton's method, an L2
+// penalty on the weights) fits P(within 0.1 m). The frames are the validation source's frames
+// [first_index, first_index + frames): after the vote calibration's, so the model is not fitted
+// on the frames its inputs were calibrated on. Deterministic: same forest and options, same
+// model, whatever the number of threads.
+
+#include <functional>
+#include <string>
+
+#include "engine/job_spec.h"
+#include "runtime/core/forest.h"
+#include "runtime/core/result.h"
+#include "runtime/skeleton.h"
+
+namespace poseforest::engine {
+
+struct TrackingLearningOptions {
+  SourceSpec validation;      ///< frames with joints, one person each (others skipped)
+  uint64_t first_index = 60;  ///< the first validation frame used (after the vote calibration's 60)
+  int frames = 200;
+  int threads = 0;            ///< 0 = all cores
+  double l2 = 1.0;            ///< penalty on the squared weights (the log-likelihood's scale)
+  runtime::SkeletonOptions skeleton;  ///< how positions are chosen (the default: greedy, agreement)
+  std::function<void(const std::string&)> progress;  ///< may be empty
+};
+
+struct TrackingLearningReport {
+  int frames = 0;       ///< one-person frames used
+  int samples = 0;      ///< found joints (the fit's samples)
+  int iterations = 0;   ///< Newton steps
+  /// On the fitting frames, mean over joints: visible joints tracked within 0.1 m, and the
+  /// share of tracked joints within 0.1 m; by the hand-set rules and by the fitted model.
+  double rules_within = 0, rules_precision = 0, model_within = 0, model_precision = 0;
+  double seconds = 0;
+};
+
+/// The tracking model of `forest` (with its calibration and, if it has them, its votes).
+/// Errors: frames without joints, no one-person frame, rendering failures.
+core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
+                                                     const TrackingLearningOptions& options,
+                                                     TrackingLearningReport* report = nullptr);
+
+/// The fit alone (exposed for tests): samples' joints, calibrated confidences, cues and labels
+/// (1: within 0.1 m) -> the penalized maximum-likelihood model. `iterations` (optional) gets
+/// the number of Newton steps.
+core::TrackingModel FitTrackingModel(const std::vector<int>& joints, const std::vector<float>& confidences,
+                                     const std::vector<core::TrackingFeatures>& cues,
+                                     const std::vector<uint8_t>& labels, double l2, int* iterations = nullptr);
+
+}  // namespace poseforest::engine
