@@ -182,6 +182,12 @@ Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& bytes, con
   out.forest.constants = params->constants;
   out.forest.num_parts = kParts;
   out.forest.part_names = core::Forest::DefaultPartNames();
+  // The training focal length the coordinator recorded (engine::EmptyForest on its machine);
+  // checkpoints from before it hold 0: the Kinect v1's, as every forest had then.
+  if (ck.training_fx() > 0 && ck.training_fy() > 0) {
+    out.forest.training_fx = ck.training_fx();
+    out.forest.training_fy = ck.training_fy();
+  }
   out.forest.trees = std::move(trees);
   POSEFOREST_RETURN_IF_ERROR(core::ValidateForest(out.forest, file));
   return out;

@@ -18,6 +18,7 @@
 #include "engine/candidates.h"
 #include "engine/frontier_loop.h"
 #include "engine/histogram_builder.h"
+#include "engine/image_source.h"
 #include "engine/job_spec.h"
 #include "engine/split_search.h"
 #include "engine/subtree_trainer.h"
@@ -1288,6 +1289,10 @@ struct DistCoordinator::Impl {
     gate = std::make_unique<proto::dds::MessageGate>(proto::dds::GateConfig{self_id, job_id, 16, opt.log});
     gate->set_num_parts(uint32_t(kParts));
 
+    // The forest's header (constants, parts, training focal length), recorded in the checkpoint
+    // so `poseforest export` writes the same one on a machine without the job's files.
+    auto shell = engine::EmptyForest(params);
+    if (!shell.ok()) return shell.status();
     // Resume.
     std::vector<core::Tree> trees;
     std::vector<engine::OpenNode> frontier;
@@ -1296,6 +1301,8 @@ struct DistCoordinator::Impl {
     ckpt.set_format(kCheckpointFormat);
     ckpt.set_job_id(job_id);
     ckpt.set_config(config_bytes);
+    ckpt.set_training_fx(shell->training_fx);
+    ckpt.set_training_fy(shell->training_fy);
     const std::string ckpt_path =
         opt.checkpoint_dir.empty() ? ""
                                    : (std::filesystem::path(opt.checkpoint_dir) / "checkpoint.pb").string();
@@ -1327,6 +1334,7 @@ struct DistCoordinator::Impl {
       first_level = saved.current().levels_size();
       epoch = saved.epoch();
       ckpt = saved;
+      if (ckpt.training_fx() == 0) ckpt.set_training_fx(shell->training_fx), ckpt.set_training_fy(shell->training_fy);
       Log("resuming " + job_id + " at tree " + std::to_string(trees.size()) + " level " +
           std::to_string(first_level));
     }
@@ -1392,10 +1400,7 @@ struct DistCoordinator::Impl {
       last_progress = double(t + 1) / params.num_trees;
       PublishStatus(v1::STATUS_KIND_TREE_DONE, "tree done", "", 0, last_progress);
     }
-    core::Forest forest;
-    forest.constants = params.constants;
-    forest.num_parts = kParts;
-    forest.part_names = core::Forest::DefaultPartNames();
+    core::Forest forest = *shell;
     forest.trees = std::move(trees);
     POSEFOREST_RETURN_IF_ERROR(core::ValidateForest(forest, "trained forest"));
     PublishStatus(v1::STATUS_KIND_JOB_DONE, "job done", "", 0, 1.0);

@@ -7,6 +7,7 @@
 
 #include "runtime/core/body_parts.h"
 #include "runtime/core/forest_format.h"
+#include "runtime/camera_model.h"
 #include "runtime/core/rng.h"
 #include "runtime/image_io.h"
 #if POSEFOREST_HAS_RENDERER
@@ -166,6 +167,50 @@ Result<std::shared_ptr<const renderer::BodyMesh>> SharedBodyMesh(
 
 }  // namespace
 
+core::CameraIntrinsics SensorCamera(DepthSensor sensor) {
+#if POSEFOREST_HAS_RENDERER
+  return renderer::SensorNoise(sensor == DepthSensor::kKinectV2          ? renderer::DepthSensor::kKinectV2
+                               : sensor == DepthSensor::kAzureKinectNfov ? renderer::DepthSensor::kAzureKinectNfov
+                                                                         : renderer::DepthSensor::kKinectV1)
+      .camera;
+#else
+  (void)sensor;
+  return core::CameraIntrinsics::KinectV1();
+#endif
+}
+
+Result<core::CameraIntrinsics> SourceCamera(const SourceSpec& spec) {
+  switch (spec.kind) {
+    case SourceKind::kRendered:
+      return spec.sensor_camera ? SensorCamera(spec.sensor) : core::CameraIntrinsics::KinectV1();
+    case SourceKind::kProcedural:
+      // Flat figures with no camera of their own: the Kinect v1's focal length, as the
+      // procedural test frames' (evaluation.h EvalFrameSource::camera).
+      return core::CameraIntrinsics::KinectV1();
+    case SourceKind::kDataset: {
+      const std::string camera_file = (std::filesystem::path(spec.folder) / "camera.txt").string();
+      std::error_code ec;
+      if (!std::filesystem::exists(camera_file, ec)) return core::CameraIntrinsics::KinectV1();
+      auto model = runtime::ReadCameraModelFile(camera_file);
+      if (!model.ok()) return model.status();
+      return model->intrinsics;
+    }
+  }
+  return Status(ErrorCode::kInternal, "unknown source kind");
+}
+
+Result<core::Forest> EmptyForest(const TrainParams& params) {
+  auto camera = SourceCamera(params.source);
+  if (!camera.ok()) return camera.status();
+  core::Forest forest;
+  forest.constants = params.constants;
+  forest.num_parts = core::kNumParts;
+  forest.part_names = core::Forest::DefaultPartNames();
+  forest.training_fx = float(camera->fx);
+  forest.training_fy = float(camera->fy);
+  return forest;
+}
+
 #if POSEFOREST_HAS_RENDERER
 Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
   scene->rotation_range_deg = spec.rotation_range_deg;
@@ -180,9 +225,10 @@ Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
   scene->arm_pose_share = spec.arm_pose_share;
   scene->sit_share = spec.sitting_share;
   scene->lean_share = spec.leaning_share;
+  // The sensor's own camera (sensor_camera), else the Kinect v1's, whatever the sensor.
+  if (spec.sensor_camera) scene->camera = SensorCamera(spec.sensor);
   {
-    // The sensor's noise model (Kinect v1: the classic one), at the render camera's focal length:
-    // frames stay Kinect v1-sized (SourceSpec width/height), whatever the sensor.
+    // The sensor's noise model (Kinect v1: the classic one), at the render camera's focal length.
     const renderer::DepthSensor sensor =
         spec.sensor == DepthSensor::kKinectV2          ? renderer::DepthSensor::kKinectV2
         : spec.sensor == DepthSensor::kAzureKinectNfov ? renderer::DepthSensor::kAzureKinectNfov

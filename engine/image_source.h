@@ -10,7 +10,9 @@
 #include <vector>
 
 #include "engine/job_spec.h"
+#include "runtime/core/camera.h"
 #include "runtime/core/depth_image.h"
+#include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 
 namespace poseforest::engine {
@@ -33,6 +35,19 @@ class ImageSource {
   /// e.g. "dataset /data/train (1000 frames)".
   virtual std::string Describe() const = 0;
 };
+
+/// The intrinsics of a depth sensor the renderer models (renderer::SensorNoise's presets).
+core::CameraIntrinsics SensorCamera(DepthSensor sensor);
+
+/// The camera a source's frames are taken with: a rendered source's Kinect v1 camera, or its
+/// sensor's with sensor_camera; a procedural source's, the Kinect v1's (its flat figures have no
+/// camera); a dataset folder's camera.txt (poseforest render writes it), else the Kinect v1's. The forest a job trains records its focal length (Forest::training_fx).
+core::Result<core::CameraIntrinsics> SourceCamera(const SourceSpec& spec);
+
+/// A forest with no trees yet for a job: its feature constants, the 31 parts and the training
+/// focal length of SourceCamera(params.source). The engine, the coordinator and the checkpoint
+/// export all start from it, so they write the same forest.
+core::Result<core::Forest> EmptyForest(const TrainParams& params);
 
 /// Creates a source for `spec`. Dataset sources check that the folder holds at least one
 /// frame; rendered sources fail with Unimplemented in builds without the renderer.

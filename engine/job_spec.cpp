@@ -155,6 +155,12 @@ Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string
       }
       spec.width = 640;
       spec.height = 480;
+      spec.sensor_camera = r.sensor_camera();
+      if (spec.sensor_camera) {
+        const core::CameraIntrinsics cam = SensorCamera(spec.sensor);
+        spec.width = cam.width;
+        spec.height = cam.height;
+      }
       namespace fs = std::filesystem;
       std::error_code ec;
       spec.pose_library = r.pose_library();

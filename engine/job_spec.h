@@ -52,6 +52,9 @@ struct SourceSpec {
   std::optional<double> range_holes;
   /// Dropout probability on surfaces seen edge-on.
   std::optional<double> grazing_holes;
+  /// rendered: frames at the sensor's own size and intrinsics (job.proto field 31), not the
+  /// Kinect v1's; width and height are then the sensor's.
+  bool sensor_camera = false;
   int width = 640, height = 480;    ///< rendered / procedural: pixels
   std::string folder;               ///< dataset
   uint32_t first_index = 0;         ///< dataset: first file index

@@ -38,10 +38,9 @@ LocalTrainer::LocalTrainer(TrainParams params, LocalTrainerOptions options)
 
 Result<core::Forest> LocalTrainer::Train() {
   start_ = Now();
-  core::Forest forest;
-  forest.constants = params_.constants;
-  forest.num_parts = core::kNumParts;
-  forest.part_names = core::Forest::DefaultPartNames();
+  auto shell = EmptyForest(params_);
+  if (!shell.ok()) return shell.status();
+  core::Forest forest = std::move(*shell);
   for (int t = 0; t < params_.num_trees; ++t) {
     auto tree = TrainTree(t);
     if (!tree.ok()) return tree.status();

@@ -153,8 +153,8 @@ SensorPreset SensorNoise(DepthSensor sensor) {
     // Azure Kinect NFOV unbinned: 640x576 (k4a_depth_mode_t K4A_DEPTH_MODE_NFOV_UNBINNED). The
     // factory calibration stores the depth camera's focal length normalized by the 1024 px
     // sensor: ~0.492 (Azure-Kinect-Sensor-SDK issue #1488 prints one), 0.492 * 1024 = 504 px in
-    // NFOV unbinned. (runtime/camera_model's nominal azure-nfov, from the 75 x 65 deg FOV of the
-    // hexagonal mask, is 417 x 452 px.) Operating range 0.5-3.86 m (Microsoft's depth-camera page).
+    // NFOV unbinned (runtime/camera_model's azure-nfov preset is the same 504 px). Operating
+    // range 0.5-3.86 m (Microsoft's depth-camera page).
     p.camera = {640, 576, 504.0, 504.0, 319.5, 287.5};
     n.min_range_m = 0.5;
   }

@@ -1,8 +1,10 @@
 // Job configs: text format parsing, defaults, and clear errors naming the field.
 #include <catch2/catch.hpp>
 #include <fstream>
+#include <tuple>
 #include <nlohmann/json.hpp>
 
+#include "engine/image_source.h"
 #include "engine/job_spec.h"
 #include "poseforest/v1/job.pb.h"
 #include "tests/support/paths.h"
@@ -434,7 +436,38 @@ TEST_CASE("the sensor fields: defaults classic, values, the noise they make, bad
   CHECK(tof.noise.range_dropout == 0.1);
   CHECK(tof.noise.grazing_dropout == 0.6);
   CHECK(tof.noise.focal_px == tof.camera.fx);
-  CHECK(tof.camera.width == 640);  // frames keep the Kinect v1 size for now
+  CHECK(tof.camera.width == 640);  // frames keep the Kinect v1 size without sensor_camera
+  CHECK(tof.camera.fx == 575.8);
+  CHECK_FALSE(c->source.sensor_camera);
+  CHECK(c->source.width == 640);
+  // sensor_camera: the sensor's own size and intrinsics, in the spec and the scene.
+  for (const auto& [name, w, h, f] : {std::tuple{"DEPTH_SENSOR_KINECT_V2", 512, 424, 365.5},
+                                      std::tuple{"DEPTH_SENSOR_AZURE_KINECT_NFOV", 640, 576, 504.0},
+                                      std::tuple{"DEPTH_SENSOR_KINECT_V1", 640, 480, 575.8}}) {
+    INFO(name);
+    auto own = Parse(std::string("images_per_tree: 5 source { rendered { sensor_camera: true sensor: ") + name + " } }");
+    REQUIRE(own.ok());
+    CHECK(own->source.sensor_camera);
+    CHECK(own->source.width == w);
+    CHECK(own->source.height == h);
+    auto cam = engine::SourceCamera(own->source);
+    REQUIRE(cam.ok());
+    CHECK(cam->fx == f);
+    auto forest = engine::EmptyForest(*own);
+    REQUIRE(forest.ok());
+    CHECK(forest->training_fx == float(f));
+    CHECK(forest->training_fy == float(f));
+    renderer::SceneConfig scene;
+    REQUIRE(engine::ApplySceneOptions(own->source, &scene).ok());
+    CHECK(scene.camera.width == w);
+    CHECK(scene.camera.height == h);
+    CHECK(scene.camera.fx == f);
+    CHECK(scene.noise.focal_px == f);
+  }
+  // Without it, every source trains for the Kinect v1's focal length.
+  auto plain = engine::EmptyForest(*c);
+  REQUIRE(plain.ok());
+  CHECK(plain->training_fx == float(core::kKinectV1FocalPx));
   // Unset shares under a ToF sensor: the sensor's own.
   auto a = Parse("images_per_tree: 5 source { rendered { sensor: DEPTH_SENSOR_AZURE_KINECT_NFOV } }");
   REQUIRE(a.ok());

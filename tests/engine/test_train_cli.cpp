@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "runtime/core/forest_format.h"
+#include "tests/support/dds_domain.h"
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
 
@@ -55,8 +56,8 @@ TEST_CASE("train --local-workers 2 runs the distributed service and writes the s
   auto one = RunPoseforest("train " + job + " --out " + single + " --quiet");
   INFO(one.output);
   REQUIRE(one.exit_code == 0);
-  // Its own domain (pid based) so parallel test runs do not meet.
-  const std::string domain = std::to_string(100 + ::getpid() % 100);
+  // Its own domain, held machine-wide, so parallel test runs do not meet.
+  const std::string domain = std::to_string(testing::UniqueDomain(0));
   auto two = RunPoseforest("train " + job + " --out " + dist + " --local-workers 2 --domain " + domain);
   INFO(two.output);
   REQUIRE(two.exit_code == 0);
@@ -67,6 +68,47 @@ TEST_CASE("train --local-workers 2 runs the distributed service and writes the s
   CHECK(*a == *b);
 }
 
+TEST_CASE("a job at the Kinect v2's own size trains for its focal length, the same through the service",
+          "[cli][training][egl]") {
+  const auto dir = testing::ScratchDir("cli-train-sensor-camera");
+  const std::string job = (dir / "job.textproto").string();
+  const std::string single = (dir / "single.pff").string(), dist = (dir / "dist.pff").string();
+  std::ofstream(job) << "seed: 5 num_trees: 2 max_depth: 6 images_per_tree: 4 pixels_per_image: 300\n"
+                        "candidate_features: 30 thresholds_per_feature: 6 threads: 1\n"
+                        "source { rendered { seed: 2 sensor: DEPTH_SENSOR_KINECT_V2 sensor_camera: true } }\n"
+                        "test_set { source { rendered { seed: 9 sensor: DEPTH_SENSOR_KINECT_V2 sensor_camera: true } }"
+                        " num_images: 2 }\n";
+  auto one = RunPoseforest("train " + job + " --out " + single + " --quiet");
+  INFO(one.output);
+  REQUIRE(one.exit_code == 0);
+  auto forest = core::LoadForest(single);
+  REQUIRE(forest.ok());
+  CHECK(forest->training_fx == 365.5f);
+  CHECK(forest->training_fy == 365.5f);
+  const std::string domain = std::to_string(testing::UniqueDomain(1));
+  const std::string checkpoint = (dir / "checkpoint").string(), exported = (dir / "exported.pff").string();
+  auto two = RunPoseforest("train " + job + " --out " + dist + " --local-workers 2 --domain " + domain +
+                           " --checkpoint " + checkpoint);
+  INFO(two.output);
+  REQUIRE(two.exit_code == 0);
+  auto a = core::ReadFileBytes(single), b = core::ReadFileBytes(dist);
+  REQUIRE(a.ok());
+  REQUIRE(b.ok());
+  CHECK(*a == *b);
+  // The checkpoint records the focal length: the export writes the same file.
+  auto exp = RunPoseforest("export --checkpoint " + checkpoint + " --out " + exported);
+  INFO(exp.output);
+  REQUIRE(exp.exit_code == 0);
+  auto c = core::ReadFileBytes(exported);
+  REQUIRE(c.ok());
+  CHECK(*c == *a);
+  // Its test renders are the Kinect v2's too: eval needs no rescaling.
+  auto eval = RunPoseforest("eval --forest " + single + " --test-set " + job + " --images 2");
+  INFO(eval.output);
+  REQUIRE(eval.exit_code == 0);
+  CHECK_THAT(eval.output, !Catch::Contains("rescal"));
+}
+
 TEST_CASE("--resume from a corrupt checkpoint is an error naming the file, not a crash", "[cli][training]") {
   const auto dir = testing::ScratchDir("cli-resume-bad");
   const std::string job = (dir / "job.textproto").string(), out = (dir / "forest.pff").string();
@@ -74,7 +116,7 @@ TEST_CASE("--resume from a corrupt checkpoint is an error naming the file, not a
   std::ofstream(job) << "seed: 4 num_trees: 2 max_depth: 6 images_per_tree: 4 pixels_per_image: 200\n"
                         "candidate_features: 30 thresholds_per_feature: 6 threads: 1\n"
                         "source { procedural { seed: 7 width: 160 height: 120 } }\n";
-  const std::string domain = std::to_string(100 + (::getpid() + 37) % 100);
+  const std::string domain = std::to_string(testing::UniqueDomain(2));
   const std::string cmd = "train " + job + " --out " + out + " --local-workers 1 --domain " + domain +
                           " --checkpoint " + ckpt_dir + " --resume";
   // A real checkpoint of the finished job first.
