@@ -229,20 +229,25 @@ std::vector<uint8_t> WithSection(const std::vector<uint8_t>& bytes, const char (
   return out;
 }
 
-// A JPAR/JPFC payload: joint count, then (b, lambda, zeta) per joint.
-std::vector<uint8_t> ParamsPayload(const core::ProposalParams& params, uint32_t count = core::kNumJoints) {
+// Little-endian payload bytes, as the format writes them.
+struct PayloadBytes {
   std::vector<uint8_t> out;
-  auto u32 = [&](uint32_t v) {
+  void U32(uint32_t v) {
     for (int i = 0; i < 4; ++i) out.push_back(uint8_t(v >> (8 * i)));
-  };
-  auto f32 = [&](float f) {
+  }
+  void F32(float f) {
     uint32_t u;
     std::memcpy(&u, &f, 4);
-    u32(u);
-  };
-  u32(count);
-  for (const auto& p : params) f32(p.bandwidth_m), f32(p.prob_threshold), f32(p.z_offset_m);
-  return out;
+    U32(u);
+  }
+};
+
+// A JPAR/JPFC payload: joint count, then (b, lambda, zeta) per joint.
+std::vector<uint8_t> ParamsPayload(const core::ProposalParams& params, uint32_t count = core::kNumJoints) {
+  PayloadBytes b;
+  b.U32(count);
+  for (const auto& p : params) b.F32(p.bandwidth_m), b.F32(p.prob_threshold), b.F32(p.z_offset_m);
+  return b.out;
 }
 
 core::ProposalParams Distinct(float b) {
@@ -849,22 +854,14 @@ namespace {
 // A JTRK payload: joints, cues, samples, then intercepts, slopes and shared weights.
 std::vector<uint8_t> TrackingPayload(const core::TrackingModel& m, uint32_t joints = core::kNumJoints,
                                      uint32_t cues = core::kNumTrackingFeatures) {
-  std::vector<uint8_t> out;
-  auto u32 = [&](uint32_t v) {
-    for (int i = 0; i < 4; ++i) out.push_back(uint8_t(v >> (8 * i)));
-  };
-  auto f32 = [&](float f) {
-    uint32_t u;
-    std::memcpy(&u, &f, 4);
-    u32(u);
-  };
-  u32(joints);
-  u32(cues);
-  u32(m.samples);
-  for (float v : m.intercept) f32(v);
-  for (float v : m.slope) f32(v);
-  for (float v : m.shared) f32(v);
-  return out;
+  PayloadBytes b;
+  b.U32(joints);
+  b.U32(cues);
+  b.U32(m.samples);
+  for (float v : m.intercept) b.F32(v);
+  for (float v : m.slope) b.F32(v);
+  for (float v : m.shared) b.F32(v);
+  return b.out;
 }
 
 core::TrackingModel SomeTrackingModel() {
