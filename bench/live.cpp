@@ -37,7 +37,7 @@
 #include "tests/support/scene.h"
 #include "tests/support/synthetic.h"
 #ifdef POSEFOREST_HAS_SKELETON_DDS
-#include "runtime/dds/skeleton_publisher.h"
+#include "apps/ros2/skeleton_publisher.h"
 #endif
 
 using namespace poseforest;
@@ -189,10 +189,10 @@ int main(int argc, char** argv) {
 #ifdef POSEFOREST_HAS_SKELETON_DDS
   // Published as `live --dds` does, on a domain of its own (nobody subscribes: the cost is
   // serializing and handing the samples to Fast DDS).
-  runtime::ros2::DdsOptions dds_options;
+  apps::ros2::DdsOptions dds_options;
   dds_options.domain = 231;
   dds_options.topic_prefix = "poseforest_bench";
-  auto dds = runtime::ros2::SkeletonPublisher::Create(dds_options);
+  auto dds = apps::ros2::SkeletonPublisher::Create(dds_options);
   if (!dds.ok()) {
     std::fprintf(stderr, "bench/live: %s\n", dds.status().ToString().c_str());
     return 1;

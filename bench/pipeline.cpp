@@ -21,14 +21,14 @@
 #include <string>
 #include <vector>
 
+#include "apps/commands/args.h"
 #include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
 #include "runtime/classifier.h"
-#include "runtime/cli/args.h"
 #include "runtime/core/forest_format.h"
+#include "runtime/core/malloc_tuning.h"
 #include "runtime/joint_metrics.h"
 #include "runtime/joint_proposals.h"
-#include "runtime/core/malloc_tuning.h"
 
 using namespace poseforest;
 using Clock = std::chrono::steady_clock;
@@ -76,7 +76,7 @@ int main(int argc, char** argv) {
     ::setenv("OMP_WAIT_POLICY", "passive", 1);
     ::execv("/proc/self/exe", argv);  // returns only on failure: then measure as we are
   }
-  cli::Args args({"forest", "frames", "seed", "poses", "clips", "test-fraction", "split-seed", "bodies", "data", "threads", "seed-cell", "min-probability", "cluster-cell"},
+  apps::commands::Args args({"forest", "frames", "seed", "poses", "clips", "test-fraction", "split-seed", "bodies", "data", "threads", "seed-cell", "min-probability", "cluster-cell"},
                  {"help"});
   if (auto st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.Get("forest")) {
     std::fprintf(stderr,

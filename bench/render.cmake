@@ -4,4 +4,4 @@ target_link_libraries(render PRIVATE poseforest::renderer poseforest::warnings)
 
 # bench/pipeline: classification + joint proposals on rendered frames, with joint AP (mAP).
 add_executable(pipeline pipeline.cpp)
-target_link_libraries(pipeline PRIVATE poseforest::renderer poseforest::runtime poseforest::cli_runtime poseforest::warnings)
+target_link_libraries(pipeline PRIVATE poseforest::renderer poseforest::runtime poseforest::apps poseforest::warnings)

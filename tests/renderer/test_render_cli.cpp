@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "runtime/cli/commands.h"
+#include "apps/commands/commands.h"
 #include "runtime/image_io.h"
 #include "tests/support/paths.h"
 
@@ -18,7 +18,7 @@ namespace {
 int Run(std::vector<std::string> args) {
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
-  return cli::RenderMain(int(argv.size()), argv.data());
+  return apps::commands::RenderMain(int(argv.size()), argv.data());
 }
 
 std::string Slurp(const fs::path& p) {

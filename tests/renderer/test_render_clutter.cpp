@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
+#include "apps/commands/commands.h"
 #include "renderer/synthetic_source.h"
 #include "runtime/camera_model.h"
-#include "runtime/cli/commands.h"
 #include "runtime/image_io.h"
 #include "runtime/segmentation.h"
 #include "tests/support/paths.h"
@@ -25,7 +25,7 @@ namespace {
 int Run(std::vector<std::string> args) {
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
-  return cli::RenderMain(int(argv.size()), argv.data());
+  return apps::commands::RenderMain(int(argv.size()), argv.data());
 }
 
 std::string Slurp(const fs::path& p) {

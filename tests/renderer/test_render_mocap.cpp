@@ -11,13 +11,13 @@
 #include <string>
 #include <vector>
 
+#include "apps/commands/commands.h"
 #include "renderer/assets/makehuman.h"
 #include "renderer/assets/pose_library.h"
 #include "renderer/assets/retarget.h"
 #include "renderer/procedural_body.h"
 #include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
-#include "runtime/cli/commands.h"
 #include "runtime/core/body_parts.h"
 #include "tests/support/paths.h"
 
@@ -30,7 +30,7 @@ namespace {
 int Run(std::vector<std::string> args) {
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
-  return cli::RenderMain(int(argv.size()), argv.data());
+  return apps::commands::RenderMain(int(argv.size()), argv.data());
 }
 
 std::string Slurp(const fs::path& p) {

@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include "apps/devices/fakenect_recording.h"
 #include "runtime/core/forest_format.h"
-#include "runtime/fakenect_recording.h"
 #include "runtime/frame_source.h"
 #include "runtime/image_io.h"
 #include "tests/support/paths.h"
@@ -39,7 +39,7 @@ std::vector<std::string> RealFrames() {
 // What a frame becomes after the Kinect's disparity encoding and back.
 core::DepthImage ThroughDisparity(const core::DepthImage& d) {
   core::DepthImage out = d;
-  for (uint16_t& v : out.pixels) v = runtime::KinectDisparityToMm(runtime::MmToKinectDisparity(v));
+  for (uint16_t& v : out.pixels) v = apps::devices::KinectDisparityToMm(apps::devices::MmToKinectDisparity(v));
   return out;
 }
 
@@ -53,10 +53,10 @@ core::DepthImage ReadPng(const fs::path& p) {
 }  // namespace
 
 TEST_CASE("Kinect disparity <-> mm: nearest value, within the Kinect's quantization", "[freenect]") {
-  CHECK(runtime::KinectDisparityToMm(runtime::kKinectNoDisparity) == 0);
-  CHECK(runtime::MmToKinectDisparity(0) == runtime::kKinectNoDisparity);
+  CHECK(apps::devices::KinectDisparityToMm(apps::devices::kKinectNoDisparity) == 0);
+  CHECK(apps::devices::MmToKinectDisparity(0) == apps::devices::kKinectNoDisparity);
   for (int mm = 500; mm <= 4500; mm += 7) {
-    const uint16_t back = runtime::KinectDisparityToMm(runtime::MmToKinectDisparity(uint16_t(mm)));
+    const uint16_t back = apps::devices::KinectDisparityToMm(apps::devices::MmToKinectDisparity(uint16_t(mm)));
     const double step = double(mm) * mm * 0.0030711016 / 1000.0;  // dz per disparity unit, mm
     INFO(mm << " mm -> " << back << " mm (step " << step << ")");
     CHECK(std::abs(int(back) - mm) <= int(step / 2 + 1));
@@ -127,9 +127,9 @@ TEST_CASE("synthetic frames replayed through fakenect; infer runs on the stream"
   std::vector<core::DepthImage> frames;
   for (double z : {1.5, 2.0, 2.5, 3.0, 3.5})
     frames.push_back(testing::MakePersonDepth(z, 640, 480, 0.1 * z - 0.25));
-  REQUIRE(runtime::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
+  REQUIRE(apps::devices::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
   // A second write into the same folder is refused, like fakenect-record.
-  CHECK_FALSE(runtime::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
+  CHECK_FALSE(apps::devices::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
   auto play = testing::RunCommand(Fakenect(dir / "rec") + Bin() + " frames freenect:0 --npy " +
                                   (dir / "read.npy").string());
   INFO(play.output);
@@ -161,7 +161,7 @@ TEST_CASE("a truncated frame file in a recording is named, skipped and counted; 
   const auto dir = testing::ScratchDir("freenect-cut");
   std::vector<core::DepthImage> frames;
   for (double z : {1.5, 2.0, 2.5, 3.0}) frames.push_back(testing::MakePersonDepth(z));
-  REQUIRE(runtime::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
+  REQUIRE(apps::devices::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
   std::vector<std::string> index;
   {
     std::ifstream in(dir / "rec" / "INDEX.txt");
@@ -193,7 +193,7 @@ TEST_CASE("a device that stops sending mid-stream is reported as lost; nothing h
   const auto dir = testing::ScratchDir("freenect-lost");
   std::vector<core::DepthImage> frames;
   for (double z : {1.5, 2.0, 2.5}) frames.push_back(testing::MakePersonDepth(z));
-  REQUIRE(runtime::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
+  REQUIRE(apps::devices::WriteFakenectRecording((dir / "rec").string(), frames, 100.0).ok());
   // The third frame arrives 3 s after the second: fakenect replays that silence faithfully.
   std::vector<std::string> index;
   {

@@ -10,9 +10,9 @@
 #include <filesystem>
 #include <fstream>
 
+#include "apps/ros2/ros2_messages.h"
+#include "apps/ros2/skeleton_publisher.h"
 #include "runtime/core/forest_format.h"
-#include "runtime/dds/ros2_messages.h"
-#include "runtime/dds/skeleton_publisher.h"
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
 #include "tests/support/skeletons.h"
@@ -58,10 +58,10 @@ TEST_CASE("live --dds: the samples off the wire, decoded by Foxglove's ROS 2 dec
                            forest.string())
               .ok());
   const int domain = 100 + int(::getpid() % 100);
-  auto skeletons = runtime::ros2::RawSampleCapture::Create(domain, "rt/pftest/skeletons",
-                                                           runtime::ros2::kSkeletonsTypeName);
-  auto markers = runtime::ros2::RawSampleCapture::Create(domain, "rt/pftest/markers",
-                                                         runtime::ros2::kMarkerArrayTypeName);
+  auto skeletons = apps::ros2::RawSampleCapture::Create(domain, "rt/pftest/skeletons",
+                                                           apps::ros2::kSkeletonsTypeName);
+  auto markers = apps::ros2::RawSampleCapture::Create(domain, "rt/pftest/markers",
+                                                         apps::ros2::kMarkerArrayTypeName);
   REQUIRE(skeletons.ok());
   REQUIRE(markers.ok());
   // Every joint found is tracked-or-not by the rules; --min-confidence 0 keeps more of the random
@@ -108,9 +108,9 @@ TEST_CASE("ROS 2 messages carry each joint's state; inferred joints are their ow
   second.id = 4;
   second.joints[size_t(testing::kInferredJoint)].inferred = false;  // found, not tracked
   const std::vector<runtime::Skeleton> people = {first, second};
-  const runtime::ros2::FrameStamp stamp{5, 1.25, "by hand", "test_camera"};
-  WriteBytes(dir / "skeletons-0.bin", runtime::ros2::EncodeSkeletons(stamp, people));
-  WriteBytes(dir / "markers-0.bin", runtime::ros2::EncodeMarkerArray(stamp, people));
+  const apps::ros2::FrameStamp stamp{5, 1.25, "by hand", "test_camera"};
+  WriteBytes(dir / "skeletons-0.bin", apps::ros2::EncodeSkeletons(stamp, people));
+  WriteBytes(dir / "markers-0.bin", apps::ros2::EncodeMarkerArray(stamp, people));
   std::ofstream(dir / "frames.jsonl")
       << runtime::SkeletonsJsonLine(stamp.index, stamp.time_s, stamp.source, people) << "\n";
   const auto decode = DecodeWithFoxglove(dir, dir / "frames.jsonl", "test_camera");
@@ -122,7 +122,7 @@ TEST_CASE("ROS 2 messages carry each joint's state; inferred joints are their ow
 
   // The decoder reads the state: a message whose knee is not inferred disagrees with the record.
   first.joints[size_t(testing::kInferredJoint)].inferred = false;
-  WriteBytes(dir / "skeletons-0.bin", runtime::ros2::EncodeSkeletons(stamp, {first, second}));
+  WriteBytes(dir / "skeletons-0.bin", apps::ros2::EncodeSkeletons(stamp, {first, second}));
   const auto wrong = DecodeWithFoxglove(dir, dir / "frames.jsonl", "test_camera");
   INFO(wrong.output);
   CHECK(wrong.exit_code != 0);
@@ -133,7 +133,7 @@ TEST_CASE("ROS 2 encoding: XCDR1 little endian, alignment padding written as zer
   // A frame with no people, every field by hand: the padding before the int64 and the double
   // must be zeros (Fast CDR skips it; the encoder zero-fills), so the bytes depend on the message
   // alone.
-  runtime::ros2::FrameStamp st;
+  apps::ros2::FrameStamp st;
   st.index = 7;
   st.time_s = 2.5;
   st.source = "ab";
@@ -149,7 +149,7 @@ TEST_CASE("ROS 2 encoding: XCDR1 little endian, alignment padding written as zer
       0x03, 0x00, 0x00, 0x00, 'a',  'b',  0x00,        // source "ab"
       0x00,                                            // padding to 4
       0x00, 0x00, 0x00, 0x00};                         // people: 0
-  CHECK(runtime::ros2::EncodeSkeletons(st, {}) == expected);
+  CHECK(apps::ros2::EncodeSkeletons(st, {}) == expected);
   // Larger messages (each joint's bool, bool, float: padding after every joint): two encodings
   // of the same frame are the same bytes, and every byte between fields is zero.
   std::vector<runtime::Skeleton> people(2);
@@ -161,7 +161,7 @@ TEST_CASE("ROS 2 encoding: XCDR1 little endian, alignment padding written as zer
       people[k].joints[size_t(j)].confidence = 0.5f;
     }
   }
-  const auto a = runtime::ros2::EncodeMarkerArray(st, people), b = runtime::ros2::EncodeMarkerArray(st, people);
+  const auto a = apps::ros2::EncodeMarkerArray(st, people), b = apps::ros2::EncodeMarkerArray(st, people);
   CHECK(a == b);
-  CHECK(runtime::ros2::EncodeSkeletons(st, people) == runtime::ros2::EncodeSkeletons(st, people));
+  CHECK(apps::ros2::EncodeSkeletons(st, people) == apps::ros2::EncodeSkeletons(st, people));
 }
