@@ -2,7 +2,7 @@
 """Checks that each source folder includes only the folders below it in the layering.
 
 The layers, bottom first (docs/architecture.md, ../shared/STYLE.md "Layers"):
-    runtime      the inference library and its commands; depends on nothing heavier than Eigen
+    runtime      the inference library and its commands; depends on nothing heavier than Eigen (+ libspng/zlib)
     proto        the messages (Protobuf) and the DDS transport; includes the runtime
     renderer     synthetic depth frames (EGL, Assimp); includes the runtime
     engine       the training engine both services use; includes renderer, proto, runtime

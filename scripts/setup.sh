@@ -2,11 +2,12 @@
 # Installs what poseforest needs on Debian 12 with apt-get, only if something is missing.
 # Idempotent and fast when everything is there (one dpkg query).
 #   scripts/setup.sh            everything (training + runtime + tests)
-#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen (+ Catch2 for its tests,
+#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen, libspng (+ Catch2 for its tests,
 #                               pybind11 + NumPy for the optional Python module)
 set -euo pipefail
 
 runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2
+  libspng-dev zlib1g-dev                      # PNG files (libspng over zlib; linked into libposeforest)
   python3-dev python3-pybind11 python3-numpy  # the optional Python module and its test (consumer_python)
   libcpp-httplib-dev                          # `live --http` (optional here); the coordinator's status server (training)
 )
