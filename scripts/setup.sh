@@ -7,7 +7,7 @@
 set -euo pipefail
 
 runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2
-  libspng-dev zlib1g-dev                      # PNG files (libspng over zlib; linked into libposeforest)
+  libspng-dev zlib1g-dev                      # PNG files (libspng over zlib: the runtime library and `poseforest`)
   nlohmann-json3-dev                          # JSON written by the runtime's commands (header-only)
   python3-dev python3-pybind11 python3-numpy  # the optional Python module and its test (consumer_python)
   libcpp-httplib-dev                          # `live --http` (optional here); the coordinator's status server (training)
