@@ -60,7 +60,8 @@
 //   --commands-only [--keep-logs DIR]  only the two commands as users run them (no in-process
 //                   runs: for big jobs, e.g. 2,000 images per tree), --repeat R pairs;
 //                   per pair the wall and CPU of each, the forests compared, and a per-level
-//                   table both ways from their logs with the service's level time split into
+//                   table both ways from their event logs (--event-log, JSON Lines; kept
+//                   with --keep-logs) with the service's level time split into
 //                   the rounds (the critical worker's computing, its request queued while it
 //                   was busy, traffic), merge, waiting for subtree results and other, beside
 //                   the workers' subtree and rendering seconds. Above the last line: the
@@ -92,6 +93,7 @@
 //                   the same level).
 
 #include <fcntl.h>
+#include <google/protobuf/text_format.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/prctl.h>
@@ -109,15 +111,14 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <set>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <tuple>
 #include <vector>
-
-#include <google/protobuf/text_format.h>
 
 #include "coordinator/dist_coordinator.h"
 #include "engine/job_spec.h"
@@ -207,11 +208,11 @@ std::vector<uint8_t> ReadBytes(const std::string& path) {
   return std::vector<uint8_t>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
-/// Per (tree, level): seconds of the level in the log of `poseforest train JOB --threads N`
-/// (its "tree T level L: ... S s," lines give seconds since the start; a tree's "loaded in S s"
-/// line is frame loading, not part of its first level) or of `train JOB --local-workers N`
-/// (its "level S s" and, under each level, the "time:" line of where it went: rounds, the
-/// critical worker's computing, its request queued, traffic, merge, waiting for subtrees).
+/// Per (tree, level): seconds of the level in the event log (--event-log, JSON Lines) of
+/// `poseforest train JOB --threads N` (LEVEL_DONE's `seconds`: since the previous level, frame
+/// loading left out) or of `train JOB --local-workers N` (the coordinator's LEVEL_DONE events:
+/// `seconds`, and where they went: rounds, the critical worker's computing, its request queued,
+/// traffic, merge, waiting for subtrees; docs/distributed/monitoring.md).
 struct LevelTimes {
   struct Service {
     double level = 0, rounds = 0, compute = 0, queued = 0, traffic = 0, merge = 0, wait = 0, busy = 0, render = 0;
@@ -220,59 +221,36 @@ struct LevelTimes {
   };
   std::map<std::pair<int, int>, double> engine;
   std::map<std::pair<int, int>, Service> service;
-  void ReadEngine(const std::string& path) {
+  /// Calls `f(key, event)` for each LEVEL_DONE line of the event log at `path`.
+  template <typename F>
+  static void ForEachLevel(const std::string& path, F f) {
     std::ifstream in(path);
-    double last = 0;
     for (std::string line; std::getline(in, line);) {
-      int t = 0, l = 0;
-      double v = 0;
-      // "tree T: N samples from F frames in S shard(s), M MiB frames+samples (B bytes per image),
-      // loaded in X s": the tree's frames, before its first level.
-      if (const size_t at = line.find(", loaded in "); at != std::string::npos &&
-          std::sscanf(line.c_str(), "tree %d:", &t) == 1 && std::sscanf(line.c_str() + at, ", loaded in %lf s", &v) == 1) {
-        last += v;
-        continue;
-      }
-      const size_t at = line.find(" evaluations/s, ");
-      if (std::sscanf(line.c_str(), "tree %d level %d:", &t, &l) == 2 && at != std::string::npos &&
-          std::sscanf(line.c_str() + at, " evaluations/s, %lf s,", &v) == 1) {
-        engine[{t, l}] = v - last;
-        last = v;
-      }
+      const auto e = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+      if (!e.is_object() || e.value("event", "") != "LEVEL_DONE") continue;
+      f(std::pair<int, int>{e.value("tree", 0), e.value("level", 0)}, e);
     }
   }
+  void ReadEngine(const std::string& path) {
+    ForEachLevel(path, [&](std::pair<int, int> key, const nlohmann::json& e) {
+      engine[key] = e.value("seconds", 0.0);
+    });
+  }
   void ReadService(const std::string& path) {
-    std::ifstream in(path);
-    std::pair<int, int> key{-1, -1};
-    for (std::string line; std::getline(in, line);) {
-      int t = 0, l = 0, rounds = 0;
-      if (std::sscanf(line.c_str(), "tree %d level %d:", &t, &l) == 2) {
-        key = {t, l};
-        Service& s = service[key];
-        s = {};
-        if (const size_t at = line.find(", level "); at != std::string::npos)
-          std::sscanf(line.c_str() + at, ", level %lf s", &s.level);
-        if (const size_t at = line.find(" subtrees handed off"); at != std::string::npos) {
-          const size_t from = line.rfind(", ", at);
-          if (from != std::string::npos) s.tasks = std::atoi(line.c_str() + from + 2);
-        }
-        double v = 0;
-        char unit[8] = {};
-        if (const size_t at = line.find(" workers alive, "); at != std::string::npos &&
-            std::sscanf(line.c_str() + at, " workers alive, %lf %7s received", &v, unit) == 2)
-          s.received_mib = v * (!std::strcmp(unit, "GiB") ? 1024 : !std::strcmp(unit, "MiB") ? 1
-                                : !std::strcmp(unit, "KiB") ? 1.0 / 1024 : 1.0 / (1 << 20));
-        continue;
-      }
-      Service* s = service.count(key) ? &service[key] : nullptr;
-      if (s && std::sscanf(line.c_str(),
-                           "  time: %d rounds %lf s (worker computing %lf s, busy before it %lf s, traffic %lf s), "
-                           "merge %lf s, waiting for subtrees %lf s, other %*f s; workers: subtrees %lf s, "
-                           "rendering %lf s",
-                           &rounds, &s->rounds, &s->compute, &s->queued, &s->traffic, &s->merge, &s->wait, &s->busy,
-                           &s->render) == 9)
-        continue;
-    }
+    ForEachLevel(path, [&](std::pair<int, int> key, const nlohmann::json& e) {
+      Service& s = service[key];
+      s.level = e.value("seconds", 0.0);
+      s.rounds = e.value("round_seconds", 0.0);
+      s.compute = e.value("compute_seconds", 0.0);
+      s.queued = e.value("queued_seconds", 0.0);
+      s.traffic = e.value("traffic_seconds", 0.0);
+      s.merge = e.value("merge_seconds", 0.0);
+      s.wait = e.value("subtree_wait_seconds", 0.0);
+      s.busy = e.value("subtree_busy_seconds", 0.0);
+      s.render = e.value("render_seconds", 0.0);
+      s.received_mib = e.value("bytes_received", 0.0) / 1048576.0;
+      s.tasks = e.value("subtree_tasks", 0);
+    });
   }
   /// The table: per level both ways and where the service's time went.
   void Print() const {
@@ -328,17 +306,23 @@ int CommandsOnly(const std::string& job_path_in, const std::string& text, const 
   for (int r = 0; r < repeat; ++r) {
     const std::string log_e = (tmp / (tag + "-engine-" + std::to_string(r) + ".log")).string(),
                       log_s = (tmp / (tag + "-service-" + std::to_string(r) + ".log")).string();
+    const std::string events_e = (tmp / (tag + "-engine-" + std::to_string(r) + ".events.jsonl")).string(),
+                      events_s = (tmp / (tag + "-service-" + std::to_string(r) + ".events.jsonl")).string();
     double ce = 0, we = 0, cs = 0, ws = 0;
     const bool engine_first = r % 2 == 0;
     bool a = false, b = false;
     for (int which = 0; which < 2; ++which) {
       const bool engine_now = (which == 0) == engine_first;
       std::filesystem::remove(engine_now ? out_e : out_s);
-      const bool run_ok =
-          engine_now ? RunCommand({cli, "train", job_path, "--threads", n_str, "--out", out_e}, log_e, &ce, &we)
-                     : RunCommand({cli, "train", job_path, "--local-workers", n_str, "--domain",
-                                   std::to_string((domain + 101 + uint32_t(r)) % 233), "--http", "off", "--out", out_s},
-                                  log_s, &cs, &ws);
+      std::filesystem::remove(engine_now ? events_e : events_s);  // the event log is appended to
+      const bool run_ok = engine_now
+                              ? RunCommand({cli, "train", job_path, "--threads", n_str, "--event-log",
+                                            events_e, "--out", out_e},
+                                           log_e, &ce, &we)
+                              : RunCommand({cli, "train", job_path, "--local-workers", n_str, "--domain",
+                                            std::to_string((domain + 101 + uint32_t(r)) % 233), "--http",
+                                            "off", "--event-log", events_s, "--out", out_s},
+                                           log_s, &cs, &ws);
       (which == 0 ? a : b) = run_ok;
       std::printf("  %s: %.1f s wall, %.1f CPU s, load average %.1f\n", engine_now ? "engine " : "service",
                   engine_now ? we : ws, engine_now ? ce : cs, LoadAverage());
@@ -356,16 +340,16 @@ int CommandsOnly(const std::string& job_path_in, const std::string& text, const 
     std::printf("pair %d (%s first): forests identical; wall service / engine %.3f, per CPU-second %.3f\n", r + 1,
                 engine_first ? "engine" : "service", wall_ratio.back(), cpu_ratio.back());
     LevelTimes times;
-    times.ReadEngine(log_e);
-    times.ReadService(log_s);
+    times.ReadEngine(events_e);
+    times.ReadService(events_s);
     times.Print();
     if (!keep_logs.empty()) {
       std::filesystem::create_directories(keep_logs);
-      for (const std::string& f : {log_e, log_s})
+      for (const std::string& f : {log_e, log_s, events_e, events_s})
         std::filesystem::copy_file(f, std::filesystem::path(keep_logs) / std::filesystem::path(f).filename(),
                                    std::filesystem::copy_options::overwrite_existing);
     }
-    for (const std::string& f : {log_e, log_s}) std::filesystem::remove(f);
+    for (const std::string& f : {log_e, log_s, events_e, events_s}) std::filesystem::remove(f);
     std::fflush(stdout);
   }
   for (const std::string& f : {out_e, out_s}) std::filesystem::remove(f);

@@ -37,7 +37,7 @@ LocalTrainer::LocalTrainer(TrainParams params, LocalTrainerOptions options)
 }
 
 Result<core::Forest> LocalTrainer::Train() {
-  start_ = Now();
+  start_ = level_mark_ = Now();
   auto shell = EmptyForest(params_);
   if (!shell.ok()) return shell.status();
   core::Forest forest = std::move(*shell);
@@ -52,7 +52,7 @@ Result<core::Forest> LocalTrainer::Train() {
 }
 
 Result<core::Tree> LocalTrainer::TrainTree(int tree) {
-  if (start_ == 0) start_ = Now();
+  if (start_ == 0) start_ = level_mark_ = Now();
   const int threads = stats_.threads;
   const int num_shards = options_.num_shards;
   const int ipt = params_.images_per_tree;
@@ -135,6 +135,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
   stats_.samples += num_samples;
   stats_.peak_sample_bytes = std::max(stats_.peak_sample_bytes, sample_bytes);
   stats_.load_seconds += Now() - t_load;
+  level_mark_ += Now() - t_load;  // frame loading is not part of the first level
   if (options_.log) {
     std::ostringstream m;
     m << "tree " << tree << ": " << num_samples << " samples from " << ipt << " frames in " << num_shards
@@ -169,6 +170,7 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
     stats_.peak_histogram_bytes =
         std::max(stats_.peak_histogram_bytes, done.max_batch_bytes * (shards.size() > 1 ? 2 : 1));
     const double level_hist_s = shard_set.histogram_seconds() - hist_before;
+    const double now = Now();
     if (options_.progress) {
       LevelProgress lp;
       lp.tree = tree;
@@ -178,12 +180,14 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
       lp.samples = done.samples;
       lp.evaluations = builder.evaluations() - evals_before;
       lp.evaluations_per_s = level_hist_s > 0 ? double(lp.evaluations) / level_hist_s : 0;
-      lp.elapsed_s = Now() - start_;
+      lp.elapsed_s = now - start_;
+      lp.level_seconds = now - level_mark_;
       lp.memory_bytes = stats_.peak_sample_bytes + stats_.peak_histogram_bytes;
       options_.progress(lp);
     }
     evals_before = builder.evaluations();
     hist_before = shard_set.histogram_seconds();
+    level_mark_ = now;
     return Status::Ok();
   };
   POSEFOREST_RETURN_IF_ERROR(RunFrontierLoop(shard_set, params_, tree, 0, std::move(frontier), 1,

@@ -27,6 +27,9 @@ struct LevelProgress {
   double evaluations_per_s = 0;  ///< evaluations / histogram-building seconds (all threads)
   double elapsed_s = 0;          ///< since Train() started
   uint64_t memory_bytes = 0;     ///< samples + frames + largest histogram batch so far
+  /// Wall seconds of this level: since the previous level ended (or Train() started), less the
+  /// tree's frame loading when it is the tree's first level.
+  double level_seconds = 0;
 };
 
 struct LocalTrainerOptions {
@@ -66,6 +69,7 @@ class LocalTrainer {
   LocalTrainerOptions options_;
   TrainingStats stats_;
   double start_ = 0;
+  double level_mark_ = 0;  ///< where the next level's seconds count from
 };
 
 }  // namespace poseforest::engine

@@ -281,16 +281,20 @@ class RawStreamSource : public FrameSource {
 // Delivers at most `fps` frames per second: sleeps until each frame's slot.
 class PacedSource : public FrameSource {
  public:
-  PacedSource(std::unique_ptr<FrameSource> inner, double fps)
-      : inner_(std::move(inner)), period_(1.0 / fps) {}
+  PacedSource(std::unique_ptr<FrameSource> inner, const FrameSourceOptions& options)
+      : inner_(std::move(inner)),
+        period_(1.0 / options.fps),
+        now_(options.pace_now ? options.pace_now : [] { return Clock::now(); }),
+        sleep_until_(options.pace_sleep_until ? options.pace_sleep_until
+                                              : [](Clock::time_point t) { std::this_thread::sleep_until(t); }) {}
   Result<bool> Next(Frame* frame) override {
     auto r = inner_->Next(frame);
     if (r.ok() && *r) {
-      const auto now = Clock::now();
+      const auto now = now_();
       if (started_) {
         next_ += std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(period_));
         if (next_ > now)
-          std::this_thread::sleep_until(next_);
+          sleep_until_(next_);
         else
           next_ = now;  // late: no burst to catch up
       } else {
@@ -305,6 +309,8 @@ class PacedSource : public FrameSource {
  private:
   std::unique_ptr<FrameSource> inner_;
   double period_;
+  std::function<Clock::time_point()> now_;
+  std::function<void(Clock::time_point)> sleep_until_;
   bool started_ = false;
   Clock::time_point next_;
 };
@@ -720,7 +726,7 @@ Result<std::unique_ptr<FrameSource>> OpenFrameSource(const std::string& spec,
         files->size() == 1 ? spec : spec + " (" + std::to_string(files->size()) + " files)";
     src = std::make_unique<FileListSource>(std::move(*files), what, options);
   }
-  if (options.fps > 0) src = std::make_unique<PacedSource>(std::move(src), options.fps);
+  if (options.fps > 0) src = std::make_unique<PacedSource>(std::move(src), options);
   return src;
 }
 

@@ -5,6 +5,7 @@
 // configure time). Each frame carries its depth in millimetres, a timestamp, its camera model and
 // where it came from, so a bad one can be named and skipped.
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -49,6 +50,10 @@ struct FrameSourceOptions {
   CameraModel camera;         ///< frames of another size are refused naming both
   bool camera_given = false;  ///< false: the default model; a .pcd sized otherwise is then taken as is
   double fps = 0;             ///< > 0: deliver at most this many frames per second (sleeps)
+  /// The pacing's clock and sleep (tests inject a fake clock); empty: steady_clock and
+  /// std::this_thread::sleep_until.
+  std::function<std::chrono::steady_clock::time_point()> pace_now;
+  std::function<void(std::chrono::steady_clock::time_point)> pace_sleep_until;
   /// Raw uint16 frames are this size (default: the camera's).
   int raw_width = 0, raw_height = 0;
 };

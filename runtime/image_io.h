@@ -1,6 +1,5 @@
 #pragma once
-// Image files for the runtime, with no dependency beyond the standard library: a PNG codec
-// (own inflate/deflate, CRC, Adler-32) and raw uint16 depth frames.
+// Image files for the runtime: PNG through libspng (over zlib), and raw uint16 depth frames.
 
 #include <cstdint>
 #include <span>
@@ -24,7 +23,8 @@ struct PngImage {
 };
 
 /// Decodes a PNG from memory (all colour types, bit depths and filters; interlaced images are
-/// refused with a clear error). `source` names the file in errors.
+/// refused with a clear error). `source` names the file in errors. Palette indices beyond the
+/// palette read as black, and data after the last scanline is ignored (as libpng does).
 core::Result<PngImage> DecodePng(std::span<const uint8_t> bytes, const std::string& source);
 /// Encodes `samples` (row-major, width*height*channels values) as a PNG (zlib-compressed).
 std::vector<uint8_t> EncodePng8(int width, int height, int channels, std::span<const uint8_t> samples);

@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <nlohmann/json.hpp>
 #include <numbers>
 
 namespace poseforest::runtime {
@@ -483,75 +485,43 @@ std::vector<Skeleton> SkeletonTracker::Update(std::vector<Skeleton> skeletons, d
   return skeletons;
 }
 
-namespace {
-void AppendF(std::string& out, const char* fmt, double a) {
+double PrintedValue(double v, const char* format) {
+  if (!std::isfinite(v)) return 0.0;  // never reached for found joints: their positions are finite
   char buf[64];
-  // JSON has no NaN / infinity; they never reach here (positions of found joints are finite).
-  std::snprintf(buf, sizeof buf, fmt, std::isfinite(a) ? a : 0.0);
-  out += buf;
-}
-void AppendVec(std::string& out, const float* v, int n, const char* fmt) {
-  out += '[';
-  for (int i = 0; i < n; ++i) {
-    if (i) out += ',';
-    AppendF(out, fmt, double(v[i]));
-  }
-  out += ']';
-}
-}  // namespace
-
-void AppendJsonString(std::string& out, std::string_view text) {
-  for (const char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\', out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", unsigned(static_cast<unsigned char>(c)));
-      out += buf;
-    } else {
-      out += c;
-    }
-  }
+  std::snprintf(buf, sizeof buf, format, v);
+  return std::strtod(buf, nullptr);
 }
 
-// Written by hand: the runtime depends on nothing but Eigen and OpenMP (no JSON library).
 std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& source,
                               const std::vector<Skeleton>& skeletons) {
-  std::string out = "{\"index\":" + std::to_string(index) + ",\"time_s\":";
-  AppendF(out, "%.6f", time_s);
-  out += ",\"source\":\"";
-  AppendJsonString(out, source);
-  out += "\",\"people\":[";
-  for (size_t k = 0; k < skeletons.size(); ++k) {
-    const Skeleton& s = skeletons[k];
-    if (k) out += ',';
-    out += "{\"id\":" + std::to_string(s.id) + ",\"pixels\":" + std::to_string(s.pixels) + ",\"centroid_m\":";
-    AppendVec(out, s.centroid_m.data(), 3, "%.4f");
-    out += ",\"joints\":[";
+  using Json = nlohmann::ordered_json;
+  auto vec = [](const float* v, int n, const char* format) {
+    Json a = Json::array();
+    for (int i = 0; i < n; ++i) a.push_back(PrintedValue(double(v[i]), format));
+    return a;
+  };
+  Json people = Json::array();
+  for (const Skeleton& s : skeletons) {
+    Json joints = Json::array();
     for (int j = 0; j < core::kNumJoints; ++j) {
       const SkeletonJoint& joint = s.joints[size_t(j)];
-      if (j) out += ',';
-      out += "{\"name\":\"" + std::string(core::JointName(j)) + "\",\"position_m\":";
-      if (joint.found)
-        AppendVec(out, joint.position_m.data(), 3, "%.4f");
-      else
-        out += "null";
-      out += ",\"pixel\":";
-      if (joint.found)
-        AppendVec(out, joint.pixel.data(), 2, "%.1f");
-      else
-        out += "null";
-      out += ",\"confidence\":";
-      AppendF(out, "%.4f", double(joint.confidence));
-      out += joint.tracked ? ",\"tracked\":true" : ",\"tracked\":false";
-      out += ",\"state\":\"";
-      out += JointStateName(StateOf(joint));
-      out += "\"}";
+      joints.push_back({{"name", core::JointName(j)},
+                        {"position_m", joint.found ? vec(joint.position_m.data(), 3, "%.4f") : Json(nullptr)},
+                        {"pixel", joint.found ? vec(joint.pixel.data(), 2, "%.1f") : Json(nullptr)},
+                        {"confidence", PrintedValue(double(joint.confidence), "%.4f")},
+                        {"tracked", joint.tracked},
+                        {"state", JointStateName(StateOf(joint))}});
     }
-    out += "]}";
+    people.push_back({{"id", s.id},
+                      {"pixels", s.pixels},
+                      {"centroid_m", vec(s.centroid_m.data(), 3, "%.4f")},
+                      {"joints", std::move(joints)}});
   }
-  out += "]}";
-  return out;
+  const Json record = {{"index", index},
+                       {"time_s", PrintedValue(time_s, "%.6f")},
+                       {"source", source},
+                       {"people", std::move(people)}};
+  return record.dump(-1, ' ', false, Json::error_handler_t::replace);
 }
 
 JointState StateOf(const SkeletonJoint& joint) {

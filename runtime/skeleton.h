@@ -214,15 +214,13 @@ class SkeletonTracker {
   int next_id_ = 1;
 };
 
-/// Appends `text` to `out` as the body of a JSON string (no quotes): '"' and '\\' escaped,
-/// control characters (< 0x20) as \u00XX, everything else byte for byte (UTF-8 passes through).
-/// The one escaping of the runtime's hand-written JSON (SkeletonsJsonLine, `infer`'s joints
-/// files), which may use no JSON library (the runtime's dependency promise).
-void AppendJsonString(std::string& out, std::string_view text);
+/// `v` as printf writes it with `format` (e.g. "%.4f", "%.5g"), read back: how the runtime's JSON
+/// records round their numbers. NaN and infinities (which JSON lacks) give 0.
+double PrintedValue(double v, const char* format);
 
 /// One JSON Lines record (no newline) for a frame: docs/runtime/live.md has the schema.
-/// Written by hand: the runtime library depends on a compiler, Eigen and OpenMP only, and the
-/// record is flat (numbers, names from the fixed joint table, and the escaped source string).
+/// Written with nlohmann-json (strings escaped by it, invalid UTF-8 replaced by U+FFFD);
+/// positions rounded to 0.1 mm, pixels to 0.1 px, confidences to 4 decimals, time to 1 us.
 std::string SkeletonsJsonLine(int64_t index, double time_s, const std::string& source,
                               const std::vector<Skeleton>& skeletons);
 

@@ -4,7 +4,7 @@ system libraries of its layer and below.
 
 The layers, bottom first (docs/architecture.md, ../shared/STYLE.md "Layers"):
     runtime      the inference library and its public API; depends on nothing heavier than Eigen
-                 and OpenMP
+                 and OpenMP (+ libspng/zlib for PNG files)
     proto        the messages (Protobuf), the DDS transport (Fast DDS) and the services' HTTP
                  server (cpp-httplib); includes the runtime
     renderer     synthetic depth frames (EGL, GLES, Assimp); includes the runtime

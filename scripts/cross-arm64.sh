@@ -33,7 +33,7 @@ arm=${POSEFOREST_ARM64_BUILD_DIR:-$root/build-arm64}
 jobs=${POSEFOREST_JOBS:-$(nproc)}
 toolchain=$root/cmake/toolchains/aarch64-linux-gnu.cmake
 sysroot=/usr/aarch64-linux-gnu
-emulator=(qemu-aarch64 -L "$sysroot")
+emulator=(qemu-aarch64 -L "$sysroot" -E "LD_LIBRARY_PATH=$arm/deps/usr/lib/aarch64-linux-gnu:$arm/deps/lib/aarch64-linux-gnu")
 
 # --- what it needs: the host's runtime packages (CMake, Eigen, Catch2), the cross g++ (with its
 # libgomp and libstdc++ for arm64) and qemu-user; apt-get only when something is missing.
@@ -53,10 +53,35 @@ if ((${#missing[@]})); then
   $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
+# --- libspng and zlib for aarch64 (the runtime links them): Debian's arm64 packages, fetched by
+# apt-get with a state folder of its own (no `dpkg --add-architecture` on this machine) and
+# unpacked into $arm/deps, where the toolchain file looks (pkg-config, libraries, and qemu's
+# LD_LIBRARY_PATH). Same versions as the host's.
+deps=$arm/deps
+if [[ ! -f $deps/usr/lib/aarch64-linux-gnu/pkgconfig/spng.pc ]]; then
+  echo "== aarch64 libspng + zlib (Debian arm64 packages) into $deps"
+  apt_dir=$arm/apt
+  rm -rf "$deps" "$apt_dir"
+  mkdir -p "$apt_dir/lists/partial" "$apt_dir/cache/archives/partial" "$apt_dir/debs" "$deps"
+  apt_opts=(-q -o Dir::State::Lists="$apt_dir/lists" -o Dir::Cache="$apt_dir/cache" -o APT::Architecture=arm64
+    -o APT::Architectures::=arm64 -o Debug::NoLocking=1)
+  apt-get "${apt_opts[@]}" update >/dev/null
+  debs=()
+  for p in libspng0 libspng-dev zlib1g zlib1g-dev; do
+    debs+=("$p:arm64=$(dpkg-query -W -f='${Version}' "$p")")
+  done
+  (cd "$apt_dir/debs" && apt-get "${apt_opts[@]}" download "${debs[@]}" 2>/dev/null)
+  for d in "$apt_dir"/debs/*.deb; do dpkg-deb -x "$d" "$deps"; done
+  # Paths inside the unpacked tree: .pc prefixes, and libz.so's absolute link.
+  sed -i "s|^prefix=/usr|prefix=$deps/usr|" "$deps"/usr/lib/aarch64-linux-gnu/pkgconfig/{spng,zlib}.pc
+  ln -sf ../../../lib/aarch64-linux-gnu/libz.so.1 "$deps/usr/lib/aarch64-linux-gnu/libz.so"
+  rm -rf "$apt_dir"
+fi
+
 # --- build
 echo "== aarch64 cross build (runtime only) into $arm"
 t0=$(date +%s)
-cmake -S "$root" -B "$arm" -DCMAKE_TOOLCHAIN_FILE="$toolchain" -DCMAKE_BUILD_TYPE=Release \
+cmake -S "$root" -B "$arm" -DCMAKE_TOOLCHAIN_FILE="$toolchain" -DCMAKE_BUILD_TYPE=Release -DPOSEFOREST_CROSS_DEPS="$deps" \
   -DPOSEFOREST_TRAINING=OFF -DPOSEFOREST_BENCH=OFF -DPOSEFOREST_DEVICES=OFF -DPOSEFOREST_PYTHON=OFF >/dev/null
 cmake --build "$arm" -j"$jobs"
 readelf -h "$arm/bin/poseforest" | grep -q 'Machine: *AArch64' || {

@@ -2,17 +2,18 @@
 # Installs what poseforest needs on Debian 12 with apt-get, only if something is missing.
 # Idempotent and fast when everything is there (one dpkg query).
 #   scripts/setup.sh            everything (training + runtime + tests)
-#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen (+ Catch2 for its tests,
+#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen, libspng, nlohmann-json (+ Catch2 for its tests,
 #                               pybind11 + NumPy for the optional Python module)
 set -euo pipefail
 
 runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2
+  libspng-dev zlib1g-dev                      # PNG files (libspng over zlib: the runtime library and `poseforest`)
+  nlohmann-json3-dev                          # JSON written by the runtime's commands (header-only)
   python3-dev python3-pybind11 python3-numpy  # the optional Python module and its test (consumer_python)
   libcpp-httplib-dev                          # `live --http` (optional here); the coordinator's status server (training)
 )
 training_pkgs=(
   libprotobuf-dev protobuf-compiler         # job configs and wire messages
-  nlohmann-json3-dev                        # JSON readers (MakeHuman rigs, joints files, status files)
   libfastrtps-dev fastdds-tools             # Fast DDS 2.9 (coordinator <-> workers)
   libassimp-dev assimp-testmodels           # rigged meshes (+ CMU BVH test clips)
   libegl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri  # headless EGL/GLES (Mesa llvmpipe on CPU)

@@ -11,7 +11,7 @@ echo "== build (Release, full)"
 scripts/build.sh
 echo "== tests"
 (cd build && ctest --output-on-failure -j"${POSEFOREST_JOBS:-$(nproc)}" --timeout 900)
-echo "== runtime-only build (compiler + Eigen + OpenMP; no optional device back ends)"
+echo "== runtime-only build (compiler + Eigen + OpenMP + libspng; no optional device back ends)"
 POSEFOREST_BUILD_DIR="$root/build-runtime-only" scripts/build.sh -DPOSEFOREST_TRAINING=OFF -DPOSEFOREST_BENCH=OFF -DPOSEFOREST_DEVICES=OFF
 (cd build-runtime-only && ctest --output-on-failure -j"${POSEFOREST_JOBS:-$(nproc)}" --timeout 900)
 echo "== aarch64 (64-bit ARM boards): cross build, its tests under qemu-user, same outputs as x86-64"

@@ -2,11 +2,15 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -98,31 +102,31 @@ float CalibratedConfidence(const core::ConfidenceCalibration* cal, int joint, co
   return cal ? cal->Confidence(joint, support) : core::FallbackConfidence(support);
 }
 
-// Written by hand: the runtime depends on nothing but Eigen and OpenMP (no JSON library).
+// Positions rounded to 0.1 mm, pixels to 0.1 px, confidence to 5 significant digits.
 std::string JointsJson(const std::string& source, const core::DepthImage& depth, const runtime::FrameProposals& f,
                        const char* method, const core::ConfidenceCalibration* cal, const core::CameraIntrinsics& camera) {
-  std::string out = "{\n  \"frame\": \"";
-  runtime::AppendJsonString(out, source);  // control characters too: a file name may hold any
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "\",\n  \"width\": %d, \"height\": %d, \"method\": \"%s\",\n  \"joints\": [\n",
-                depth.width, depth.height, method);
-  out += buf;
+  using Json = nlohmann::ordered_json;
+  using runtime::PrintedValue;
+  Json joints = Json::array();
   for (int j = 0; j < core::kNumJoints; ++j) {
-    out += "    {\"joint\": \"" + std::string(core::JointName(j)) + "\", \"proposals\": [";
-    for (size_t k = 0; k < f[size_t(j)].size(); ++k) {
-      const auto& p = f[size_t(j)][k];
-      std::snprintf(buf, sizeof buf,
-                    "%s\n      {\"position_m\": [%.4f, %.4f, %.4f], \"pixel\": [%.1f, %.1f], \"confidence\": %.5g, "
-                    "\"calibrated_confidence\": %.4f}",
-                    k ? "," : "", p.position.x(), p.position.y(), p.position.z(), p.pixel.x(), p.pixel.y(),
-                    double(p.confidence), double(CalibratedConfidence(cal, j, p, camera)));
-      out += buf;
+    Json proposals = Json::array();
+    for (const auto& p : f[size_t(j)]) {
+      proposals.push_back(
+          {{"position_m",
+            {PrintedValue(p.position.x(), "%.4f"), PrintedValue(p.position.y(), "%.4f"),
+             PrintedValue(p.position.z(), "%.4f")}},
+           {"pixel", {PrintedValue(p.pixel.x(), "%.1f"), PrintedValue(p.pixel.y(), "%.1f")}},
+           {"confidence", PrintedValue(double(p.confidence), "%.5g")},
+           {"calibrated_confidence", PrintedValue(double(CalibratedConfidence(cal, j, p, camera)), "%.4f")}});
     }
-    out += f[size_t(j)].empty() ? "]}" : "\n    ]}";
-    out += j + 1 < core::kNumJoints ? ",\n" : "\n";
+    joints.push_back({{"joint", core::JointName(j)}, {"proposals", std::move(proposals)}});
   }
-  out += "  ]\n}\n";
-  return out;
+  const Json doc = {{"frame", source},  // a file name may hold any byte: invalid UTF-8 becomes U+FFFD
+                    {"width", depth.width},
+                    {"height", depth.height},
+                    {"method", method},
+                    {"joints", std::move(joints)}};
+  return doc.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 core::Status WriteProbabilitiesNpy(const std::string& path, const runtime::Classification& c) {

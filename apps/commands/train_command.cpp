@@ -2,7 +2,11 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "apps/commands/args.h"
@@ -33,12 +37,15 @@ options:
   --threads N     override the job's thread count (0 = all cores)
   --shards N      split the frames over N in-process worker shards (default 1; same forest)
   --quiet         no per-level progress
+  --event-log F   append a JSON line per level to F (JSON Lines: event LEVEL_DONE, tree, level,
+                  nodes, split, samples, evaluations, evaluations_per_s, seconds, elapsed_s;
+                  the coordinator's event log names, docs/distributed/monitoring.md)
   --help          this text
 )";
 }  // namespace
 
 int TrainMain(int argc, char** argv) {
-  Args args({"out", "threads", "shards"}, {"quiet", "help"});
+  Args args({"out", "threads", "shards", "event-log"}, {"quiet", "help"});
   if (auto st = args.Parse(argc, argv); !st.ok()) {
     std::fprintf(stderr, "poseforest train: %s\n\n%s", st.message().c_str(), kUsage);
     return 2;
@@ -72,8 +79,34 @@ int TrainMain(int argc, char** argv) {
     std::printf("%s\n", m.c_str());
     std::fflush(stdout);
   };
-  if (!quiet) {
-    opt.progress = [](const engine::LevelProgress& p) {
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> event_log(nullptr, std::fclose);
+  if (args.Has("event-log")) {
+    event_log.reset(std::fopen(args.Get("event-log")->c_str(), "ae"));
+    if (!event_log) {
+      std::fprintf(stderr, "poseforest train: --event-log %s: %s\n", args.Get("event-log")->c_str(),
+                   std::strerror(errno));
+      return 2;
+    }
+  }
+  if (!quiet || event_log) {
+    opt.progress = [quiet, log = event_log.get()](const engine::LevelProgress& p) {
+      if (log) {
+        const std::string line = nlohmann::ordered_json{{"event", "LEVEL_DONE"},
+                                                        {"tree", p.tree},
+                                                        {"level", p.level},
+                                                        {"nodes", p.frontier_nodes},
+                                                        {"split", p.split_nodes},
+                                                        {"samples", p.samples},
+                                                        {"evaluations", p.evaluations},
+                                                        {"evaluations_per_s", p.evaluations_per_s},
+                                                        {"seconds", p.level_seconds},
+                                                        {"elapsed_s", p.elapsed_s}}
+                                     .dump() +
+                                 "\n";
+        (void)std::fwrite(line.data(), 1, line.size(), log);  // a full disk must not stop training
+        (void)std::fflush(log);
+      }
+      if (quiet) return;
       std::printf(
           "tree %d level %2d: %6zu nodes (%6zu split), %10llu samples, %.3g evaluations/s, %.1f s, %llu "
           "MiB\n",

@@ -21,9 +21,22 @@ set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
 set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)
 set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE BOTH)
 set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE BOTH)
+# libspng and zlib (the runtime links them): Debian's arm64 packages unpacked into
+# POSEFOREST_CROSS_DEPS by scripts/cross-arm64.sh (default: deps/ in the build folder).
+if(NOT POSEFOREST_CROSS_DEPS)
+  set(POSEFOREST_CROSS_DEPS ${CMAKE_BINARY_DIR}/deps)
+endif()
+# The compiler checks' try_compile projects read this file too: same folder there, or they would
+# point pkg-config (an environment variable of this one process) at their own.
+list(APPEND CMAKE_TRY_COMPILE_PLATFORM_VARIABLES POSEFOREST_CROSS_DEPS)
+list(APPEND CMAKE_FIND_ROOT_PATH ${POSEFOREST_CROSS_DEPS})
+# Programs that link the static libposeforest name them -lspng -lz (its exported target).
+set(CMAKE_EXE_LINKER_FLAGS_INIT "-L${POSEFOREST_CROSS_DEPS}/usr/lib/${POSEFOREST_CROSS_TRIPLE} \
+-Wl,-rpath-link,${POSEFOREST_CROSS_DEPS}/lib/${POSEFOREST_CROSS_TRIPLE}")
+set(CMAKE_SHARED_LINKER_FLAGS_INIT ${CMAKE_EXE_LINKER_FLAGS_INIT})
 # pkg-config sees the target's .pc files only: the host's x86-64 libraries (cpp-httplib's .so,
 # libfreenect, OpenNI2) are not found, so what needs them is left out as on a machine without them.
-set(ENV{PKG_CONFIG_LIBDIR} /usr/lib/${POSEFOREST_CROSS_TRIPLE}/pkgconfig:${POSEFOREST_CROSS_SYSROOT}/lib/pkgconfig)
+set(ENV{PKG_CONFIG_LIBDIR} /usr/lib/${POSEFOREST_CROSS_TRIPLE}/pkgconfig:${POSEFOREST_CROSS_SYSROOT}/lib/pkgconfig:${POSEFOREST_CROSS_DEPS}/usr/lib/${POSEFOREST_CROSS_TRIPLE}/pkgconfig)
 set(ENV{PKG_CONFIG_PATH} "")
 
 # -march=native means the build machine's CPU: a cross build targets the generic ARMv8-A
@@ -33,5 +46,6 @@ set(POSEFOREST_NATIVE OFF CACHE BOOL "Optimize for this machine's CPU (-march=na
 # ctest (and add_test commands naming a target) run the aarch64 programs through qemu-user.
 find_program(POSEFOREST_QEMU_AARCH64 qemu-aarch64)
 if(POSEFOREST_QEMU_AARCH64)
-  set(CMAKE_CROSSCOMPILING_EMULATOR ${POSEFOREST_QEMU_AARCH64} -L ${POSEFOREST_CROSS_SYSROOT})
+  set(CMAKE_CROSSCOMPILING_EMULATOR ${POSEFOREST_QEMU_AARCH64} -L ${POSEFOREST_CROSS_SYSROOT} -E
+      LD_LIBRARY_PATH=${POSEFOREST_CROSS_DEPS}/usr/lib/${POSEFOREST_CROSS_TRIPLE}:${POSEFOREST_CROSS_DEPS}/lib/${POSEFOREST_CROSS_TRIPLE})
 endif()

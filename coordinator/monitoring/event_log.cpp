@@ -89,6 +89,16 @@ void EventLog::OnStatus(const v1::StatusEvent& s) {
     e.set_bytes_received(double(l.bytes_received));
     e.set_seconds(Finite(l.level_seconds));
     e.set_retries(l.retries);
+    e.set_rounds(l.rounds);
+    e.set_round_seconds(Finite(l.round_seconds));
+    e.set_compute_seconds(Finite(l.round_compute_seconds));
+    e.set_queued_seconds(Finite(l.round_queued_seconds));
+    e.set_traffic_seconds(Finite(l.round_traffic_seconds));
+    e.set_merge_seconds(Finite(l.merge_seconds));
+    e.set_subtree_wait_seconds(Finite(l.subtree_wait_seconds));
+    e.set_subtree_busy_seconds(Finite(l.subtree_busy_seconds));
+    e.set_render_seconds(Finite(l.render_seconds));
+    e.set_subtree_tasks(uint32_t(std::min<size_t>(l.subtree_tasks, UINT32_MAX)));
   }
   Write(std::move(e));
 }

@@ -1,5 +1,5 @@
 #pragma once
-// CRC-32 (IEEE 802.3 / zlib / PNG polynomial), used by the forest format and the PNG codec.
+// CRC-32 (IEEE 802.3 / zlib / PNG polynomial), used by the forest format.
 
 #include <cstddef>
 #include <cstdint>

@@ -698,15 +698,19 @@ TEST_CASE("HTTP server: bad requests, huge heads, slow clients and floods do not
   CHECK(StatusCode(RawExchange(port, "GET / HTTP/1.1\r\nCookie: " + std::string(20000, 'c') + "\r\n\r\n")) ==
         431);
   ok(__LINE__);
-  // Slow clients (a few bytes, then silence) hold no one up and get 408 at the timeout.
+  // Slow clients (a few bytes, then silence) hold no one up and get 408 at the timeout: a request
+  // meanwhile is served while all four are still held (none has had its 408 yet).
   std::vector<std::thread> slow;
   std::vector<int> slow_codes(4, 0);
+  std::atomic<int> slow_done{0};
   for (int i = 0; i < 4; ++i)
-    slow.emplace_back([&, i] { slow_codes[size_t(i)] = StatusCode(RawExchange(port, "GET /sta", 5s)); });
+    slow.emplace_back([&, i] {
+      slow_codes[size_t(i)] = StatusCode(RawExchange(port, "GET /sta", 5s));
+      ++slow_done;
+    });
   std::this_thread::sleep_for(100ms);
-  const auto t0 = std::chrono::steady_clock::now();
   ok(__LINE__);
-  CHECK(std::chrono::steady_clock::now() - t0 < 500ms);
+  CHECK(slow_done.load() == 0);
   for (auto& t : slow) t.join();
   for (int c : slow_codes) CHECK(c == 408);
   // A flood beyond max_connections: the extra ones are refused with 503, then all is well again.
@@ -1294,10 +1298,15 @@ TEST_CASE("event log lines parse strictly into JobEvent, each with the keys of i
   }
   const auto lines = EventLines(path);  // each line strictly a JobEvent
   REQUIRE(lines.size() == 3);
-  CHECK(Keys(lines[0]) == std::set<std::string>{"time", "unix", "job", "event", "tree", "level", "epoch",
-                                                "progress", "active_workers", "nodes", "split", "samples",
-                                                "evaluations", "evaluations_per_s", "mean_entropy",
-                                                "mean_gain", "bytes_received", "seconds", "retries"});
+  std::set<std::string> level_keys;
+  std::istringstream names(
+      "time unix job event tree level epoch progress active_workers nodes split samples evaluations "
+      "evaluations_per_s mean_entropy mean_gain bytes_received seconds retries "
+      // where the level's seconds went (bench/distributed's table)
+      "rounds round_seconds compute_seconds queued_seconds traffic_seconds merge_seconds "
+      "subtree_wait_seconds subtree_busy_seconds render_seconds subtree_tasks");
+  for (std::string k; names >> k;) level_keys.insert(k);
+  CHECK(Keys(lines[0]) == level_keys);
   CHECK(Str(lines[0], "event") == "LEVEL_DONE");
   CHECK(Str(lines[0], "job") == "job-\"e\"");
   CHECK(Num(lines[0], "samples") == 5000000000.0);

@@ -11,8 +11,8 @@
 #   python     the Python module imported from the prefix: examples/classify.py and
 #              tests/runtime/python_api_check.py (results equal the CLI's byte for byte)
 # A cross build (cmake/toolchains/) also sets PF_EMULATOR (e.g. "qemu-aarch64 -L SYSROOT": the
-# built programs run through it), PF_NM (the target's nm) and PF_TOOLCHAIN_FILE (for the
-# examples' CMake project).
+# built programs run through it), PF_NM (the target's nm), PF_TOOLCHAIN_FILE (for the
+# examples' CMake project) and PF_CROSS_DEPS (where the toolchain finds the target's libspng and zlib).
 set -euo pipefail
 step=${1:?usage: consumers.sh install|symbols|cmake|pkgconfig|python}
 for v in PF_CMAKE PF_BUILD_DIR PF_SOURCE_DIR PF_WORK PF_VERSION PF_SOVERSION PF_LIBDIR PF_BINDIR PF_INCLUDEDIR \
@@ -103,7 +103,8 @@ cmake)
   rm -rf "$build"
   "$PF_CMAKE" -S "$PF_SOURCE_DIR/examples" -B "$build" -DCMAKE_PREFIX_PATH="$prefix" -DEXAMPLES_STATIC=ON \
     -DCMAKE_C_COMPILER="$PF_CC" -DCMAKE_CXX_COMPILER="$PF_CXX" -DCMAKE_BUILD_TYPE=Release \
-    ${PF_TOOLCHAIN_FILE:+-DCMAKE_TOOLCHAIN_FILE="$PF_TOOLCHAIN_FILE"} >"$PF_WORK/cmake-configure.log"
+    ${PF_TOOLCHAIN_FILE:+-DCMAKE_TOOLCHAIN_FILE="$PF_TOOLCHAIN_FILE"} \
+    ${PF_CROSS_DEPS:+-DPOSEFOREST_CROSS_DEPS="$PF_CROSS_DEPS"} >"$PF_WORK/cmake-configure.log"
   "$PF_CMAKE" --build "$build" -j1
   run "$build/classify_c" "$inputs/forest.pff" "$inputs/person.raw" "$build/c.labels" | tee "$build/c.out"
   same "$build/c.labels" "$inputs/person.labels" "C program (CMake) labels = runtime's"

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "runtime/classifier.h"
@@ -11,6 +12,7 @@
 #include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #include "runtime/joint_proposals.h"
+#include "runtime/skeleton.h"
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
 #include "tests/support/synthetic.h"
@@ -150,30 +152,36 @@ TEST_CASE("infer --joints writes proposals as JSON and the pose picture", "[cli]
     REQUIRE(run.exit_code == 0);
     CHECK_THAT(run.output, Catch::Contains("L_elbow") && Catch::Contains(method));
     std::ifstream json(dir / "d.joints.json");
-    const std::string text((std::istreambuf_iterator<char>(json)), std::istreambuf_iterator<char>());
-    CHECK_THAT(text, Catch::Contains("\"joint\": \"head\"") && Catch::Contains("\"joint\": \"R_foot\"") &&
-                         Catch::Contains("position_m") && Catch::Contains(method));
+    const auto doc = nlohmann::json::parse(json);
+    CHECK(doc["method"] == method);
+    REQUIRE(doc["joints"].size() == size_t(core::kNumJoints));
+    CHECK(doc["joints"][0]["joint"] == "head");
+    CHECK(doc["joints"][core::kNumJoints - 1]["joint"] == "R_foot");
     runtime::ProposalOptions po;
     po.method = std::string(method) == "fast" ? runtime::ProposalMethod::kFastClustering
                                               : runtime::ProposalMethod::kMeanShift;
     const auto expected = runtime::ProposeJoints(depth, probs, po);
     size_t total = 0, count_in_json = 0;
-    for (const auto& list : expected) {
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      const auto& list = expected[size_t(j)];
+      const auto& written = doc["joints"][size_t(j)]["proposals"];
+      REQUIRE(written.size() == list.size());
       total += list.size();
-      for (const auto& p : list) {
-        char pos[96];
-        std::snprintf(pos, sizeof pos, "\"position_m\": [%.4f, %.4f, %.4f]", p.position.x(), p.position.y(),
-                      p.position.z());
-        CHECK_THAT(text, Catch::Contains(pos));
+      count_in_json += written.size();
+      for (size_t k = 0; k < list.size(); ++k) {
+        const auto& p = list[k];
+        const auto& w = written[k];
+        // Positions to 0.1 mm, confidence to 5 significant digits, calibrated to 4 decimals.
+        for (int c = 0; c < 3; ++c)
+          CHECK(w["position_m"][size_t(c)].get<double>() == runtime::PrintedValue(p.position[c], "%.4f"));
+        CHECK(w["confidence"].get<double>() == runtime::PrintedValue(p.confidence, "%.5g"));
         // The forest has no calibration table: the documented fallback of the support.
-        char conf[160];
-        std::snprintf(conf, sizeof conf, "\"confidence\": %.5g, \"calibrated_confidence\": %.4f}", double(p.confidence),
-                      double(core::FallbackConfidence(float(double(p.confidence) / (po.camera.fx * po.camera.fy)))));
-        CHECK_THAT(text, Catch::Contains(conf));
+        CHECK(w["calibrated_confidence"].get<double>() ==
+              runtime::PrintedValue(
+                  core::FallbackConfidence(float(double(p.confidence) / (po.camera.fx * po.camera.fy))),
+                  "%.4f"));
       }
     }
-    for (size_t at = text.find("position_m"); at != std::string::npos; at = text.find("position_m", at + 1))
-      ++count_in_json;
     CHECK(total > 0);
     CHECK(count_in_json == total);
     auto png = core::ReadFileBytes((dir / "d.pose.png").string());

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <span>
+#include <vector>
 
 #include "runtime/camera_model.h"
 #include "runtime/classifier.h"
@@ -265,20 +266,35 @@ TEST_CASE("--fps paces a folder; timestamps are index / fps", "[frames][source]"
   const auto dir = testing::ScratchDir("frames-fps");
   for (const char* name : {"f0.png", "f1.png", "f2.png", "f3.png"})
     REQUIRE(runtime::WriteDepthPng((dir / name).string(), core::DepthImage(640, 480, 1500)).ok());
+  // A fake clock: sleeping moves it on; frame 2 comes 80 ms late (a slow consumer).
+  using Clock = std::chrono::steady_clock;
+  using std::chrono::milliseconds;
+  const Clock::time_point t0{};
+  Clock::time_point t = t0;
+  std::vector<Clock::time_point> sleeps;
   runtime::FrameSourceOptions o;
   o.fps = 20;
+  o.pace_now = [&] { return t; };
+  o.pace_sleep_until = [&](Clock::time_point until) {
+    sleeps.push_back(until);
+    t = until;
+  };
   auto src = runtime::OpenFrameSource(dir.string(), o);
   REQUIRE(src.ok());
-  const auto t0 = std::chrono::steady_clock::now();
   runtime::Frame f;
   int n = 0;
-  while (*(*src)->Next(&f)) {
+  while (true) {
+    if (n == 2) t += milliseconds(80);
+    auto more = (*src)->Next(&f);
+    REQUIRE(more.ok());
+    if (!*more) break;
     CHECK(f.timestamp_s == Approx(n / 20.0));
     ++n;
   }
-  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   CHECK(n == 4);
-  CHECK(s >= 0.14);  // three periods of 50 ms between four frames
+  // Frame 1 waits for its 50 ms slot; frame 2, late, goes at once (no burst to catch up); frame 3
+  // waits one period after it.
+  CHECK(sleeps == std::vector<Clock::time_point>{t0 + milliseconds(50), t0 + milliseconds(180)});
   fs::remove_all(dir);
 }
 
