@@ -56,8 +56,13 @@ echo "== offset votes: per leaf, the offsets to the joints its training pixels a
 echo "== eval on 200 held-out test-clip frames"
 "$bin/poseforest" eval --forest "$out/forest_tuned.pff" --test-set "$out/job.textproto" --images 200 \
   --pr-png "$out/pr" 2>&1 | tee "$out/eval.txt"
+echo "== the same test clips with the people facing the camera (+-60 degrees, as the training people)"
+write_default_job "$out/job_facing.textproto" "$per_tree" 30 "$out/mocap.pfposes" "$data" "" "$classic_test_fields" 60
+"$bin/poseforest" eval --forest "$out/forest_tuned.pff" --test-set "$out/job_facing.textproto" --images 200 \
+  --method meanshift 2>&1 | tee "$out/eval_facing.txt" | grep -E '^eval: mAP|^mean over joints'
 echo "== real Kinect v1 frames, joints labelled by hand (pictures: $out/real/)"
 "$bin/poseforest" eval --forest "$out/forest_tuned.pff" --real-labels "$data/real/skeltrack_kinect_depth/joint_labels.json" \
   --png-dir "$out/real" --quiet 2>&1 | tee "$out/real.txt"
 echo "== done in $(( $(date +%s) - start )) s: $(grep '^eval: mAP' "$out/eval.txt")"
+echo "   people facing the camera: $(grep '^eval: mAP' "$out/eval_facing.txt")"
 echo "   $(grep '^eval: real frames' "$out/real.txt")"

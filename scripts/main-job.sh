@@ -42,6 +42,8 @@ echo "== 1. pose library from $data/mocap"
 # The embedded default job (proto/poseforest/v1/job.proto). Sized to train in minutes on two
 # cores; the paper used 300k images per tree.
 write_default_job "$out/job.textproto" 300 200 "$out/mocap.pfposes" "$data"
+# the clips the job tests on are in $out/job.textproto; job_facing.textproto (step 3b) differs in
+# the test people's yaw range only
 
 echo "== 2. training ($out/job.textproto): coordinator + 2 local worker processes over Fast DDS"
 rm -rf "$out/checkpoint" "$out/small_checkpoint"
@@ -66,6 +68,10 @@ echo "== 3'. offset votes: per leaf, the offsets to the joints its training pixe
 echo "== 3b. joint AP / mAP and per-class accuracy on held-out renders (test clips)"
 "$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job.textproto" --png "$out/confusion.png" \
   --pr-png "$out/pr" --quiet | tee "$out/eval.txt"
+echo "== 3b, facing. the same test clips with the people facing the camera (+-60 degrees, as the training people)"
+write_default_job "$out/job_facing.textproto" 300 200 "$out/mocap.pfposes" "$data" "" "$classic_test_fields" 60
+"$bin/poseforest" eval --forest "$out/forest.pff" --test-set "$out/job_facing.textproto" --method meanshift --quiet |
+  tee "$out/eval_facing.txt" | grep -E '^eval: mAP|^mean over joints'
 echo "== 3b'. real Kinect v1 frames, joints labelled by hand: the skeleton live gives, scored (pictures: $out/real/)"
 "$bin/poseforest" eval --forest "$out/forest.pff" --real-labels "$data/real/skeltrack_kinect_depth/joint_labels.json" \
   --png-dir "$out/real" --quiet | tee "$out/real.txt"
@@ -85,4 +91,5 @@ echo "== done in $(( $(date +%s) - start )) s. In $out: forest.pff, confusion.pn
 echo "   infer/*.pose.png (depth | parts | joints; front/side/top views), infer/*.joints.json, pcl/,"
 echo "   pr/pr_joints.png + pr/pr_mean.png (precision-recall curves)"
 tail -n 1 "$out/eval.txt"
+echo "people facing the camera: $(tail -n 1 "$out/eval_facing.txt")"
 tail -n 1 "$out/real.txt"
