@@ -444,11 +444,7 @@ Result<Evaluation> EvaluateForestJoints(const core::Forest& forest, const Source
   fast.method = runtime::ProposalMethod::kFastClustering;
   fast.params = e.fast_params;
   // The skeleton's confidence: the forest's calibration if measured for mean shift.
-  const core::ConfidenceCalibration* calibration =
-      forest.confidence_calibration &&
-              forest.confidence_calibration->method == core::ConfidenceCalibration::Method::kMeanShift
-          ? &*forest.confidence_calibration
-          : nullptr;
+  const core::ConfidenceCalibration* calibration = forest.CalibrationFor(/*fast_clustering=*/false);
   e.calibrated = calibration != nullptr;
   runtime::Classification out;
   runtime::SegmentationResult seg;

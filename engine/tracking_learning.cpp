@@ -84,11 +84,7 @@ core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
   po.params = forest.ProposalParamsFor(false).params;
   po.num_threads = options.threads;
   po.camera = cam;
-  const core::ConfidenceCalibration* calibration =
-      forest.confidence_calibration &&
-              forest.confidence_calibration->method == core::ConfidenceCalibration::Method::kMeanShift
-          ? &*forest.confidence_calibration
-          : nullptr;
+  const core::ConfidenceCalibration* calibration = forest.CalibrationFor(/*fast_clustering=*/false);
   runtime::VoteOptions vo;
   vo.threads = options.threads;
   std::vector<int> joints;

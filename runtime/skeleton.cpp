@@ -359,7 +359,7 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
       const float pv = cc.has_proposal && cc.has_vote ? (cc.proposal - cc.vote).norm() : 0.5f;
       f[core::kFeatProposalVoteGap] = std::min(pv, 0.5f);
       f[core::kFeatAgreed] = cc.has_proposal && cc.has_vote && pv <= options.agree_radius_m;
-      f[core::kFeatNearCutEdge] = near_cut_edge(joint, 0.15f);
+      f[core::kFeatNearCutEdge] = near_cut_edge(joint, core::kCutEdgeCueMarginM);
       const int d = mask_depth_px(joint.pixel);
       f[core::kFeatDepthGap] = d ? std::min(0.5f, std::abs(joint.position_m.z() - float(d) * 1e-3f)) : 0.5f;
     }

@@ -29,11 +29,7 @@ SkeletonPipeline::SkeletonPipeline(const core::Forest& forest, const SkeletonPip
   params_source_ = params.source;
   proposal_options_.num_threads = options.num_threads;
   if (options.segment == SegmentMode::kOn) options_.segmentation.presegmented = false;
-  const auto wanted = options.method == ProposalMethod::kFastClustering
-                          ? core::ConfidenceCalibration::Method::kFastClustering
-                          : core::ConfidenceCalibration::Method::kMeanShift;
-  if (forest.confidence_calibration && forest.confidence_calibration->method == wanted)
-    calibration_ = &*forest.confidence_calibration;
+  calibration_ = forest.CalibrationFor(options.method == ProposalMethod::kFastClustering);
 }
 
 void SkeletonPipeline::Process(const Frame& frame, SkeletonFrame* out) {

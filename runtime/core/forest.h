@@ -129,6 +129,13 @@ struct Forest {
               fast_clustering ? ProposalParamsSource::kMeanShiftSet : ProposalParamsSource::kLearned};
     return {DefaultProposalParams(), ProposalParamsSource::kPaperMeans};
   }
+  /// The confidence calibration, if it was measured for this proposal method; else null (the
+  /// skeleton then uses FallbackConfidence).
+  const ConfidenceCalibration* CalibrationFor(bool fast_clustering) const {
+    const auto wanted =
+        fast_clustering ? ConfidenceCalibration::Method::kFastClustering : ConfidenceCalibration::Method::kMeanShift;
+    return confidence_calibration && confidence_calibration->method == wanted ? &*confidence_calibration : nullptr;
+  }
   /// Part names of the paper's 31-part taxonomy.
   static std::vector<std::string> DefaultPartNames();
 };

@@ -37,6 +37,10 @@ enum TrackingFeature : int {
   kNumTrackingFeatures
 };
 
+/// kFeatNearCutEdge's margin, metres: the cue is fixed, whatever SkeletonOptions::edge_margin_m
+/// (the rule it replaces) is set to, so a model reads the cue it was fitted on.
+inline constexpr float kCutEdgeCueMarginM = 0.15f;
+
 /// Names of the cues (inspect, learn-votes' report).
 const char* TrackingFeatureName(int feature);
 
