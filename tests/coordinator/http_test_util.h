@@ -68,11 +68,19 @@ inline int ConnectLoopback(uint16_t port, const char* source = nullptr) {
   return fd;
 }
 
+/// What came back on a raw connection, and who ended it.
+struct Exchange {
+  std::string bytes;            ///< everything received
+  bool closed_by_peer = false;  ///< the server closed (or reset) the connection; false: `timeout` ran out
+};
+
 /// Sends `bytes` on a fresh connection to 127.0.0.1:`port` (from `source`, a loopback address,
-/// when given) and returns what comes back until the server closes (or `timeout`).
-inline std::string RawExchange(uint16_t port, const std::string& bytes,
-                               std::chrono::milliseconds timeout = std::chrono::seconds(5),
-                               const char* source = nullptr) {
+/// when given) and reads until the server closes or `timeout` runs out. A test that gives the
+/// client a shorter timeout than the server's own learns from `closed_by_peer` that the server
+/// closed for a reason of its own, not at its timeout, without measuring time.
+inline Exchange RawExchangeUntilClosed(uint16_t port, const std::string& bytes,
+                                       std::chrono::milliseconds timeout = std::chrono::seconds(5),
+                                       const char* source = nullptr) {
   const int fd = ConnectLoopback(port, source);
   size_t sent = 0;
   while (sent < bytes.size()) {
@@ -80,7 +88,7 @@ inline std::string RawExchange(uint16_t port, const std::string& bytes,
     if (n <= 0) break;  // the server may close early (431, 401): fine
     sent += size_t(n);
   }
-  std::string out;
+  Exchange out;
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
     const auto left =
@@ -90,11 +98,21 @@ inline std::string RawExchange(uint16_t port, const std::string& bytes,
     if (::poll(&p, 1, int(left.count())) <= 0) break;
     char buf[4096];
     const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-    if (n <= 0) break;
-    out.append(buf, size_t(n));
+    if (n <= 0) {
+      out.closed_by_peer = true;
+      break;
+    }
+    out.bytes.append(buf, size_t(n));
   }
   ::close(fd);
   return out;
+}
+
+/// RawExchangeUntilClosed's bytes.
+inline std::string RawExchange(uint16_t port, const std::string& bytes,
+                               std::chrono::milliseconds timeout = std::chrono::seconds(5),
+                               const char* source = nullptr) {
+  return RawExchangeUntilClosed(port, bytes, timeout, source).bytes;
 }
 
 /// The status code of an HTTP/1.1 reply, -1 if it is not one.

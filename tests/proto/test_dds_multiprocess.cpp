@@ -237,7 +237,6 @@ TEST_CASE("a keep-all writer waits for a stopped reader process and goes on when
       std::this_thread::sleep_for(1500ms);  // 7 write slices
       CHECK(written < kCount);              // the writer is waiting for the stopped reader ...
       CHECK(failed == 0);                   // ... without failing
-      const auto released = Clock::now();
       if (kill) {
         reader.Kill(SIGKILL);
       } else {
@@ -254,9 +253,9 @@ TEST_CASE("a keep-all writer waits for a stopped reader process and goes on when
         int samples = 0;
         while (samples < kCount && reader.WaitForLine("SAMPLE replies", 20s)) ++samples;
         CHECK(samples == kCount);
-      } else {
-        CHECK(Clock::now() - released < 30s);
       }
+      // Killed: `written == kCount` and `failed == 0` above say the writer was released by the
+      // lease; a writer still waiting would have given up at write_give_up (60 s) and failed.
     }
   }
 }
