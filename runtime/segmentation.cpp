@@ -133,47 +133,31 @@ std::optional<Eigen::Vector4d> FitFloor(const core::DepthImage& depth, const cor
   return plane;
 }
 
-}  // namespace
-
-void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& cam,
-                   const SegmentationOptions& o, SegmentationResult* out) {
+/// A frame taken as segmented already: every pixel with depth is person 1.
+void PassPresegmented(const core::DepthImage& depth, SegmentationResult* out) {
   const int w = depth.width, h = depth.height;
-  out->people.clear();
-  out->floor.reset();
-  out->floor_pixels = 0;
-  out->components = 0;
-  out->presegmented = false;
-  out->labels.width = w, out->labels.height = h;
-  out->depth.width = w, out->depth.height = h;
-  out->labels.pixels.assign(size_t(w) * size_t(h), 0);
-  const size_t zeros = size_t(std::count(depth.pixels.begin(), depth.pixels.end(), uint16_t(0)));
+  out->presegmented = true;
+  out->depth.pixels = depth.pixels;
+  PersonInfo p;
+  p.label = 1;
+  p.x0 = w, p.y0 = h, p.x1 = -1, p.y1 = -1;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      if (depth.at(x, y)) {
+        out->labels.at(x, y) = 1;
+        ++p.pixels;
+        p.x0 = std::min(p.x0, x), p.x1 = std::max(p.x1, x), p.y0 = std::min(p.y0, y),
+        p.y1 = std::max(p.y1, y);
+      }
+  if (p.pixels) out->people.push_back(p);
+}
 
-  // Floor first: with a floor in view the frame is raw whatever its zeros.
-  if (o.floor_plane)
-    out->floor = o.floor_plane;
-  else if (o.find_floor && o.presegmented != std::optional<bool>(true))
-    out->floor = FitFloor(depth, cam, o);
-
-  bool pass =
-      o.presegmented.value_or(!out->floor && double(zeros) >= o.presegmented_zero_fraction * double(w) * h);
-  if (pass) {
-    out->presegmented = true;
-    out->depth.pixels = depth.pixels;
-    PersonInfo p;
-    p.label = 1;
-    p.x0 = w, p.y0 = h, p.x1 = -1, p.y1 = -1;
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x)
-        if (depth.at(x, y)) {
-          out->labels.at(x, y) = 1;
-          ++p.pixels;
-          p.x0 = std::min(p.x0, x), p.x1 = std::max(p.x1, x), p.y0 = std::min(p.y0, y),
-          p.y1 = std::max(p.y1, y);
-        }
-    if (p.pixels) out->people.push_back(p);
-    return;
-  }
-
+/// Steps 1-3: floor, band and runs in one pass over the rows. Appends the runs row by row
+/// (row_start[y]: row y's first; row_start[h]: their count) and counts the floor's pixels
+/// into out->floor_pixels.
+void FindRuns(const core::DepthImage& depth, const core::CameraIntrinsics& cam, const SegmentationOptions& o,
+              SegmentationResult* out, std::vector<Run>& runs, std::vector<uint32_t>& row_start) {
+  const int w = depth.width, h = depth.height;
   // 1-3: floor, band and runs in one pass over the rows.
   const int near_mm = int(o.near_m * 1000), far_mm = int(o.far_m * 1000);
   std::vector<float> col_term(size_t(w), 0.0f);
@@ -185,9 +169,8 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     floor_d = float(p[3] * 1000.0);  // mm
     floor_tol = float(o.floor_distance_m * 1000.0);
   }
-  std::vector<Run> runs;
   runs.reserve(4096);
-  std::vector<uint32_t> row_start(size_t(h) + 1, 0);
+  row_start.assign(size_t(h) + 1, 0);
   // Per row: the foreground mask (band, not floor), then the run boundaries (foreground starts
   // or ends, or a depth jump inside it), both in branch-free loops the compiler vectorizes; the
   // boundaries are rare, found 8 bytes at a time.
@@ -247,7 +230,13 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     }
   }
   row_start[size_t(h)] = uint32_t(runs.size());
+}
 
+/// Joins runs of consecutive rows that overlap where some column's depths are close; returns
+/// the pairs that overlap only across a jump (for the small-piece merge).
+std::vector<std::pair<uint32_t, uint32_t>> JoinRows(const core::DepthImage& depth, const SegmentationOptions& o,
+                                                    std::vector<Run>& runs, const std::vector<uint32_t>& row_start) {
+  const int w = depth.width, h = depth.height;
   // Join runs of consecutive rows that overlap where some column's depths are close; remember
   // the pairs that overlap only across a jump (for the small-piece merge).
   std::vector<std::pair<uint32_t, uint32_t>> jump_edges;
@@ -277,16 +266,23 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
         ++j;
     }
   }
+  return jump_edges;
+}
 
-  // Component statistics.
+/// A connected component (of runs), and later of components merged into it.
+struct Comp {
+  double area = 0, sum_d = 0, xmin = 1e9, xmax = -1e9, ymin = 1e9, ymax = -1e9;
+  int pixels = 0, x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+  int dmin = 1 << 30, dmax = 0;  // mm
+  int32_t merged_into = -1;
+};
+
+/// Component statistics: comp_of[r] gets run r's component.
+std::vector<Comp> ComponentStats(const core::DepthImage& depth, const core::CameraIntrinsics& cam,
+                                 std::vector<Run>& runs, std::vector<int32_t>& comp_of) {
+  const int w = depth.width;
   const uint32_t nr = uint32_t(runs.size());
-  std::vector<int32_t> comp_of(nr, -1);
-  struct Comp {
-    double area = 0, sum_d = 0, xmin = 1e9, xmax = -1e9, ymin = 1e9, ymax = -1e9;
-    int pixels = 0, x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
-    int dmin = 1 << 30, dmax = 0;  // mm
-    int32_t merged_into = -1;
-  };
+  comp_of.assign(nr, -1);
   std::vector<Comp> comps;
   const double inv_fx = 1.0 / cam.fx, inv_fy = 1.0 / cam.fy;
   for (uint32_t r = 0; r < nr; ++r) {
@@ -317,14 +313,21 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     c.x0 = std::min(c.x0, run.x0), c.x1 = std::max(c.x1, run.x1);
     c.y0 = std::min(c.y0, run.y), c.y1 = std::max(c.y1, run.y);
   }
-  out->components = int(comps.size());
-  auto is_small = [&](const Comp& c) { return c.area < o.min_area_m2 || (c.ymax - c.ymin) < o.min_height_m; };
-  auto mean_m = [&](const Comp& c) { return c.sum_d / c.pixels * 1e-3; };
-  auto root = [&](int32_t c) {
+  return comps;
+}
+
+/// The components and their merges (steps (a), (b) and the background test).
+struct Components {
+  std::vector<Comp>& comps;
+  const SegmentationOptions& o;
+
+  bool IsSmall(const Comp& c) const { return c.area < o.min_area_m2 || (c.ymax - c.ymin) < o.min_height_m; }
+  static double MeanM(const Comp& c) { return c.sum_d / c.pixels * 1e-3; }
+  int32_t Root(int32_t c) const {
     while (comps[size_t(c)].merged_into >= 0) c = comps[size_t(c)].merged_into;
     return c;
-  };
-  auto absorb = [&](int32_t into, int32_t from) {
+  }
+  void Absorb(int32_t into, int32_t from) {
     Comp &t = comps[size_t(into)], &c = comps[size_t(from)];
     t.area += c.area, t.sum_d += c.sum_d, t.pixels += c.pixels;
     t.xmin = std::min(t.xmin, c.xmin), t.xmax = std::max(t.xmax, c.xmax);
@@ -333,8 +336,90 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     t.y1 = std::max(t.y1, c.y1);
     t.dmin = std::min(t.dmin, c.dmin), t.dmax = std::max(t.dmax, c.dmax);
     c.merged_into = into;
-  };
-  // Component pairs that touch across a depth jump.
+  }
+
+  /// (a) Small pieces (an arm in front of the body, split off by its depth jump) rejoin the
+  /// neighbouring big component nearest in depth, if within merge_distance_m.
+  void MergeSmallPieces(const std::vector<std::pair<int32_t, int32_t>>& pairs) {
+    std::vector<int32_t> target(comps.size(), -1);
+    std::vector<double> target_gap(comps.size(), 1e9);
+    for (const auto& [a, b] : pairs) {
+      const double gap = std::abs(MeanM(comps[size_t(a)]) - MeanM(comps[size_t(b)]));
+      if (gap > o.merge_distance_m) continue;
+      for (const auto& [sm, lg] : {std::pair{a, b}, std::pair{b, a}}) {
+        if (!IsSmall(comps[size_t(sm)]) || IsSmall(comps[size_t(lg)])) continue;
+        if (gap < target_gap[size_t(sm)]) target_gap[size_t(sm)] = gap, target[size_t(sm)] = lg;
+      }
+    }
+    for (size_t sm = 0; sm < comps.size(); ++sm)
+      if (target[sm] >= 0) Absorb(target[sm], int32_t(sm));
+  }
+
+  /// (b) One body cut in two by something in front of it (another person's arm): two
+  /// components at about the same depth that both touch the same nearer component become one.
+  void MergeOccludedHalves(const std::vector<std::pair<int32_t, int32_t>>& pairs) {
+    std::vector<std::vector<int32_t>> behind(comps.size());  // nearer component -> those behind it
+    for (const auto& [a0, b0] : pairs) {
+      const int32_t a = Root(a0), b = Root(b0);
+      if (a == b) continue;
+      const bool a_near = MeanM(comps[size_t(a)]) < MeanM(comps[size_t(b)]);
+      behind[size_t(a_near ? a : b)].push_back(a_near ? b : a);
+    }
+    for (auto& list : behind) {
+      for (size_t i = 0; i < list.size(); ++i)
+        for (size_t j = i + 1; j < list.size(); ++j) {
+          const int32_t a = Root(list[i]), b = Root(list[j]);
+          if (a == b) continue;
+          const Comp &ca = comps[size_t(a)], &cb = comps[size_t(b)];
+          if (std::abs(MeanM(ca) - MeanM(cb)) > o.merge_distance_m) continue;
+          // Close in space too: their metric boxes overlap or nearly touch.
+          const double gx = std::max(ca.xmin, cb.xmin) - std::min(ca.xmax, cb.xmax);
+          const double gy = std::max(ca.ymin, cb.ymin) - std::min(ca.ymax, cb.ymax);
+          if (gx > o.occlusion_gap_m || gy > o.occlusion_gap_m) continue;
+          Absorb(std::min(a, b), std::max(a, b));
+        }
+    }
+  }
+
+  /// Background seen through a gap (the wall between a person's arm and body, or between two
+  /// people): a component behind every component it touches across a depth jump, at the depth
+  /// of something too big to be a person (the wall it is part of). A person behind another
+  /// person, with the wall beyond the depth band, touches only nearer things too, but no wall
+  /// is there. Per component: 1 if it is such a background piece.
+  std::vector<uint8_t> SeenThroughGaps(const std::vector<std::pair<int32_t, int32_t>>& pairs) const {
+    auto oversize = [&](const Comp& k) {
+      return k.area > o.max_area_m2 || k.xmax - k.xmin > o.max_width_m || k.ymax - k.ymin > o.max_height_m;
+    };
+    std::vector<std::pair<int, int>> background_depths;  // mm ranges of oversize components
+    for (const Comp& k : comps)
+      if (k.merged_into < 0 && oversize(k)) background_depths.emplace_back(k.dmin - 100, k.dmax + 100);
+    auto at_background_depth = [&](const Comp& k) {
+      const double d = k.sum_d / k.pixels;
+      for (const auto& [lo, hi] : background_depths)
+        if (d >= lo && d <= hi) return true;
+      return false;
+    };
+    std::vector<uint8_t> has_nearer(comps.size(), 0), has_farther(comps.size(), 0);
+    for (const auto& [a0, b0] : pairs) {
+      const int32_t ca = Root(a0), cb = Root(b0);
+      if (ca == cb) continue;
+      const bool a_far = MeanM(comps[size_t(ca)]) > MeanM(comps[size_t(cb)]);
+      has_nearer[size_t(a_far ? ca : cb)] = 1;
+      has_farther[size_t(a_far ? cb : ca)] = 1;
+    }
+    std::vector<uint8_t> background(comps.size(), 0);
+    for (size_t c = 0; c < comps.size(); ++c) {
+      const Comp& k = comps[c];
+      if (k.merged_into >= 0) continue;
+      background[c] = uint8_t(has_nearer[c] && !has_farther[c] && at_background_depth(k));
+    }
+    return background;
+  }
+};
+
+/// Component pairs that touch across a depth jump, sorted, each once.
+std::vector<std::pair<int32_t, int32_t>> JumpPairs(const std::vector<std::pair<uint32_t, uint32_t>>& jump_edges,
+                                                   const std::vector<int32_t>& comp_of) {
   std::vector<std::pair<int32_t, int32_t>> pairs;
   for (const auto& [a, b] : jump_edges) {
     const int32_t ca = comp_of[a], cb = comp_of[b];
@@ -342,72 +427,16 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
   }
   std::sort(pairs.begin(), pairs.end());
   pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
-  // (a) Small pieces (an arm in front of the body, split off by its depth jump) rejoin the
-  // neighbouring big component nearest in depth, if within merge_distance_m.
-  {
-    std::vector<int32_t> target(comps.size(), -1);
-    std::vector<double> target_gap(comps.size(), 1e9);
-    for (const auto& [a, b] : pairs) {
-      const double gap = std::abs(mean_m(comps[size_t(a)]) - mean_m(comps[size_t(b)]));
-      if (gap > o.merge_distance_m) continue;
-      for (const auto& [sm, lg] : {std::pair{a, b}, std::pair{b, a}}) {
-        if (!is_small(comps[size_t(sm)]) || is_small(comps[size_t(lg)])) continue;
-        if (gap < target_gap[size_t(sm)]) target_gap[size_t(sm)] = gap, target[size_t(sm)] = lg;
-      }
-    }
-    for (size_t sm = 0; sm < comps.size(); ++sm)
-      if (target[sm] >= 0) absorb(target[sm], int32_t(sm));
-  }
-  // (b) One body cut in two by something in front of it (another person's arm): two components
-  // at about the same depth that both touch the same nearer component become one.
-  {
-    std::vector<std::vector<int32_t>> behind(comps.size());  // nearer component -> those behind it
-    for (const auto& [a0, b0] : pairs) {
-      const int32_t a = root(a0), b = root(b0);
-      if (a == b) continue;
-      const bool a_near = mean_m(comps[size_t(a)]) < mean_m(comps[size_t(b)]);
-      behind[size_t(a_near ? a : b)].push_back(a_near ? b : a);
-    }
-    for (auto& list : behind) {
-      for (size_t i = 0; i < list.size(); ++i)
-        for (size_t j = i + 1; j < list.size(); ++j) {
-          const int32_t a = root(list[i]), b = root(list[j]);
-          if (a == b) continue;
-          const Comp &ca = comps[size_t(a)], &cb = comps[size_t(b)];
-          if (std::abs(mean_m(ca) - mean_m(cb)) > o.merge_distance_m) continue;
-          // Close in space too: their metric boxes overlap or nearly touch.
-          const double gx = std::max(ca.xmin, cb.xmin) - std::min(ca.xmax, cb.xmax);
-          const double gy = std::max(ca.ymin, cb.ymin) - std::min(ca.ymax, cb.ymax);
-          if (gx > o.occlusion_gap_m || gy > o.occlusion_gap_m) continue;
-          absorb(std::min(a, b), std::max(a, b));
-        }
-    }
-  }
-  // Background seen through a gap (the wall between a person's arm and body, or between two
-  // people): a component behind every component it touches across a depth jump, at the depth of
-  // something too big to be a person (the wall it is part of). A person behind another person,
-  // with the wall beyond the depth band, touches only nearer things too, but no wall is there.
-  auto oversize = [&](const Comp& k) {
-    return k.area > o.max_area_m2 || k.xmax - k.xmin > o.max_width_m || k.ymax - k.ymin > o.max_height_m;
-  };
-  std::vector<std::pair<int, int>> background_depths;  // mm ranges of oversize components
-  for (const Comp& k : comps)
-    if (k.merged_into < 0 && oversize(k)) background_depths.emplace_back(k.dmin - 100, k.dmax + 100);
-  auto at_background_depth = [&](const Comp& k) {
-    const double d = k.sum_d / k.pixels;
-    for (const auto& [lo, hi] : background_depths)
-      if (d >= lo && d <= hi) return true;
-    return false;
-  };
-  std::vector<uint8_t> has_nearer(comps.size(), 0), has_farther(comps.size(), 0);
-  for (const auto& [a0, b0] : pairs) {
-    const int32_t ca = root(a0), cb = root(b0);
-    if (ca == cb) continue;
-    const bool a_far = mean_m(comps[size_t(ca)]) > mean_m(comps[size_t(cb)]);
-    has_nearer[size_t(a_far ? ca : cb)] = 1;
-    has_farther[size_t(a_far ? cb : ca)] = 1;
-  }
-  // 4: size limits and fill ratio.
+  return pairs;
+}
+
+/// Step 4: the components within the size limits and fill ratio (not background) become people,
+/// largest first (at most 254), into out->people. Returns each component's person label (0:
+/// none; a merged component takes its root's).
+std::vector<int32_t> SelectPeople(const Components& cs, const std::vector<uint8_t>& background,
+                                  SegmentationResult* out) {
+  const std::vector<Comp>& comps = cs.comps;
+  const SegmentationOptions& o = cs.o;
   std::vector<int32_t> person_of(comps.size(), 0);
   std::vector<size_t> order;
   for (size_t c = 0; c < comps.size(); ++c) {
@@ -419,7 +448,7 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     if (height < o.min_height_m || height > o.max_height_m || width < o.min_width_m || width > o.max_width_m)
       continue;
     if (fill > o.max_fill) continue;
-    if (has_nearer[c] && !has_farther[c] && at_background_depth(k)) continue;
+    if (background[c]) continue;
     order.push_back(c);
   }
   std::stable_sort(order.begin(), order.end(),
@@ -437,8 +466,15 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     out->people.push_back(p);
   }
   for (size_t c = 0; c < comps.size(); ++c)
-    if (comps[c].merged_into >= 0) person_of[c] = person_of[size_t(root(int32_t(c)))];
+    if (comps[c].merged_into >= 0) person_of[c] = person_of[size_t(cs.Root(int32_t(c)))];
+  return person_of;
+}
 
+/// The people's runs into out->depth and out->labels.
+void PaintPeople(const core::DepthImage& depth, const std::vector<Run>& runs, const std::vector<int32_t>& comp_of,
+                 const std::vector<int32_t>& person_of, SegmentationResult* out) {
+  const int w = depth.width, h = depth.height;
+  const uint32_t nr = uint32_t(runs.size());
   out->depth.pixels.assign(size_t(w) * size_t(h), 0);
   for (uint32_t r = 0; r < nr; ++r) {
     const int32_t label = person_of[size_t(comp_of[r])];
@@ -451,6 +487,50 @@ void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& 
     std::fill(out->labels.pixels.begin() + ptrdiff_t(base + size_t(run.x0)),
               out->labels.pixels.begin() + ptrdiff_t(base + size_t(run.x1) + 1), uint8_t(label));
   }
+}
+
+}  // namespace
+
+void SegmentPeople(const core::DepthImage& depth, const core::CameraIntrinsics& cam,
+                   const SegmentationOptions& o, SegmentationResult* out) {
+  const int w = depth.width, h = depth.height;
+  out->people.clear();
+  out->floor.reset();
+  out->floor_pixels = 0;
+  out->components = 0;
+  out->presegmented = false;
+  out->labels.width = w, out->labels.height = h;
+  out->depth.width = w, out->depth.height = h;
+  out->labels.pixels.assign(size_t(w) * size_t(h), 0);
+  const size_t zeros = size_t(std::count(depth.pixels.begin(), depth.pixels.end(), uint16_t(0)));
+
+  // Floor first: with a floor in view the frame is raw whatever its zeros.
+  if (o.floor_plane)
+    out->floor = o.floor_plane;
+  else if (o.find_floor && o.presegmented != std::optional<bool>(true))
+    out->floor = FitFloor(depth, cam, o);
+
+  bool pass =
+      o.presegmented.value_or(!out->floor && double(zeros) >= o.presegmented_zero_fraction * double(w) * h);
+  if (pass) {
+    PassPresegmented(depth, out);
+    return;
+  }
+
+  std::vector<Run> runs;
+  std::vector<uint32_t> row_start;
+  FindRuns(depth, cam, o, out, runs, row_start);
+  const std::vector<std::pair<uint32_t, uint32_t>> jump_edges = JoinRows(depth, o, runs, row_start);
+  std::vector<int32_t> comp_of;
+  std::vector<Comp> comps = ComponentStats(depth, cam, runs, comp_of);
+  out->components = int(comps.size());
+  const std::vector<std::pair<int32_t, int32_t>> pairs = JumpPairs(jump_edges, comp_of);
+  Components cs{comps, o};
+  cs.MergeSmallPieces(pairs);
+  cs.MergeOccludedHalves(pairs);
+  const std::vector<uint8_t> background = cs.SeenThroughGaps(pairs);
+  const std::vector<int32_t> person_of = SelectPeople(cs, background, out);
+  PaintPeople(depth, runs, comp_of, person_of, out);
 }
 
 core::DepthImage PersonDepth(const SegmentationResult& seg, int label) {

@@ -146,6 +146,278 @@ std::string DescribeConfidence(const core::ConfidenceCalibration* calibration) {
          ")";
 }
 
+namespace {
+
+/// Per joint, what the candidates say before one is chosen (cues of the tracking model): a
+/// proposal on the mask, a usable vote candidate, and how far apart the best of each lie.
+struct CandidateCues {
+  bool has_proposal = false, has_vote = false;
+  Eigen::Vector3f proposal{0, 0, 0}, vote{0, 0, 0};
+};
+
+/// A vote candidate that projects onto the person's mask, with where and the mask's depth there.
+struct UsableVote {
+  const VoteCandidate* vote;
+  Eigen::Vector2f pixel;
+  int mask_depth;
+};
+
+/// One person's skeleton (mask `label`) being built by BuildSkeletons: its joints chosen from
+/// the candidates, their cues, then tracked decided.
+struct PersonFit {
+  const FrameProposals& proposals;
+  const core::LabelImage& masks;
+  const core::DepthImage& depth;
+  const core::CameraIntrinsics& camera;
+  const core::ConfidenceCalibration* calibration;
+  const SkeletonOptions& options;
+  /// Vote candidates (offset votes, format 1.5) of this person, or null.
+  const PersonVotes* person_votes;
+  int label;
+  double area;  ///< fx * fy: support (m^2) from a proposal's confidence
+  int m;        ///< mask margin, pixels
+  Skeleton& s;
+  std::array<CandidateCues, core::kNumJoints> cand_cues{};
+  // Which sides of the image cut the mask.
+  bool left = false, right = false, top = false, bottom = false;
+
+  /// The mask's depth at a pixel (nearest mask pixel within the margin), 0 = off it.
+  int MaskDepthPx(const Eigen::Vector2f& pixel) const {
+    const int px = int(std::lround(pixel.x())), py = int(std::lround(pixel.y()));
+    int mask_depth = 0, best = 1 << 30;
+    for (int dy = -m; dy <= m; ++dy)
+      for (int dx = -m; dx <= m; ++dx) {
+        const int x = px + dx, y = py + dy;
+        if (x < 0 || y < 0 || x >= masks.width || y >= masks.height || masks.at(x, y) != label) continue;
+        const int d2 = dx * dx + dy * dy;
+        if (d2 < best && depth.at(x, y)) best = d2, mask_depth = depth.at(x, y);
+      }
+    return mask_depth;
+  }
+  int MaskDepthAt(const JointProposal& p) const { return MaskDepthPx(p.pixel); }
+  /// Joint j's vote candidates of this person that are usable: they project onto the mask and
+  /// lie at most max_depth_gap_m in front of its surface and max_vote_behind_m behind it (a
+  /// hidden joint lies behind what the camera sees).
+  std::vector<UsableVote> UsableVotes(int j) const {
+    std::vector<UsableVote> v;
+    if (!person_votes) return v;
+    for (const VoteCandidate& c : (*person_votes)[size_t(j)]) {
+      if (!(c.position.z() > 0)) continue;
+      const Eigen::Vector2f pixel = camera.Project(c.position.cast<double>()).cast<float>();
+      const int d = MaskDepthPx(pixel);
+      if (d == 0) continue;
+      const float gap = c.position.z() - float(d) * 1e-3f;
+      if (gap < -options.max_depth_gap_m || gap > options.max_vote_behind_m) continue;
+      v.push_back({&c, pixel, d});
+    }
+    return v;
+  }
+  void PlaceVote(int j, const UsableVote& u) {
+    SkeletonJoint& joint = s.joints[size_t(j)];
+    joint = SkeletonJoint();
+    joint.found = true;
+    joint.voted = true;
+    joint.position_m = u.vote->position;
+    joint.pixel = u.pixel;
+    joint.confidence = u.vote->confidence;
+    const float gap = u.vote->position.z() - float(u.mask_depth) * 1e-3f;
+    joint.tracked = joint.confidence >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
+    // Confident, but behind what the camera sees there: a hidden joint, placed by the votes.
+    joint.inferred = joint.confidence >= options.min_confidence && gap > options.max_depth_gap_m;
+  }
+  float Calibrated(int j, float support_m2) const {
+    return calibration ? calibration->Confidence(j, support_m2) : core::FallbackConfidence(support_m2);
+  }
+  void Place(int j, const JointProposal& p, int mask_depth) {
+    SkeletonJoint& joint = s.joints[size_t(j)];
+    joint = SkeletonJoint();
+    joint.found = true;
+    joint.position_m = p.position;
+    joint.pixel = p.pixel;
+    joint.support_m2 = float(double(p.confidence) / area);
+    joint.confidence = Calibrated(j, joint.support_m2);
+    const float gap = p.position.z() - float(mask_depth) * 1e-3f;
+    joint.tracked = joint.support_m2 >= options.min_support_m2 && joint.confidence >= options.min_confidence &&
+                    std::abs(gap) <= options.max_depth_gap_m;
+  }
+
+  /// SkeletonFit::kGreedy: proposals come most confident first: the first one on this
+  /// person's mask wins, unless a vote candidate is more confident.
+  void FitGreedy() {
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      for (const JointProposal& p : proposals[size_t(j)])
+        if (const int d = MaskDepthAt(p); d != 0) {
+          Place(j, p, d);
+          cand_cues[size_t(j)].has_proposal = true;
+          cand_cues[size_t(j)].proposal = p.position;
+          break;
+        }
+      const auto v = UsableVotes(j);
+      if (v.empty()) continue;
+      cand_cues[size_t(j)].has_vote = true;
+      cand_cues[size_t(j)].vote = v[0].vote->position;
+      SkeletonJoint& joint = s.joints[size_t(j)];
+      const bool agree = joint.found && options.agree_radius_m > 0 &&
+                         (joint.position_m - v[0].vote->position).norm() <= options.agree_radius_m;
+      const float proposal_confidence = joint.confidence;
+      if (!joint.found || v[0].vote->confidence > joint.confidence) PlaceVote(j, v[0]);
+      if (agree) {
+        const float c = 1.0f - (1.0f - proposal_confidence) * (1.0f - v[0].vote->confidence);
+        joint.confidence = c;
+        if (joint.voted) {
+          const float gap = joint.position_m.z() - float(v[0].mask_depth) * 1e-3f;
+          joint.tracked = c >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
+          joint.inferred = c >= options.min_confidence && gap > options.max_depth_gap_m;
+        } else {
+          const float gap = joint.position_m.z() - float(MaskDepthPx(joint.pixel)) * 1e-3f;
+          joint.tracked = joint.support_m2 >= options.min_support_m2 && c >= options.min_confidence &&
+                          std::abs(gap) <= options.max_depth_gap_m;
+        }
+      }
+    }
+  }
+
+  /// The joint fit (FitSkeleton) over the candidates.
+  void FitJointly() {
+    // Candidates: the most confident proposals on the mask whose depth agrees with it.
+    FitCandidates cands;
+    std::array<std::vector<const JointProposal*>, core::kNumJoints> cand_proposal;
+    std::array<const JointProposal*, core::kNumJoints> first_on_mask{};
+    std::array<int, core::kNumJoints> first_depth{};
+    std::array<std::vector<int>, core::kNumJoints> cand_depth;
+    for (int j = 0; j < core::kNumJoints; ++j)
+      for (const JointProposal& p : proposals[size_t(j)]) {
+        if (int(cands[size_t(j)].size()) >= std::max(1, options.fit_candidates)) break;
+        const int d = MaskDepthAt(p);
+        if (d == 0) continue;
+        if (!first_on_mask[size_t(j)]) first_on_mask[size_t(j)] = &p, first_depth[size_t(j)] = d;
+        if (std::abs(p.position.z() - float(d) * 1e-3f) > options.max_depth_gap_m) continue;
+        const float support = float(double(p.confidence) / area);
+        if (support < options.min_support_m2) continue;
+        cands[size_t(j)].push_back({p.position, Calibrated(j, support)});
+        cand_proposal[size_t(j)].push_back(&p);
+        cand_depth[size_t(j)].push_back(d);
+      }
+    // The vote candidates after the proposals (cand_proposal null for them).
+    std::array<std::vector<UsableVote>, core::kNumJoints> vote_of;
+    for (int j = 0; j < core::kNumJoints; ++j)
+      for (const UsableVote& u : UsableVotes(j)) {
+        cands[size_t(j)].push_back({u.vote->position, u.vote->confidence});
+        cand_proposal[size_t(j)].push_back(nullptr);
+        cand_depth[size_t(j)].push_back(u.mask_depth);
+        vote_of[size_t(j)].push_back(u);
+      }
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      if (first_on_mask[size_t(j)])
+        cand_cues[size_t(j)].has_proposal = true, cand_cues[size_t(j)].proposal = first_on_mask[size_t(j)]->position;
+      if (!vote_of[size_t(j)].empty())
+        cand_cues[size_t(j)].has_vote = true, cand_cues[size_t(j)].vote = vote_of[size_t(j)][0].vote->position;
+    }
+    const auto chosen = FitSkeleton(cands, options);
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      const int c = chosen[size_t(j)];
+      if (c >= 0 && !cand_proposal[size_t(j)][size_t(c)]) {
+        PlaceVote(j, vote_of[size_t(j)][size_t(c) - (cand_proposal[size_t(j)].size() - vote_of[size_t(j)].size())]);
+      } else if (c >= 0) {
+        Place(j, *cand_proposal[size_t(j)][size_t(c)], cand_depth[size_t(j)][size_t(c)]);
+      } else if (first_on_mask[size_t(j)]) {  // found, but the fit leaves it out: not tracked
+        Place(j, *first_on_mask[size_t(j)], first_depth[size_t(j)]);
+        s.joints[size_t(j)].tracked = false;
+      }
+    }
+  }
+
+  /// Cut by the image border: which sides the mask touches.
+  void FindCutSides() {
+    for (int y = 0; y < masks.height; ++y) {
+      left |= masks.at(0, y) == label;
+      right |= masks.at(masks.width - 1, y) == label;
+    }
+    for (int x = 0; x < masks.width; ++x) {
+      top |= masks.at(x, 0) == label;
+      bottom |= masks.at(x, masks.height - 1) == label;
+    }
+  }
+  bool NearCutEdge(const SkeletonJoint& joint, float margin_m) const {
+    if (!(joint.position_m.z() > 0)) return false;
+    const float margin = float(camera.fx) * margin_m / joint.position_m.z();
+    const float x = joint.pixel.x(), y = joint.pixel.y();
+    return (left && x < margin) || (right && x > float(masks.width - 1) - margin) || (top && y < margin) ||
+           (bottom && y > float(masks.height - 1) - margin);
+  }
+
+  /// The tracking model's cues of every found joint (whether or not a model decides).
+  void SetCues() {
+    // The tracking model's cues of every found joint (whether or not a model decides).
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      SkeletonJoint& joint = s.joints[size_t(j)];
+      joint.base_confidence = joint.confidence;
+      if (!joint.found) continue;
+      const CandidateCues& cc = cand_cues[size_t(j)];
+      core::TrackingFeatures& f = joint.cues;
+      f[core::kFeatVoted] = joint.voted;
+      f[core::kFeatHasProposal] = cc.has_proposal;
+      f[core::kFeatHasVote] = cc.has_vote;
+      const float pv = cc.has_proposal && cc.has_vote ? (cc.proposal - cc.vote).norm() : 0.5f;
+      f[core::kFeatProposalVoteGap] = std::min(pv, 0.5f);
+      f[core::kFeatAgreed] = cc.has_proposal && cc.has_vote && pv <= options.agree_radius_m;
+      f[core::kFeatNearCutEdge] = NearCutEdge(joint, core::kCutEdgeCueMarginM);
+      const int d = MaskDepthPx(joint.pixel);
+      f[core::kFeatDepthGap] = d ? std::min(0.5f, std::abs(joint.position_m.z() - float(d) * 1e-3f)) : 0.5f;
+    }
+    for (const auto& [a, b] : SkeletonBones()) {
+      SkeletonJoint& parent = s.joints[size_t(a)];
+      SkeletonJoint& child = s.joints[size_t(b)];
+      if (!child.found || !parent.found) continue;
+      const auto [lo, hi] = BoneLengthRange(a, b);
+      const float len = (parent.position_m - child.position_m).norm();
+      const bool ok = len >= lo && len <= hi;
+      child.cues[core::kFeatBoneOk] = ok;
+      child.cues[core::kFeatBoneBad] = !ok;
+      child.cues[core::kFeatParentLogit] = core::ClampedLogit(parent.base_confidence);
+      parent.cues[core::kFeatChildrenOk] += ok;
+    }
+  }
+
+  /// The learned decision: P(within 0.1 m) from all the cues; tracked when likely enough and
+  /// at the surface's depth (a joint behind the surface stays inferred or not tracked).
+  void DecideWithModel(const core::TrackingModel& tracking) {
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      SkeletonJoint& joint = s.joints[size_t(j)];
+      if (!joint.found) continue;
+      joint.confidence = tracking.Probability(j, joint.base_confidence, joint.cues);
+      const int d = MaskDepthPx(joint.pixel);
+      const bool at_surface = d && std::abs(joint.position_m.z() - float(d) * 1e-3f) <= options.max_depth_gap_m;
+      joint.tracked = at_surface && joint.confidence >= options.track_probability;
+      if (joint.tracked) joint.inferred = false;
+    }
+  }
+
+  /// The rules: cut edges, then bones from the neck outwards.
+  void DecideWithRules() {
+    if (options.edge_margin_m > 0)
+      for (SkeletonJoint& joint : s.joints)
+        if (joint.tracked && NearCutEdge(joint, options.edge_margin_m)) joint.tracked = false;
+    // Bones from the neck outwards (SkeletonBones lists parents before children).
+    if (options.check_bone_lengths || options.require_tracked_parent)
+      for (const auto& [a, b] : SkeletonBones()) {
+        const SkeletonJoint& parent = s.joints[size_t(a)];
+        SkeletonJoint& child = s.joints[size_t(b)];
+        if (!child.tracked) continue;
+        if (!parent.tracked) {
+          // The neck is the root; its own children (head, shoulders) stand alone.
+          if (options.require_tracked_parent && a != int(core::Joint::kNeck)) child.tracked = false;
+          continue;
+        }
+        const auto [lo, hi] = BoneLengthRange(a, b);
+        const float len = (parent.position_m - child.position_m).norm();
+        if (options.check_bone_lengths && (len < lo || len > hi)) child.tracked = false;
+      }
+  }
+};
+
+}  // namespace
+
 std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core::LabelImage& masks,
                                      int num_people, const core::DepthImage& depth,
                                      const core::CameraIntrinsics& camera,
@@ -174,240 +446,19 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
     s.mask_label = label;
     s.pixels = count[size_t(label)];
     s.centroid_m = (sum[size_t(label)] / count[size_t(label)]).cast<float>();
-    // Per joint, what the candidates say before one is chosen (cues of the tracking model):
-    // a proposal on the mask, a usable vote candidate, and how far apart the best of each lie.
-    struct CandidateCues {
-      bool has_proposal = false, has_vote = false;
-      Eigen::Vector3f proposal{0, 0, 0}, vote{0, 0, 0};
-    };
-    std::array<CandidateCues, core::kNumJoints> cand_cues{};
-    // The mask's depth at a pixel (nearest mask pixel within the margin), 0 = off it.
-    auto mask_depth_px = [&](const Eigen::Vector2f& pixel) {
-      const int px = int(std::lround(pixel.x())), py = int(std::lround(pixel.y()));
-      int mask_depth = 0, best = 1 << 30;
-      for (int dy = -m; dy <= m; ++dy)
-        for (int dx = -m; dx <= m; ++dx) {
-          const int x = px + dx, y = py + dy;
-          if (x < 0 || y < 0 || x >= masks.width || y >= masks.height || masks.at(x, y) != label) continue;
-          const int d2 = dx * dx + dy * dy;
-          if (d2 < best && depth.at(x, y)) best = d2, mask_depth = depth.at(x, y);
-        }
-      return mask_depth;
-    };
-    auto mask_depth_at = [&](const JointProposal& p) { return mask_depth_px(p.pixel); };
-    // Vote candidates (offset votes, format 1.5) of this person: usable where they project onto
-    // the mask and lie at most max_depth_gap_m in front of its surface and max_vote_behind_m
-    // behind it (a hidden joint lies behind what the camera sees).
     const PersonVotes* person_votes =
         votes && size_t(label - 1) < votes->size() ? &(*votes)[size_t(label - 1)] : nullptr;
-    struct UsableVote {
-      const VoteCandidate* vote;
-      Eigen::Vector2f pixel;
-      int mask_depth;
-    };
-    auto usable_votes = [&](int j) {
-      std::vector<UsableVote> v;
-      if (!person_votes) return v;
-      for (const VoteCandidate& c : (*person_votes)[size_t(j)]) {
-        if (!(c.position.z() > 0)) continue;
-        const Eigen::Vector2f pixel = camera.Project(c.position.cast<double>()).cast<float>();
-        const int d = mask_depth_px(pixel);
-        if (d == 0) continue;
-        const float gap = c.position.z() - float(d) * 1e-3f;
-        if (gap < -options.max_depth_gap_m || gap > options.max_vote_behind_m) continue;
-        v.push_back({&c, pixel, d});
-      }
-      return v;
-    };
-    auto place_vote = [&](int j, const UsableVote& u) {
-      SkeletonJoint& joint = s.joints[size_t(j)];
-      joint = SkeletonJoint();
-      joint.found = true;
-      joint.voted = true;
-      joint.position_m = u.vote->position;
-      joint.pixel = u.pixel;
-      joint.confidence = u.vote->confidence;
-      const float gap = u.vote->position.z() - float(u.mask_depth) * 1e-3f;
-      joint.tracked = joint.confidence >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
-      // Confident, but behind what the camera sees there: a hidden joint, placed by the votes.
-      joint.inferred = joint.confidence >= options.min_confidence && gap > options.max_depth_gap_m;
-    };
-    auto calibrated = [&](int j, float support_m2) {
-      return calibration ? calibration->Confidence(j, support_m2) : core::FallbackConfidence(support_m2);
-    };
-    auto place = [&](int j, const JointProposal& p, int mask_depth) {
-      SkeletonJoint& joint = s.joints[size_t(j)];
-      joint = SkeletonJoint();
-      joint.found = true;
-      joint.position_m = p.position;
-      joint.pixel = p.pixel;
-      joint.support_m2 = float(double(p.confidence) / area);
-      joint.confidence = calibrated(j, joint.support_m2);
-      const float gap = p.position.z() - float(mask_depth) * 1e-3f;
-      joint.tracked = joint.support_m2 >= options.min_support_m2 && joint.confidence >= options.min_confidence &&
-                      std::abs(gap) <= options.max_depth_gap_m;
-    };
-    if (options.fit == SkeletonFit::kGreedy) {
-      // Proposals come most confident first: the first one on this person's mask wins, unless
-      // a vote candidate is more confident.
-      for (int j = 0; j < core::kNumJoints; ++j) {
-        for (const JointProposal& p : proposals[size_t(j)])
-          if (const int d = mask_depth_at(p); d != 0) {
-            place(j, p, d);
-            cand_cues[size_t(j)].has_proposal = true;
-            cand_cues[size_t(j)].proposal = p.position;
-            break;
-          }
-        const auto v = usable_votes(j);
-        if (v.empty()) continue;
-        cand_cues[size_t(j)].has_vote = true;
-        cand_cues[size_t(j)].vote = v[0].vote->position;
-        SkeletonJoint& joint = s.joints[size_t(j)];
-        const bool agree = joint.found && options.agree_radius_m > 0 &&
-                           (joint.position_m - v[0].vote->position).norm() <= options.agree_radius_m;
-        const float proposal_confidence = joint.confidence;
-        if (!joint.found || v[0].vote->confidence > joint.confidence) place_vote(j, v[0]);
-        if (agree) {
-          const float c = 1.0f - (1.0f - proposal_confidence) * (1.0f - v[0].vote->confidence);
-          joint.confidence = c;
-          if (joint.voted) {
-            const float gap = joint.position_m.z() - float(v[0].mask_depth) * 1e-3f;
-            joint.tracked = c >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
-            joint.inferred = c >= options.min_confidence && gap > options.max_depth_gap_m;
-          } else {
-            const float gap = joint.position_m.z() - float(mask_depth_px(joint.pixel)) * 1e-3f;
-            joint.tracked = joint.support_m2 >= options.min_support_m2 && c >= options.min_confidence &&
-                            std::abs(gap) <= options.max_depth_gap_m;
-          }
-        }
-      }
-    } else {
-      // Candidates: the most confident proposals on the mask whose depth agrees with it.
-      FitCandidates cands;
-      std::array<std::vector<const JointProposal*>, core::kNumJoints> cand_proposal;
-      std::array<const JointProposal*, core::kNumJoints> first_on_mask{};
-      std::array<int, core::kNumJoints> first_depth{};
-      std::array<std::vector<int>, core::kNumJoints> cand_depth;
-      for (int j = 0; j < core::kNumJoints; ++j)
-        for (const JointProposal& p : proposals[size_t(j)]) {
-          if (int(cands[size_t(j)].size()) >= std::max(1, options.fit_candidates)) break;
-          const int d = mask_depth_at(p);
-          if (d == 0) continue;
-          if (!first_on_mask[size_t(j)]) first_on_mask[size_t(j)] = &p, first_depth[size_t(j)] = d;
-          if (std::abs(p.position.z() - float(d) * 1e-3f) > options.max_depth_gap_m) continue;
-          const float support = float(double(p.confidence) / area);
-          if (support < options.min_support_m2) continue;
-          cands[size_t(j)].push_back({p.position, calibrated(j, support)});
-          cand_proposal[size_t(j)].push_back(&p);
-          cand_depth[size_t(j)].push_back(d);
-        }
-      // The vote candidates after the proposals (cand_proposal null for them).
-      std::array<std::vector<UsableVote>, core::kNumJoints> vote_of;
-      for (int j = 0; j < core::kNumJoints; ++j)
-        for (const UsableVote& u : usable_votes(j)) {
-          cands[size_t(j)].push_back({u.vote->position, u.vote->confidence});
-          cand_proposal[size_t(j)].push_back(nullptr);
-          cand_depth[size_t(j)].push_back(u.mask_depth);
-          vote_of[size_t(j)].push_back(u);
-        }
-      for (int j = 0; j < core::kNumJoints; ++j) {
-        if (first_on_mask[size_t(j)])
-          cand_cues[size_t(j)].has_proposal = true, cand_cues[size_t(j)].proposal = first_on_mask[size_t(j)]->position;
-        if (!vote_of[size_t(j)].empty())
-          cand_cues[size_t(j)].has_vote = true, cand_cues[size_t(j)].vote = vote_of[size_t(j)][0].vote->position;
-      }
-      const auto chosen = FitSkeleton(cands, options);
-      for (int j = 0; j < core::kNumJoints; ++j) {
-        const int c = chosen[size_t(j)];
-        if (c >= 0 && !cand_proposal[size_t(j)][size_t(c)]) {
-          place_vote(j, vote_of[size_t(j)][size_t(c) - (cand_proposal[size_t(j)].size() - vote_of[size_t(j)].size())]);
-        } else if (c >= 0) {
-          place(j, *cand_proposal[size_t(j)][size_t(c)], cand_depth[size_t(j)][size_t(c)]);
-        } else if (first_on_mask[size_t(j)]) {  // found, but the fit leaves it out: not tracked
-          place(j, *first_on_mask[size_t(j)], first_depth[size_t(j)]);
-          s.joints[size_t(j)].tracked = false;
-        }
-      }
-    }
-    // Cut by the image border: which sides the mask touches.
-    bool left = false, right = false, top = false, bottom = false;
-    for (int y = 0; y < masks.height; ++y) {
-      left |= masks.at(0, y) == label;
-      right |= masks.at(masks.width - 1, y) == label;
-    }
-    for (int x = 0; x < masks.width; ++x) {
-      top |= masks.at(x, 0) == label;
-      bottom |= masks.at(x, masks.height - 1) == label;
-    }
-    auto near_cut_edge = [&](const SkeletonJoint& joint, float margin_m) {
-      if (!(joint.position_m.z() > 0)) return false;
-      const float margin = float(camera.fx) * margin_m / joint.position_m.z();
-      const float x = joint.pixel.x(), y = joint.pixel.y();
-      return (left && x < margin) || (right && x > float(masks.width - 1) - margin) || (top && y < margin) ||
-             (bottom && y > float(masks.height - 1) - margin);
-    };
-    // The tracking model's cues of every found joint (whether or not a model decides).
-    for (int j = 0; j < core::kNumJoints; ++j) {
-      SkeletonJoint& joint = s.joints[size_t(j)];
-      joint.base_confidence = joint.confidence;
-      if (!joint.found) continue;
-      const CandidateCues& cc = cand_cues[size_t(j)];
-      core::TrackingFeatures& f = joint.cues;
-      f[core::kFeatVoted] = joint.voted;
-      f[core::kFeatHasProposal] = cc.has_proposal;
-      f[core::kFeatHasVote] = cc.has_vote;
-      const float pv = cc.has_proposal && cc.has_vote ? (cc.proposal - cc.vote).norm() : 0.5f;
-      f[core::kFeatProposalVoteGap] = std::min(pv, 0.5f);
-      f[core::kFeatAgreed] = cc.has_proposal && cc.has_vote && pv <= options.agree_radius_m;
-      f[core::kFeatNearCutEdge] = near_cut_edge(joint, core::kCutEdgeCueMarginM);
-      const int d = mask_depth_px(joint.pixel);
-      f[core::kFeatDepthGap] = d ? std::min(0.5f, std::abs(joint.position_m.z() - float(d) * 1e-3f)) : 0.5f;
-    }
-    for (const auto& [a, b] : SkeletonBones()) {
-      SkeletonJoint& parent = s.joints[size_t(a)];
-      SkeletonJoint& child = s.joints[size_t(b)];
-      if (!child.found || !parent.found) continue;
-      const auto [lo, hi] = BoneLengthRange(a, b);
-      const float len = (parent.position_m - child.position_m).norm();
-      const bool ok = len >= lo && len <= hi;
-      child.cues[core::kFeatBoneOk] = ok;
-      child.cues[core::kFeatBoneBad] = !ok;
-      child.cues[core::kFeatParentLogit] = core::ClampedLogit(parent.base_confidence);
-      parent.cues[core::kFeatChildrenOk] += ok;
-    }
-    if (tracking && options.use_tracking_model) {
-      // The learned decision: P(within 0.1 m) from all the cues; tracked when likely enough and
-      // at the surface's depth (a joint behind the surface stays inferred or not tracked).
-      for (int j = 0; j < core::kNumJoints; ++j) {
-        SkeletonJoint& joint = s.joints[size_t(j)];
-        if (!joint.found) continue;
-        joint.confidence = tracking->Probability(j, joint.base_confidence, joint.cues);
-        const int d = mask_depth_px(joint.pixel);
-        const bool at_surface = d && std::abs(joint.position_m.z() - float(d) * 1e-3f) <= options.max_depth_gap_m;
-        joint.tracked = at_surface && joint.confidence >= options.track_probability;
-        if (joint.tracked) joint.inferred = false;
-      }
-      out.push_back(std::move(s));
-      continue;
-    }
-    if (options.edge_margin_m > 0)
-      for (SkeletonJoint& joint : s.joints)
-        if (joint.tracked && near_cut_edge(joint, options.edge_margin_m)) joint.tracked = false;
-    // Bones from the neck outwards (SkeletonBones lists parents before children).
-    if (options.check_bone_lengths || options.require_tracked_parent)
-      for (const auto& [a, b] : SkeletonBones()) {
-        const SkeletonJoint& parent = s.joints[size_t(a)];
-        SkeletonJoint& child = s.joints[size_t(b)];
-        if (!child.tracked) continue;
-        if (!parent.tracked) {
-          // The neck is the root; its own children (head, shoulders) stand alone.
-          if (options.require_tracked_parent && a != int(core::Joint::kNeck)) child.tracked = false;
-          continue;
-        }
-        const auto [lo, hi] = BoneLengthRange(a, b);
-        const float len = (parent.position_m - child.position_m).norm();
-        if (options.check_bone_lengths && (len < lo || len > hi)) child.tracked = false;
-      }
+    PersonFit fit{proposals, masks, depth, camera, calibration, options, person_votes, label, area, m, s};
+    if (options.fit == SkeletonFit::kGreedy)
+      fit.FitGreedy();
+    else
+      fit.FitJointly();
+    fit.FindCutSides();
+    fit.SetCues();
+    if (tracking && options.use_tracking_model)
+      fit.DecideWithModel(*tracking);
+    else
+      fit.DecideWithRules();
     out.push_back(std::move(s));
   }
   return out;

@@ -26,11 +26,8 @@
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
-#include <fastdds/rtps/attributes/ServerAttributes.h>
-#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
-#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
-#include <fastrtps/utils/IPLocator.h>
 
+#include "proto/dds/dds_node_qos.h"
 #include "proto/dds/proto_bytes_type.h"
 
 namespace poseforest::proto::dds {
@@ -79,29 +76,6 @@ std::string ToString(const frtps::GuidPrefix_t& prefix) {
   std::ostringstream os;
   os << prefix;
   return os.str();
-}
-
-eprosima::fastrtps::Duration_t ToDuration(std::chrono::milliseconds ms) {
-  return eprosima::fastrtps::Duration_t(static_cast<int32_t>(ms.count() / 1000),
-                          static_cast<uint32_t>((ms.count() % 1000) * 1000000));
-}
-
-/// "a.b.c.d" or "a.b.c.d:port" -> address, port (0 when absent).
-core::Result<std::pair<std::string, uint32_t>> ParseHostPort(const std::string& text) {
-  std::string host = text;
-  uint32_t port = 0;
-  if (auto colon = text.rfind(':'); colon != std::string::npos) {
-    host = text.substr(0, colon);
-    const std::string p = text.substr(colon + 1);
-    char* end = nullptr;
-    const unsigned long v = std::strtoul(p.c_str(), &end, 10);
-    if (p.empty() || *end != '\0' || v == 0 || v > 65535)
-      return Status(ErrorCode::kInvalidArgument, "bad port in '" + text + "'");
-    port = static_cast<uint32_t>(v);
-  }
-  if (!frtps::IPLocator::isIPv4(host))
-    return Status(ErrorCode::kInvalidArgument, "not an IPv4 address: '" + text + "'");
-  return std::make_pair(host, port);
 }
 
 constexpr size_t kMaxQueuedEvents = 4096;
@@ -231,257 +205,9 @@ struct DdsNode::Impl : public fdds::DomainParticipantListener {
     PushEvent(std::move(e));
   }
 
-  Status BuildParticipantQos(fdds::DomainParticipantQos& qos);
   Status CreateEndpoints();
   void Destroy();
 };
-
-bool IsIPv4Address(const std::string& host) {
-  int octets = 0;
-  for (size_t p = 0; p <= host.size(); ++octets) {
-    const size_t dot = std::min(host.find('.', p), host.size());
-    const std::string t = host.substr(p, dot - p);
-    if (t.empty() || t.size() > 3 || t.find_first_not_of("0123456789") != std::string::npos || std::stoi(t) > 255)
-      return false;
-    p = dot + 1;
-  }
-  return octets == 4;
-}
-
-Status CheckHost(const std::string& host, bool allow_names) {
-  auto bad = [](const std::string& why) { return Status(ErrorCode::kInvalidArgument, why); };
-  if (host.find(':') != std::string::npos || host.find('[') != std::string::npos)
-    return bad("is an IPv6 address, not supported: the transports are UDPv4");
-  if (IsIPv4Address(host)) return Status::Ok();
-  if (host.empty()) return bad("is empty");
-  if (!allow_names) return bad("is not an IPv4 address");
-  // A name whose last label is all digits ("10.0.0", "10.0.0.256") is a mistyped address:
-  // getaddrinfo would read "10.0.0" as 10.0.0.0 (inet_aton) instead of failing.
-  std::string name = host;
-  if (name.back() == '.') name.pop_back();
-  const size_t last_dot = name.rfind('.');
-  const std::string last = name.substr(last_dot == std::string::npos ? 0 : last_dot + 1);
-  if (!last.empty() && last.find_first_not_of("0123456789") == std::string::npos)
-    return bad("is not an IPv4 address");
-  if (name.empty() || name.size() > 253) return bad("is not a host name: longer than 253 characters");
-  for (size_t p = 0; p <= name.size();) {
-    const size_t dot = std::min(name.find('.', p), name.size());
-    const std::string label = name.substr(p, dot - p);
-    if (label.empty() || label.size() > 63)
-      return bad("is not a host name: a label of " + std::to_string(label.size()) + " characters (1..63)");
-    if (label.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-") !=
-        std::string::npos)
-      return bad("is not a host name: '" + label + "' has characters other than letters, digits and '-'");
-    if (label.front() == '-' || label.back() == '-')
-      return bad("is not a host name: '" + label + "' starts or ends with '-'");
-    p = dot + 1;
-  }
-  return Status::Ok();
-}
-
-core::Result<std::vector<DiscoveryServerAddress>> ParseDiscoveryServers(const std::string& list) {
-  auto bad = [&](const std::string& item, const std::string& why) {
-    return Status(ErrorCode::kInvalidArgument, "'" + item + "' " + why);
-  };
-  auto number = [](const std::string& t, unsigned long max, unsigned long* v) {
-    if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos) return false;
-    *v = std::stoul(t);
-    return *v <= max;
-  };
-  std::vector<DiscoveryServerAddress> out;
-  std::vector<std::string> items;
-  for (size_t start = 0; start <= list.size();) {
-    const size_t comma = std::min(list.find(',', start), list.size());
-    std::string item = list.substr(start, comma - start);
-    start = comma + 1;
-    if (item.empty()) continue;
-    DiscoveryServerAddress a;
-    std::string rest = item;
-    if (const size_t at = item.find('@'); at != std::string::npos) {
-      unsigned long id = 0;
-      if (!number(item.substr(0, at), 255, &id))
-        return bad(item, "has server id '" + item.substr(0, at) +
-                             "': expected 0..255 (the -i of fast-discovery-server) before the @");
-      a.id = int(id);
-      a.id_given = true;
-      rest = item.substr(at + 1);
-    }
-    // More than one ':' (or a '['): an IPv6 address, refused by CheckHost with its reason.
-    const bool v6 = rest.find('[') != std::string::npos || rest.find(':') != rest.rfind(':');
-    const size_t colon = v6 ? std::string::npos : rest.find(':');
-    a.host = rest.substr(0, colon);
-    if (Status host = CheckHost(a.host, true); !host.ok())
-      return bad(item, host.message() + " (expected [ID@]a.b.c.d[:port] or [ID@]HOST-NAME[:port])");
-    if (colon != std::string::npos) {
-      unsigned long port = 0;
-      if (!number(rest.substr(colon + 1), 65535, &port) || port == 0)
-        return bad(item, "has port '" + rest.substr(colon + 1) + "': expected 1..65535");
-      a.port = uint32_t(port);
-    }
-    for (size_t i = 0; i < out.size(); ++i) {
-      if (out[i].id == a.id)
-        return bad(item, "repeats server id " + std::to_string(a.id) + " of '" + items[i] +
-                             "' (each fast-discovery-server has its own -i; the id selects its GUID prefix)");
-      if (out[i].host == a.host && out[i].port == a.port)
-        return bad(item,
-                   "repeats the address " + a.host + ":" + std::to_string(a.port) + " of '" + items[i] + "'");
-    }
-    out.push_back(a);
-    items.push_back(item);
-  }
-  if (out.empty()) return Status(ErrorCode::kInvalidArgument, "no server given ([ID@]HOST[:port],...)");
-  return out;
-}
-
-std::string FormatDiscoveryServers(const std::vector<DiscoveryServerAddress>& servers) {
-  std::string s;
-  for (const DiscoveryServerAddress& a : servers) {
-    if (!s.empty()) s += ',';
-    if (a.id != 0) s += std::to_string(a.id) + "@";
-    s += a.host + ":" + std::to_string(a.port);
-  }
-  return s;
-}
-
-std::string DiscoveryServerGuidPrefix(int id) {
-  if (id < 0 || id > 255) return "";
-  frtps::GuidPrefix_t prefix;
-  if (!eprosima::fastdds::rtps::get_server_client_default_guidPrefix(id, prefix)) return "";
-  std::string s;
-  char byte[4];
-  for (size_t i = 0; i < frtps::GuidPrefix_t::size; ++i) {
-    std::snprintf(byte, sizeof byte, "%02x", unsigned(prefix.value[i]));
-    if (i) s += '.';
-    s += byte;
-  }
-  return s;
-}
-
-Status DdsNode::Impl::BuildParticipantQos(fdds::DomainParticipantQos& qos) {
-  auto* factory = fdds::DomainParticipantFactory::get_instance();
-  qos = fdds::PARTICIPANT_QOS_DEFAULT;
-  if (config.transport == TransportKind::kXmlProfile) {
-    if (factory->load_XML_profiles_file(config.xml_file) != ReturnCode_t::RETCODE_OK)
-      return Status(ErrorCode::kInvalidArgument, "cannot load Fast DDS XML profiles from " + config.xml_file);
-    if (factory->get_participant_qos_from_profile(config.xml_profile, qos) != ReturnCode_t::RETCODE_OK)
-      return Status(ErrorCode::kNotFound,
-                    "no participant profile '" + config.xml_profile + "' in " + config.xml_file);
-  }
-  qos.name(config.participant_name);
-  if (config.participant_id >= 0) qos.wire_protocol().participant_id = config.participant_id;
-  auto& builtin = qos.wire_protocol().builtin;
-  if (config.transport != TransportKind::kXmlProfile) {
-    builtin.discovery_config.leaseDuration = ToDuration(config.participant_lease);
-    builtin.discovery_config.leaseDuration_announcementperiod = ToDuration(config.participant_lease / 4);
-  }
-
-  auto udp = [&]() {
-    auto d = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
-    d->sendBufferSize = config.udp_buffer_bytes;
-    d->receiveBufferSize = config.udp_buffer_bytes;
-    for (const auto& ip : config.interface_whitelist) d->interfaceWhiteList.push_back(ip);
-    return d;
-  };
-  auto shm = [&]() {
-    auto d = std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>();
-    d->segment_size(8u << 20);  // whole 1 MiB+ samples fit without waiting for the reader
-    return d;
-  };
-
-  for (const auto& ip : config.interface_whitelist)
-    if (!frtps::IPLocator::isIPv4(ip))
-      return Status(ErrorCode::kInvalidArgument, "interface whitelist entry is not an IPv4 address: '" + ip + "'");
-
-  switch (config.transport) {
-    case TransportKind::kDefault:
-      qos.transport().use_builtin_transports = false;
-      qos.transport().user_transports.push_back(shm());
-      qos.transport().user_transports.push_back(udp());
-      break;
-    case TransportKind::kSharedMemoryOnly:
-      qos.transport().use_builtin_transports = false;
-      qos.transport().user_transports.push_back(shm());
-      break;
-    case TransportKind::kUdpOnly: {
-      qos.transport().use_builtin_transports = false;
-      qos.transport().user_transports.push_back(udp());
-      const uint32_t d = config.domain_id;
-      for (const auto& peer : config.initial_peers) {
-        auto hp = ParseHostPort(peer);
-        if (!hp.ok()) return Status(ErrorCode::kInvalidArgument, "initial peer: " + hp.status().message());
-        std::vector<uint32_t> ports;
-        if (hp->second != 0) {
-          ports.push_back(hp->second);
-        } else {
-          // RTPS well-known metatraffic unicast port: PB + DG*domain + d1 + PG*participant_id.
-          for (int id = 0; id < config.peer_participant_ids; ++id) ports.push_back(7400 + 250 * d + 10 + 2 * id);
-        }
-        for (uint32_t port : ports) {
-          frtps::Locator_t loc;
-          loc.kind = LOCATOR_KIND_UDPv4;
-          frtps::IPLocator::setIPv4(loc, hp->first);
-          loc.port = port;
-          builtin.initialPeersList.push_back(loc);
-        }
-      }
-      break;
-    }
-    case TransportKind::kDiscoveryClient: {
-      qos.transport().use_builtin_transports = false;
-      qos.transport().user_transports.push_back(udp());
-      auto servers = ParseDiscoveryServers(config.discovery_server);
-      if (!servers.ok())
-        return Status(ErrorCode::kInvalidArgument, "discovery server: " + servers.status().message());
-      builtin.discovery_config.discoveryProtocol = frtps::DiscoveryProtocol_t::CLIENT;
-      for (const DiscoveryServerAddress& a : *servers) {
-        // A client of every listed server: each one is known by its GUID prefix (the -i of
-        // fast-discovery-server) and reached at its locator; a wrong prefix never matches.
-        eprosima::fastdds::rtps::RemoteServerAttributes server;
-        const std::string prefix =
-            a.id_given ? DiscoveryServerGuidPrefix(a.id) : config.discovery_server_prefix;
-        if (!server.ReadguidPrefix(prefix.c_str()))
-          return Status(ErrorCode::kInvalidArgument, "bad discovery server GUID prefix '" + prefix + "'");
-        if (!IsIPv4Address(a.host))  // names are resolved once, by the DDS flags (dds_flags.h)
-          return Status(ErrorCode::kInvalidArgument, "discovery server '" + a.host +
-                                                         "': a host name; the participant needs its IPv4 address");
-        frtps::Locator_t loc;
-        loc.kind = LOCATOR_KIND_UDPv4;
-        frtps::IPLocator::setIPv4(loc, a.host);
-        loc.port = a.port;
-        server.metatrafficUnicastLocatorList.push_back(loc);
-        builtin.discovery_config.m_DiscoveryServers.push_back(server);
-      }
-      break;
-    }
-    case TransportKind::kXmlProfile: break;
-  }
-
-  if (config.security.enabled()) {
-    const SecurityFiles& s = config.security;
-    for (const std::string* path : {&s.identity_ca, &s.identity_certificate, &s.private_key, &s.permissions_ca,
-                                    &s.governance, &s.permissions}) {
-      if (path->empty() || (*path)[0] != '/')
-        return Status(ErrorCode::kInvalidArgument, "security file paths must be absolute: '" + *path + "'");
-      if (FILE* f = std::fopen(path->c_str(), "rb")) {
-        std::fclose(f);
-      } else {
-        return Status(ErrorCode::kIo, "cannot read security file " + *path);
-      }
-    }
-    auto& props = qos.properties().properties();
-    auto add = [&](const char* name, const std::string& value) { props.emplace_back(name, value); };
-    add("dds.sec.auth.plugin", "builtin.PKI-DH");
-    add("dds.sec.auth.builtin.PKI-DH.identity_ca", "file://" + s.identity_ca);
-    add("dds.sec.auth.builtin.PKI-DH.identity_certificate", "file://" + s.identity_certificate);
-    add("dds.sec.auth.builtin.PKI-DH.private_key", "file://" + s.private_key);
-    add("dds.sec.access.plugin", "builtin.Access-Permissions");
-    add("dds.sec.access.builtin.Access-Permissions.permissions_ca", "file://" + s.permissions_ca);
-    add("dds.sec.access.builtin.Access-Permissions.governance", "file://" + s.governance);
-    add("dds.sec.access.builtin.Access-Permissions.permissions", "file://" + s.permissions);
-    add("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
-  }
-  return Status::Ok();
-}
 
 Status DdsNode::Impl::CreateEndpoints() {
   if (type.register_type(participant) != ReturnCode_t::RETCODE_OK)
@@ -586,7 +312,7 @@ core::Result<std::unique_ptr<DdsNode>> DdsNode::Create(const NodeConfig& config)
   auto impl = std::make_unique<Impl>();
   impl->config = config;
   fdds::DomainParticipantQos qos;
-  POSEFOREST_RETURN_IF_ERROR(impl->BuildParticipantQos(qos));
+  POSEFOREST_RETURN_IF_ERROR(BuildParticipantQos(impl->config, qos));
   // Participant discovery events only; data and match callbacks go to the endpoint listeners.
   fdds::StatusMask mask = fdds::StatusMask::none();
   impl->participant =

@@ -131,6 +131,9 @@ class HttpServer {
   /// One accepted connection, on its own thread (httplib's task queue): caps, TLS, the checks
   /// httplib does not make, then httplib's request processing. Closes `fd`.
   void Serve(int fd);
+  /// The connection caps (in all, and per peer address `ip`): true and counted as open from `ip`,
+  /// or false (counted, logged, a 503 sent on plain HTTP) and `fd` is to be closed.
+  bool Admit(int fd, uint32_t ip, const std::string& peer_text);
   void Log(const std::string& line);
 
   HttpServerOptions opt_;

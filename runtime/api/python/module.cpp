@@ -83,15 +83,9 @@ py::list SkeletonsToPython(const std::vector<pf_skeleton>& skeletons) {
   return people;
 }
 
-}  // namespace
-
-PYBIND11_MODULE(_poseforest, m) {
-  m.doc() = "poseforest runtime: body parts and 3D joint proposals from single depth images";
-  m.attr("__version__") = poseforest::api::Version();
-  m.attr("JOINT_NAMES") = poseforest::api::JointNames();
+/// poseforest.Forest.
+void BindForest(py::module_& m) {
   static_assert(sizeof(pf_joint_proposal) == 28, "the NumPy dtype below mirrors pf_joint_proposal");
-  py::register_exception<poseforest::api::Error>(m, "Error", PyExc_RuntimeError);
-
   py::class_<Forest>(m, "Forest", "A loaded, validated forest (.pff). Thread-safe.")
       .def(py::init([](const std::string& path) {
              py::gil_scoped_release release;
@@ -170,7 +164,10 @@ PYBIND11_MODULE(_poseforest, m) {
           py::arg("depth"), py::arg("method") = "meanshift", py::arg("threads") = 0,
           "3D joint proposals as a structured array (joint, position_m[3], pixel[2], confidence), grouped by "
           "joint in JOINT_NAMES order, most confident first.");
+}
 
+/// poseforest.SkeletonStream.
+void BindSkeletonStream(py::module_& m) {
   py::class_<SkeletonStream>(m, "SkeletonStream",
                              "Per-person skeletons over a stream of depth frames (pf_skeleton_stream: "
                              "segmentation, ids, calibrated confidence, joint states). One thread at a time.")
@@ -208,4 +205,15 @@ PYBIND11_MODULE(_poseforest, m) {
           "id, pixels, centroid_m, joints (16 dicts: name, found, tracked, position_m, pixel, confidence, "
           "state; position_m and pixel None when not found; state 'tracked', 'inferred' (found, not "
           "tracked: a hidden joint placed by the offset votes) or 'not_tracked'), ordered by id.");
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_poseforest, m) {
+  m.doc() = "poseforest runtime: body parts and 3D joint proposals from single depth images";
+  m.attr("__version__") = poseforest::api::Version();
+  m.attr("JOINT_NAMES") = poseforest::api::JointNames();
+  py::register_exception<poseforest::api::Error>(m, "Error", PyExc_RuntimeError);
+  BindForest(m);
+  BindSkeletonStream(m);
 }

@@ -1,0 +1,505 @@
+#include "runtime/frame_formats.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+
+#include "runtime/core/forest_format.h"
+#include "runtime/image_io.h"
+
+// The depth file formats: .npy (ParseNpyHeader, WriteDepthNpy), PCL's .pcd (ParsePcdDepth),
+// 16-bit PNG and raw frames (ReadDepthFile).
+
+namespace poseforest::runtime {
+
+using core::ErrorCode;
+using core::Result;
+using core::Status;
+namespace fs = std::filesystem;
+
+namespace detail {
+
+Result<std::vector<uint8_t>> ReadAll(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    const int err = errno;
+    return Status(
+        err == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
+        path + (err == ENOENT ? ": no such file" : ": cannot open: " + std::string(std::strerror(err))));
+  }
+  std::vector<uint8_t> out;
+  uint8_t buf[1 << 16];
+  while (true) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const std::string err = std::strerror(errno);
+      ::close(fd);
+      return Status(ErrorCode::kIo, path + ": read failed: " + err);
+    }
+    if (n == 0) break;
+    out.insert(out.end(), buf, buf + n);
+  }
+  ::close(fd);
+  return out;
+}
+
+bool StartsWith(const std::vector<uint8_t>& b, std::string_view s) {
+  return b.size() >= s.size() && std::memcmp(b.data(), s.data(), s.size()) == 0;
+}
+
+int RawWidth(const FrameSourceOptions& o) {
+  return o.raw_width > 0 ? o.raw_width : o.camera.intrinsics.width;
+}
+int RawHeight(const FrameSourceOptions& o) {
+  return o.raw_height > 0 ? o.raw_height : o.camera.intrinsics.height;
+}
+
+void ApplyDepthScale(core::DepthImage* depth, double scale_mm) {
+  if (scale_mm == 1.0) return;
+  for (uint16_t& d : depth->pixels) d = uint16_t(std::min(65535.0, std::round(double(d) * scale_mm)));
+}
+
+Result<std::vector<core::DepthImage>> DecodeNpyFrames(const std::vector<uint8_t>& bytes,
+                                                      const std::string& path, double depth_scale_mm) {
+  auto h = ParseNpyHeader(bytes, path);
+  if (!h.ok()) return h.status();
+  const int64_t n = h->shape.size() == 3 ? h->shape[0] : 1;
+  const int64_t rows = h->shape[h->shape.size() - 2], cols = h->shape.back();
+  const size_t elem = h->descr == "<u2" ? 2 : 4;
+  const uint64_t need = uint64_t(n) * uint64_t(rows) * uint64_t(cols) * elem;
+  if (bytes.size() - h->data_offset < need)
+    return Status(ErrorCode::kDataLoss, path + ": .npy of shape " + std::to_string(n) + "x" +
+                                            std::to_string(rows) + "x" + std::to_string(cols) + " needs " +
+                                            std::to_string(need) + " bytes of data but holds " +
+                                            std::to_string(bytes.size() - h->data_offset) + " (truncated)");
+  std::vector<core::DepthImage> frames;
+  const uint8_t* p = bytes.data() + h->data_offset;
+  for (int64_t f = 0; f < n; ++f) {
+    core::DepthImage d{int(cols), int(rows)};
+    for (size_t i = 0; i < d.pixels.size(); ++i, p += elem) {
+      if (elem == 2) {
+        d.pixels[i] = uint16_t(p[0] | p[1] << 8);
+      } else {
+        float m;
+        std::memcpy(&m, p, 4);
+        // Metres to mm; NaN, inf, <= 0 and beyond 65.535 m are "no reading".
+        d.pixels[i] =
+            (std::isfinite(m) && m > 0 && m < 65.535f) ? uint16_t(std::lround(double(m) * 1000.0)) : 0;
+      }
+    }
+    if (elem == 2) ApplyDepthScale(&d, depth_scale_mm);
+    frames.push_back(std::move(d));
+  }
+  return frames;
+}
+
+}  // namespace detail
+
+namespace {
+
+using detail::ApplyDepthScale;
+using detail::DecodeNpyFrames;
+using detail::RawHeight;
+using detail::RawWidth;
+using detail::ReadAll;
+using detail::StartsWith;
+
+// LZF decompression (liblzf's format, as PCL's binary_compressed uses): literal runs
+// (ctrl < 32: ctrl + 1 bytes) and back references (len = ctrl >> 5, +7 extension byte; offset
+// 13 bits). Every read and write is bounds-checked.
+bool LzfDecompress(const uint8_t* in, size_t in_len, uint8_t* out, size_t out_len) {
+  size_t ip = 0, op = 0;
+  while (ip < in_len) {
+    const unsigned ctrl = in[ip++];
+    if (ctrl < 32) {
+      const size_t len = ctrl + 1;
+      if (ip + len > in_len || op + len > out_len) return false;
+      std::memcpy(out + op, in + ip, len);
+      ip += len;
+      op += len;
+    } else {
+      size_t len = ctrl >> 5;
+      if (len == 7) {
+        if (ip >= in_len) return false;
+        len += in[ip++];
+      }
+      if (ip >= in_len) return false;
+      const size_t back = ((ctrl & 0x1F) << 8) + in[ip++] + 1;
+      len += 2;
+      if (back > op || op + len > out_len) return false;
+      for (size_t i = 0; i < len; ++i, ++op) out[op] = out[op - back];
+    }
+  }
+  return op == out_len;
+}
+
+}  // namespace
+
+Result<NpyHeader> ParseNpyHeader(const std::vector<uint8_t>& b, const std::string& source) {
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, source + ": " + what); };
+  if (!StartsWith(b, "\x93NUMPY")) return bad("not a .npy file (no \\x93NUMPY magic)");
+  if (b.size() < 10) return bad(".npy header truncated");
+  const int major = b[6];
+  size_t header_len = 0, start = 0;
+  if (major == 1) {
+    header_len = size_t(b[8] | b[9] << 8);
+    start = 10;
+  } else if (major == 2 || major == 3) {
+    if (b.size() < 12) return bad(".npy header truncated");
+    header_len = size_t(b[8]) | size_t(b[9]) << 8 | size_t(b[10]) << 16 | size_t(b[11]) << 24;
+    start = 12;
+  } else {
+    return bad(".npy format version " + std::to_string(major) + "." + std::to_string(b[7]) +
+               " is not 1, 2 or 3");
+  }
+  if (b.size() - start < header_len)
+    return bad(".npy header of " + std::to_string(header_len) + " bytes is truncated");
+  const std::string h(reinterpret_cast<const char*>(b.data() + start), header_len);
+  // The header is a Python dict literal: {'descr': '<u2', 'fortran_order': False, 'shape': (480, 640), }
+  auto value_of = [&](const std::string& key) -> std::optional<std::string> {
+    for (const char q : {'\'', '"'}) {
+      const std::string k = std::string(1, q) + key + std::string(1, q);
+      const size_t at = h.find(k);
+      if (at == std::string::npos) continue;
+      size_t p = h.find(':', at + k.size());
+      if (p == std::string::npos) return std::nullopt;
+      ++p;
+      while (p < h.size() && h[p] == ' ') ++p;
+      if (p >= h.size()) return std::nullopt;
+      size_t end;
+      if (h[p] == '\'' || h[p] == '"') {
+        end = h.find(h[p], p + 1);
+        if (end == std::string::npos) return std::nullopt;
+        return h.substr(p + 1, end - p - 1);
+      }
+      if (h[p] == '(') {
+        end = h.find(')', p);
+        if (end == std::string::npos) return std::nullopt;
+        return h.substr(p, end - p + 1);
+      }
+      end = h.find_first_of(",}", p);
+      return h.substr(p, end == std::string::npos ? std::string::npos : end - p);
+    }
+    return std::nullopt;
+  };
+  const auto descr = value_of("descr"), fortran = value_of("fortran_order"), shape = value_of("shape");
+  if (!descr || !fortran || !shape)
+    return bad(".npy header is not a dict with descr, fortran_order and shape: " + h);
+  NpyHeader out;
+  out.descr = *descr;
+  if (out.descr == "|u2" || out.descr == "=u2") out.descr = "<u2";  // single-byte order marks on LE hosts
+  if (out.descr != "<u2" && out.descr != "<f4")
+    return Status(ErrorCode::kInvalidArgument,
+                  source + ": .npy holds dtype '" + *descr +
+                      "'; depth must be uint16 millimetres ('<u2') or float32 metres ('<f4')");
+  if (fortran->find("False") == std::string::npos)
+    return Status(ErrorCode::kInvalidArgument,
+                  source + ": .npy is in Fortran order; save it C-ordered (np.ascontiguousarray)");
+  // Shape "(480, 640)" or "(3, 480, 640)".
+  std::string s = *shape;
+  for (char& c : s)
+    if (c == '(' || c == ')' || c == ',') c = ' ';
+  size_t pos = 0;
+  while (true) {
+    while (pos < s.size() && s[pos] == ' ') ++pos;
+    if (pos >= s.size()) break;
+    size_t end = pos;
+    while (end < s.size() && s[end] != ' ') ++end;
+    const std::string tok = s.substr(pos, end - pos);
+    char* e = nullptr;
+    const long long v = std::strtoll(tok.c_str(), &e, 10);
+    if (*e != '\0' || v < 0 || v > (1 << 20)) return bad(".npy shape " + *shape + " is not a tuple of sizes");
+    out.shape.push_back(v);
+    pos = end;
+  }
+  if (out.shape.size() != 2 && out.shape.size() != 3)
+    return Status(
+        ErrorCode::kInvalidArgument,
+        source + ": .npy of shape " + *shape + "; depth must be [height, width] or [frames, height, width]");
+  for (int64_t v : out.shape)
+    if (v == 0)
+      return Status(ErrorCode::kInvalidArgument, source + ": .npy of shape " + *shape + " is empty");
+  out.data_offset = start + header_len;
+  return out;
+}
+
+core::Status WriteDepthNpy(const std::string& path, const std::vector<core::DepthImage>& frames) {
+  if (frames.empty()) return {ErrorCode::kInvalidArgument, path + ": no frames to write"};
+  const int w = frames[0].width, h = frames[0].height;
+  std::string header = "{'descr': '<u2', 'fortran_order': False, 'shape': (";
+  if (frames.size() > 1) header += std::to_string(frames.size()) + ", ";
+  header += std::to_string(h) + ", " + std::to_string(w) + "), }";
+  while ((10 + header.size() + 1) % 64 != 0) header += ' ';
+  header += '\n';
+  std::vector<uint8_t> bytes = {
+      0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0, uint8_t(header.size() & 0xFF), uint8_t(header.size() >> 8)};
+  bytes.insert(bytes.end(), header.begin(), header.end());
+  for (const auto& f : frames) {
+    if (f.width != w || f.height != h)
+      return {ErrorCode::kInvalidArgument, path + ": frames of different sizes"};
+    for (uint16_t d : f.pixels) {
+      bytes.push_back(uint8_t(d & 0xFF));
+      bytes.push_back(uint8_t(d >> 8));
+    }
+  }
+  return core::WriteFileAtomic(path, bytes);
+}
+
+Result<core::DepthImage> ReadPcdDepth(const std::string& path) {
+  auto bytes = ReadAll(path);
+  if (!bytes.ok()) return bytes.status();
+  return ParsePcdDepth(*bytes, path);
+}
+
+namespace {
+
+/// What a PCD header says, and where its data starts.
+struct PcdHeader {
+  std::vector<std::string> fields;
+  std::vector<int> sizes, counts;
+  std::vector<char> types;
+  int64_t width = 0, height = 0, points = -1;
+  std::string data;
+  size_t pos = 0;  ///< the data's first byte
+};
+
+/// The header lines up to DATA (errors as ParsePcdDepth's).
+Result<PcdHeader> ReadPcdHeader(std::span<const uint8_t> b, const std::string& path) {
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
+  PcdHeader hd;
+  std::vector<std::string>& fields = hd.fields;
+  std::vector<int>& sizes = hd.sizes;
+  std::vector<int>& counts = hd.counts;
+  std::vector<char>& types = hd.types;
+  int64_t& width = hd.width;
+  int64_t& height = hd.height;
+  int64_t& points = hd.points;
+  std::string& data = hd.data;
+  size_t& pos = hd.pos;
+  while (pos < b.size() && data.empty()) {
+    size_t end = pos;
+    while (end < b.size() && b[end] != '\n') ++end;
+    if (end >= b.size()) return bad("PCD header has no DATA line (truncated?)");
+    std::string line(reinterpret_cast<const char*>(b.data() + pos), end - pos);
+    pos = end + 1;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> tok;
+    size_t p = 0;
+    while (p < line.size()) {
+      while (p < line.size() && line[p] == ' ') ++p;
+      size_t q = p;
+      while (q < line.size() && line[q] != ' ') ++q;
+      if (q > p) tok.push_back(line.substr(p, q - p));
+      p = q;
+    }
+    if (tok.empty()) continue;
+    const std::string& key = tok[0];
+    auto ints = [&](std::vector<int>* out) {
+      for (size_t i = 1; i < tok.size(); ++i) out->push_back(std::atoi(tok[i].c_str()));
+    };
+    if (key == "FIELDS")
+      fields.assign(tok.begin() + 1, tok.end());
+    else if (key == "SIZE")
+      ints(&sizes);
+    else if (key == "COUNT")
+      ints(&counts);
+    else if (key == "TYPE")
+      for (size_t i = 1; i < tok.size(); ++i) types.push_back(tok[i].empty() ? '?' : tok[i][0]);
+    else if (key == "WIDTH" && tok.size() > 1)
+      width = std::atoll(tok[1].c_str());
+    else if (key == "HEIGHT" && tok.size() > 1)
+      height = std::atoll(tok[1].c_str());
+    else if (key == "POINTS" && tok.size() > 1)
+      points = std::atoll(tok[1].c_str());
+    else if (key == "DATA" && tok.size() > 1)
+      data = tok[1];
+  }
+  if (data.empty()) return bad("PCD header has no DATA line");
+  return hd;
+}
+
+/// Metres to mm; NaN, inf, <= 0 and beyond 65.535 m are "no reading".
+uint16_t PcdMetresToMm(float z) {
+  return (std::isfinite(z) && z > 0 && z < 65.535f) ? uint16_t(std::lround(double(z) * 1000.0)) : 0;
+}
+
+/// DATA ascii: the zi-th field of every point.
+Status ReadPcdAscii(std::span<const uint8_t> b, const PcdHeader& hd, int zi, const std::string& path,
+                    core::DepthImage& depth) {
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
+  const std::vector<std::string>& fields = hd.fields;
+  const std::vector<int>& counts = hd.counts;
+  const size_t pos = hd.pos;
+  const size_t n = depth.pixels.size();
+  auto to_mm = PcdMetresToMm;
+  std::string text(reinterpret_cast<const char*>(b.data() + pos), b.size() - pos);
+  size_t p = 0;
+  for (size_t i = 0; i < n; ++i) {
+    float z = 0;
+    for (size_t f = 0; f < fields.size(); ++f) {
+      for (int c = 0; c < counts[f]; ++c) {
+        while (p < text.size() && (text[p] == ' ' || text[p] == '\n' || text[p] == '\r')) ++p;
+        if (p >= text.size())
+          return bad("PCD ascii data ends at point " + std::to_string(i) + " of " + std::to_string(n));
+        char* e = nullptr;
+        const float v = std::strtof(text.c_str() + p, &e);
+        if (e == text.c_str() + p) {
+          // "nan" is handled by strtof; anything else is corrupt.
+          return bad("PCD ascii value at point " + std::to_string(i) + " is not a number");
+        }
+        p = size_t(e - text.c_str());
+        if (int(f) == zi) z = v;
+      }
+    }
+    depth.pixels[i] = to_mm(z);
+  }
+  return Status::Ok();
+}
+
+/// DATA binary: points of point_size bytes, z at z_offset in each.
+Status ReadPcdBinary(std::span<const uint8_t> b, const PcdHeader& hd, int point_size, int z_offset,
+                     const std::string& path, core::DepthImage& depth) {
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
+  const size_t pos = hd.pos;
+  const size_t n = depth.pixels.size();
+  auto to_mm = PcdMetresToMm;
+  if (b.size() - pos < n * size_t(point_size))
+    return bad("PCD binary data holds " + std::to_string(b.size() - pos) + " bytes, " +
+               std::to_string(n * size_t(point_size)) + " expected (truncated)");
+  for (size_t i = 0; i < n; ++i) {
+    float z;
+    std::memcpy(&z, b.data() + pos + i * size_t(point_size) + size_t(z_offset), 4);
+    depth.pixels[i] = to_mm(z);
+  }
+  return Status::Ok();
+}
+
+/// DATA binary_compressed: LZF, fields one after the other.
+Status ReadPcdCompressed(std::span<const uint8_t> b, const PcdHeader& hd, int zi, int point_size,
+                         const std::string& path, core::DepthImage& depth) {
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
+  const std::vector<int>& sizes = hd.sizes;
+  const std::vector<int>& counts = hd.counts;
+  const size_t pos = hd.pos;
+  const size_t n = depth.pixels.size();
+  auto to_mm = PcdMetresToMm;
+  if (b.size() - pos < 8) return bad("PCD binary_compressed sizes missing (truncated)");
+  uint32_t csize, usize;
+  std::memcpy(&csize, b.data() + pos, 4);
+  std::memcpy(&usize, b.data() + pos + 4, 4);
+  if (usize != n * size_t(point_size))
+    return bad("PCD uncompressed size " + std::to_string(usize) + " != points x point size");
+  if (b.size() - pos - 8 < csize) return bad("PCD compressed data truncated");
+  std::vector<uint8_t> raw(usize);
+  if (!LzfDecompress(b.data() + pos + 8, csize, raw.data(), raw.size()))
+    return bad("PCD LZF data is corrupt");
+  // binary_compressed stores the fields one after the other (all x, then all y, ...).
+  size_t field_start = 0;
+  for (int f = 0; f < zi; ++f) field_start += size_t(sizes[size_t(f)]) * size_t(counts[size_t(f)]) * n;
+  for (size_t i = 0; i < n; ++i) {
+    float z;
+    std::memcpy(&z, raw.data() + field_start + i * 4, 4);
+    depth.pixels[i] = to_mm(z);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<core::DepthImage> ParsePcdDepth(std::span<const uint8_t> b, const std::string& path) {
+  auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
+  auto header = ReadPcdHeader(b, path);
+  if (!header.ok()) return header.status();
+  PcdHeader& hd = *header;
+  const std::vector<std::string>& fields = hd.fields;
+  const std::vector<int>& sizes = hd.sizes;
+  std::vector<int>& counts = hd.counts;
+  const std::vector<char>& types = hd.types;
+  const int64_t width = hd.width, height = hd.height, points = hd.points;
+  const std::string& data = hd.data;
+  if (counts.empty()) counts.assign(fields.size(), 1);
+  if (fields.empty() || sizes.size() != fields.size() || types.size() != fields.size() ||
+      counts.size() != fields.size())
+    return bad("PCD header's FIELDS, SIZE, TYPE and COUNT disagree");
+  if (width <= 0 || height <= 1 || width > 16384 || height > 16384)
+    return Status(ErrorCode::kInvalidArgument,
+                  path + ": PCD cloud is " + std::to_string(width) + "x" + std::to_string(height) +
+                      "; only organized clouds (HEIGHT > 1, one point per pixel) are depth frames");
+  if (points >= 0 && points != width * height)
+    return bad("PCD POINTS " + std::to_string(points) + " != WIDTH x HEIGHT");
+  int zi = -1, point_size = 0, z_offset = 0;
+  for (size_t i = 0; i < fields.size(); ++i) {
+    if (fields[i] == "z") zi = int(i), z_offset = point_size;
+    point_size += sizes[i] * counts[i];
+  }
+  if (zi < 0 || sizes[size_t(zi)] != 4 || types[size_t(zi)] != 'F' || counts[size_t(zi)] != 1)
+    return Status(ErrorCode::kInvalidArgument,
+                  path + ": PCD has no float32 'z' field (metres) to read depth from");
+  core::DepthImage depth{int(width), int(height)};
+  if (data == "ascii") {
+    POSEFOREST_RETURN_IF_ERROR(ReadPcdAscii(b, hd, zi, path, depth));
+    return depth;
+  }
+  if (data == "binary") {
+    POSEFOREST_RETURN_IF_ERROR(ReadPcdBinary(b, hd, point_size, z_offset, path, depth));
+    return depth;
+  }
+  if (data == "binary_compressed") {
+    POSEFOREST_RETURN_IF_ERROR(ReadPcdCompressed(b, hd, zi, point_size, path, depth));
+    return depth;
+  }
+  return bad("PCD DATA '" + data + "' is not ascii, binary or binary_compressed");
+}
+
+
+Result<core::DepthImage> ReadDepthFile(const std::string& path, const FrameSourceOptions& options) {
+  if (fs::path(path).extension() == ".pcd") return ReadPcdDepth(path);
+  auto bytes = ReadAll(path);
+  if (!bytes.ok()) return bytes.status();
+  if (StartsWith(*bytes, "\x93NUMPY")) {
+    auto frames = DecodeNpyFrames(*bytes, path, options.camera.depth_scale_mm);
+    if (!frames.ok()) return frames.status();
+    if (frames->size() != 1)
+      return Status(ErrorCode::kInvalidArgument, path + ": holds " + std::to_string(frames->size()) +
+                                                     " frames; read it as a frame source for all of them");
+    return std::move(frames->front());
+  }
+  core::DepthImage depth;
+  static constexpr uint8_t kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  if (bytes->size() >= 8 && std::memcmp(bytes->data(), kPng, 8) == 0) {
+    auto png = DecodePng(*bytes, path);
+    if (!png.ok()) return png.status();
+    if (png->channels != 1 || png->bit_depth != 16)
+      return Status(ErrorCode::kInvalidArgument,
+                    path + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
+                        std::to_string(png->channels) + " channel(s) of " + std::to_string(png->bit_depth) +
+                        "-bit samples");
+    depth.width = png->width;
+    depth.height = png->height;
+    depth.pixels = std::move(png->samples16);
+  } else {
+    const int w = RawWidth(options), h = RawHeight(options);
+    const uint64_t expected = uint64_t(w) * uint64_t(h) * 2;
+    if (bytes->size() != expected)
+      return Status(bytes->size() < expected ? ErrorCode::kDataLoss : ErrorCode::kInvalidArgument,
+                    path + ": not a PNG, .npy or .pcd, and as a raw " + std::to_string(w) + "x" +
+                        std::to_string(h) + " uint16 depth frame it should be " + std::to_string(expected) +
+                        " bytes, but it is " + std::to_string(bytes->size()) + " bytes" +
+                        (bytes->size() < expected ? " (truncated?)" : ""));
+    depth = core::DepthImage(w, h);
+    const auto& b = *bytes;
+    for (size_t i = 0; i < depth.pixels.size(); ++i) depth.pixels[i] = uint16_t(b[2 * i] | b[2 * i + 1] << 8);
+  }
+  ApplyDepthScale(&depth, options.camera.depth_scale_mm);
+  return depth;
+}
+
+}  // namespace poseforest::runtime
