@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "runtime/camera_model.h"
+#include "runtime/core/forest_format.h"
 #include "runtime/image_io.h"
 #if POSEFOREST_HAS_RENDERER
 #include "engine/rendered_scene.h"
