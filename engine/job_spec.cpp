@@ -50,216 +50,257 @@ std::string Str(T v) {
   return s.str();
 }
 
+// The rendered scene: seed, view rotation, people, their distances and the pose shares.
+Status SceneFromProto(const v1::RenderedSource& r, const std::string& source, const std::string& field,
+                      SourceSpec& spec) {
+  spec.seed = r.has_seed() ? r.seed() : 1;
+  spec.rotation_range_deg = r.has_rotation_range_deg() ? r.rotation_range_deg() : 120.0;
+  if (!std::isfinite(spec.rotation_range_deg) || spec.rotation_range_deg < 0 || spec.rotation_range_deg > 180)
+    return Bad(source, field + ".rendered.rotation_range_deg", Str(spec.rotation_range_deg),
+               "must be in 0..180 degrees");
+  spec.max_people = r.has_max_people() ? int(r.max_people()) : 1;
+  if (spec.max_people < 1 || spec.max_people > 8)
+    return Bad(source, field + ".rendered.max_people", Str(r.max_people()), "must be in 1..8");
+  spec.kinect_noise = r.has_kinect_noise() ? r.kinect_noise() : true;
+  spec.min_distance_m = r.has_min_distance_m() ? r.min_distance_m() : 1.5;
+  spec.max_distance_m = r.has_max_distance_m() ? r.max_distance_m() : 4.5;
+  if (!std::isfinite(spec.min_distance_m) || spec.min_distance_m < 0.5 || spec.min_distance_m > 8)
+    return Bad(source, field + ".rendered.min_distance_m", Str(spec.min_distance_m), "must be in 0.5..8 m");
+  if (!std::isfinite(spec.max_distance_m) || spec.max_distance_m < spec.min_distance_m ||
+      spec.max_distance_m > 8)
+    return Bad(source, field + ".rendered.max_distance_m", Str(spec.max_distance_m),
+               "must be in min_distance_m..8 m");
+  const SourceSpec defaults;  // the documented defaults (job.proto)
+  auto share = [&](bool has, double v, double def, const char* name, double* out) -> Status {
+    *out = has ? v : def;
+    if (!std::isfinite(*out) || *out < 0 || *out > 1)
+      return Bad(source, field + ".rendered." + name, Str(*out), "must be in 0..1");
+    return Status::Ok();
+  };
+  if (auto st = share(r.has_upper_body_share(), r.upper_body_share(), defaults.upper_body_share,
+                      "upper_body_share", &spec.upper_body_share);
+      !st.ok())
+    return st;
+  if (auto st = share(r.has_arm_pose_share(), r.arm_pose_share(), defaults.arm_pose_share, "arm_pose_share",
+                      &spec.arm_pose_share);
+      !st.ok())
+    return st;
+  if (auto st = share(r.has_sitting_share(), r.sitting_share(), defaults.sitting_share, "sitting_share",
+                      &spec.sitting_share);
+      !st.ok())
+    return st;
+  if (auto st = share(r.has_leaning_share(), r.leaning_share(), defaults.leaning_share, "leaning_share",
+                      &spec.leaning_share);
+      !st.ok())
+    return st;
+  spec.upper_body_min_distance_m =
+      r.has_upper_body_min_distance_m() ? r.upper_body_min_distance_m() : defaults.upper_body_min_distance_m;
+  spec.upper_body_max_distance_m =
+      r.has_upper_body_max_distance_m() ? r.upper_body_max_distance_m() : defaults.upper_body_max_distance_m;
+  if (!std::isfinite(spec.upper_body_min_distance_m) || spec.upper_body_min_distance_m < 0.4 ||
+      spec.upper_body_min_distance_m > 8)
+    return Bad(source, field + ".rendered.upper_body_min_distance_m", Str(spec.upper_body_min_distance_m),
+               "must be in 0.4..8 m");
+  if (!std::isfinite(spec.upper_body_max_distance_m) ||
+      spec.upper_body_max_distance_m < spec.upper_body_min_distance_m || spec.upper_body_max_distance_m > 8)
+    return Bad(source, field + ".rendered.upper_body_max_distance_m", Str(spec.upper_body_max_distance_m),
+               "must be in upper_body_min_distance_m..8 m");
+  return Status::Ok();
+}
+
+// The depth camera: the projector's shadow, its range, the sensor's artefacts and image size.
+Status SensorFromProto(const v1::RenderedSource& r, const std::string& source, const std::string& field,
+                       SourceSpec& spec) {
+  const SourceSpec defaults;  // the documented defaults (job.proto)
+  spec.projector_shadow = r.has_projector_shadow() ? r.projector_shadow() : defaults.projector_shadow;
+  spec.min_range_m = r.has_min_range_m() ? r.min_range_m() : defaults.min_range_m;
+  if (!std::isfinite(spec.min_range_m) || spec.min_range_m < 0 || spec.min_range_m > 2)
+    return Bad(source, field + ".rendered.min_range_m", Str(spec.min_range_m), "must be in 0..2 m");
+  switch (r.sensor()) {  // the depth camera's artefacts (fields 25-28)
+    case v1::DEPTH_SENSOR_UNSPECIFIED:
+    case v1::DEPTH_SENSOR_KINECT_V1:
+      spec.sensor = DepthSensor::kKinectV1;
+      break;
+    case v1::DEPTH_SENSOR_KINECT_V2:
+      spec.sensor = DepthSensor::kKinectV2;
+      break;
+    case v1::DEPTH_SENSOR_AZURE_KINECT_NFOV:
+      spec.sensor = DepthSensor::kAzureKinectNfov;
+      break;
+    default:
+      return Bad(source, field + ".rendered.sensor", Str(int(r.sensor())), "unknown depth sensor");
+  }
+  // Kinect v2 and Azure Kinect NFOV unbinned both read from 0.5 m (renderer::SensorNoise).
+  if (spec.sensor != DepthSensor::kKinectV1 && !r.has_min_range_m()) spec.min_range_m = 0.5;
+  auto optional_share = [&](bool has, double v, const char* name, std::optional<double>* out) -> Status {
+    if (!has) return Status::Ok();  // the sensor's value
+    if (!std::isfinite(v) || v < 0 || v > 1)
+      return Bad(source, field + ".rendered." + name, Str(v), "must be in 0..1");
+    *out = v;
+    return Status::Ok();
+  };
+  if (auto st =
+          optional_share(r.has_flying_pixels(), r.flying_pixels(), "flying_pixels", &spec.flying_pixels);
+      !st.ok())
+    return st;
+  if (auto st = optional_share(r.has_range_holes(), r.range_holes(), "range_holes", &spec.range_holes);
+      !st.ok())
+    return st;
+  if (auto st =
+          optional_share(r.has_grazing_holes(), r.grazing_holes(), "grazing_holes", &spec.grazing_holes);
+      !st.ok())
+    return st;
+  spec.width = 640;
+  spec.height = 480;
+  spec.sensor_camera = r.sensor_camera();
+  if (spec.sensor_camera) {
+    const core::CameraIntrinsics cam = SensorCamera(spec.sensor);
+    spec.width = cam.width;
+    spec.height = cam.height;
+  }
+  return Status::Ok();
+}
+
+// The pose library and its clip split.
+Status PoseLibraryFromProto(const v1::RenderedSource& r, const std::string& source, const std::string& field,
+                            SourceSpec& spec) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  spec.pose_library = r.pose_library();
+  if (!spec.pose_library.empty() && !fs::is_regular_file(spec.pose_library, ec))
+    return Bad(source, field + ".rendered.pose_library", "\"" + spec.pose_library + "\"",
+               fs::exists(spec.pose_library, ec)
+                   ? "is not a file (expected a .pfposes pose library from `poseforest-poselib build`)"
+                   : "no such file (expected a .pfposes pose library from `poseforest-poselib build`)");
+  switch (r.clips()) {
+    case v1::CLIP_SET_UNSPECIFIED:
+    case v1::CLIP_SET_ALL:
+      spec.clips = ClipSet::kAll;
+      break;
+    case v1::CLIP_SET_TRAIN:
+      spec.clips = ClipSet::kTrain;
+      break;
+    case v1::CLIP_SET_TEST:
+      spec.clips = ClipSet::kTest;
+      break;
+    default:
+      return Bad(source, field + ".rendered.clips", Str(int(r.clips())), "unknown clip set");
+  }
+  spec.test_fraction = r.has_test_fraction() ? r.test_fraction() : 0.2;
+  if (!std::isfinite(spec.test_fraction) || spec.test_fraction < 0 || spec.test_fraction > 1)
+    return Bad(source, field + ".rendered.test_fraction", Str(spec.test_fraction), "must be in 0..1");
+  spec.split_seed = r.split_seed();
+  if (spec.pose_library.empty() && (r.has_clips() || r.has_test_fraction() || r.has_split_seed()))
+    return Bad(source, field + ".rendered.pose_library", "",
+               "is required when clips, test_fraction or split_seed is set");
+  return Status::Ok();
+}
+
+// The MakeHuman kit, the rigged body meshes and their bone map.
+Status BodyMeshesFromProto(const v1::RenderedSource& r, const std::string& source, const std::string& field,
+                           SourceSpec& spec) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  spec.makehuman_kit = r.makehuman_kit();
+  if (!spec.makehuman_kit.empty() && !fs::is_directory(spec.makehuman_kit, ec))
+    return Bad(source, field + ".rendered.makehuman_kit", "\"" + spec.makehuman_kit + "\"",
+               "no such folder (expected the MakeHuman hm08 kit, e.g. <data>/meshes/makehuman_hm08_kit)");
+  for (int i = 0; i < r.body_bone_map_size(); ++i) {
+    const auto& e = r.body_bone_map(i);
+    spec.body_bone_map.emplace_back(e.joint(), e.bone());
+  }
+  if (!spec.body_bone_map.empty()) {
+    if (r.body_meshes_size() == 0)
+      return Bad(source, field + ".rendered.body_bone_map", "",
+                 "is only for body_meshes, and there are none");
+    if (const Status st = CheckBoneMap(spec.body_bone_map); !st.ok())
+      return Bad(source, field + ".rendered.body_bone_map", "", st.message());
+  }
+  for (int i = 0; i < r.body_meshes_size(); ++i) {
+    const std::string& mesh = r.body_meshes(i);
+    const std::string name = field + ".rendered.body_meshes[" + Str(i) + "]";
+    if (mesh.empty()) return Bad(source, name, "\"\"", "is empty (expected a rigged mesh file)");
+    if (!fs::is_regular_file(mesh, ec))
+      return Bad(source, name, "\"" + mesh + "\"",
+                 fs::exists(mesh, ec) ? "is not a file (expected a rigged mesh: glTF, FBX, ...)"
+                                      : "no such file (expected a rigged mesh: glTF, FBX, ...)");
+    // Loaded now (and kept for the renderers), so a mesh that cannot be a body fails the job
+    // when it is read, not in every worker's first frame. The loader's message names the file.
+    const Status loaded = PreloadBodyMesh(mesh, spec.body_bone_map);
+    if (!loaded.ok()) return Bad(source, name, "\"" + mesh + "\"", "cannot be a body: " + loaded.message());
+    spec.body_meshes.push_back(mesh);
+  }
+  return Status::Ok();
+}
+
+// More MakeHuman bodies (fields 21-24): each needs the kit.
+Status MakeHumanBodiesFromProto(const v1::RenderedSource& r, const std::string& source,
+                                const std::string& field, SourceSpec& spec) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const SourceSpec defaults;
+  spec.makehuman_sampled_bodies = r.has_makehuman_sampled_bodies()
+                                      ? int(std::min<uint32_t>(r.makehuman_sampled_bodies(), 1u << 30))
+                                      : defaults.makehuman_sampled_bodies;
+  spec.makehuman_body_seed =
+      r.has_makehuman_body_seed() ? r.makehuman_body_seed() : defaults.makehuman_body_seed;
+  spec.makehuman_clothed_share =
+      r.has_makehuman_clothed_share() ? r.makehuman_clothed_share() : defaults.makehuman_clothed_share;
+  if (spec.makehuman_sampled_bodies > 2000)
+    return Bad(source, field + ".rendered.makehuman_sampled_bodies", Str(r.makehuman_sampled_bodies()),
+               "must be in 0..2000");
+  if (!std::isfinite(spec.makehuman_clothed_share) || spec.makehuman_clothed_share < 0 ||
+      spec.makehuman_clothed_share > 1)
+    return Bad(source, field + ".rendered.makehuman_clothed_share", Str(spec.makehuman_clothed_share),
+               "must be in 0..1");
+  const char* needs_kit = nullptr;
+  if (spec.makehuman_sampled_bodies > 0) needs_kit = "makehuman_sampled_bodies";
+  if (spec.makehuman_clothed_share > 0) needs_kit = "makehuman_clothed_share";
+  if (!r.makehuman_clothes().empty()) needs_kit = "makehuman_clothes";
+  if (needs_kit && spec.makehuman_kit.empty())
+    return Bad(source, field + ".rendered." + needs_kit, "",
+               "needs MakeHuman bodies: set makehuman_kit (the hm08 kit folder, e.g. "
+               "<data>/meshes/makehuman_hm08_kit)");
+  if (!r.makehuman_clothes().empty() && spec.makehuman_clothed_share == 0)
+    return Bad(source, field + ".rendered.makehuman_clothes", "\"" + r.makehuman_clothes() + "\"",
+               "is unused: set makehuman_clothed_share (the share of bodies dressed) too");
+  if (spec.makehuman_clothed_share > 0) {
+    fs::path kit = fs::path(spec.makehuman_kit).lexically_normal();
+    if (!kit.has_filename()) kit = kit.parent_path();  // ".../makehuman_hm08_kit/"
+    spec.makehuman_clothes = r.makehuman_clothes().empty()
+                                 ? (kit.parent_path() / "makehuman_clothes").string()
+                                 : r.makehuman_clothes();
+    if (!fs::is_directory(spec.makehuman_clothes, ec))
+      return Bad(
+          source, field + ".rendered.makehuman_clothes", "\"" + spec.makehuman_clothes + "\"",
+          std::string(r.makehuman_clothes().empty() ? "(the default, beside makehuman_kit): " : "") +
+              "no such folder (expected MakeHuman .mhclo clothes, e.g. <data>/meshes/makehuman_clothes)");
+  }
+  return Status::Ok();
+}
+
+// A rendered source, its fields checked in the order of job.proto.
+Status RenderedFromProto(const v1::RenderedSource& r, const std::string& source, const std::string& field,
+                         SourceSpec& spec) {
+  spec.kind = SourceKind::kRendered;
+  if (Status st = SceneFromProto(r, source, field, spec); !st.ok()) return st;
+  if (Status st = SensorFromProto(r, source, field, spec); !st.ok()) return st;
+  if (Status st = PoseLibraryFromProto(r, source, field, spec); !st.ok()) return st;
+  if (Status st = BodyMeshesFromProto(r, source, field, spec); !st.ok()) return st;
+  if (Status st = MakeHumanBodiesFromProto(r, source, field, spec); !st.ok()) return st;
+  spec.procedural_bodies = r.has_procedural_bodies() ? r.procedural_bodies() : true;
+  if (!spec.procedural_bodies && spec.makehuman_kit.empty() && spec.body_meshes.empty())
+    return Bad(source, field + ".rendered.procedural_bodies", "false",
+               "leaves no bodies: set makehuman_kit or body_meshes, or keep the procedural bodies");
+  return Status::Ok();
+}
+
 Result<SourceSpec> SourceFromProto(const v1::ImageSource& src, const std::string& source,
                                    const std::string& field) {
   SourceSpec spec;
   switch (src.kind_case()) {
     case v1::ImageSource::kRendered: {
-      const auto& r = src.rendered();
-      spec.kind = SourceKind::kRendered;
-      spec.seed = r.has_seed() ? r.seed() : 1;
-      spec.rotation_range_deg = r.has_rotation_range_deg() ? r.rotation_range_deg() : 120.0;
-      if (!std::isfinite(spec.rotation_range_deg) || spec.rotation_range_deg < 0 ||
-          spec.rotation_range_deg > 180)
-        return Bad(source, field + ".rendered.rotation_range_deg", Str(spec.rotation_range_deg),
-                   "must be in 0..180 degrees");
-      spec.max_people = r.has_max_people() ? int(r.max_people()) : 1;
-      if (spec.max_people < 1 || spec.max_people > 8)
-        return Bad(source, field + ".rendered.max_people", Str(r.max_people()), "must be in 1..8");
-      spec.kinect_noise = r.has_kinect_noise() ? r.kinect_noise() : true;
-      spec.min_distance_m = r.has_min_distance_m() ? r.min_distance_m() : 1.5;
-      spec.max_distance_m = r.has_max_distance_m() ? r.max_distance_m() : 4.5;
-      if (!std::isfinite(spec.min_distance_m) || spec.min_distance_m < 0.5 || spec.min_distance_m > 8)
-        return Bad(source, field + ".rendered.min_distance_m", Str(spec.min_distance_m),
-                   "must be in 0.5..8 m");
-      if (!std::isfinite(spec.max_distance_m) || spec.max_distance_m < spec.min_distance_m ||
-          spec.max_distance_m > 8)
-        return Bad(source, field + ".rendered.max_distance_m", Str(spec.max_distance_m),
-                   "must be in min_distance_m..8 m");
-      {
-        const SourceSpec defaults;  // the documented defaults (job.proto)
-        auto share = [&](bool has, double v, double def, const char* name, double* out) -> Status {
-          *out = has ? v : def;
-          if (!std::isfinite(*out) || *out < 0 || *out > 1)
-            return Bad(source, field + ".rendered." + name, Str(*out), "must be in 0..1");
-          return Status::Ok();
-        };
-        if (auto st = share(r.has_upper_body_share(), r.upper_body_share(), defaults.upper_body_share,
-                            "upper_body_share", &spec.upper_body_share);
-            !st.ok())
-          return st;
-        if (auto st = share(r.has_arm_pose_share(), r.arm_pose_share(), defaults.arm_pose_share,
-                            "arm_pose_share", &spec.arm_pose_share);
-            !st.ok())
-          return st;
-        if (auto st = share(r.has_sitting_share(), r.sitting_share(), defaults.sitting_share, "sitting_share",
-                            &spec.sitting_share);
-            !st.ok())
-          return st;
-        if (auto st = share(r.has_leaning_share(), r.leaning_share(), defaults.leaning_share, "leaning_share",
-                            &spec.leaning_share);
-            !st.ok())
-          return st;
-        spec.upper_body_min_distance_m =
-            r.has_upper_body_min_distance_m() ? r.upper_body_min_distance_m() : defaults.upper_body_min_distance_m;
-        spec.upper_body_max_distance_m =
-            r.has_upper_body_max_distance_m() ? r.upper_body_max_distance_m() : defaults.upper_body_max_distance_m;
-        if (!std::isfinite(spec.upper_body_min_distance_m) || spec.upper_body_min_distance_m < 0.4 ||
-            spec.upper_body_min_distance_m > 8)
-          return Bad(source, field + ".rendered.upper_body_min_distance_m", Str(spec.upper_body_min_distance_m),
-                     "must be in 0.4..8 m");
-        if (!std::isfinite(spec.upper_body_max_distance_m) ||
-            spec.upper_body_max_distance_m < spec.upper_body_min_distance_m || spec.upper_body_max_distance_m > 8)
-          return Bad(source, field + ".rendered.upper_body_max_distance_m", Str(spec.upper_body_max_distance_m),
-                     "must be in upper_body_min_distance_m..8 m");
-        spec.projector_shadow = r.has_projector_shadow() ? r.projector_shadow() : defaults.projector_shadow;
-        spec.min_range_m = r.has_min_range_m() ? r.min_range_m() : defaults.min_range_m;
-        if (!std::isfinite(spec.min_range_m) || spec.min_range_m < 0 || spec.min_range_m > 2)
-          return Bad(source, field + ".rendered.min_range_m", Str(spec.min_range_m), "must be in 0..2 m");
-        switch (r.sensor()) {  // the depth camera's artefacts (fields 25-28)
-          case v1::DEPTH_SENSOR_UNSPECIFIED:
-          case v1::DEPTH_SENSOR_KINECT_V1:
-            spec.sensor = DepthSensor::kKinectV1;
-            break;
-          case v1::DEPTH_SENSOR_KINECT_V2:
-            spec.sensor = DepthSensor::kKinectV2;
-            break;
-          case v1::DEPTH_SENSOR_AZURE_KINECT_NFOV:
-            spec.sensor = DepthSensor::kAzureKinectNfov;
-            break;
-          default:
-            return Bad(source, field + ".rendered.sensor", Str(int(r.sensor())), "unknown depth sensor");
-        }
-        // Kinect v2 and Azure Kinect NFOV unbinned both read from 0.5 m (renderer::SensorNoise).
-        if (spec.sensor != DepthSensor::kKinectV1 && !r.has_min_range_m()) spec.min_range_m = 0.5;
-        auto optional_share = [&](bool has, double v, const char* name,
-                                  std::optional<double>* out) -> Status {
-          if (!has) return Status::Ok();  // the sensor's value
-          if (!std::isfinite(v) || v < 0 || v > 1)
-            return Bad(source, field + ".rendered." + name, Str(v), "must be in 0..1");
-          *out = v;
-          return Status::Ok();
-        };
-        if (auto st = optional_share(r.has_flying_pixels(), r.flying_pixels(), "flying_pixels",
-                                     &spec.flying_pixels);
-            !st.ok())
-          return st;
-        if (auto st =
-                optional_share(r.has_range_holes(), r.range_holes(), "range_holes", &spec.range_holes);
-            !st.ok())
-          return st;
-        if (auto st = optional_share(r.has_grazing_holes(), r.grazing_holes(), "grazing_holes",
-                                     &spec.grazing_holes);
-            !st.ok())
-          return st;
-      }
-      spec.width = 640;
-      spec.height = 480;
-      spec.sensor_camera = r.sensor_camera();
-      if (spec.sensor_camera) {
-        const core::CameraIntrinsics cam = SensorCamera(spec.sensor);
-        spec.width = cam.width;
-        spec.height = cam.height;
-      }
-      namespace fs = std::filesystem;
-      std::error_code ec;
-      spec.pose_library = r.pose_library();
-      if (!spec.pose_library.empty() && !fs::is_regular_file(spec.pose_library, ec))
-        return Bad(source, field + ".rendered.pose_library", "\"" + spec.pose_library + "\"",
-                   fs::exists(spec.pose_library, ec)
-                       ? "is not a file (expected a .pfposes pose library from `poseforest-poselib build`)"
-                       : "no such file (expected a .pfposes pose library from `poseforest-poselib build`)");
-      switch (r.clips()) {
-        case v1::CLIP_SET_UNSPECIFIED:
-        case v1::CLIP_SET_ALL:
-          spec.clips = ClipSet::kAll;
-          break;
-        case v1::CLIP_SET_TRAIN:
-          spec.clips = ClipSet::kTrain;
-          break;
-        case v1::CLIP_SET_TEST:
-          spec.clips = ClipSet::kTest;
-          break;
-        default:
-          return Bad(source, field + ".rendered.clips", Str(int(r.clips())), "unknown clip set");
-      }
-      spec.test_fraction = r.has_test_fraction() ? r.test_fraction() : 0.2;
-      if (!std::isfinite(spec.test_fraction) || spec.test_fraction < 0 || spec.test_fraction > 1)
-        return Bad(source, field + ".rendered.test_fraction", Str(spec.test_fraction), "must be in 0..1");
-      spec.split_seed = r.split_seed();
-      if (spec.pose_library.empty() && (r.has_clips() || r.has_test_fraction() || r.has_split_seed()))
-        return Bad(source, field + ".rendered.pose_library", "",
-                   "is required when clips, test_fraction or split_seed is set");
-      spec.makehuman_kit = r.makehuman_kit();
-      if (!spec.makehuman_kit.empty() && !fs::is_directory(spec.makehuman_kit, ec))
-        return Bad(source, field + ".rendered.makehuman_kit", "\"" + spec.makehuman_kit + "\"",
-                   "no such folder (expected the MakeHuman hm08 kit, e.g. <data>/meshes/makehuman_hm08_kit)");
-      for (int i = 0; i < r.body_bone_map_size(); ++i) {
-        const auto& e = r.body_bone_map(i);
-        spec.body_bone_map.emplace_back(e.joint(), e.bone());
-      }
-      if (!spec.body_bone_map.empty()) {
-        if (r.body_meshes_size() == 0)
-          return Bad(source, field + ".rendered.body_bone_map", "", "is only for body_meshes, and there are none");
-        if (const Status st = CheckBoneMap(spec.body_bone_map); !st.ok())
-          return Bad(source, field + ".rendered.body_bone_map", "", st.message());
-      }
-      for (int i = 0; i < r.body_meshes_size(); ++i) {
-        const std::string& mesh = r.body_meshes(i);
-        const std::string name = field + ".rendered.body_meshes[" + Str(i) + "]";
-        if (mesh.empty()) return Bad(source, name, "\"\"", "is empty (expected a rigged mesh file)");
-        if (!fs::is_regular_file(mesh, ec))
-          return Bad(source, name, "\"" + mesh + "\"",
-                     fs::exists(mesh, ec) ? "is not a file (expected a rigged mesh: glTF, FBX, ...)"
-                                          : "no such file (expected a rigged mesh: glTF, FBX, ...)");
-        // Loaded now (and kept for the renderers), so a mesh that cannot be a body fails the job
-        // when it is read, not in every worker's first frame. The loader's message names the file.
-        const Status loaded = PreloadBodyMesh(mesh, spec.body_bone_map);
-        if (!loaded.ok())
-          return Bad(source, name, "\"" + mesh + "\"", "cannot be a body: " + loaded.message());
-        spec.body_meshes.push_back(mesh);
-      }
-      {  // More MakeHuman bodies (fields 21-24): each needs the kit.
-        const SourceSpec defaults;
-        spec.makehuman_sampled_bodies =
-            r.has_makehuman_sampled_bodies() ? int(std::min<uint32_t>(r.makehuman_sampled_bodies(), 1u << 30))
-                                             : defaults.makehuman_sampled_bodies;
-        spec.makehuman_body_seed = r.has_makehuman_body_seed() ? r.makehuman_body_seed() : defaults.makehuman_body_seed;
-        spec.makehuman_clothed_share =
-            r.has_makehuman_clothed_share() ? r.makehuman_clothed_share() : defaults.makehuman_clothed_share;
-        if (spec.makehuman_sampled_bodies > 2000)
-          return Bad(source, field + ".rendered.makehuman_sampled_bodies", Str(r.makehuman_sampled_bodies()),
-                     "must be in 0..2000");
-        if (!std::isfinite(spec.makehuman_clothed_share) || spec.makehuman_clothed_share < 0 ||
-            spec.makehuman_clothed_share > 1)
-          return Bad(source, field + ".rendered.makehuman_clothed_share", Str(spec.makehuman_clothed_share),
-                     "must be in 0..1");
-        const char* needs_kit = nullptr;
-        if (spec.makehuman_sampled_bodies > 0) needs_kit = "makehuman_sampled_bodies";
-        if (spec.makehuman_clothed_share > 0) needs_kit = "makehuman_clothed_share";
-        if (!r.makehuman_clothes().empty()) needs_kit = "makehuman_clothes";
-        if (needs_kit && spec.makehuman_kit.empty())
-          return Bad(source, field + ".rendered." + needs_kit, "",
-                     "needs MakeHuman bodies: set makehuman_kit (the hm08 kit folder, e.g. "
-                     "<data>/meshes/makehuman_hm08_kit)");
-        if (!r.makehuman_clothes().empty() && spec.makehuman_clothed_share == 0)
-          return Bad(source, field + ".rendered.makehuman_clothes", "\"" + r.makehuman_clothes() + "\"",
-                     "is unused: set makehuman_clothed_share (the share of bodies dressed) too");
-        if (spec.makehuman_clothed_share > 0) {
-          fs::path kit = fs::path(spec.makehuman_kit).lexically_normal();
-          if (!kit.has_filename()) kit = kit.parent_path();  // ".../makehuman_hm08_kit/"
-          spec.makehuman_clothes = r.makehuman_clothes().empty() ? (kit.parent_path() / "makehuman_clothes").string()
-                                                                 : r.makehuman_clothes();
-          if (!fs::is_directory(spec.makehuman_clothes, ec))
-            return Bad(source, field + ".rendered.makehuman_clothes", "\"" + spec.makehuman_clothes + "\"",
-                       std::string(r.makehuman_clothes().empty() ? "(the default, beside makehuman_kit): " : "") +
-                           "no such folder (expected MakeHuman .mhclo clothes, e.g. <data>/meshes/makehuman_clothes)");
-        }
-      }
-      spec.procedural_bodies = r.has_procedural_bodies() ? r.procedural_bodies() : true;
-      if (!spec.procedural_bodies && spec.makehuman_kit.empty() && spec.body_meshes.empty())
-        return Bad(source, field + ".rendered.procedural_bodies", "false",
-                   "leaves no bodies: set makehuman_kit or body_meshes, or keep the procedural bodies");
+      if (Status st = RenderedFromProto(src.rendered(), source, field, spec); !st.ok()) return st;
       break;
     }
     case v1::ImageSource::kDataset: {

@@ -194,20 +194,10 @@ EglRenderer::~EglRenderer() {
   // same EGLDisplay to each), and terminating it would pull the rug from the others.
 }
 
-core::Result<std::unique_ptr<EglRenderer>> EglRenderer::Create(const core::CameraIntrinsics& camera,
-                                                               double near_m, double far_m) {
-  if (camera.width <= 0 || camera.height <= 0 || camera.width > 8192 || camera.height > 8192) {
-    return Status(
-        ErrorCode::kInvalidArgument,
-        "EGL renderer: bad image size " + std::to_string(camera.width) + "x" + std::to_string(camera.height));
-  }
-  if (!(near_m > 0 && far_m > near_m)) {
-    return Status(ErrorCode::kInvalidArgument, "EGL renderer: need 0 < near < far");
-  }
-  auto impl = std::make_unique<Impl>();
-  std::string tried;
+namespace {
 
-  // 1. Candidate displays, most headless-friendly first.
+// Candidate displays, most headless-friendly first; what is missing is noted in `tried`.
+std::vector<std::pair<std::string, EGLDisplay>> CandidateDisplays(std::string& tried) {
   const char* client_ext = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
   auto get_platform_display =
       reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(eglGetProcAddress("eglGetPlatformDisplayEXT"));
@@ -232,61 +222,115 @@ core::Result<std::unique_ptr<EglRenderer>> EglRenderer::Create(const core::Camer
     }
   }
   candidates.emplace_back("default", eglGetDisplay(EGL_DEFAULT_DISPLAY));
+  return candidates;
+}
 
+// A display's OpenGL ES 3 context, current on this thread (and its 1x1 pbuffer when surfaceless
+// contexts are missing).
+struct EglContext {
+  EGLContext context = EGL_NO_CONTEXT;
+  EGLSurface surface = EGL_NO_SURFACE;
+};
+
+// The context of `display`, or none with the reason appended to `tried`.
+EglContext OpenContext(EGLDisplay display, std::string& tried) {
   // EGL_SURFACE_TYPE defaults to EGL_WINDOW_BIT, which surfaceless configs lack.
   const EGLint config_attribs[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_ES3_BIT, EGL_SURFACE_TYPE, EGL_DONT_CARE,
                                    EGL_NONE};
   const EGLint pbuffer_config_attribs[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_ES3_BIT, EGL_SURFACE_TYPE,
                                            EGL_PBUFFER_BIT, EGL_NONE};
   const EGLint context_attribs[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 0, EGL_NONE};
-  for (auto& [name, display] : candidates) {
-    tried += " " + name + ":";
-    if (display == EGL_NO_DISPLAY) {
-      tried += "no-display";
-      continue;
-    }
-    EGLint major = 0, minor = 0;
-    if (!eglInitialize(display, &major, &minor)) {
-      tried += "eglInitialize=" + EglErrorString(eglGetError());
-      continue;
-    }
-    if (!eglBindAPI(EGL_OPENGL_ES_API)) {
-      tried += "eglBindAPI=" + EglErrorString(eglGetError());
-      continue;
-    }
-    const bool surfaceless =
-        HasExtension(eglQueryString(display, EGL_EXTENSIONS), "EGL_KHR_surfaceless_context");
-    EGLConfig config = nullptr;
-    EGLint n = 0;
-    if (!eglChooseConfig(display, surfaceless ? config_attribs : pbuffer_config_attribs, &config, 1, &n) ||
-        n < 1) {
-      tried += "no GLES3 config";
-      continue;
-    }
-    EGLContext ctx = eglCreateContext(display, config, EGL_NO_CONTEXT, context_attribs);
-    if (ctx == EGL_NO_CONTEXT) {
-      tried += "eglCreateContext=" + EglErrorString(eglGetError());
-      continue;
-    }
-    EGLSurface surface = EGL_NO_SURFACE;
-    if (!surfaceless) {
-      const EGLint pb[] = {EGL_WIDTH, 1, EGL_HEIGHT, 1, EGL_NONE};
-      surface = eglCreatePbufferSurface(display, config, pb);
-      if (surface == EGL_NO_SURFACE) {
-        tried += "eglCreatePbufferSurface=" + EglErrorString(eglGetError());
-        eglDestroyContext(display, ctx);
-        continue;
-      }
-    }
-    if (!eglMakeCurrent(display, surface, surface, ctx)) {
-      tried += "eglMakeCurrent=" + EglErrorString(eglGetError());
-      if (surface != EGL_NO_SURFACE) eglDestroySurface(display, surface);
+  if (display == EGL_NO_DISPLAY) {
+    tried += "no-display";
+    return {};
+  }
+  EGLint major = 0, minor = 0;
+  if (!eglInitialize(display, &major, &minor)) {
+    tried += "eglInitialize=" + EglErrorString(eglGetError());
+    return {};
+  }
+  if (!eglBindAPI(EGL_OPENGL_ES_API)) {
+    tried += "eglBindAPI=" + EglErrorString(eglGetError());
+    return {};
+  }
+  const bool surfaceless =
+      HasExtension(eglQueryString(display, EGL_EXTENSIONS), "EGL_KHR_surfaceless_context");
+  EGLConfig config = nullptr;
+  EGLint n = 0;
+  if (!eglChooseConfig(display, surfaceless ? config_attribs : pbuffer_config_attribs, &config, 1, &n) ||
+      n < 1) {
+    tried += "no GLES3 config";
+    return {};
+  }
+  EGLContext ctx = eglCreateContext(display, config, EGL_NO_CONTEXT, context_attribs);
+  if (ctx == EGL_NO_CONTEXT) {
+    tried += "eglCreateContext=" + EglErrorString(eglGetError());
+    return {};
+  }
+  EGLSurface surface = EGL_NO_SURFACE;
+  if (!surfaceless) {
+    const EGLint pb[] = {EGL_WIDTH, 1, EGL_HEIGHT, 1, EGL_NONE};
+    surface = eglCreatePbufferSurface(display, config, pb);
+    if (surface == EGL_NO_SURFACE) {
+      tried += "eglCreatePbufferSurface=" + EglErrorString(eglGetError());
       eglDestroyContext(display, ctx);
-      continue;
+      return {};
     }
+  }
+  if (!eglMakeCurrent(display, surface, surface, ctx)) {
+    tried += "eglMakeCurrent=" + EglErrorString(eglGetError());
+    if (surface != EGL_NO_SURFACE) eglDestroySurface(display, surface);
+    eglDestroyContext(display, ctx);
+    return {};
+  }
+  return {ctx, surface};
+}
+
+// The shader program, compiled and linked into `*program` (set before linking, so the caller
+// deletes it whatever the outcome).
+Status LinkProgram(GLuint* program) {
+  GLuint vs = 0, fs = 0;
+  POSEFOREST_RETURN_IF_ERROR(CompileShader(GL_VERTEX_SHADER, kVertexShader, &vs));
+  POSEFOREST_RETURN_IF_ERROR(CompileShader(GL_FRAGMENT_SHADER, kFragmentShader, &fs));
+  *program = glCreateProgram();
+  glAttachShader(*program, vs);
+  glAttachShader(*program, fs);
+  glLinkProgram(*program);
+  glDeleteShader(vs);
+  glDeleteShader(fs);
+  GLint linked = 0;
+  glGetProgramiv(*program, GL_LINK_STATUS, &linked);
+  if (!linked) {
+    char log[2048] = {};
+    glGetProgramInfoLog(*program, sizeof log, nullptr, log);
+    return Status(ErrorCode::kInternal, std::string("EGL renderer: program link failed: ") + log);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+core::Result<std::unique_ptr<EglRenderer>> EglRenderer::Create(const core::CameraIntrinsics& camera,
+                                                               double near_m, double far_m) {
+  if (camera.width <= 0 || camera.height <= 0 || camera.width > 8192 || camera.height > 8192) {
+    return Status(
+        ErrorCode::kInvalidArgument,
+        "EGL renderer: bad image size " + std::to_string(camera.width) + "x" + std::to_string(camera.height));
+  }
+  if (!(near_m > 0 && far_m > near_m)) {
+    return Status(ErrorCode::kInvalidArgument, "EGL renderer: need 0 < near < far");
+  }
+  auto impl = std::make_unique<Impl>();
+  std::string tried;
+
+  // 1. Candidate displays, most headless-friendly first.
+  for (auto& [name, display] : CandidateDisplays(tried)) {
+    tried += " " + name + ":";
+    const EglContext c = OpenContext(display, tried);
+    if (c.context == EGL_NO_CONTEXT) continue;
     impl->display = display;
-    impl->context = ctx;
-    impl->surface = surface;
+    impl->context = c.context;
+    impl->surface = c.surface;
     impl->platform = name;
     break;
   }
@@ -302,22 +346,7 @@ core::Result<std::unique_ptr<EglRenderer>> EglRenderer::Create(const core::Camer
   r->gl_version_ =
       std::string(reinterpret_cast<const char*>(glGetString(GL_VERSION))) + " [" + im.platform + "]";
 
-  GLuint vs = 0, fs = 0;
-  POSEFOREST_RETURN_IF_ERROR(CompileShader(GL_VERTEX_SHADER, kVertexShader, &vs));
-  POSEFOREST_RETURN_IF_ERROR(CompileShader(GL_FRAGMENT_SHADER, kFragmentShader, &fs));
-  im.program = glCreateProgram();
-  glAttachShader(im.program, vs);
-  glAttachShader(im.program, fs);
-  glLinkProgram(im.program);
-  glDeleteShader(vs);
-  glDeleteShader(fs);
-  GLint linked = 0;
-  glGetProgramiv(im.program, GL_LINK_STATUS, &linked);
-  if (!linked) {
-    char log[2048] = {};
-    glGetProgramInfoLog(im.program, sizeof log, nullptr, log);
-    return Status(ErrorCode::kInternal, std::string("EGL renderer: program link failed: ") + log);
-  }
+  POSEFOREST_RETURN_IF_ERROR(LinkProgram(&im.program));
   im.u_joint = glGetUniformLocation(im.program, "u_joint");
   im.u_proj = glGetUniformLocation(im.program, "u_proj");
   im.u_part_map = glGetUniformLocation(im.program, "u_part_map");

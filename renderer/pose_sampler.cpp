@@ -26,18 +26,10 @@ Quaterniond SwingTwist(const Vector3d& rest_dir, const Vector3d& dir, double twi
   return Quaterniond(AngleAxisd(twist_deg * kDeg, dir.normalized())) * swing;
 }
 
-}  // namespace
-
-Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig& cfg) {
-  core::RngStream rng(core::CounterRng(seed, 0x9053, index, 0x5A3B1E));
+// The pose family (0 standing, 1 walking, 2 crouching, 3 kicking, 4 legs apart, 5 free), drawn
+// with the config's weights.
+int ChooseFamily(core::RngStream& rng, const PoseSamplerConfig& cfg) {
   auto U = [&](double lo, double hi) { return rng.UniformIn(lo, hi); };
-
-  // Local rotations (in the parent's frame; the rest frames are all aligned with the body).
-  std::array<Quaterniond, kNumSkelJoints> local;
-  local.fill(Quaterniond::Identity());
-  auto L = [&](J j) -> Quaterniond& { return local[size_t(int(j))]; };
-
-  // Choose the family.
   const double total =
       cfg.p_standing + cfg.p_walking + cfg.p_crouching + cfg.p_kicking + cfg.p_wide + cfg.p_free;
   double r = U(0.0, total);
@@ -48,13 +40,26 @@ Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig
     ++family;
   }
   family = std::min(family, 5);
-  const bool free = family == 5;
+  return family;
+}
 
-  // Trunk: pelvis lean, spine and chest bend/side-bend/twist, neck and head.
-  double hip_flex[2] = {U(-10, 20), U(-10, 20)};  // + = thigh forward
-  double hip_abd[2] = {U(-5, 12), U(-5, 12)};     // + = outward
-  double knee[2] = {U(0, 20), U(0, 20)};
-  double lean = U(-8, 12);  // + = pelvis leans forward
+// Hip, knee and pelvis-lean angles, degrees, per side (0 = left).
+struct LegAngles {
+  double hip_flex[2];  ///< + = thigh forward
+  double hip_abd[2];   ///< + = outward
+  double knee[2];
+  double lean;  ///< + = pelvis leans forward
+};
+
+// The leg angles of a pose of `family`: a standing spread, then the family's own.
+LegAngles SampleLegAngles(core::RngStream& rng, int family) {
+  auto U = [&](double lo, double hi) { return rng.UniformIn(lo, hi); };
+  // Braced initialisers are evaluated in order: the draws keep their order.
+  LegAngles g{{U(-10, 20), U(-10, 20)}, {U(-5, 12), U(-5, 12)}, {U(0, 20), U(0, 20)}, U(-8, 12)};
+  double* hip_flex = g.hip_flex;
+  double* hip_abd = g.hip_abd;
+  double* knee = g.knee;
+  double& lean = g.lean;
   switch (family) {
     case 1: {  // walking / running
       const int front = int(rng.UniformInt(2));
@@ -100,12 +105,18 @@ Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig
     default:
       break;
   }
-  L(J::kPelvis) = Ry(U(-15, 15)) * Rx(lean) * Rz(U(-6, 6));
-  L(J::kSpine) = Ry(U(-20, 20)) * Rx(U(-10, free ? 35 : 20)) * Rz(U(-12, 12));
-  L(J::kChest) = Ry(U(-15, 15)) * Rx(U(-10, 15)) * Rz(U(-8, 8));
-  L(J::kNeck) = Ry(U(-20, 20)) * Rx(U(-15, 25)) * Rz(U(-10, 10));
-  L(J::kHead) = Ry(U(-45, 45)) * Rx(U(-25, 30)) * Rz(U(-15, 15));
+  return g;
+}
 
+using LocalRotations = std::array<Quaterniond, kNumSkelJoints>;
+
+void SetLegRotations(core::RngStream& rng, const LegAngles& g, LocalRotations& local) {
+  auto U = [&](double lo, double hi) { return rng.UniformIn(lo, hi); };
+  auto L = [&](J j) -> Quaterniond& { return local[size_t(int(j))]; };
+  const double* hip_flex = g.hip_flex;
+  const double* hip_abd = g.hip_abd;
+  const double* knee = g.knee;
+  const double lean = g.lean;
   // Legs. Thigh rest direction is -Y; hip flexion is measured from the vertical, so the pelvis
   // lean (which turns the legs back with it) is added back. Flexion turns it towards +Z (rotation about X by
   // -angle), abduction towards the side; knee flexion turns the shin back (+angle about X).
@@ -118,7 +129,11 @@ Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig
     L(kn) = Rx(knee[s]);
     L(an) = Rx(U(-25, 25)) * Rz(U(-10, 10));
   }
+}
 
+void SetArmRotations(core::RngStream& rng, const PoseSamplerConfig& cfg, LocalRotations& local) {
+  auto U = [&](double lo, double hi) { return rng.UniformIn(lo, hi); };
+  auto L = [&](J j) -> Quaterniond& { return local[size_t(int(j))]; };
   // Arms. Upper arm rest direction is +-X (T-pose). Sample a direction: elevation e (up +) and
   // azimuth a (forward +), then a twist; the elbow only flexes (forearm turns forward/up).
   for (int s = 0; s < 2; ++s) {
@@ -140,6 +155,34 @@ Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig
     L(el) = SwingTwist(rest_dir, Vector3d(sx * std::cos(flex * kDeg), 0, std::sin(flex * kDeg)), U(-30, 30));
     L(wr) = Ry(sx * U(-30, 30)) * Rz(U(-40, 40));
   }
+}
+
+}  // namespace
+
+Pose SampleProceduralPose(uint64_t seed, uint64_t index, const PoseSamplerConfig& cfg) {
+  core::RngStream rng(core::CounterRng(seed, 0x9053, index, 0x5A3B1E));
+  auto U = [&](double lo, double hi) { return rng.UniformIn(lo, hi); };
+
+  // Local rotations (in the parent's frame; the rest frames are all aligned with the body).
+  LocalRotations local;
+  local.fill(Quaterniond::Identity());
+  auto L = [&](J j) -> Quaterniond& { return local[size_t(int(j))]; };
+
+  // Choose the family.
+  const int family = ChooseFamily(rng, cfg);
+  const bool free = family == 5;
+
+  // Trunk: pelvis lean, spine and chest bend/side-bend/twist, neck and head.
+  const LegAngles legs = SampleLegAngles(rng, family);
+  const double lean = legs.lean;
+  L(J::kPelvis) = Ry(U(-15, 15)) * Rx(lean) * Rz(U(-6, 6));
+  L(J::kSpine) = Ry(U(-20, 20)) * Rx(U(-10, free ? 35 : 20)) * Rz(U(-12, 12));
+  L(J::kChest) = Ry(U(-15, 15)) * Rx(U(-10, 15)) * Rz(U(-8, 8));
+  L(J::kNeck) = Ry(U(-20, 20)) * Rx(U(-15, 25)) * Rz(U(-10, 10));
+  L(J::kHead) = Ry(U(-45, 45)) * Rx(U(-25, 30)) * Rz(U(-15, 15));
+
+  SetLegRotations(rng, legs, local);
+  SetArmRotations(rng, cfg, local);
 
   Pose pose;
   for (int j = 0; j < kNumSkelJoints; ++j) {

@@ -261,12 +261,285 @@ SkelPositions ProceduralSkeleton(const BodyShape& shape) {
   return p;
 }
 
+namespace {
+
+// The shape's skeleton and the scales every part of the body is built from.
+struct BodyScales {
+  const BodyShape& shape;
+  SkelPositions sk;
+  double h, k, g, gs, c, f, blend, cloth_trunk, cloth_limb;
+  Vector3d P(J j) const { return sk[size_t(Idx(j))]; }
+};
+
+// Torso: a superelliptic loft from the crotch to the shoulders.
+void AddTorso(const BodyScales& b, const BodyResolution& res, BodyMesh* mesh) {
+  const BodyShape& shape = b.shape;
+  auto P = [&b](J j) { return b.P(j); };
+  const double h = b.h, k = b.k, g = b.g, c = b.c, f = b.f, cloth_trunk = b.cloth_trunk;
+  const double y0 = P(J::kLHip).y() - 0.055 * h;
+  const double y1 = P(J::kLShoulder).y() + 0.012 * h;
+  const double yp = P(J::kPelvis).y(), ysp = P(J::kSpine).y(), ych = P(J::kChest).y();
+  const double span = y1 - y0;
+  auto at = [&](double y) { return (y - y0) / span; };
+  const double shoulder_half = std::abs(P(J::kLShoulder).x()) + 0.01 * k;
+  const double hip_w = (0.155 + 0.025 * f) * k * std::pow(g, 0.85) * (1.0 - 0.05 * c) * cloth_trunk;
+  const double waist_w = (0.135 + 0.005 * f) * k * g * cloth_trunk;
+  const double chest_w = (0.155 - 0.01 * f) * k * std::pow(g, 0.8) * shape.shoulder_ratio * cloth_trunk;
+  const double hip_d = 0.100 * k * g * cloth_trunk,
+               waist_d = (0.095 + 0.05 * shape.belly) * k * g * cloth_trunk;
+  const double chest_d = (0.105 + 0.012 * f) * k * std::pow(g, 0.9) * cloth_trunk;
+  const std::vector<std::pair<double, Vector2d>> radii = {
+      {0.0, {hip_w * 0.82, hip_d * 0.85}},
+      {at(yp), {hip_w, hip_d}},
+      {at(ysp), {waist_w, waist_d}},
+      {at(ych), {chest_w, chest_d}},
+      {0.88, {std::max(shoulder_half * 0.98, chest_w), chest_d * 0.85}},
+      {1.0, {std::max(shoulder_half * 0.92, chest_w * 0.9), chest_d * 0.7}},
+  };
+  const std::vector<std::pair<double, Vector2d>> offsets = {
+      {0.0, {0, -0.01 * k}},
+      {at(yp), {0, -0.012 * k * g}},
+      {at(ysp), {0, (0.01 + 0.04 * shape.belly) * k * g}},
+      {at(ych), {0, 0.004 * k}},
+      {1.0, {0, -0.012 * k}},
+  };
+  Loft torso;
+  torso.a = {0, y0, 0};
+  torso.b = {0, y1, 0};
+  torso.u = -Vector3d::UnitX();  // so that v = axis x u = +Z (forward): offsets are forward
+  torso.radii = [radii](double s) { return Keyframes(s, radii); };
+  torso.offset = [offsets](double s) { return Keyframes(s, offsets); };
+  torso.exponent = 2.4;
+  torso.cap_a = 0.06 * k;
+  torso.cap_b = 0.05 * k;
+  torso.chain = {{Idx(J::kPelvis), P(J::kPelvis), P(J::kSpine)},
+                 {Idx(J::kSpine), P(J::kSpine), P(J::kChest)},
+                 {Idx(J::kChest), P(J::kChest), P(J::kNeck)}};
+  torso.blend_m = 0.08 * k;
+  AddLoft(torso, res, mesh);
+}
+
+// Neck, head and hair.
+void AddNeckAndHead(const BodyScales& b, const BodyResolution& res, BodyMesh* mesh) {
+  const BodyShape& shape = b.shape;
+  auto P = [&b](J j) { return b.P(j); };
+  const double k = b.k, g = b.g, gs = b.gs, c = b.c;
+  const double r = 0.054 * k * gs * (1.0 - 0.1 * c);
+  Loft neck;
+  neck.a = P(J::kNeck) - Vector3d(0, 0.02 * k, 0);
+  neck.b = P(J::kHead);
+  neck.u = Vector3d::UnitX();
+  neck.radii = [r](double) { return Vector2d(r, r * 1.05); };
+  neck.cap_a = neck.cap_b = r;
+  neck.chain = {{Idx(J::kChest), P(J::kChest), P(J::kNeck)},
+                {Idx(J::kNeck), P(J::kNeck), P(J::kHead)},
+                {Idx(J::kHead), P(J::kHead), P(J::kHeadTop)}};
+  neck.blend_m = 0.03 * k;
+  AddLoft(neck, res, mesh);
+
+  const double head_h = P(J::kHeadTop).y() - P(J::kHead).y();
+  const double ry = 0.625 * head_h;  // reaches below the skull base (chin)
+  const Vector3d centre(0, P(J::kHeadTop).y() - ry, 0.012 * k);
+  const double rx = ry * 0.68 * std::pow(g, 0.15), rz = ry * 0.85 * std::pow(g, 0.15);
+  Loft head;
+  head.a = centre - Vector3d(0, 1e-4, 0);
+  head.b = centre + Vector3d(0, 1e-4, 0);
+  head.u = Vector3d::UnitX();
+  head.radii = [rx, rz](double) { return Vector2d(rx, rz); };
+  head.cap_a = head.cap_b = ry;
+  head.chain = {{Idx(J::kNeck), P(J::kNeck), P(J::kHead)}, {Idx(J::kHead), P(J::kHead), P(J::kHeadTop)}};
+  head.blend_m = 0.025 * k;
+  AddLoft(head, res, mesh);
+
+  // Hair: a cap over the top and back of the skull (never in front of the face), and long
+  // hair down the back for hair > 0.6. Skinned to the head, so it is labelled as head.
+  const double hv = shape.hair;
+  if (hv > 0.05) {
+    Loft hair = head;
+    const Vector3d hc = centre + Vector3d(0, 0.06 * ry, -0.22 * rz);
+    const double hrx = rx * (1.04 + 0.12 * hv), hry = ry * (0.98 + 0.06 * hv), hrz = rz * (0.95 + 0.15 * hv);
+    hair.a = hc - Vector3d(0, 1e-4, 0);
+    hair.b = hc + Vector3d(0, 1e-4, 0);
+    hair.radii = [hrx, hrz](double) { return Vector2d(hrx, hrz); };
+    hair.cap_a = hair.cap_b = hry;
+    AddLoft(hair, res, mesh);
+  }
+  if (hv > 0.6) {
+    const double len = (0.12 + 0.25 * (hv - 0.6)) * k;  // below the skull, down the back
+    Loft tail;
+    tail.a = centre + Vector3d(0, -0.1 * ry, -0.55 * rz);
+    tail.b = tail.a + Vector3d(0, -len, -0.02 * k);
+    tail.u = Vector3d::UnitX();
+    const double w = rx * 0.9, d = 0.35 * rz;
+    tail.radii = [w, d](double s) { return Vector2d(w * (1.0 - 0.15 * s), d * (1.0 - 0.4 * s)); };
+    tail.cap_a = d;
+    tail.cap_b = 0.02 * k;
+    tail.chain = {{Idx(J::kHead), P(J::kHead), P(J::kHeadTop)}};
+    tail.blend_m = 0.02 * k;
+    AddLoft(tail, res, mesh);
+  }
+}
+
+// One arm (`left` or right): shoulder pad, upper arm, forearm, hand.
+void AddArm(const BodyScales& b, bool left, const BodyResolution& res, BodyMesh* mesh) {
+  auto P = [&b](J j) { return b.P(j); };
+  const double k = b.k, g = b.g, gs = b.gs, c = b.c, f = b.f, blend = b.blend, cloth_limb = b.cloth_limb;
+  const J collar = left ? J::kLCollar : J::kRCollar;
+  const J shoulder = left ? J::kLShoulder : J::kRShoulder;
+  const J elbow = left ? J::kLElbow : J::kRElbow;
+  const J wrist = left ? J::kLWrist : J::kRWrist;
+  const J tip = left ? J::kLHandTip : J::kRHandTip;
+  const std::vector<ChainBone> chain = {{Idx(J::kChest), P(J::kChest), P(collar)},
+                                        {Idx(collar), P(collar), P(shoulder)},
+                                        {Idx(shoulder), P(shoulder), P(elbow)},
+                                        {Idx(elbow), P(elbow), P(wrist)},
+                                        {Idx(wrist), P(wrist), P(tip)}};
+  const double r_sh = 0.052 * k * g * (1.0 - 0.06 * f) * cloth_limb,
+               r_el = 0.038 * k * std::pow(g, 0.8) * cloth_limb;
+  const double r_wr = 0.028 * k * std::pow(g, 0.6);
+  {
+    Loft l;  // shoulder pad over the collar bone, merges arm and torso
+    l.a = P(collar);
+    l.b = P(shoulder);
+    l.u = Vector3d::UnitZ();
+    l.radii = [&](double s) { return Vector2d(0.05 * k * g, (0.035 + 0.02 * s) * k * g); };
+    l.cap_a = 0.03 * k;
+    l.cap_b = 0.05 * k * g;
+    l.chain = chain;
+    l.blend_m = blend;
+    AddLoft(l, res, mesh);
+  }
+  {
+    Loft l;  // upper arm, biceps bulge a third of the way down
+    l.a = P(shoulder);
+    l.b = P(elbow);
+    l.u = Vector3d::UnitZ();
+    l.radii = [=](double s) {
+      const double r = r_sh + (r_el - r_sh) * s + 0.006 * k * g * std::sin(std::numbers::pi * s);
+      return Vector2d(r, r * 0.95);
+    };
+    l.cap_a = r_sh;
+    l.cap_b = r_el;
+    l.chain = chain;
+    l.blend_m = blend;
+    AddLoft(l, res, mesh);
+  }
+  {
+    Loft l;  // forearm
+    l.a = P(elbow);
+    l.b = P(wrist);
+    l.u = Vector3d::UnitZ();
+    l.radii = [=](double s) {
+      const double r = r_el + (r_wr - r_el) * s + 0.005 * k * g * std::sin(std::numbers::pi * s * 0.8);
+      return Vector2d(r * (1.0 + 0.25 * s), r * (1.0 - 0.2 * s));
+    };
+    l.cap_a = r_el;
+    l.cap_b = r_wr;
+    l.chain = chain;
+    l.blend_m = blend;
+    AddLoft(l, res, mesh);
+  }
+  {
+    Loft l;  // hand: a flattened mitten (palm down in the T-pose)
+    const Vector3d dir = (P(tip) - P(wrist)).normalized();
+    const double hand_len = (P(tip) - P(wrist)).norm();
+    l.a = P(wrist) + dir * 0.15 * hand_len;
+    l.b = P(tip) - dir * 0.2 * hand_len;
+    l.u = Vector3d::UnitZ();
+    const double hw = 0.042 * k * gs * (1.0 - 0.1 * c), ht = 0.016 * k * gs;
+    l.radii = [=](double s) {
+      return Vector2d(hw * (0.85 + 0.15 * std::sin(std::numbers::pi * (0.3 + 0.7 * s))), ht);
+    };
+    l.exponent = 2.6;
+    l.cap_a = 0.15 * hand_len;
+    l.cap_b = 0.2 * hand_len;
+    l.chain = chain;
+    l.blend_m = 0.03 * k;
+    AddLoft(l, res, mesh);
+  }
+}
+
+// One leg (`left` or right): thigh, shin, foot.
+void AddLeg(const BodyScales& b, bool left, const BodyResolution& res, BodyMesh* mesh) {
+  auto P = [&b](J j) { return b.P(j); };
+  const double k = b.k, g = b.g, gs = b.gs, f = b.f, blend = b.blend, cloth_limb = b.cloth_limb;
+  const J hip = left ? J::kLHip : J::kRHip;
+  const J knee = left ? J::kLKnee : J::kRKnee;
+  const J ankle = left ? J::kLAnkle : J::kRAnkle;
+  const J toe = left ? J::kLToe : J::kRToe;
+  const std::vector<ChainBone> chain = {{Idx(J::kPelvis), P(J::kPelvis), P(hip)},
+                                        {Idx(hip), P(hip), P(knee)},
+                                        {Idx(knee), P(knee), P(ankle)},
+                                        {Idx(ankle), P(ankle), P(toe)}};
+  // Thighs may touch but not cross the midline (heavy shapes have wider hips instead).
+  const double hip_half = std::abs(P(hip).x());
+  const double r_hip = std::min((0.088 + 0.008 * f) * k * g * cloth_limb, hip_half + 0.008 * k);
+  const double r_knee = 0.054 * k * std::pow(g, 0.8) * cloth_limb;
+  const double r_ank = 0.036 * k * std::pow(g, 0.6);
+  {
+    Loft l;  // thigh
+    l.a = P(hip);
+    l.b = P(knee);
+    l.u = Vector3d::UnitX();
+    l.radii = [=](double s) {
+      const double r = r_hip + (r_knee - r_hip) * s;
+      return Vector2d(r, r * 1.02);
+    };
+    const double sx = left ? 1.0 : -1.0;
+    l.offset = [=](double s) { return Vector2d(sx * 0.01 * k * (1.0 - s), 0.0); };
+    l.cap_a = r_hip;
+    l.cap_b = r_knee;
+    l.chain = chain;
+    l.blend_m = blend * 1.2;
+    AddLoft(l, res, mesh);
+  }
+  {
+    Loft l;  // shin with a calf bulge at the back
+    l.a = P(knee);
+    l.b = P(ankle);
+    l.u = Vector3d::UnitX();
+    l.radii = [=](double s) {
+      const double r = r_knee + (r_ank - r_knee) * s;
+      const double calf = 0.012 * k * g * std::sin(std::numbers::pi * std::min(1.0, s * 1.6));
+      return Vector2d(r + 0.4 * calf, r + calf);
+    };
+    l.offset = [=](double s) {
+      return Vector2d(0.0, -0.008 * k * g * std::sin(std::numbers::pi * std::min(1.0, s * 1.6)));
+    };
+    l.cap_a = r_knee;
+    l.cap_b = r_ank;
+    l.chain = chain;
+    l.blend_m = blend;
+    AddLoft(l, res, mesh);
+  }
+  {
+    Loft l;  // foot: a boxy loft from heel to toe, sole on y = 0
+    const Vector3d a = P(ankle), t = P(toe);
+    const double fw = 0.044 * k * gs;
+    const double heel_z = a.z() - 0.045 * k;
+    const double top = a.y() + 0.012 * k;
+    l.a = {a.x(), 0.0, heel_z + 0.03 * k};
+    l.b = {t.x(), 0.0, t.z() - 0.025 * k};
+    l.u = Vector3d::UnitX();
+    l.radii = [=](double s) { return Vector2d(fw * (0.8 + 0.25 * s), 0.5 * top * (1.0 - 0.6 * s)); };
+    l.offset = [=](double s) { return Vector2d(0.0, 0.5 * top * (1.0 - 0.6 * s)); };
+    // Rings are in the (x, y) plane; for a loft along z, v = axis x u = +Y. Keep it that way.
+    l.exponent = 3.0;
+    l.cap_a = 0.03 * k;
+    l.cap_b = 0.025 * k;
+    l.chain = chain;
+    l.blend_m = 0.03 * k;
+    AddLoft(l, res, mesh);
+  }
+}
+
+}  // namespace
+
 BodyMesh MakeProceduralBody(const BodyShape& shape, const BodyResolution& res) {
   BodyMesh mesh;
   mesh.name = "procedural:" + shape.name;
   const SkelPositions sk = ProceduralSkeleton(shape);
   mesh.rest_joints = sk;
-  auto P = [&](J j) { return sk[size_t(Idx(j))]; };
   const double h = shape.height_m;
   const double k = h / 1.75;       // length scale
   const double g = shape.girth;    // girth scale
@@ -275,258 +548,12 @@ BodyMesh MakeProceduralBody(const BodyShape& shape, const BodyResolution& res) {
   const double blend = 0.045 * k;
   const double cloth_trunk = 1.0 + 0.08 * shape.clothing;  // loose clothes on the trunk
   const double cloth_limb = 1.0 + 0.12 * shape.clothing;   // and on upper arms and legs
+  const BodyScales b{shape, sk, h, k, g, gs, c, f, blend, cloth_trunk, cloth_limb};
 
-  // --- Torso: a superelliptic loft from the crotch to the shoulders. ---
-  {
-    const double y0 = P(J::kLHip).y() - 0.055 * h;
-    const double y1 = P(J::kLShoulder).y() + 0.012 * h;
-    const double yp = P(J::kPelvis).y(), ysp = P(J::kSpine).y(), ych = P(J::kChest).y();
-    const double span = y1 - y0;
-    auto at = [&](double y) { return (y - y0) / span; };
-    const double shoulder_half = std::abs(P(J::kLShoulder).x()) + 0.01 * k;
-    const double hip_w = (0.155 + 0.025 * f) * k * std::pow(g, 0.85) * (1.0 - 0.05 * c) * cloth_trunk;
-    const double waist_w = (0.135 + 0.005 * f) * k * g * cloth_trunk;
-    const double chest_w = (0.155 - 0.01 * f) * k * std::pow(g, 0.8) * shape.shoulder_ratio * cloth_trunk;
-    const double hip_d = 0.100 * k * g * cloth_trunk,
-                 waist_d = (0.095 + 0.05 * shape.belly) * k * g * cloth_trunk;
-    const double chest_d = (0.105 + 0.012 * f) * k * std::pow(g, 0.9) * cloth_trunk;
-    const std::vector<std::pair<double, Vector2d>> radii = {
-        {0.0, {hip_w * 0.82, hip_d * 0.85}},
-        {at(yp), {hip_w, hip_d}},
-        {at(ysp), {waist_w, waist_d}},
-        {at(ych), {chest_w, chest_d}},
-        {0.88, {std::max(shoulder_half * 0.98, chest_w), chest_d * 0.85}},
-        {1.0, {std::max(shoulder_half * 0.92, chest_w * 0.9), chest_d * 0.7}},
-    };
-    const std::vector<std::pair<double, Vector2d>> offsets = {
-        {0.0, {0, -0.01 * k}},
-        {at(yp), {0, -0.012 * k * g}},
-        {at(ysp), {0, (0.01 + 0.04 * shape.belly) * k * g}},
-        {at(ych), {0, 0.004 * k}},
-        {1.0, {0, -0.012 * k}},
-    };
-    Loft torso;
-    torso.a = {0, y0, 0};
-    torso.b = {0, y1, 0};
-    torso.u = -Vector3d::UnitX();  // so that v = axis x u = +Z (forward): offsets are forward
-    torso.radii = [radii](double s) { return Keyframes(s, radii); };
-    torso.offset = [offsets](double s) { return Keyframes(s, offsets); };
-    torso.exponent = 2.4;
-    torso.cap_a = 0.06 * k;
-    torso.cap_b = 0.05 * k;
-    torso.chain = {{Idx(J::kPelvis), P(J::kPelvis), P(J::kSpine)},
-                   {Idx(J::kSpine), P(J::kSpine), P(J::kChest)},
-                   {Idx(J::kChest), P(J::kChest), P(J::kNeck)}};
-    torso.blend_m = 0.08 * k;
-    AddLoft(torso, res, &mesh);
-  }
-  // --- Neck and head. ---
-  {
-    const double r = 0.054 * k * gs * (1.0 - 0.1 * c);
-    Loft neck;
-    neck.a = P(J::kNeck) - Vector3d(0, 0.02 * k, 0);
-    neck.b = P(J::kHead);
-    neck.u = Vector3d::UnitX();
-    neck.radii = [r](double) { return Vector2d(r, r * 1.05); };
-    neck.cap_a = neck.cap_b = r;
-    neck.chain = {{Idx(J::kChest), P(J::kChest), P(J::kNeck)},
-                  {Idx(J::kNeck), P(J::kNeck), P(J::kHead)},
-                  {Idx(J::kHead), P(J::kHead), P(J::kHeadTop)}};
-    neck.blend_m = 0.03 * k;
-    AddLoft(neck, res, &mesh);
-
-    const double head_h = P(J::kHeadTop).y() - P(J::kHead).y();
-    const double ry = 0.625 * head_h;  // reaches below the skull base (chin)
-    const Vector3d centre(0, P(J::kHeadTop).y() - ry, 0.012 * k);
-    const double rx = ry * 0.68 * std::pow(g, 0.15), rz = ry * 0.85 * std::pow(g, 0.15);
-    Loft head;
-    head.a = centre - Vector3d(0, 1e-4, 0);
-    head.b = centre + Vector3d(0, 1e-4, 0);
-    head.u = Vector3d::UnitX();
-    head.radii = [rx, rz](double) { return Vector2d(rx, rz); };
-    head.cap_a = head.cap_b = ry;
-    head.chain = {{Idx(J::kNeck), P(J::kNeck), P(J::kHead)}, {Idx(J::kHead), P(J::kHead), P(J::kHeadTop)}};
-    head.blend_m = 0.025 * k;
-    AddLoft(head, res, &mesh);
-
-    // Hair: a cap over the top and back of the skull (never in front of the face), and long
-    // hair down the back for hair > 0.6. Skinned to the head, so it is labelled as head.
-    const double hv = shape.hair;
-    if (hv > 0.05) {
-      Loft hair = head;
-      const Vector3d hc = centre + Vector3d(0, 0.06 * ry, -0.22 * rz);
-      const double hrx = rx * (1.04 + 0.12 * hv), hry = ry * (0.98 + 0.06 * hv),
-                   hrz = rz * (0.95 + 0.15 * hv);
-      hair.a = hc - Vector3d(0, 1e-4, 0);
-      hair.b = hc + Vector3d(0, 1e-4, 0);
-      hair.radii = [hrx, hrz](double) { return Vector2d(hrx, hrz); };
-      hair.cap_a = hair.cap_b = hry;
-      AddLoft(hair, res, &mesh);
-    }
-    if (hv > 0.6) {
-      const double len = (0.12 + 0.25 * (hv - 0.6)) * k;  // below the skull, down the back
-      Loft tail;
-      tail.a = centre + Vector3d(0, -0.1 * ry, -0.55 * rz);
-      tail.b = tail.a + Vector3d(0, -len, -0.02 * k);
-      tail.u = Vector3d::UnitX();
-      const double w = rx * 0.9, d = 0.35 * rz;
-      tail.radii = [w, d](double s) { return Vector2d(w * (1.0 - 0.15 * s), d * (1.0 - 0.4 * s)); };
-      tail.cap_a = d;
-      tail.cap_b = 0.02 * k;
-      tail.chain = {{Idx(J::kHead), P(J::kHead), P(J::kHeadTop)}};
-      tail.blend_m = 0.02 * k;
-      AddLoft(tail, res, &mesh);
-    }
-  }
-  // --- Arms. ---
-  for (int side = 0; side < 2; ++side) {
-    const bool left = side == 0;
-    const J collar = left ? J::kLCollar : J::kRCollar;
-    const J shoulder = left ? J::kLShoulder : J::kRShoulder;
-    const J elbow = left ? J::kLElbow : J::kRElbow;
-    const J wrist = left ? J::kLWrist : J::kRWrist;
-    const J tip = left ? J::kLHandTip : J::kRHandTip;
-    const std::vector<ChainBone> chain = {{Idx(J::kChest), P(J::kChest), P(collar)},
-                                          {Idx(collar), P(collar), P(shoulder)},
-                                          {Idx(shoulder), P(shoulder), P(elbow)},
-                                          {Idx(elbow), P(elbow), P(wrist)},
-                                          {Idx(wrist), P(wrist), P(tip)}};
-    const double r_sh = 0.052 * k * g * (1.0 - 0.06 * f) * cloth_limb,
-                 r_el = 0.038 * k * std::pow(g, 0.8) * cloth_limb;
-    const double r_wr = 0.028 * k * std::pow(g, 0.6);
-    {
-      Loft l;  // shoulder pad over the collar bone, merges arm and torso
-      l.a = P(collar);
-      l.b = P(shoulder);
-      l.u = Vector3d::UnitZ();
-      l.radii = [&](double s) { return Vector2d(0.05 * k * g, (0.035 + 0.02 * s) * k * g); };
-      l.cap_a = 0.03 * k;
-      l.cap_b = 0.05 * k * g;
-      l.chain = chain;
-      l.blend_m = blend;
-      AddLoft(l, res, &mesh);
-    }
-    {
-      Loft l;  // upper arm, biceps bulge a third of the way down
-      l.a = P(shoulder);
-      l.b = P(elbow);
-      l.u = Vector3d::UnitZ();
-      l.radii = [=](double s) {
-        const double r = r_sh + (r_el - r_sh) * s + 0.006 * k * g * std::sin(std::numbers::pi * s);
-        return Vector2d(r, r * 0.95);
-      };
-      l.cap_a = r_sh;
-      l.cap_b = r_el;
-      l.chain = chain;
-      l.blend_m = blend;
-      AddLoft(l, res, &mesh);
-    }
-    {
-      Loft l;  // forearm
-      l.a = P(elbow);
-      l.b = P(wrist);
-      l.u = Vector3d::UnitZ();
-      l.radii = [=](double s) {
-        const double r = r_el + (r_wr - r_el) * s + 0.005 * k * g * std::sin(std::numbers::pi * s * 0.8);
-        return Vector2d(r * (1.0 + 0.25 * s), r * (1.0 - 0.2 * s));
-      };
-      l.cap_a = r_el;
-      l.cap_b = r_wr;
-      l.chain = chain;
-      l.blend_m = blend;
-      AddLoft(l, res, &mesh);
-    }
-    {
-      Loft l;  // hand: a flattened mitten (palm down in the T-pose)
-      const Vector3d dir = (P(tip) - P(wrist)).normalized();
-      const double hand_len = (P(tip) - P(wrist)).norm();
-      l.a = P(wrist) + dir * 0.15 * hand_len;
-      l.b = P(tip) - dir * 0.2 * hand_len;
-      l.u = Vector3d::UnitZ();
-      const double hw = 0.042 * k * gs * (1.0 - 0.1 * c), ht = 0.016 * k * gs;
-      l.radii = [=](double s) {
-        return Vector2d(hw * (0.85 + 0.15 * std::sin(std::numbers::pi * (0.3 + 0.7 * s))), ht);
-      };
-      l.exponent = 2.6;
-      l.cap_a = 0.15 * hand_len;
-      l.cap_b = 0.2 * hand_len;
-      l.chain = chain;
-      l.blend_m = 0.03 * k;
-      AddLoft(l, res, &mesh);
-    }
-  }
-  // --- Legs. ---
-  for (int side = 0; side < 2; ++side) {
-    const bool left = side == 0;
-    const J hip = left ? J::kLHip : J::kRHip;
-    const J knee = left ? J::kLKnee : J::kRKnee;
-    const J ankle = left ? J::kLAnkle : J::kRAnkle;
-    const J toe = left ? J::kLToe : J::kRToe;
-    const std::vector<ChainBone> chain = {{Idx(J::kPelvis), P(J::kPelvis), P(hip)},
-                                          {Idx(hip), P(hip), P(knee)},
-                                          {Idx(knee), P(knee), P(ankle)},
-                                          {Idx(ankle), P(ankle), P(toe)}};
-    // Thighs may touch but not cross the midline (heavy shapes have wider hips instead).
-    const double hip_half = std::abs(P(hip).x());
-    const double r_hip = std::min((0.088 + 0.008 * f) * k * g * cloth_limb, hip_half + 0.008 * k);
-    const double r_knee = 0.054 * k * std::pow(g, 0.8) * cloth_limb;
-    const double r_ank = 0.036 * k * std::pow(g, 0.6);
-    {
-      Loft l;  // thigh
-      l.a = P(hip);
-      l.b = P(knee);
-      l.u = Vector3d::UnitX();
-      l.radii = [=](double s) {
-        const double r = r_hip + (r_knee - r_hip) * s;
-        return Vector2d(r, r * 1.02);
-      };
-      const double sx = left ? 1.0 : -1.0;
-      l.offset = [=](double s) { return Vector2d(sx * 0.01 * k * (1.0 - s), 0.0); };
-      l.cap_a = r_hip;
-      l.cap_b = r_knee;
-      l.chain = chain;
-      l.blend_m = blend * 1.2;
-      AddLoft(l, res, &mesh);
-    }
-    {
-      Loft l;  // shin with a calf bulge at the back
-      l.a = P(knee);
-      l.b = P(ankle);
-      l.u = Vector3d::UnitX();
-      l.radii = [=](double s) {
-        const double r = r_knee + (r_ank - r_knee) * s;
-        const double calf = 0.012 * k * g * std::sin(std::numbers::pi * std::min(1.0, s * 1.6));
-        return Vector2d(r + 0.4 * calf, r + calf);
-      };
-      l.offset = [=](double s) {
-        return Vector2d(0.0, -0.008 * k * g * std::sin(std::numbers::pi * std::min(1.0, s * 1.6)));
-      };
-      l.cap_a = r_knee;
-      l.cap_b = r_ank;
-      l.chain = chain;
-      l.blend_m = blend;
-      AddLoft(l, res, &mesh);
-    }
-    {
-      Loft l;  // foot: a boxy loft from heel to toe, sole on y = 0
-      const Vector3d a = P(ankle), t = P(toe);
-      const double fw = 0.044 * k * gs;
-      const double heel_z = a.z() - 0.045 * k;
-      const double top = a.y() + 0.012 * k;
-      l.a = {a.x(), 0.0, heel_z + 0.03 * k};
-      l.b = {t.x(), 0.0, t.z() - 0.025 * k};
-      l.u = Vector3d::UnitX();
-      l.radii = [=](double s) { return Vector2d(fw * (0.8 + 0.25 * s), 0.5 * top * (1.0 - 0.6 * s)); };
-      l.offset = [=](double s) { return Vector2d(0.0, 0.5 * top * (1.0 - 0.6 * s)); };
-      // Rings are in the (x, y) plane; for a loft along z, v = axis x u = +Y. Keep it that way.
-      l.exponent = 3.0;
-      l.cap_a = 0.03 * k;
-      l.cap_b = 0.025 * k;
-      l.chain = chain;
-      l.blend_m = 0.03 * k;
-      AddLoft(l, res, &mesh);
-    }
-  }
+  AddTorso(b, res, &mesh);
+  AddNeckAndHead(b, res, &mesh);
+  for (int side = 0; side < 2; ++side) AddArm(b, side == 0, res, &mesh);
+  for (int side = 0; side < 2; ++side) AddLeg(b, side == 0, res, &mesh);
   LabelBodyParts(mesh);
   RefinePartBoundaries(mesh, 2);
   return mesh;

@@ -162,72 +162,91 @@ SensorPreset SensorNoise(DepthSensor sensor) {
   return p;
 }
 
-void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* depth,
-                      core::LabelImage* labels, core::LabelImage* people) {
-  if (!noise.enabled) return;
-  const int w = depth->width, h = depth->height;
-  const bool tof = noise.principle == DepthPrinciple::kTimeOfFlight;
-  if (people && (people->width != w || people->height != h)) people = nullptr;
-  if (noise.min_range_m > 0) {
-    const uint16_t near = uint16_t(std::min(65535.0, noise.min_range_m * 1e3));
-    for (size_t i = 0; i < depth->pixels.size(); ++i)
-      if (depth->pixels[i] != 0 && depth->pixels[i] < near) {
-        depth->pixels[i] = 0;
-        labels->pixels[i] = core::kBackgroundLabel;
-      }
-  }
-  if (noise.projector_shadow && !tof) ApplyProjectorShadow(noise, depth, labels);
-  // Only the rows holding foreground (plus one either side, for the neighbour test) are touched.
-  int y_lo = h, y_hi = -1;
-  for (int y = 0; y < h; ++y) {
-    const uint16_t* row = depth->data() + size_t(y) * size_t(w);
-    if (std::any_of(row, row + w, [](uint16_t d) { return d != 0; })) y_lo = std::min(y_lo, y), y_hi = y;
-  }
-  if (y_hi < 0) return;
-  const bool flying = noise.flying_pixels > 0;
-  const bool holes = noise.range_dropout > 0 || noise.grazing_dropout > 0;
-  // Rows visited: the foreground rows, and with flying pixels the background row either side
-  // (its pixels may straddle the silhouette).
-  const int r_lo = flying ? std::max(0, y_lo - 1) : y_lo, r_hi = flying ? std::min(h - 1, y_hi + 1) : y_hi;
-  // A copy of the clean rows r_lo-1 .. r_hi+1 with a one-pixel border, so the 4-neighbour test
-  // needs no bounds checks. Inside the image the rows outside y_lo..y_hi are background (zeros);
-  // outside it, the border repeats the edge pixels, so the frame edge itself is not a
-  // discontinuity. Labels (and people) are copied too when mixed pixels may take a neighbour's.
-  const int copy_lo = r_lo - 1, stride = w + 2, copy_rows = r_hi - r_lo + 3;
-  std::vector<uint16_t> clean(size_t(stride) * size_t(copy_rows), 0);
-  std::vector<uint8_t> clean_labels(flying ? clean.size() : 0, core::kBackgroundLabel);
-  std::vector<uint8_t> clean_people(flying && people ? clean.size() : 0, 0);
+namespace {
+
+// Readings nearer than the sensor's minimum range are lost.
+void ClearBelowMinRange(const NoiseConfig& noise, core::DepthImage* depth, core::LabelImage* labels) {
+  const uint16_t near = uint16_t(std::min(65535.0, noise.min_range_m * 1e3));
+  for (size_t i = 0; i < depth->pixels.size(); ++i)
+    if (depth->pixels[i] != 0 && depth->pixels[i] < near) {
+      depth->pixels[i] = 0;
+      labels->pixels[i] = core::kBackgroundLabel;
+    }
+}
+
+// A copy of the clean rows r_lo-1 .. r_hi+1 with a one-pixel border, so the 4-neighbour test
+// needs no bounds checks. Inside the image the rows outside y_lo..y_hi are background (zeros);
+// outside it, the border repeats the edge pixels, so the frame edge itself is not a
+// discontinuity. Labels (and people) are copied too when mixed pixels may take a neighbour's.
+struct CleanRows {
+  int copy_lo = 0, stride = 0;
+  std::vector<uint16_t> depth;
+  std::vector<uint8_t> labels, people;
+};
+
+CleanRows CopyCleanRows(const core::DepthImage& depth, const core::LabelImage& labels,
+                        const core::LabelImage* people, int y_lo, int y_hi, int r_lo, int r_hi, bool flying) {
+  const int w = depth.width, h = depth.height;
+  CleanRows cr;
+  cr.copy_lo = r_lo - 1;
+  cr.stride = w + 2;
+  const int copy_rows = r_hi - r_lo + 3;
+  cr.depth.assign(size_t(cr.stride) * size_t(copy_rows), 0);
+  cr.labels.assign(flying ? cr.depth.size() : 0, core::kBackgroundLabel);
+  cr.people.assign(flying && people ? cr.depth.size() : 0, 0);
   for (int row = 0; row < copy_rows; ++row) {
-    const int src_y = std::clamp(copy_lo + row, 0, h - 1);
+    const int src_y = std::clamp(cr.copy_lo + row, 0, h - 1);
     if (src_y < y_lo || src_y > y_hi) continue;
-    const size_t dst = size_t(row) * size_t(stride), src = size_t(src_y) * size_t(w);
+    const size_t dst = size_t(row) * size_t(cr.stride), src = size_t(src_y) * size_t(w);
     auto fill = [&](auto* out, const auto* in) {
       std::copy_n(in + src, size_t(w), out + dst + 1);
       out[dst] = out[dst + 1];
       out[dst + size_t(w) + 1] = out[dst + size_t(w)];
     };
-    fill(clean.data(), depth->data());
-    if (flying) fill(clean_labels.data(), labels->data());
-    if (!clean_people.empty()) fill(clean_people.data(), people->data());
+    fill(cr.depth.data(), depth.data());
+    if (flying) fill(cr.labels.data(), labels.data());
+    if (!cr.people.empty()) fill(cr.people.data(), people->data());
   }
-  const core::CounterRng rng(key, 0x4E015E, 0, 1);
-  // The optional effects draw from streams of their own: off, they change nothing.
-  const core::CounterRng hole_rng(key, 0x4013E5, 0, 2), fly_rng(key, 0xF1E5, 0, 3);
-  // Disparity in steps of 1/subpixel_steps pixel: D = steps * f * b / z.
-  const double fb_steps_mm = noise.focal_px * noise.baseline_m * noise.subpixel_steps * 1e3;  // steps * mm
-  const double sigma_steps = noise.disparity_sigma_px * noise.subpixel_steps;
-  const int jump = int(std::lround(noise.discontinuity_mm));
-  // Dropout thresholds on 16 random bits.
-  const uint32_t edge_drop = Threshold16(noise.edge_dropout);
-  const uint32_t speckle_drop = Threshold16(noise.speckle_dropout);
-  const uint32_t fly_share = Threshold16(noise.flying_pixels);
-  const double f = noise.focal_px, cx = 0.5 * (w - 1), cy = 0.5 * (h - 1);
-  const double graze_lo = noise.grazing_start_deg * std::numbers::pi / 180.0;
-  const double graze_span = std::max(1e-9, 0.5 * std::numbers::pi - graze_lo);
-  const double range_k =
-      noise.range_dropout / std::max(1e-9, noise.range_dropout_ref_m * noise.range_dropout_ref_m);
+  return cr;
+}
+
+// The sensor's noise model for one frame: its random streams and constants.
+struct NoiseModel {
+  NoiseModel(const NoiseConfig& noise_config, uint64_t key, int w, int h)
+      : noise(noise_config),
+        tof(noise.principle == DepthPrinciple::kTimeOfFlight),
+        flying(noise.flying_pixels > 0),
+        holes(noise.range_dropout > 0 || noise.grazing_dropout > 0),
+        rng(key, 0x4E015E, 0, 1),
+        // The optional effects draw from streams of their own: off, they change nothing.
+        hole_rng(key, 0x4013E5, 0, 2),
+        fly_rng(key, 0xF1E5, 0, 3),
+        // Disparity in steps of 1/subpixel_steps pixel: D = steps * f * b / z.
+        fb_steps_mm(noise.focal_px * noise.baseline_m * noise.subpixel_steps * 1e3),  // steps * mm
+        sigma_steps(noise.disparity_sigma_px * noise.subpixel_steps),
+        jump(int(std::lround(noise.discontinuity_mm))),
+        // Dropout thresholds on 16 random bits.
+        edge_drop(Threshold16(noise.edge_dropout)),
+        speckle_drop(Threshold16(noise.speckle_dropout)),
+        fly_share(Threshold16(noise.flying_pixels)),
+        f(noise.focal_px),
+        cx(0.5 * (w - 1)),
+        cy(0.5 * (h - 1)),
+        graze_lo(noise.grazing_start_deg * std::numbers::pi / 180.0),
+        graze_span(std::max(1e-9, 0.5 * std::numbers::pi - graze_lo)),
+        range_k(noise.range_dropout / std::max(1e-9, noise.range_dropout_ref_m * noise.range_dropout_ref_m)) {
+  }
+
+  const NoiseConfig& noise;
+  const bool tof, flying, holes;
+  const core::CounterRng rng, hole_rng, fly_rng;
+  const double fb_steps_mm, sigma_steps;
+  const int jump;
+  const uint32_t edge_drop, speckle_drop, fly_share;
+  const double f, cx, cy, graze_lo, graze_span, range_k;
+
   // The reading of a pixel whose true depth is `z` mm (> 0), from the noise bits of its draw.
-  auto measure = [&](double z, uint64_t bits) -> uint16_t {
+  uint16_t Measure(double z, uint64_t bits) const {
     // Approximately normal: Irwin-Hall of three 16-bit uniforms (mean 1.5, variance 1/4).
     const double sum = double(bits & 0xFFFF) + double((bits >> 16) & 0xFFFF) + double((bits >> 32) & 0xFFFF);
     const double gauss = (sum * (1.0 / 65536.0) - 1.5) * 2.0;
@@ -240,108 +259,170 @@ void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* 
     const double disparity = fb_steps_mm / z + sigma_steps * gauss;  // in steps
     const double level = std::max(1.0, std::floor(disparity + 0.5));
     return uint16_t(std::min(65535.0, std::floor(fb_steps_mm / level + 0.5)));
-  };
+  }
+};
+
+// One row being noised: the clean row `c` (bordered), its outputs, and the neighbour offsets.
+struct NoiseRow {
+  const CleanRows& cr;
+  size_t row;  ///< index of the row's first pixel in cr
+  const uint16_t* c;
+  uint16_t* out_d;
+  uint8_t* out_l;
+  uint8_t* out_p;  ///< null without person ids
+  ptrdiff_t off[4];
+};
+
+// A background pixel beside a surface sees a little of it: its own (virtual) surface is
+// flying_void_mm behind the nearest neighbour's.
+void FlyIntoBackground(const NoiseModel& m, const NoiseRow& r, int x, uint64_t index) {
+  const uint16_t* c = r.c;
+  int near = 0;
+  for (ptrdiff_t o : r.off)
+    if (c[x + o] != 0 && (near == 0 || c[x + o] < near)) near = c[x + o];
+  if (near == 0) return;
+  const uint64_t fly = m.fly_rng.Bits(index);
+  if (uint32_t(fly & 0xFFFF) >= m.fly_share) return;
+  const uint64_t bits = m.rng.Bits(index);
+  if (uint32_t(bits >> 48) < m.edge_drop) return;  // an edge reading, dropped as such
+  const double a = double((fly >> 16) & 0xFFFF) * (0.5 / 65536.0);
+  const double own = near + m.noise.flying_void_mm;
+  const double mixed = own + a * (near - own);
+  uint8_t label = core::kBackgroundLabel, person = 0;
+  if (mixed - near <= m.noise.flying_label_mm) {
+    for (ptrdiff_t o : r.off)
+      if (c[x + o] == near) {
+        label = r.cr.labels[r.row + size_t(x + o)];
+        person = r.cr.people.empty() ? 0 : r.cr.people[r.row + size_t(x + o)];
+        break;
+      }
+  }
+  r.out_d[x] = m.Measure(mixed, bits);
+  r.out_l[x] = label;
+  if (r.out_p) r.out_p[x] = person;
+}
+
+// The chance that a surface pixel of clean depth `d` reads nothing: far range, and grazing
+// angles.
+double HoleProbability(const NoiseModel& m, const NoiseRow& r, int x, int y, int d) {
+  const uint16_t* c = r.c;
+  const int stride = r.cr.stride;
+  const double f = m.f;
+  double p = m.range_k * (d * 1e-3) * (d * 1e-3);
+  if (m.noise.grazing_dropout > 0) {
+    // Normal from the clean depth (mm per pixel): with P = z r, r = ((x-cx)/f, (y-cy)/f, 1),
+    // n ~ (-f z_x, -f z_y, f (z_x r_x + z_y r_y) + z) and n.r = z, so cos(theta) = z / (|n| |r|).
+    const double zx = SurfaceSlope(c[x - 1], d, c[x + 1], m.jump);
+    const double zy = SurfaceSlope(c[x - stride], d, c[x + stride], m.jump);
+    const double rx = (x - m.cx) / f, ry = (y - m.cy) / f;
+    const Eigen::Vector3d n(-f * zx, -f * zy, f * (zx * rx + zy * ry) + d);
+    const double cos_theta = double(d) / (n.norm() * std::sqrt(rx * rx + ry * ry + 1.0));
+    const double theta = std::acos(std::clamp(cos_theta, 0.0, 1.0));
+    const double g = m.noise.grazing_dropout * std::clamp((theta - m.graze_lo) / m.graze_span, 0.0, 1.0);
+    p = 1.0 - (1.0 - std::min(1.0, p)) * (1.0 - g);
+  }
+  return p;
+}
+
+// The depth an edge pixel of clean depth `d` reads when it is a flying pixel (a mix with the
+// surface across the edge), its label and person id updated; `d` itself otherwise.
+double FlyingEdgeDepth(const NoiseModel& m, const NoiseRow& r, int x, uint64_t index, int d) {
+  const uint16_t* c = r.c;
+  double z = d;
+  const uint64_t fly = m.fly_rng.Bits(index);
+  if (uint32_t(fly & 0xFFFF) < m.fly_share) {
+    // The other surface: the neighbour across the largest jump (no reading: flying_void_mm
+    // behind this pixel).
+    int other = 0;
+    double other_z = d, best = -1;
+    for (int k = 0; k < 4; ++k) {
+      const int n = c[x + r.off[k]];
+      if (n != 0 && std::abs(n - d) <= m.jump) continue;
+      const double nz = n == 0 ? d + m.noise.flying_void_mm : double(n);
+      if (std::abs(nz - d) > best) best = std::abs(nz - d), other = k, other_z = nz;
+    }
+    const double a = double((fly >> 16) & 0xFFFF) * (0.5 / 65536.0);
+    z = d + a * (other_z - d);
+    // The label of the surface the reading lies within flying_label_mm of, the nearer
+    // surface first; else background. A neighbour with no reading has no label.
+    const int n_other = c[x + r.off[other]];
+    const bool other_near = n_other != 0 && n_other < d;
+    const bool near_own = std::abs(z - d) <= m.noise.flying_label_mm;
+    const bool near_other = n_other != 0 && std::abs(z - n_other) <= m.noise.flying_label_mm;
+    if (near_other && (other_near || !near_own)) {
+      r.out_l[x] = r.cr.labels[r.row + size_t(x + r.off[other])];
+      if (r.out_p) r.out_p[x] = r.cr.people.empty() ? 0 : r.cr.people[r.row + size_t(x + r.off[other])];
+    } else if (!near_own) {
+      r.out_l[x] = core::kBackgroundLabel;
+      if (r.out_p) r.out_p[x] = 0;
+    }
+  }
+  return z;
+}
+
+// A pixel on a surface: dropped (at edges, as speckle, as a hole), or read with noise.
+void NoiseSurfacePixel(const NoiseModel& m, const NoiseRow& r, int x, int y, uint64_t index) {
+  const uint16_t* c = r.c;
+  const int d = c[x];
+  bool edge = false;
+  for (ptrdiff_t o : r.off) edge |= c[x + o] == 0 || std::abs(c[x + o] - d) > m.jump;
+  // One 64-bit draw per pixel: 16 bits decide the dropout, 48 bits make the noise.
+  const uint64_t bits = m.rng.Bits(index);
+  if (uint32_t(bits >> 48) < (edge ? m.edge_drop : m.speckle_drop)) {
+    r.out_d[x] = 0;
+    r.out_l[x] = core::kBackgroundLabel;
+    return;
+  }
+  if (m.holes && uint32_t(m.hole_rng.Bits(index) & 0xFFFF) < Threshold16(HoleProbability(m, r, x, y, d))) {
+    r.out_d[x] = 0;
+    r.out_l[x] = core::kBackgroundLabel;
+    if (r.out_p) r.out_p[x] = 0;
+    return;
+  }
+  const double z = m.flying && edge ? FlyingEdgeDepth(m, r, x, index, d) : double(d);
+  r.out_d[x] = m.Measure(z, bits);
+}
+
+}  // namespace
+
+void ApplyKinectNoise(const NoiseConfig& noise, uint64_t key, core::DepthImage* depth,
+                      core::LabelImage* labels, core::LabelImage* people) {
+  if (!noise.enabled) return;
+  const int w = depth->width, h = depth->height;
+  const bool tof = noise.principle == DepthPrinciple::kTimeOfFlight;
+  if (people && (people->width != w || people->height != h)) people = nullptr;
+  if (noise.min_range_m > 0) ClearBelowMinRange(noise, depth, labels);
+  if (noise.projector_shadow && !tof) ApplyProjectorShadow(noise, depth, labels);
+  // Only the rows holding foreground (plus one either side, for the neighbour test) are touched.
+  int y_lo = h, y_hi = -1;
+  for (int y = 0; y < h; ++y) {
+    const uint16_t* row = depth->data() + size_t(y) * size_t(w);
+    if (std::any_of(row, row + w, [](uint16_t d) { return d != 0; })) y_lo = std::min(y_lo, y), y_hi = y;
+  }
+  if (y_hi < 0) return;
+  const NoiseModel m(noise, key, w, h);
+  // Rows visited: the foreground rows, and with flying pixels the background row either side
+  // (its pixels may straddle the silhouette).
+  const int r_lo = m.flying ? std::max(0, y_lo - 1) : y_lo,
+            r_hi = m.flying ? std::min(h - 1, y_hi + 1) : y_hi;
+  const CleanRows cr = CopyCleanRows(*depth, *labels, people, y_lo, y_hi, r_lo, r_hi, m.flying);
+  const ptrdiff_t stride = cr.stride;
   for (int y = r_lo; y <= r_hi; ++y) {
-    const size_t row = size_t(y - copy_lo) * size_t(stride) + 1;
-    const uint16_t* c = &clean[row];
-    uint16_t* out_d = depth->data() + size_t(y) * size_t(w);
-    uint8_t* out_l = labels->data() + size_t(y) * size_t(w);
-    uint8_t* out_p = people ? people->data() + size_t(y) * size_t(w) : nullptr;
+    const size_t row = size_t(y - cr.copy_lo) * size_t(stride) + 1;
+    const NoiseRow r{cr,
+                     row,
+                     &cr.depth[row],
+                     depth->data() + size_t(y) * size_t(w),
+                     labels->data() + size_t(y) * size_t(w),
+                     people ? people->data() + size_t(y) * size_t(w) : nullptr,
+                     {-1, 1, -stride, stride}};
     for (int x = 0; x < w; ++x) {
-      const int d = c[x];
-      const ptrdiff_t off[4] = {-1, 1, -ptrdiff_t(stride), ptrdiff_t(stride)};
       const uint64_t index = uint64_t(y) * uint64_t(w) + uint64_t(x);
-      if (d == 0) {
-        if (!flying) continue;
-        // A background pixel beside a surface sees a little of it: its own (virtual) surface is
-        // flying_void_mm behind the nearest neighbour's.
-        int near = 0;
-        for (ptrdiff_t o : off)
-          if (c[x + o] != 0 && (near == 0 || c[x + o] < near)) near = c[x + o];
-        if (near == 0) continue;
-        const uint64_t fly = fly_rng.Bits(index);
-        if (uint32_t(fly & 0xFFFF) >= fly_share) continue;
-        const uint64_t bits = rng.Bits(index);
-        if (uint32_t(bits >> 48) < edge_drop) continue;  // an edge reading, dropped as such
-        const double a = double((fly >> 16) & 0xFFFF) * (0.5 / 65536.0);
-        const double own = near + noise.flying_void_mm;
-        const double mixed = own + a * (near - own);
-        uint8_t label = core::kBackgroundLabel, person = 0;
-        if (mixed - near <= noise.flying_label_mm) {
-          for (ptrdiff_t o : off)
-            if (c[x + o] == near) {
-              label = clean_labels[row + size_t(x + o)];
-              person = clean_people.empty() ? 0 : clean_people[row + size_t(x + o)];
-              break;
-            }
-        }
-        out_d[x] = measure(mixed, bits);
-        out_l[x] = label;
-        if (out_p) out_p[x] = person;
+      if (r.c[x] == 0) {
+        if (m.flying) FlyIntoBackground(m, r, x, index);
         continue;
       }
-      bool edge = false;
-      for (ptrdiff_t o : off) edge |= c[x + o] == 0 || std::abs(c[x + o] - d) > jump;
-      // One 64-bit draw per pixel: 16 bits decide the dropout, 48 bits make the noise.
-      const uint64_t bits = rng.Bits(index);
-      if (uint32_t(bits >> 48) < (edge ? edge_drop : speckle_drop)) {
-        out_d[x] = 0;
-        out_l[x] = core::kBackgroundLabel;
-        continue;
-      }
-      if (holes) {
-        double p = range_k * (d * 1e-3) * (d * 1e-3);
-        if (noise.grazing_dropout > 0) {
-          // Normal from the clean depth (mm per pixel): with P = z r, r = ((x-cx)/f, (y-cy)/f, 1),
-          // n ~ (-f z_x, -f z_y, f (z_x r_x + z_y r_y) + z) and n.r = z, so cos(theta) = z / (|n| |r|).
-          const double zx = SurfaceSlope(c[x - 1], d, c[x + 1], jump);
-          const double zy = SurfaceSlope(c[x - stride], d, c[x + stride], jump);
-          const double rx = (x - cx) / f, ry = (y - cy) / f;
-          const Eigen::Vector3d n(-f * zx, -f * zy, f * (zx * rx + zy * ry) + d);
-          const double cos_theta = double(d) / (n.norm() * std::sqrt(rx * rx + ry * ry + 1.0));
-          const double theta = std::acos(std::clamp(cos_theta, 0.0, 1.0));
-          const double g = noise.grazing_dropout * std::clamp((theta - graze_lo) / graze_span, 0.0, 1.0);
-          p = 1.0 - (1.0 - std::min(1.0, p)) * (1.0 - g);
-        }
-        if (uint32_t(hole_rng.Bits(index) & 0xFFFF) < Threshold16(p)) {
-          out_d[x] = 0;
-          out_l[x] = core::kBackgroundLabel;
-          if (out_p) out_p[x] = 0;
-          continue;
-        }
-      }
-      double z = d;
-      if (flying && edge) {
-        const uint64_t fly = fly_rng.Bits(index);
-        if (uint32_t(fly & 0xFFFF) < fly_share) {
-          // The other surface: the neighbour across the largest jump (no reading: flying_void_mm
-          // behind this pixel).
-          int other = 0;
-          double other_z = d, best = -1;
-          for (int k = 0; k < 4; ++k) {
-            const int n = c[x + off[k]];
-            if (n != 0 && std::abs(n - d) <= jump) continue;
-            const double nz = n == 0 ? d + noise.flying_void_mm : double(n);
-            if (std::abs(nz - d) > best) best = std::abs(nz - d), other = k, other_z = nz;
-          }
-          const double a = double((fly >> 16) & 0xFFFF) * (0.5 / 65536.0);
-          z = d + a * (other_z - d);
-          // The label of the surface the reading lies within flying_label_mm of, the nearer
-          // surface first; else background. A neighbour with no reading has no label.
-          const int n_other = c[x + off[other]];
-          const bool other_near = n_other != 0 && n_other < d;
-          const bool near_own = std::abs(z - d) <= noise.flying_label_mm;
-          const bool near_other = n_other != 0 && std::abs(z - n_other) <= noise.flying_label_mm;
-          if (near_other && (other_near || !near_own)) {
-            out_l[x] = clean_labels[row + size_t(x + off[other])];
-            if (out_p) out_p[x] = clean_people.empty() ? 0 : clean_people[row + size_t(x + off[other])];
-          } else if (!near_own) {
-            out_l[x] = core::kBackgroundLabel;
-            if (out_p) out_p[x] = 0;
-          }
-        }
-      }
-      out_d[x] = measure(z, bits);
+      NoiseSurfacePixel(m, r, x, y, index);
     }
   }
 }

@@ -216,21 +216,55 @@ std::vector<Eigen::Vector3d> ForwardKinematics(const BvhClip& clip, int f) {
   return pos;
 }
 
-Result<BvhClip> ParseBvh(std::string_view text, const std::string& source, const BvhOptions& options) {
-  BvhClip clip;
-  clip.source = source;
-  LineReader reader(text);
-  std::string_view line;
+namespace {
 
+// The channels of one CHANNELS line (the count, then that many names on the line) into `j`,
+// numbered from `channel_count`, which it advances.
+Status ParseChannels(const std::vector<Token>& tokens, size_t& t, const Token& tok, const std::string& source,
+                     BvhJoint& j, int& channel_count) {
+  auto at_end = [&] { return t >= tokens.size(); };
+  double n = 0;
+  if (at_end() || !ParseDouble(tokens[t].text, &n) || n < 0 || n > 6 || n != std::floor(n))
+    return Malformed(source, tok.line, "CHANNELS needs a count 0..6");
+  ++t;
+  j.channels.clear();
+  j.first_channel = channel_count;
+  for (int k = 0; k < int(n); ++k) {
+    if (at_end() || tokens[t].line != tok.line)
+      return Malformed(source, tok.line,
+                       "CHANNELS declares " + std::to_string(int(n)) + " channels but lists fewer");
+    const std::string_view c = tokens[t++].text;
+    BvhChannel ch;
+    if (c == "Xposition")
+      ch = BvhChannel::kXpos;
+    else if (c == "Yposition")
+      ch = BvhChannel::kYpos;
+    else if (c == "Zposition")
+      ch = BvhChannel::kZpos;
+    else if (c == "Xrotation")
+      ch = BvhChannel::kXrot;
+    else if (c == "Yrotation")
+      ch = BvhChannel::kYrot;
+    else if (c == "Zrotation")
+      ch = BvhChannel::kZrot;
+    else
+      return Malformed(source, tok.line, "unknown channel '" + std::string(c) + "'");
+    j.channels.push_back(ch);
+  }
+  channel_count += int(n);
+  return Status::Ok();
+}
+
+// The HIERARCHY section into clip.joints and clip.num_channels; the reader stops at MOTION.
+Status ParseHierarchy(LineReader& reader, const std::string& source, BvhClip& clip) {
+  std::string_view line;
   // --- HIERARCHY: tokenised across lines until MOTION. ---
   std::vector<Token> tokens;
   bool saw_motion = false;
-  int motion_line = 0;
   while (reader.Next(&line)) {
     auto words = SplitWords(line);
     if (!words.empty() && words[0] == "MOTION") {
       saw_motion = true;
-      motion_line = reader.line_no();
       break;
     }
     for (auto w : words) tokens.push_back({w, reader.line_no()});
@@ -290,35 +324,7 @@ Result<BvhClip> ParseBvh(std::string_view text, const std::string& source, const
       if (stack.empty()) return Malformed(source, tok.line, "CHANNELS outside a joint");
       BvhJoint& j = clip.joints[size_t(stack.back())];
       if (j.end_site) return Malformed(source, tok.line, "CHANNELS in an End Site");
-      double n = 0;
-      if (at_end() || !ParseDouble(tokens[t].text, &n) || n < 0 || n > 6 || n != std::floor(n))
-        return Malformed(source, tok.line, "CHANNELS needs a count 0..6");
-      ++t;
-      j.channels.clear();
-      j.first_channel = channel_count;
-      for (int k = 0; k < int(n); ++k) {
-        if (at_end() || tokens[t].line != tok.line)
-          return Malformed(source, tok.line,
-                           "CHANNELS declares " + std::to_string(int(n)) + " channels but lists fewer");
-        const std::string_view c = tokens[t++].text;
-        BvhChannel ch;
-        if (c == "Xposition")
-          ch = BvhChannel::kXpos;
-        else if (c == "Yposition")
-          ch = BvhChannel::kYpos;
-        else if (c == "Zposition")
-          ch = BvhChannel::kZpos;
-        else if (c == "Xrotation")
-          ch = BvhChannel::kXrot;
-        else if (c == "Yrotation")
-          ch = BvhChannel::kYrot;
-        else if (c == "Zrotation")
-          ch = BvhChannel::kZrot;
-        else
-          return Malformed(source, tok.line, "unknown channel '" + std::string(c) + "'");
-        j.channels.push_back(ch);
-      }
-      channel_count += int(n);
+      if (Status st = ParseChannels(tokens, t, tok, source, j, channel_count); !st.ok()) return st;
     } else if (tok.text == "}") {
       if (stack.empty()) return Malformed(source, tok.line, "unbalanced '}'");
       stack.pop_back();
@@ -333,7 +339,12 @@ Result<BvhClip> ParseBvh(std::string_view text, const std::string& source, const
         "hierarchy ends inside joint " + clip.joints[size_t(stack.back())].name + " (truncated file?)");
   if (!saw_motion) return Malformed(source, last_line, "no MOTION section (truncated file?)");
   clip.num_channels = channel_count;
+  return Status::Ok();
+}
 
+// The MOTION header: 'Frames: N' and 'Frame Time: seconds'.
+Status ParseMotionHeader(LineReader& reader, const std::string& source, BvhClip& clip) {
+  std::string_view line;
   // --- MOTION header ---
   auto next_nonempty = [&](std::vector<std::string_view>* words) {
     while (reader.Next(&line)) {
@@ -365,7 +376,12 @@ Result<BvhClip> ParseBvh(std::string_view text, const std::string& source, const
     if (!ok || !(ft > 0)) return Malformed(source, reader.line_no(), "expected 'Frame Time: seconds' (> 0)");
     clip.frame_time_s = ft;
   }
+  return Status::Ok();
+}
 
+// The frames' channel values into clip.motion.
+Status ParseFrames(LineReader& reader, const std::string& source, int declared, int channel_count,
+                   BvhClip& clip) {
   // --- Frames: exactly `declared` lines ---
   clip.motion.resize(size_t(declared) * size_t(channel_count));
   for (int f = 0; f < declared; ++f) {
@@ -405,76 +421,98 @@ Result<BvhClip> ParseBvh(std::string_view text, const std::string& source, const
                        "frame " + std::to_string(f) + " has " + std::to_string(k) + " values, expected " +
                            std::to_string(channel_count));
   }
+  return Status::Ok();
+}
+
+// Up axis: look at the root -> highest-in-hierarchy head-ish joint over a few frames (Z-up data
+// gets clip.world_fix).
+void DetectUpAxis(BvhClip& clip) {
+  if (clip.num_frames <= 0) return;
+  int head = -1;
+  for (const char* name : {"CC_Base_Head", "Head", "head", "Neck", "CC_Base_NeckTwist01"}) {
+    head = clip.FindJoint(name);
+    if (head >= 0) break;
+  }
+  // Measured from the pelvis, not the root: Bandai Namco's joint_Root stays on the floor at
+  // the origin while the hips walk metres away.
+  int pelvis = 0;
+  for (const char* name : {"Hips", "CC_Base_Hip", "hip", "pelvis", "Pelvis"}) {
+    if (const int k = clip.FindJoint(name); k >= 0) {
+      pelvis = k;
+      break;
+    }
+  }
+  if (head >= 0) {
+    Eigen::Vector3d up_sum = Eigen::Vector3d::Zero();
+    const int samples = std::min(clip.num_frames, 9);
+    for (int s = 0; s < samples; ++s) {
+      const int f = int((int64_t(s) * clip.num_frames) / samples);
+      const auto p = ForwardKinematics(clip, f);
+      const Eigen::Vector3d d = p[size_t(head)] - p[size_t(pelvis)];
+      if (d.norm() > 0) up_sum += d.normalized();
+    }
+    // Z-up data (iClone RL_BoneRoot): rotate world by -90 degrees about X: (x, y, z) -> (x, z, -y).
+    if (up_sum.z() > std::abs(up_sum.y()) && up_sum.z() > std::abs(up_sum.x())) {
+      clip.z_up_input = true;
+      clip.world_fix = Eigen::AngleAxisd(-kPi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    }
+  }
+}
+
+// Units, reference frame and axes by skeleton family (BvhOptions::normalize).
+void NormalizeClip(BvhClip& clip, int channel_count) {
+  // Units.
+  switch (clip.family) {
+    case SkeletonFamily::kCmuCgspeed:
+      clip.unit_to_m = kCgspeedUnitM;
+      break;
+    case SkeletonFamily::kReallusionCC3:
+    case SkeletonFamily::kBandaiNamco:
+      clip.unit_to_m = 0.01;
+      break;
+    default:
+      clip.unit_to_m = GuessUnit(clip.joints);
+      break;
+  }
+  // Reference frame.
+  if (clip.family == SkeletonFamily::kCmuCgspeed && clip.num_frames > 1) {
+    clip.motion.erase(clip.motion.begin(), clip.motion.begin() + channel_count);
+    clip.num_frames -= 1;
+    clip.dropped_leading_frames = 1;
+  }
+  for (const auto& j : clip.joints) {
+    if (j.parent != 0) continue;
+    const Eigen::Vector3d a = j.offset.cwiseAbs();
+    // Only a genuine rest bone counts: Bandai Namco's hips carry position channels and an
+    // offset that is the clip's start position.
+    const bool has_pos = std::any_of(j.channels.begin(), j.channels.end(), [](BvhChannel c) {
+      return c == BvhChannel::kXpos || c == BvhChannel::kYpos || c == BvhChannel::kZpos;
+    });
+    if (!has_pos && j.offset.norm() > 0 && a.z() > 0.9 * j.offset.norm()) clip.z_up_hierarchy = true;
+    break;
+  }
+  DetectUpAxis(clip);
+}
+
+}  // namespace
+
+Result<BvhClip> ParseBvh(std::string_view text, const std::string& source, const BvhOptions& options) {
+  BvhClip clip;
+  clip.source = source;
+  LineReader reader(text);
+  std::string_view line;
+
+  if (Status st = ParseHierarchy(reader, source, clip); !st.ok()) return st;
+  const int channel_count = clip.num_channels;
+  if (Status st = ParseMotionHeader(reader, source, clip); !st.ok()) return st;
+  const int declared = clip.declared_frames;
+  if (Status st = ParseFrames(reader, source, declared, channel_count, clip); !st.ok()) return st;
   while (reader.Next(&line))
     if (line.find_first_not_of(" \t\r\f\v") != std::string_view::npos) ++clip.ignored_trailing_lines;
   clip.num_frames = declared;
-  (void)motion_line;
 
   clip.family = DetectFamily(clip.joints);
-  if (options.normalize) {
-    // Units.
-    switch (clip.family) {
-      case SkeletonFamily::kCmuCgspeed:
-        clip.unit_to_m = kCgspeedUnitM;
-        break;
-      case SkeletonFamily::kReallusionCC3:
-      case SkeletonFamily::kBandaiNamco:
-        clip.unit_to_m = 0.01;
-        break;
-      default:
-        clip.unit_to_m = GuessUnit(clip.joints);
-        break;
-    }
-    // Reference frame.
-    if (clip.family == SkeletonFamily::kCmuCgspeed && clip.num_frames > 1) {
-      clip.motion.erase(clip.motion.begin(), clip.motion.begin() + channel_count);
-      clip.num_frames -= 1;
-      clip.dropped_leading_frames = 1;
-    }
-    for (const auto& j : clip.joints) {
-      if (j.parent != 0) continue;
-      const Eigen::Vector3d a = j.offset.cwiseAbs();
-      // Only a genuine rest bone counts: Bandai Namco's hips carry position channels and an
-      // offset that is the clip's start position.
-      const bool has_pos = std::any_of(j.channels.begin(), j.channels.end(), [](BvhChannel c) {
-        return c == BvhChannel::kXpos || c == BvhChannel::kYpos || c == BvhChannel::kZpos;
-      });
-      if (!has_pos && j.offset.norm() > 0 && a.z() > 0.9 * j.offset.norm()) clip.z_up_hierarchy = true;
-      break;
-    }
-    // Up axis: look at the root -> highest-in-hierarchy head-ish joint over a few frames.
-    if (clip.num_frames > 0) {
-      int head = -1;
-      for (const char* name : {"CC_Base_Head", "Head", "head", "Neck", "CC_Base_NeckTwist01"}) {
-        head = clip.FindJoint(name);
-        if (head >= 0) break;
-      }
-      // Measured from the pelvis, not the root: Bandai Namco's joint_Root stays on the floor at
-      // the origin while the hips walk metres away.
-      int pelvis = 0;
-      for (const char* name : {"Hips", "CC_Base_Hip", "hip", "pelvis", "Pelvis"}) {
-        if (const int k = clip.FindJoint(name); k >= 0) {
-          pelvis = k;
-          break;
-        }
-      }
-      if (head >= 0) {
-        Eigen::Vector3d up_sum = Eigen::Vector3d::Zero();
-        const int samples = std::min(clip.num_frames, 9);
-        for (int s = 0; s < samples; ++s) {
-          const int f = int((int64_t(s) * clip.num_frames) / samples);
-          const auto p = ForwardKinematics(clip, f);
-          const Eigen::Vector3d d = p[size_t(head)] - p[size_t(pelvis)];
-          if (d.norm() > 0) up_sum += d.normalized();
-        }
-        // Z-up data (iClone RL_BoneRoot): rotate world by -90 degrees about X: (x, y, z) -> (x, z, -y).
-        if (up_sum.z() > std::abs(up_sum.y()) && up_sum.z() > std::abs(up_sum.x())) {
-          clip.z_up_input = true;
-          clip.world_fix = Eigen::AngleAxisd(-kPi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
-        }
-      }
-    }
-  }
+  if (options.normalize) NormalizeClip(clip, channel_count);
   if (options.max_frames >= 0 && clip.num_frames > options.max_frames) {
     clip.num_frames = options.max_frames;
     clip.motion.resize(size_t(clip.num_frames) * size_t(channel_count));

@@ -133,12 +133,12 @@ MakeHumanKit::MakeHumanKit() : impl_(std::make_unique<Impl>()) {}
 MakeHumanKit::~MakeHumanKit() = default;
 size_t MakeHumanKit::body_vertex_count() const { return impl_->body_vertices.size(); }
 
-Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::path& kit_dir) {
-  std::unique_ptr<MakeHumanKit> kit(new MakeHumanKit());
-  Impl& m = *kit->impl_;
-  m.dir = kit_dir;
+namespace {
 
-  // --- base.obj: all vertices, faces of group `body` ---
+using Impl = MakeHumanKit::Impl;
+
+// base.obj: all vertices, faces of group `body`.
+Status LoadBaseMesh(const std::filesystem::path& kit_dir, Impl& m) {
   const auto obj_path = kit_dir / "base.obj";
   auto obj = ReadFile(obj_path);
   if (!obj.ok()) return obj.status();
@@ -189,8 +189,11 @@ Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::
   for (const auto& f : faces)
     for (size_t k = 1; k + 1 < f.size(); ++k)
       m.triangles.push_back({uint32_t(compact[f[0]]), uint32_t(compact[f[k]]), uint32_t(compact[f[k + 1]])});
+  return Status::Ok();
+}
 
-  // --- rigs/default.mhskel ---
+// rigs/default.mhskel: the joints (vertex lists) and bones (head and tail joints).
+Status LoadSkeleton(const std::filesystem::path& kit_dir, Impl& m) {
   const auto skel_path = kit_dir / "rigs" / "default.mhskel";
   auto skel_text = ReadFile(skel_path);
   if (!skel_text.ok()) return skel_text.status();
@@ -225,8 +228,12 @@ Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::
                     skel_path.string() + ": bone '" + name + "' has no valid head/tail joint");
     m.bones.push_back({name, *head, *tail, parent ? *parent : ""});
   }
+  return Status::Ok();
+}
 
-  // --- rigs/default_weights.mhw ---
+// rigs/default_weights.mhw: the skinning weights, per body vertex and per base vertex.
+Status LoadWeights(const std::filesystem::path& kit_dir, Impl& m) {
+  const std::vector<int>& compact = m.compact;
   const auto mhw_path = kit_dir / "rigs" / "default_weights.mhw";
   auto mhw_text = ReadFile(mhw_path);
   if (!mhw_text.ok()) return mhw_text.status();
@@ -257,6 +264,18 @@ Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::
       }
     }
   }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<std::unique_ptr<MakeHumanKit>> MakeHumanKit::Load(const std::filesystem::path& kit_dir) {
+  std::unique_ptr<MakeHumanKit> kit(new MakeHumanKit());
+  Impl& m = *kit->impl_;
+  m.dir = kit_dir;
+  POSEFOREST_RETURN_IF_ERROR(LoadBaseMesh(kit_dir, m));
+  POSEFOREST_RETURN_IF_ERROR(LoadSkeleton(kit_dir, m));
+  POSEFOREST_RETURN_IF_ERROR(LoadWeights(kit_dir, m));
   return kit;
 }
 
@@ -268,17 +287,19 @@ Result<BodyMesh> MakeHumanKit::Build(const MakeHumanParams& p) const {
 
 size_t MakeHumanKit::base_vertex_count() const { return impl_->base.size(); }
 
-Result<DressedMakeHuman> MakeHumanKit::BuildDressed(const MakeHumanParams& p,
-                                                    const std::vector<const MhcloProxy*>& proxies) const {
-  const Impl& m = *impl_;
+namespace {
+
+// The proxies bind to vertices of this kit, and the macro values are in range.
+Status CheckDressInputs(const Impl& m, const MakeHumanParams& p,
+                        const std::vector<const MhcloProxy*>& proxies) {
   for (const MhcloProxy* proxy : proxies) {
     POSEFOREST_CHECK(proxy != nullptr);
     for (const auto& r : proxy->ref)
       for (uint32_t i : r)
         if (i >= m.base.size())  // LoadMhclo checks against base_vertex_count(); another kit may differ
-          return Status(ErrorCode::kInvalidArgument, proxy->source + ": binds base vertex " + std::to_string(i) +
-                                                         " but " + (m.dir / "base.obj").string() + " has " +
-                                                         std::to_string(m.base.size()));
+          return Status(ErrorCode::kInvalidArgument,
+                        proxy->source + ": binds base vertex " + std::to_string(i) + " but " +
+                            (m.dir / "base.obj").string() + " has " + std::to_string(m.base.size()));
   }
   for (double v : {p.gender, p.age, p.muscle, p.weight})
     if (!(v >= 0 && v <= 1))
@@ -286,8 +307,11 @@ Result<DressedMakeHuman> MakeHumanKit::BuildDressed(const MakeHumanParams& p,
                     "MakeHuman body '" + p.name + "': macro values must be in [0, 1]");
   if (!(p.height_scale > 0.3 && p.height_scale < 3))
     return Status(ErrorCode::kInvalidArgument, "MakeHuman body '" + p.name + "': height_scale out of range");
+  return Status::Ok();
+}
 
-  // Macro modifier weights.
+// Macro modifier weights: the macro targets and their weights for `p`.
+std::vector<std::pair<std::string, double>> MacroTargets(const MakeHumanParams& p) {
   const std::pair<const char*, double> gender[] = {{"female", 1 - p.gender}, {"male", p.gender}};
   double baby = 0, child = 0, young = 0, old = 0;
   if (p.age < 0.5) {
@@ -321,16 +345,11 @@ Result<DressedMakeHuman> MakeHumanKit::BuildDressed(const MakeHumanParams& p,
                w});
         }
     }
+  return use;
+}
 
-  std::vector<Eigen::Vector3f> pos = m.base;
-  for (const auto& [name, w] : use) {
-    auto t = m.GetTarget(name);
-    if (!t.ok()) return t.status();
-    const Target& tg = **t;
-    for (size_t k = 0; k < tg.index.size(); ++k) pos[tg.index[k]] += float(w) * tg.delta[k];
-  }
-  const double scale = kDecimetre * p.height_scale;
-
+// The rig at the morphed vertices `pos` (decimetres, times `scale`), folded to our skeleton.
+Result<FoldedRig> MorphedRig(const Impl& m, const std::vector<Eigen::Vector3f>& pos, double scale) {
   auto joint_pos = [&](const std::string& joint) {
     Eigen::Vector3d s = Eigen::Vector3d::Zero();
     const auto& idx = m.joints.at(joint);
@@ -347,7 +366,66 @@ Result<DressedMakeHuman> MakeHumanKit::BuildDressed(const MakeHumanParams& p,
       if (m.bones[k].name == m.bones[b].parent) bones[b].parent = int(k);
   }
   const std::string source = (m.dir / "rigs" / "default.mhskel").string();
-  auto rig = FoldRig(bones, source);
+  return FoldRig(bones, source);
+}
+
+// One proxy fitted to the morphed body, scaled, and skinned from the base vertices it binds to;
+// `min_y` is lowered to its lowest vertex. Marks the body vertices it covers in `covered`.
+FittedProxy FitDressProxy(const Impl& m, const MhcloProxy* proxy, const std::vector<Eigen::Vector3f>& pos,
+                          double scale, const FoldedRig& rig, const std::vector<uint32_t>& anchor,
+                          float& min_y, std::vector<char>& covered) {
+  constexpr float kWeightThreshold = 1e-4f;  // MakeHuman's Proxy.getVertexWeights
+  FittedProxy f;
+  f.name = proxy->name;
+  f.kind = proxy->kind;
+  f.vertices = FitProxy(*proxy, pos);
+  for (auto& v : f.vertices) {
+    v = (v.cast<double>() * scale).cast<float>();
+    min_y = std::min(min_y, v.y());
+  }
+  f.triangles = proxy->triangles;
+  RigWeights w(f.vertices.size());
+  f.body_vertex.resize(f.vertices.size());
+  std::vector<float> acc(m.bones.size());
+  for (size_t k = 0; k < f.vertices.size(); ++k) {
+    std::fill(acc.begin(), acc.end(), 0.f);
+    int heaviest = 0;
+    for (int r = 0; r < 3; ++r) {
+      const float wr = proxy->weight[k][size_t(r)];
+      if (wr > proxy->weight[k][size_t(heaviest)]) heaviest = r;
+      for (const auto& [bone, bw] : m.all_weights[proxy->ref[k][size_t(r)]])
+        if (wr * bw > kWeightThreshold) acc[size_t(bone)] += wr * bw;
+    }
+    for (size_t b = 0; b < acc.size(); ++b)
+      if (acc[b] > 0) w[k].push_back({int(b), acc[b]});
+    f.body_vertex[k] = anchor[proxy->ref[k][size_t(heaviest)]];
+  }
+  f.skin = FoldSkin(rig, w, f.vertices);
+  // Shoes' delete_verts take the whole foot, but the soles do not cover the heel's lower
+  // edge seen from behind: hidden feet would leave holes, and feet inside shoes do not show.
+  if (proxy->kind != ProxyKind::kShoes)
+    for (uint32_t i : proxy->delete_verts)
+      if (i < m.compact.size() && m.compact[i] >= 0) covered[size_t(m.compact[i])] = 1;
+  return f;
+}
+
+}  // namespace
+
+Result<DressedMakeHuman> MakeHumanKit::BuildDressed(const MakeHumanParams& p,
+                                                    const std::vector<const MhcloProxy*>& proxies) const {
+  const Impl& m = *impl_;
+  POSEFOREST_RETURN_IF_ERROR(CheckDressInputs(m, p, proxies));
+  const std::vector<std::pair<std::string, double>> use = MacroTargets(p);
+  std::vector<Eigen::Vector3f> pos = m.base;
+  for (const auto& [name, w] : use) {
+    auto t = m.GetTarget(name);
+    if (!t.ok()) return t.status();
+    const Target& tg = **t;
+    for (size_t k = 0; k < tg.index.size(); ++k) pos[tg.index[k]] += float(w) * tg.delta[k];
+  }
+  const double scale = kDecimetre * p.height_scale;
+
+  auto rig = MorphedRig(m, pos, scale);
   if (!rig.ok()) return rig.status();
 
   DressedMakeHuman out;
@@ -366,43 +444,10 @@ Result<DressedMakeHuman> MakeHumanKit::BuildDressed(const MakeHumanParams& p,
   }
 
   const std::vector<uint32_t>& anchor = m.Anchors();
-  constexpr float kWeightThreshold = 1e-4f;  // MakeHuman's Proxy.getVertexWeights
   float min_y = std::numeric_limits<float>::infinity();
   for (const auto& v : body.vertices) min_y = std::min(min_y, v.y());
-  for (const MhcloProxy* proxy : proxies) {
-    FittedProxy f;
-    f.name = proxy->name;
-    f.kind = proxy->kind;
-    f.vertices = FitProxy(*proxy, pos);
-    for (auto& v : f.vertices) {
-      v = (v.cast<double>() * scale).cast<float>();
-      min_y = std::min(min_y, v.y());
-    }
-    f.triangles = proxy->triangles;
-    RigWeights w(f.vertices.size());
-    f.body_vertex.resize(f.vertices.size());
-    std::vector<float> acc(m.bones.size());
-    for (size_t k = 0; k < f.vertices.size(); ++k) {
-      std::fill(acc.begin(), acc.end(), 0.f);
-      int heaviest = 0;
-      for (int r = 0; r < 3; ++r) {
-        const float wr = proxy->weight[k][size_t(r)];
-        if (wr > proxy->weight[k][size_t(heaviest)]) heaviest = r;
-        for (const auto& [bone, bw] : m.all_weights[proxy->ref[k][size_t(r)]])
-          if (wr * bw > kWeightThreshold) acc[size_t(bone)] += wr * bw;
-      }
-      for (size_t b = 0; b < acc.size(); ++b)
-        if (acc[b] > 0) w[k].push_back({int(b), acc[b]});
-      f.body_vertex[k] = anchor[proxy->ref[k][size_t(heaviest)]];
-    }
-    f.skin = FoldSkin(*rig, w, f.vertices);
-    // Shoes' delete_verts take the whole foot, but the soles do not cover the heel's lower
-    // edge seen from behind: hidden feet would leave holes, and feet inside shoes do not show.
-    if (proxy->kind != ProxyKind::kShoes)
-      for (uint32_t i : proxy->delete_verts)
-        if (i < m.compact.size() && m.compact[i] >= 0) out.covered[size_t(m.compact[i])] = 1;
-    out.proxies.push_back(std::move(f));
-  }
+  for (const MhcloProxy* proxy : proxies)
+    out.proxies.push_back(FitDressProxy(m, proxy, pos, scale, *rig, anchor, min_y, out.covered));
   // PlaceOnFloor, with the shoes' soles (below the feet) counted.
   const Eigen::Vector3d pelvis = body.rest_joints[size_t(SkelJoint::kPelvis)];
   const Eigen::Vector3f shift = Eigen::Vector3d(-pelvis.x(), -double(min_y), -pelvis.z()).cast<float>();
@@ -411,146 +456,6 @@ Result<DressedMakeHuman> MakeHumanKit::BuildDressed(const MakeHumanParams& p,
   for (FittedProxy& f : out.proxies)
     for (auto& v : f.vertices) v += shift;
   return out;
-}
-
-double MakeHumanAgeFromYears(double years) {
-  years = std::clamp(years, 1.0, 90.0);
-  if (years < 11) return 0.1875 * (years - 1) / 10.0;
-  if (years < 25) return 0.1875 + 0.3125 * (years - 11) / 14.0;
-  return 0.5 + 0.5 * (years - 25) / 65.0;
-}
-
-const std::vector<MakeHumanParams>& MakeHumanPresets() {
-  static const std::vector<MakeHumanParams> presets = [] {
-    auto P = [](const char* name, double gender, double years, double muscle, double weight, double height) {
-      MakeHumanParams p;
-      p.name = name;
-      p.gender = gender;
-      p.age = MakeHumanAgeFromYears(years);
-      p.muscle = muscle;
-      p.weight = weight;
-      p.height_scale = height;
-      return p;
-    };
-    return std::vector<MakeHumanParams>{
-        // MakeHuman's child targets without its height modifier come out short for their age,
-        // so children get a height_scale towards typical heights (~1.28, 1.45, 1.60 m).
-        P("girl-8", 0.0, 8, 0.5, 0.5, 1.17),
-        P("boy-8", 1.0, 8, 0.5, 0.5, 1.12),
-        P("girl-11-thin", 0.0, 11, 0.4, 0.25, 1.15),
-        P("boy-11-heavy", 1.0, 11, 0.5, 0.85, 1.08),
-        P("girl-14", 0.0, 14, 0.5, 0.5, 1.15),
-        P("boy-14", 1.0, 14, 0.55, 0.5, 1.12),
-        P("female-young-thin", 0.0, 25, 0.4, 0.15, 1.0),
-        P("female-young-average", 0.0, 25, 0.5, 0.5, 1.0),
-        P("female-young-heavy", 0.0, 30, 0.45, 0.95, 0.98),
-        P("female-athletic-tall", 0.0, 28, 0.85, 0.45, 1.05),
-        P("male-young-thin", 1.0, 25, 0.45, 0.15, 1.0),
-        P("male-young-average", 1.0, 25, 0.5, 0.5, 1.02),
-        P("male-young-heavy", 1.0, 35, 0.5, 1.0, 1.0),
-        P("male-muscular-tall", 1.0, 28, 1.0, 0.6, 1.07),
-        P("androgynous-short", 0.5, 30, 0.5, 0.5, 0.93),
-        P("female-old", 0.0, 75, 0.35, 0.6, 0.96),
-        P("male-old", 1.0, 75, 0.35, 0.55, 0.97),
-        P("male-old-heavy", 1.0, 65, 0.4, 0.9, 0.98),
-    };
-  }();
-  return presets;
-}
-
-MakeHumanParams VaryMakeHuman(const MakeHumanParams& base, core::RngStream& rng) {
-  MakeHumanParams p = base;
-  p.height_scale = base.height_scale * (1.0 + std::clamp(0.03 * rng.Normal(), -0.08, 0.08));
-  p.weight = std::clamp(base.weight + 0.06 * rng.Normal(), 0.0, 1.0);
-  p.name = base.name + "~var";
-  return p;
-}
-
-MakeHumanParams SampleMakeHumanParams(core::RngStream& rng) {
-  MakeHumanParams p;
-  const double g = rng.Uniform01(), gv = rng.Uniform01();
-  p.gender = g < 0.1 ? gv : g < 0.55 ? 0.2 * gv : 0.8 + 0.2 * gv;
-  const double a = rng.Uniform01(), av = rng.Uniform01();
-  const double years = a < 0.12 ? 6 + 7 * av : a < 0.22 ? 13 + 5 * av : a < 0.85 ? 18 + 47 * av : 65 + 25 * av;
-  p.age = MakeHumanAgeFromYears(years);
-  const double adult = std::clamp((years - 18) / 40, 0.0, 1.0), old = std::clamp((years - 50) / 40, 0.0, 1.0);
-  p.weight = std::clamp(0.42 + 0.12 * adult + 0.22 * rng.Normal(), 0.0, 1.0);
-  p.muscle = std::clamp(0.5 - 0.15 * old + 0.2 * rng.Normal(), 0.0, 1.0);
-  // MakeHuman's child and teen targets come out short without its height modifier (see the
-  // presets): bring them to typical heights, and old bodies a little down.
-  const double young_scale = 1.11 + 0.05 * (1 - p.gender);
-  const double base = years <= 14   ? young_scale
-                      : years < 20  ? young_scale + (1.0 - young_scale) * (years - 14) / 6
-                      : years <= 60 ? 1.0
-                                    : 1.0 - 0.04 * (years - 60) / 30;
-  p.height_scale = base * (1 + std::clamp(0.04 * rng.Normal(), -0.1, 0.1));
-  char name[48];
-  std::snprintf(name, sizeof name, "sampled-%s%d", p.gender < 0.5 ? "f" : "m", int(years));
-  p.name = name;
-  return p;
-}
-
-std::vector<const MhcloProxy*> DrawOutfit(const MakeHumanWardrobe& wardrobe, const MakeHumanParams& params,
-                                          core::RngStream& rng) {
-  const bool female = params.gender < 0.5;
-  // A proxy from `list`: with probability `prefer_share` one whose name starts with one of
-  // `preferred` (when the wardrobe has any), else any.
-  auto pick = [&](const std::vector<std::shared_ptr<const MhcloProxy>>& list,
-                  std::initializer_list<const char*> preferred, double prefer_share) -> const MhcloProxy* {
-    if (list.empty()) return nullptr;
-    std::vector<const MhcloProxy*> pref, all;
-    for (const auto& p : list) {
-      all.push_back(p.get());
-      for (const char* name : preferred)
-        if (p->name.rfind(name, 0) == 0) {
-          pref.push_back(p.get());
-          break;
-        }
-    }
-    const bool use_pref = rng.Uniform01() < prefer_share && !pref.empty();
-    const auto& from = use_pref ? pref : all;
-    return from[rng.UniformInt(uint32_t(from.size()))];
-  };
-  std::vector<const MhcloProxy*> out;
-  if (const MhcloProxy* o = female ? pick(wardrobe.outfits, {"female"}, 0.8) : pick(wardrobe.outfits, {"male"}, 0.8))
-    out.push_back(o);
-  const bool bald = !female && rng.Uniform01() < 0.1;
-  const MhcloProxy* hair =
-      female ? pick(wardrobe.hair, {"long", "ponytail", "braid", "bob", "short03"}, 0.75)
-             : pick(wardrobe.hair, {"short01", "short02", "short04", "afro"}, 0.85);
-  if (hair && !bald) out.push_back(hair);
-  if (rng.Uniform01() < 0.07)
-    if (const MhcloProxy* hat = pick(wardrobe.hats, {}, 0.0)) out.push_back(hat);
-  if (rng.Uniform01() < 0.92)
-    if (const MhcloProxy* shoes = pick(wardrobe.shoes, {}, 0.0)) out.push_back(shoes);
-  return out;
-}
-
-double BodyHeight(const BodyMesh& body) {
-  if (body.vertices.empty()) return 0;
-  float lo = body.vertices[0].y(), hi = lo;
-  for (const auto& v : body.vertices) lo = std::min(lo, v.y()), hi = std::max(hi, v.y());
-  return double(hi - lo);
-}
-
-double WaistWidth(const BodyMesh& body) {
-  const double y0 = body.rest_joints[size_t(SkelJoint::kPelvis)].y();
-  const double y1 = body.rest_joints[size_t(SkelJoint::kChest)].y();
-  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
-  for (size_t v = 0; v < body.vertices.size(); ++v) {
-    const auto& x = body.vertices[v];
-    if (x.y() < y0 || x.y() > y1) continue;
-    // Torso only: the arms hang beside the waist in the A-pose.
-    if (v < body.skin.size()) {
-      const auto& s = body.skin[v];
-      const int j = s.joint[0];
-      if (j != int(SkelJoint::kPelvis) && j != int(SkelJoint::kSpine) && j != int(SkelJoint::kChest))
-        continue;
-    }
-    lo = std::min(lo, x.x());
-    hi = std::max(hi, x.x());
-  }
-  return hi > lo ? double(hi - lo) : 0.0;
 }
 
 }  // namespace poseforest::renderer::assets

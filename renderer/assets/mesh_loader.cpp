@@ -49,58 +49,68 @@ bool IsPoleTarget(const std::string& name) {
          s.find("_IK") != std::string_view::npos || s.find("pole") != std::string_view::npos;
 }
 
-}  // namespace
-
-Result<BodyMesh> LoadRiggedMesh(const std::filesystem::path& path, const MeshLoadOptions& options) {
-  const std::string file = path.string();
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) return Status(ErrorCode::kNotFound, file + ": no such file");
-  Assimp::Importer importer;
-  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const aiScene* scene = importer.ReadFile(
-      file, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_SortByPType);
-  if (!scene || !scene->mRootNode)
-    return Status(ErrorCode::kIo, file + ": Assimp cannot read it: " + importer.GetErrorString());
-
+// The scene's nodes in depth-first order with their global transforms, and by name.
+struct SceneNodes {
   std::vector<NodeInfo> nodes;
   std::unordered_map<const aiNode*, size_t> node_index;
-  Walk(scene->mRootNode, Eigen::Matrix4d::Identity(), &nodes, &node_index);
+  std::unordered_map<std::string, size_t> by_name;
+};
+
+SceneNodes IndexNodes(const aiScene* scene) {
+  SceneNodes s;
+  Walk(scene->mRootNode, Eigen::Matrix4d::Identity(), &s.nodes, &s.node_index);
   // Name -> node; where names repeat (Casual_Female has a mesh node and a bone called "Body"),
   // prefer the node that holds no meshes.
-  std::unordered_map<std::string, size_t> by_name;
-  for (size_t i = 0; i < nodes.size(); ++i) {
-    const std::string name = nodes[i].node->mName.C_Str();
-    auto it = by_name.find(name);
-    if (it == by_name.end() || (nodes[it->second].node->mNumMeshes > 0 && nodes[i].node->mNumMeshes == 0))
-      by_name[name] = i;
+  for (size_t i = 0; i < s.nodes.size(); ++i) {
+    const std::string name = s.nodes[i].node->mName.C_Str();
+    auto it = s.by_name.find(name);
+    if (it == s.by_name.end() ||
+        (s.nodes[it->second].node->mNumMeshes > 0 && s.nodes[i].node->mNumMeshes == 0))
+      s.by_name[name] = i;
   }
+  return s;
+}
 
-  // --- Bones: every aiBone of every mesh, bind pose from its offset matrix. ---
-  struct BoneAcc {
-    std::string name;
-    bool has_bind = false;
-    Eigen::Matrix4d bind_global = Eigen::Matrix4d::Identity();  // bone frame -> file world, bind pose
-  };
+struct BoneAcc {
+  std::string name;
+  bool has_bind = false;
+  Eigen::Matrix4d bind_global = Eigen::Matrix4d::Identity();  // bone frame -> file world, bind pose
+};
+
+// The bones met so far, numbered in the order they are first named.
+struct BoneTable {
   std::vector<BoneAcc> bones;
   std::unordered_map<std::string, int> bone_of;
-  auto bone_index = [&](const std::string& name) {
+  int Index(const std::string& name) {
     auto it = bone_of.find(name);
     if (it != bone_of.end()) return it->second;
     bones.push_back({name});
     bone_of[name] = int(bones.size()) - 1;
     return int(bones.size()) - 1;
-  };
+  }
+};
 
+// The triangles of the file's meshes in the file's world frame, with their bone weights.
+struct MeshGeometry {
   std::vector<Eigen::Vector3f> vertices;
   std::vector<std::array<uint32_t, 3>> triangles;
   RigWeights weights;
   size_t skinned_meshes = 0;
+};
+
+// The meshes, and their bones: every aiBone of every mesh, bind pose from its offset matrix.
+MeshGeometry GatherMeshes(const aiScene* scene, const std::vector<NodeInfo>& nodes,
+                          const MeshLoadOptions& options, BoneTable& table) {
+  MeshGeometry g;
+  auto& bones = table.bones;
+  auto& vertices = g.vertices;
+  auto& weights = g.weights;
   for (const auto& info : nodes) {
     for (unsigned k = 0; k < info.node->mNumMeshes; ++k) {
       const aiMesh* mesh = scene->mMeshes[info.node->mMeshes[k]];
       if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
       if (mesh->mNumBones == 0 && !options.include_unskinned) continue;
-      if (mesh->mNumBones > 0) ++skinned_meshes;
+      if (mesh->mNumBones > 0) ++g.skinned_meshes;
       const uint32_t base = uint32_t(vertices.size());
       // Skinning in the bind pose: Global(bone) * Offset(bone) = the mesh node's bind transform,
       // so the vertex in the file's world frame is mesh_global * v.
@@ -111,7 +121,7 @@ Result<BodyMesh> LoadRiggedMesh(const std::filesystem::path& path, const MeshLoa
       weights.resize(vertices.size());
       for (unsigned b = 0; b < mesh->mNumBones; ++b) {
         const aiBone* bone = mesh->mBones[b];
-        const int bi = bone_index(bone->mName.C_Str());
+        const int bi = table.Index(bone->mName.C_Str());
         if (!bones[size_t(bi)].has_bind) {
           bones[size_t(bi)].has_bind = true;
           bones[size_t(bi)].bind_global = info.global * ToEigen(bone->mOffsetMatrix).inverse();
@@ -126,66 +136,67 @@ Result<BodyMesh> LoadRiggedMesh(const std::filesystem::path& path, const MeshLoa
       for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
         const aiFace& face = mesh->mFaces[f];
         if (face.mNumIndices != 3) continue;
-        triangles.push_back({base + face.mIndices[0], base + face.mIndices[1], base + face.mIndices[2]});
+        g.triangles.push_back({base + face.mIndices[0], base + face.mIndices[1], base + face.mIndices[2]});
       }
     }
   }
-  if (skinned_meshes == 0)
-    return Status(ErrorCode::kInvalidArgument, file + ": no skinned mesh (no bones) among its " +
-                                                   std::to_string(scene->mNumMeshes) +
-                                                   " meshes: a body needs a rig to be posed");
-  if (triangles.empty())
-    return Status(ErrorCode::kInvalidArgument, file + ": the skinned meshes have no triangles");
+  return g;
+}
 
-  // Bone hierarchy through the node tree; bones found only as nodes (a rig's root) join the list
-  // so parent chains stay connected.
+// Bone hierarchy through the node tree; bones found only as nodes (a rig's root) join the list
+// so parent chains stay connected.
+std::vector<RigBone> BuildRigBones(const SceneNodes& s, BoneTable& table) {
+  const auto& nodes = s.nodes;
+  const auto& by_name = s.by_name;
+  auto& bones = table.bones;
+  const auto& bone_of = table.bone_of;
   std::vector<RigBone> rig_bones;
-  {
-    // Nodes that are bones, or ancestors of bones below the first bone's armature.
-    const size_t original = bones.size();
-    for (size_t i = 0; i < original; ++i) {
-      auto it = by_name.find(bones[i].name);
-      if (it == by_name.end()) continue;
-      for (const aiNode* a = nodes[it->second].node->mParent; a && a->mParent; a = a->mParent) {
-        const std::string an = a->mName.C_Str();
-        if (a->mNumMeshes > 0) break;
-        if (bone_of.count(an)) continue;
-        // Only nodes inside the armature: stop at a node that has a mesh child at its level.
-        bone_index(an);
-      }
+  // Nodes that are bones, or ancestors of bones below the first bone's armature.
+  const size_t original = bones.size();
+  for (size_t i = 0; i < original; ++i) {
+    auto it = by_name.find(bones[i].name);
+    if (it == by_name.end()) continue;
+    for (const aiNode* a = nodes[it->second].node->mParent; a && a->mParent; a = a->mParent) {
+      const std::string an = a->mName.C_Str();
+      if (a->mNumMeshes > 0) break;
+      if (bone_of.count(an)) continue;
+      // Only nodes inside the armature: stop at a node that has a mesh child at its level.
+      table.Index(an);
     }
-    rig_bones.resize(bones.size());
-    for (size_t i = 0; i < bones.size(); ++i) {
-      RigBone& rb = rig_bones[i];
-      rb.name = bones[i].name;
-      auto it = by_name.find(bones[i].name);
-      Eigen::Matrix4d g = bones[i].bind_global;
-      if (!bones[i].has_bind && it != by_name.end()) g = nodes[it->second].global;
-      rb.head = g.block<3, 1>(0, 3);
-      if (it != by_name.end()) {
-        for (const aiNode* a = nodes[it->second].node->mParent; a; a = a->mParent) {
-          auto pb = bone_of.find(a->mName.C_Str());
-          if (pb != bone_of.end() && pb->second != int(i)) {
-            rb.parent = pb->second;
-            break;
-          }
+  }
+  rig_bones.resize(bones.size());
+  for (size_t i = 0; i < bones.size(); ++i) {
+    RigBone& rb = rig_bones[i];
+    rb.name = bones[i].name;
+    auto it = by_name.find(bones[i].name);
+    Eigen::Matrix4d g = bones[i].bind_global;
+    if (!bones[i].has_bind && it != by_name.end()) g = nodes[it->second].global;
+    rb.head = g.block<3, 1>(0, 3);
+    if (it != by_name.end()) {
+      for (const aiNode* a = nodes[it->second].node->mParent; a; a = a->mParent) {
+        auto pb = bone_of.find(a->mName.C_Str());
+        if (pb != bone_of.end() && pb->second != int(i)) {
+          rb.parent = pb->second;
+          break;
         }
       }
     }
-    // A bone with exactly one child bone gets that child's head as its tail.
-    std::vector<int> child_count(rig_bones.size(), 0), only_child(rig_bones.size(), -1);
-    for (size_t i = 0; i < rig_bones.size(); ++i)
-      if (rig_bones[i].parent >= 0)
-        ++child_count[size_t(rig_bones[i].parent)], only_child[size_t(rig_bones[i].parent)] = int(i);
-    for (size_t i = 0; i < rig_bones.size(); ++i)
-      if (child_count[i] == 1)
-        rig_bones[i].has_tail = true, rig_bones[i].tail = rig_bones[size_t(only_child[i])].head;
   }
-  auto folded = FoldRig(rig_bones, file, options.bone_maps);
-  if (!folded.ok()) return folded.status();
-  FoldedRig rig = std::move(*folded);
+  // A bone with exactly one child bone gets that child's head as its tail.
+  std::vector<int> child_count(rig_bones.size(), 0), only_child(rig_bones.size(), -1);
+  for (size_t i = 0; i < rig_bones.size(); ++i)
+    if (rig_bones[i].parent >= 0)
+      ++child_count[size_t(rig_bones[i].parent)], only_child[size_t(rig_bones[i].parent)] = int(i);
+  for (size_t i = 0; i < rig_bones.size(); ++i)
+    if (child_count[i] == 1)
+      rig_bones[i].has_tail = true, rig_bones[i].tail = rig_bones[size_t(only_child[i])].head;
+  return rig_bones;
+}
 
-  // --- Orientation and scale. ---
+// Orientation and scale: the map from the file's frame to the body frame (metres, Y up, facing +Z): the rig's
+// axes snapped, and the metric unit that gives a plausible height (or the fallback height).
+Result<Eigen::Matrix3d> BodyFrame(const FoldedRig& rig, const std::vector<Eigen::Vector3f>& vertices,
+                                  const MeshLoadOptions& options, const std::string& file) {
   auto J = [&](SkelJoint j) { return rig.rest_joints[size_t(int(j))]; };
   Eigen::Vector3d up = J(SkelJoint::kNeck) - J(SkelJoint::kPelvis);
   Eigen::Vector3d left = (J(SkelJoint::kLHip) - J(SkelJoint::kRHip)).normalized() +
@@ -222,15 +233,49 @@ Result<BodyMesh> LoadRiggedMesh(const std::filesystem::path& path, const MeshLoa
     unit = options.fallback_height_m / raw_height;
   }
   const Eigen::Matrix3d to_body = unit * rot;
-  for (auto& v : vertices) v = (to_body * v.cast<double>()).cast<float>();
-  for (auto& j : rig.rest_joints) j = to_body * j;
+  return to_body;
+}
+
+}  // namespace
+
+Result<BodyMesh> LoadRiggedMesh(const std::filesystem::path& path, const MeshLoadOptions& options) {
+  const std::string file = path.string();
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return Status(ErrorCode::kNotFound, file + ": no such file");
+  Assimp::Importer importer;
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  const aiScene* scene = importer.ReadFile(
+      file, aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_SortByPType);
+  if (!scene || !scene->mRootNode)
+    return Status(ErrorCode::kIo, file + ": Assimp cannot read it: " + importer.GetErrorString());
+
+  const SceneNodes nodes = IndexNodes(scene);
+  BoneTable bones;
+  MeshGeometry mesh = GatherMeshes(scene, nodes.nodes, options, bones);
+  if (mesh.skinned_meshes == 0)
+    return Status(ErrorCode::kInvalidArgument, file + ": no skinned mesh (no bones) among its " +
+                                                   std::to_string(scene->mNumMeshes) +
+                                                   " meshes: a body needs a rig to be posed");
+  if (mesh.triangles.empty())
+    return Status(ErrorCode::kInvalidArgument, file + ": the skinned meshes have no triangles");
+
+  const std::vector<RigBone> rig_bones = BuildRigBones(nodes, bones);
+  auto folded = FoldRig(rig_bones, file, options.bone_maps);
+  if (!folded.ok()) return folded.status();
+  FoldedRig rig = std::move(*folded);
+
+  auto to_body = BodyFrame(rig, mesh.vertices, options, file);
+  if (!to_body.ok()) return to_body.status();
+  std::vector<Eigen::Vector3f>& vertices = mesh.vertices;
+  for (auto& v : vertices) v = (*to_body * v.cast<double>()).cast<float>();
+  for (auto& j : rig.rest_joints) j = *to_body * j;
 
   BodyMesh body;
   body.name = "mesh:" + path.filename().string();
-  body.skin = FoldSkin(rig, weights, vertices);
+  body.skin = FoldSkin(rig, mesh.weights, vertices);
   EstimateMissingJoints(rig, vertices, body.skin);
   body.vertices = std::move(vertices);
-  body.triangles = std::move(triangles);
+  body.triangles = std::move(mesh.triangles);
   body.rest_joints = rig.rest_joints;
   PlaceOnFloor(&body);
   return body;
