@@ -27,7 +27,6 @@ Status DecideNodes(ShardSet& shards, const TrainParams& params, int tree, int le
                    uint64_t max_batch_bytes, std::vector<NodeDecision>* decisions,
                    const std::function<void(size_t decided, uint64_t batch_bytes)>& after_batch) {
   const int t_count = params.thresholds_per_feature;
-  const int cut_stride = CutStride(t_count);
   for (size_t b0 = 0; b0 < to_split.size();) {
     // Batches bounded by histogram memory: the split choice is per node, so the batching does
     // not change any decision.
@@ -39,14 +38,12 @@ Status DecideNodes(ShardSet& shards, const TrainParams& params, int tree, int le
       plan.node = f.node;
       plan.position = f.position;
       plan.num_samples = f.total();
-      plan.SetParts(f.parts);
-      plan.sample_bins = UseSampleBins(plan.num_samples, t_count, plan.num_slots);
+      plan.SetShape(f.parts, t_count);
       plan.features.resize(size_t(params.candidate_features));  // sized for the byte count
       const uint64_t bytes = PlanHistogramBytes(plan, t_count);
       if (!batch.plans.empty() && batch.bytes + bytes > max_batch_bytes) break;
       batch.bytes += bytes;
       plan.features = DrawFeatures(params, tree, f.position);
-      plan.cut_stride = cut_stride;
       batch.plans.push_back(std::move(plan));
       batch.parts.emplace_back(f.parts);
       ++b1;

@@ -23,6 +23,12 @@ void NodePlan::SetParts(std::span<const uint64_t> part_counts) {
     if (part_counts[c] > 0) part_slot[c] = uint8_t(num_slots++);
 }
 
+void NodePlan::SetShape(std::span<const uint64_t> part_counts, int thresholds_per_feature) {
+  SetParts(part_counts);
+  sample_bins = UseSampleBins(num_samples, thresholds_per_feature, num_slots);
+  cut_stride = CutStride(thresholds_per_feature);
+}
+
 bool UseSampleBins(uint64_t node_samples, int thresholds_per_feature, int slots) {
   // Per sample K + 1 bytes vs K * bins * slots * 4 bytes per node; independent of K.
   return node_samples < uint64_t(4) * uint64_t(thresholds_per_feature + 1) * uint64_t(slots);
@@ -772,6 +778,138 @@ bool HistogramBuilder::CanFuse(const SampleSet& samples, const TrainParams& para
          plan.num_samples <= params.threshold_reference_pixels;
 }
 
+namespace {
+
+#if POSEFOREST_HIST_AVX512
+/// BuildFused's second pass in 16-bit lanes (soa.fit16): the bins of the node's responses `resp`
+/// (rows of `ps` candidates) by a linear count over the transposed cuts, as the sample-major
+/// kernel does, tiles of kTile samples.
+void FusedBins16(const SampleSet& samples, const NodePlan& plan, const NodeRange& range, const CandidateSoa& soa,
+                 const std::vector<int32_t>& resp, size_t ps, int t, NodeHistogram& hist) {
+  const uint64_t n = range.end - range.begin;
+  const size_t kk = plan.features.size();
+  const int num_bins = t + 1, slots = hist.num_slots;
+  alignas(64) uint16_t local[32];  // bin * slots + slot per lane
+  const size_t cs = size_t(num_bins) * size_t(slots);
+  auto tile = [&]<int S>(uint64_t i) {
+    __m512i r[S], bin[S];
+    for (int k = 0; k < soa.num_candidates; k += 32) {
+      for (int s = 0; s < S; ++s) {
+        const int32_t* ri = &resp[(i + uint64_t(s)) * ps + size_t(k)];
+        r[s] = Pack16(_mm512_loadu_si512(ri), _mm512_loadu_si512(ri + 16));
+      }
+      BinsTile<S>(r, soa.cuts16.data() + k, size_t(soa.padded), t, bin);
+      const int m = std::min(32, soa.num_candidates - k);
+      for (int s = 0; s < S; ++s) {
+        if (plan.sample_bins) {
+          _mm256_mask_storeu_epi8(&hist.sample_bin[(i + uint64_t(s)) * kk + size_t(k)], Mask32(uint64_t(m)),
+                                  _mm512_cvtepi16_epi8(bin[s]));
+        } else {
+          const __m512i slot =
+              _mm512_set1_epi16(int16_t(plan.part_slot[samples.part()[range.begin + i + uint64_t(s)]]));
+          _mm512_store_si512(
+              local, _mm512_add_epi16(_mm512_mullo_epi16(bin[s], _mm512_set1_epi16(int16_t(slots))), slot));
+          uint32_t* ck = hist.counts.data() + size_t(k) * cs;
+          for (int l = 0; l < m; ++l) ++ck[size_t(l) * cs + local[l]];
+        }
+      }
+    }
+  };
+  uint64_t i = 0;
+  for (; i + kTile <= n; i += kTile) tile.template operator()<kTile>(i);
+  for (; i < n; ++i) tile.template operator()<1>(i);
+}
+
+/// BuildFused's second pass in 32-bit lanes (cuts that do not fit 16 bits).
+void FusedBins32(const SampleSet& samples, const NodePlan& plan, const NodeRange& range, const CandidateSoa& soa,
+                 const std::vector<int32_t>& resp, size_t ps, int t, NodeHistogram& hist) {
+  const uint64_t n = range.end - range.begin;
+  const size_t kk = plan.features.size();
+  const int num_bins = t + 1, slots = hist.num_slots;
+  alignas(64) int32_t idx[16];
+  const __m512i one = _mm512_set1_epi32(1);
+  const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  for (uint64_t i = 0; i < n; ++i) {
+    const int slot = plan.part_slot[samples.part()[range.begin + i]];
+    for (int k = 0; k < soa.num_candidates; k += 16) {
+      const __m512i r = _mm512_loadu_si512(&resp[i * ps + size_t(k)]);
+      __m512i bin = _mm512_setzero_si512();
+      const int32_t* col = soa.cuts.data() + k;
+      for (int j = 0; j < t; ++j)
+        bin = _mm512_mask_add_epi32(
+            bin, _mm512_cmpgt_epi32_mask(r, _mm512_loadu_si512(col + size_t(j) * size_t(soa.padded))), bin, one);
+      const int m = std::min(16, soa.num_candidates - k);
+      if (plan.sample_bins) {
+        _mm512_mask_cvtepi32_storeu_epi8(&hist.sample_bin[i * kk + size_t(k)], __mmask16((1u << m) - 1), bin);
+      } else {
+        const __m512i cand = _mm512_add_epi32(_mm512_set1_epi32(k), lane);
+        _mm512_store_si512(idx,
+                           _mm512_add_epi32(_mm512_mullo_epi32(cand, _mm512_set1_epi32(num_bins * slots)),
+                                            _mm512_add_epi32(_mm512_mullo_epi32(bin, _mm512_set1_epi32(slots)),
+                                                             _mm512_set1_epi32(slot))));
+        for (int l = 0; l < m; ++l) ++hist.counts[size_t(idx[l])];
+      }
+    }
+  }
+}
+#endif
+
+/// BuildFused of one node: pass 1 computes every response once (rows padded to 32 candidates,
+/// in `resp`) and the ranges from them, the cuts are drawn, pass 2 bins the stored responses.
+void FusedNode(const KernelInput& in, const SampleSet& samples, const TrainParams& params, int tree,
+               NodePlan& plan, NodeHistogram& hist, std::vector<int32_t>& resp) {
+  const int t = params.thresholds_per_feature, num_bins = t + 1;
+  const NodeRange range = samples.RangeOf(plan.node);
+  const uint64_t n = range.end - range.begin;
+  const size_t kk = plan.features.size();
+  const size_t ps = (kk + 31) / 32 * 32;
+  resp.resize(n * ps);
+  std::vector<ResponseRange> ranges(kk);
+  const int stride = CutStride(t), slots = hist.num_slots;
+#if POSEFOREST_HIST_AVX512
+  if (samples.uniform_size() && stride <= 64) {
+    CandidateSoa soa;
+    soa.Set(plan.features, nullptr, 0, 0);
+    std::vector<int32_t> lo(ps, INT32_MAX), hi(ps, INT32_MIN);
+    for (uint64_t i = 0; i < n; ++i)
+      for (int k = 0; k < soa.padded; k += 16) {
+        const __m512i r = SampleResponses16(in, range.begin + i, soa, k);
+        _mm512_storeu_si512(&resp[i * ps + size_t(k)], r);
+        _mm512_storeu_si512(&lo[size_t(k)], _mm512_min_epi32(_mm512_loadu_si512(&lo[size_t(k)]), r));
+        _mm512_storeu_si512(&hi[size_t(k)], _mm512_max_epi32(_mm512_loadu_si512(&hi[size_t(k)]), r));
+      }
+    for (size_t k = 0; k < kk; ++k) ranges[k] = ResponseRange{lo[k], hi[k]};
+    plan.cuts = DrawCuts(params, tree, plan.position, ranges);
+    plan.cut_stride = stride;
+    soa.Set(plan.features, plan.cuts.data(), stride, t);
+    if (soa.fit16)
+      FusedBins16(samples, plan, range, soa, resp, ps, t, hist);
+    else
+      FusedBins32(samples, plan, range, soa, resp, ps, t, hist);
+    return;
+  }
+#endif
+  for (uint64_t i = 0; i < n; ++i)
+    for (size_t k = 0; k < kk; ++k)
+      resp[i * ps + k] = samples.Response(range.begin + i, plan.features[k], in.background_mm);
+  for (uint64_t i = 0; i < n; ++i)
+    for (size_t k = 0; k < kk; ++k) ranges[k].Add(resp[i * ps + k]);
+  plan.cuts = DrawCuts(params, tree, plan.position, ranges);
+  plan.cut_stride = stride;
+  for (uint64_t i = 0; i < n; ++i) {
+    const int slot = plan.part_slot[samples.part()[range.begin + i]];
+    for (size_t k = 0; k < kk; ++k) {
+      const int bin = BinOf(resp[i * ps + k], &plan.cuts[k * size_t(stride)], stride);
+      if (plan.sample_bins)
+        hist.sample_bin[i * kk + k] = uint8_t(bin);
+      else
+        ++hist.counts[(k * size_t(num_bins) + size_t(bin)) * size_t(slots) + size_t(slot)];
+    }
+  }
+}
+
+}  // namespace
+
 void HistogramBuilder::BuildFused(const SampleSet& samples, const TrainParams& params, int tree,
                                   std::span<NodePlan> plans, std::vector<NodeHistogram>* out) {
   out->resize(plans.size());
@@ -798,116 +936,8 @@ void HistogramBuilder::BuildFused(const SampleSet& samples, const TrainParams& p
   {
     std::vector<int32_t> resp;  // [sample][candidate]
 #pragma omp for schedule(dynamic, 1)
-    for (int64_t p = 0; p < n_plans; ++p) {
-      errors.Run([&] {
-        NodePlan& plan = plans[size_t(p)];
-        NodeHistogram& hist = (*out)[size_t(p)];
-        const NodeRange range = samples.RangeOf(plan.node);
-        const uint64_t n = range.end - range.begin;
-        const size_t kk = plan.features.size();
-        // Pass 1: responses once (rows padded to 32 candidates), ranges from them.
-        const size_t ps = (kk + 31) / 32 * 32;
-        resp.resize(n * ps);
-        std::vector<ResponseRange> ranges(kk);
-        const int stride = CutStride(t), slots = hist.num_slots;
-#if POSEFOREST_HIST_AVX512
-        if (samples.uniform_size() && stride <= 64) {
-          CandidateSoa soa;
-          soa.Set(plan.features, nullptr, 0, 0);
-          std::vector<int32_t> lo(ps, INT32_MAX), hi(ps, INT32_MIN);
-          for (uint64_t i = 0; i < n; ++i)
-            for (int k = 0; k < soa.padded; k += 16) {
-              const __m512i r = SampleResponses16(in, range.begin + i, soa, k);
-              _mm512_storeu_si512(&resp[i * ps + size_t(k)], r);
-              _mm512_storeu_si512(&lo[size_t(k)], _mm512_min_epi32(_mm512_loadu_si512(&lo[size_t(k)]), r));
-              _mm512_storeu_si512(&hi[size_t(k)], _mm512_max_epi32(_mm512_loadu_si512(&hi[size_t(k)]), r));
-            }
-          for (size_t k = 0; k < kk; ++k) ranges[k] = ResponseRange{lo[k], hi[k]};
-          plan.cuts = DrawCuts(params, tree, plan.position, ranges);
-          plan.cut_stride = stride;
-          soa.Set(plan.features, plan.cuts.data(), stride, t);
-          // Pass 2: bins by a linear count over the transposed cuts, as the sample-major kernel.
-          if (soa.fit16) {
-            alignas(64) uint16_t local[32];  // bin * slots + slot per lane
-            const size_t cs = size_t(num_bins) * size_t(slots);
-            auto tile = [&]<int S>(uint64_t i) {
-              __m512i r[S], bin[S];
-              for (int k = 0; k < soa.num_candidates; k += 32) {
-                for (int s = 0; s < S; ++s) {
-                  const int32_t* ri = &resp[(i + uint64_t(s)) * ps + size_t(k)];
-                  r[s] = Pack16(_mm512_loadu_si512(ri), _mm512_loadu_si512(ri + 16));
-                }
-                BinsTile<S>(r, soa.cuts16.data() + k, size_t(soa.padded), t, bin);
-                const int m = std::min(32, soa.num_candidates - k);
-                for (int s = 0; s < S; ++s) {
-                  if (plan.sample_bins) {
-                    _mm256_mask_storeu_epi8(&hist.sample_bin[(i + uint64_t(s)) * kk + size_t(k)], Mask32(uint64_t(m)),
-                                            _mm512_cvtepi16_epi8(bin[s]));
-                  } else {
-                    const __m512i slot =
-                        _mm512_set1_epi16(int16_t(plan.part_slot[samples.part()[range.begin + i + uint64_t(s)]]));
-                    _mm512_store_si512(
-                        local, _mm512_add_epi16(_mm512_mullo_epi16(bin[s], _mm512_set1_epi16(int16_t(slots))), slot));
-                    uint32_t* ck = hist.counts.data() + size_t(k) * cs;
-                    for (int l = 0; l < m; ++l) ++ck[size_t(l) * cs + local[l]];
-                  }
-                }
-              }
-            };
-            uint64_t i = 0;
-            for (; i + kTile <= n; i += kTile) tile.template operator()<kTile>(i);
-            for (; i < n; ++i) tile.template operator()<1>(i);
-            return;
-          }
-          alignas(64) int32_t idx[16];
-          const __m512i one = _mm512_set1_epi32(1);
-          const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-          for (uint64_t i = 0; i < n; ++i) {
-            const int slot = plan.part_slot[samples.part()[range.begin + i]];
-            for (int k = 0; k < soa.num_candidates; k += 16) {
-              const __m512i r = _mm512_loadu_si512(&resp[i * ps + size_t(k)]);
-              __m512i bin = _mm512_setzero_si512();
-              const int32_t* col = soa.cuts.data() + k;
-              for (int j = 0; j < t; ++j)
-                bin = _mm512_mask_add_epi32(
-                    bin, _mm512_cmpgt_epi32_mask(r, _mm512_loadu_si512(col + size_t(j) * size_t(soa.padded))),
-                    bin, one);
-              const int m = std::min(16, soa.num_candidates - k);
-              if (plan.sample_bins) {
-                _mm512_mask_cvtepi32_storeu_epi8(&hist.sample_bin[i * kk + size_t(k)],
-                                                 __mmask16((1u << m) - 1), bin);
-              } else {
-                const __m512i cand = _mm512_add_epi32(_mm512_set1_epi32(k), lane);
-                _mm512_store_si512(
-                    idx, _mm512_add_epi32(_mm512_mullo_epi32(cand, _mm512_set1_epi32(num_bins * slots)),
-                                          _mm512_add_epi32(_mm512_mullo_epi32(bin, _mm512_set1_epi32(slots)),
-                                                           _mm512_set1_epi32(slot))));
-                for (int l = 0; l < m; ++l) ++hist.counts[size_t(idx[l])];
-              }
-            }
-          }
-          return;
-        }
-#endif
-        for (uint64_t i = 0; i < n; ++i)
-          for (size_t k = 0; k < kk; ++k)
-            resp[i * ps + k] = samples.Response(range.begin + i, plan.features[k], in.background_mm);
-        for (uint64_t i = 0; i < n; ++i)
-          for (size_t k = 0; k < kk; ++k) ranges[k].Add(resp[i * ps + k]);
-        plan.cuts = DrawCuts(params, tree, plan.position, ranges);
-        plan.cut_stride = stride;
-        for (uint64_t i = 0; i < n; ++i) {
-          const int slot = plan.part_slot[samples.part()[range.begin + i]];
-          for (size_t k = 0; k < kk; ++k) {
-            const int bin = BinOf(resp[i * ps + k], &plan.cuts[k * size_t(stride)], stride);
-            if (plan.sample_bins)
-              hist.sample_bin[i * kk + k] = uint8_t(bin);
-            else
-              ++hist.counts[(k * size_t(num_bins) + size_t(bin)) * size_t(slots) + size_t(slot)];
-          }
-        }
-      });
-    }
+    for (int64_t p = 0; p < n_plans; ++p)
+      errors.Run([&] { FusedNode(in, samples, params, tree, plans[size_t(p)], (*out)[size_t(p)], resp); });
   }
   errors.Rethrow();
   evaluations_ += evals;

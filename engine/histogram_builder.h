@@ -32,6 +32,10 @@ struct NodePlan {
 
   /// Sets part_slot/num_slots from per-part counts (kNumParts entries).
   void SetParts(std::span<const uint64_t> part_counts);
+  /// The histogram's shape: SetParts(part_counts), then its form for num_samples
+  /// (UseSampleBins) and cut_stride (CutStride) for `thresholds_per_feature`. What every holder
+  /// of a node's plan (the frontier loop, a worker's shard) sets before drawing cuts.
+  void SetShape(std::span<const uint64_t> part_counts, int thresholds_per_feature);
 };
 
 /// Whether a node of `node_samples` samples (all shards) ships per-sample bins instead of dense

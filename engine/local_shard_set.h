@@ -1,13 +1,15 @@
 #pragma once
 // Shards held in this process: what a distributed worker holds (its frames and samples), N of
-// them side by side, answering for all at once. The single-process engine uses N; a worker's
-// subtree training uses its one SampleSet.
+// them side by side (engine::Shard, shard.h), answering for all at once. The single-process
+// engine uses N; a worker's subtree training uses its one SampleSet.
 
 #include <span>
+#include <vector>
 
 #include "engine/histogram_builder.h"
 #include "engine/job_spec.h"
 #include "engine/sample_set.h"
+#include "engine/shard.h"
 #include "engine/shard_set.h"
 
 namespace poseforest::engine {
@@ -37,9 +39,7 @@ class LocalShardSet final : public ShardSet {
   void Sink(std::span<const size_t> which, std::span<const NodeHistogram> hists,
             const HistogramSink& sink) const;
 
-  std::span<SampleSet> shards_;
-  const TrainParams& params_;
-  HistogramBuilder& builder_;
+  std::vector<Shard> shards_;
   int threads_;
   double range_seconds_ = 0, histogram_seconds_ = 0;
 };

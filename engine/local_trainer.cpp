@@ -14,6 +14,7 @@
 #include "engine/image_source.h"
 #include "engine/local_shard_set.h"
 #include "engine/sample_set.h"
+#include "engine/shard.h"
 #include "engine/split_search.h"
 #include "engine/tree_assembler.h"
 
@@ -51,6 +52,41 @@ Result<core::Forest> LocalTrainer::Train() {
   return forest;
 }
 
+Status LocalTrainer::LoadShards(int tree, std::vector<SampleSet>* shards) {
+  const int num_shards = options_.num_shards;
+  const int ipt = params_.images_per_tree;
+  shards->assign(static_cast<size_t>(num_shards), SampleSet{});
+  // Every frame of the tree, loaded in parallel (engine::LoadFrames: compacted and sampled
+  // frame by frame, in per-frame slots), then spread over shards in contiguous blocks of frame
+  // indices.
+  std::vector<uint64_t> indices(static_cast<size_t>(ipt));
+  for (int i = 0; i < ipt; ++i) indices[size_t(i)] = uint64_t(i);
+  std::vector<ShardFrame> frames;
+  POSEFOREST_RETURN_IF_ERROR(LoadFrames(params_, tree, indices, stats_.threads, &frames));
+  // Exact room first: a grown vector's slack would cost up to as much as its contents.
+  struct Room {
+    size_t frames = 0, pixels = 0, samples = 0, rows = 0;
+  };
+  std::vector<Room> room(static_cast<size_t>(num_shards));
+  for (int i = 0; i < ipt; ++i) {
+    if (frames[size_t(i)].picked.empty()) continue;  // no body in view
+    Room& r = room[size_t(int64_t(i) * num_shards / ipt)];
+    ++r.frames;
+    r.pixels += frames[size_t(i)].frame.pixels.size();
+    r.rows += frames[size_t(i)].frame.rows.size();
+    r.samples += frames[size_t(i)].picked.size();
+  }
+  for (size_t k = 0; k < shards->size(); ++k)
+    (*shards)[k].Reserve(room[k].frames, room[k].pixels, room[k].samples, room[k].rows);
+  for (int i = 0; i < ipt; ++i) {
+    if (frames[size_t(i)].picked.empty()) continue;  // no body in view
+    const auto shard = size_t(int64_t(i) * num_shards / ipt);
+    (*shards)[shard].AddFrame(uint64_t(i), frames[size_t(i)].frame, frames[size_t(i)].picked, params_.constants);
+    frames[size_t(i)] = {};
+  }
+  return Status::Ok();
+}
+
 Result<core::Tree> LocalTrainer::TrainTree(int tree) {
   if (start_ == 0) start_ = level_mark_ = Now();
   const int threads = stats_.threads;
@@ -59,69 +95,8 @@ Result<core::Tree> LocalTrainer::TrainTree(int tree) {
 
   // --- Frames and samples, spread over shards in contiguous blocks of frame indices. ---
   const double t_load = Now();
-  std::vector<SampleSet> shards(static_cast<size_t>(num_shards));
-  {
-    // Plain threads, each with its own ImageSource created, used and destroyed on that thread
-    // (a renderer's GL context is bound to one thread). Frame i goes to thread i % threads;
-    // results land in per-frame slots, so the outcome does not depend on timing. Each frame is
-    // compacted (CompactFrame: what features can read) and its labels dropped as soon as its
-    // pixels are sampled, so whole frames never pile up.
-    std::vector<CompactFrame> compact(static_cast<size_t>(ipt));
-    std::vector<std::vector<PixelSample>> picked(static_cast<size_t>(ipt));
-    std::vector<Status> errors(static_cast<size_t>(threads));
-    std::vector<std::thread> pool;
-    for (int tid = 0; tid < threads; ++tid) {
-      pool.emplace_back([&, tid] {
-        try {
-          auto source = MakeImageSource(params_.source);
-          if (!source.ok()) {
-            errors[size_t(tid)] = source.status();
-            return;
-          }
-          for (int i = tid; i < ipt; i += threads) {
-            const uint64_t index = uint64_t(tree) * uint64_t(ipt) + uint64_t(i);
-            auto frame = (*source)->Frame(index);
-            if (!frame.ok()) {
-              errors[size_t(tid)] = frame.status();
-              return;
-            }
-            picked[size_t(i)] =
-                SamplePixels(*frame, params_.pixels_per_image, params_.part_balance,
-                             core::CounterRng(params_.seed, uint64_t(tree), index, kSamplingStream));
-            compact[size_t(i)] = CompactFrame::Of(frame->depth, params_.constants.background_mm);
-          }
-        } catch (const std::exception& e) {
-          errors[size_t(tid)] =
-              Status(core::ErrorCode::kInternal, std::string("loading frames: ") + e.what());
-        }
-      });
-    }
-    for (auto& t : pool) t.join();
-    for (const Status& e : errors)
-      if (!e.ok()) return e;
-    // Exact room first: a grown vector's slack would cost up to as much as its contents.
-    struct Room {
-      size_t frames = 0, pixels = 0, samples = 0, rows = 0;
-    };
-    std::vector<Room> room(static_cast<size_t>(num_shards));
-    for (int i = 0; i < ipt; ++i) {
-      if (picked[size_t(i)].empty()) continue;  // no body in view
-      Room& r = room[size_t(int64_t(i) * num_shards / ipt)];
-      ++r.frames;
-      r.pixels += compact[size_t(i)].pixels.size();
-      r.rows += compact[size_t(i)].rows.size();
-      r.samples += picked[size_t(i)].size();
-    }
-    for (size_t k = 0; k < shards.size(); ++k)
-      shards[k].Reserve(room[k].frames, room[k].pixels, room[k].samples, room[k].rows);
-    for (int i = 0; i < ipt; ++i) {
-      if (picked[size_t(i)].empty()) continue;  // no body in view
-      const auto shard = size_t(int64_t(i) * num_shards / ipt);
-      shards[shard].AddFrame(uint64_t(i), compact[size_t(i)], picked[size_t(i)], params_.constants);
-      compact[size_t(i)] = {};
-      picked[size_t(i)] = {};
-    }
-  }
+  std::vector<SampleSet> shards;
+  POSEFOREST_RETURN_IF_ERROR(LoadShards(tree, &shards));
   uint64_t sample_bytes = 0, num_samples = 0;
   for (auto& s : shards) {
     s.StartTree(0);

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "engine/job_spec.h"
+#include "engine/sample_set.h"
 #include "runtime/core/forest.h"
 #include "runtime/core/result.h"
 
@@ -65,6 +66,10 @@ class LocalTrainer {
   const TrainingStats& stats() const { return stats_; }
 
  private:
+  /// Tree `tree`'s frames loaded and sampled into options_.num_shards shards (contiguous
+  /// blocks of frame indices; frames without a body in view hold no samples and are left out).
+  core::Status LoadShards(int tree, std::vector<SampleSet>* shards);
+
   TrainParams params_;
   LocalTrainerOptions options_;
   TrainingStats stats_;

@@ -107,4 +107,57 @@ Status GetFeatureSplit(const v1::FeatureSplit& s, core::FeatureOffsets* f, int32
   return Status::Ok();
 }
 
+void EncodeCuts(const NodePlan& plan, v1::NodeRanges* out) {
+  const int k = int(plan.features.size());
+  for (int c = 0; c < k; ++c) {
+    uint32_t count = 0;
+    int32_t prev = 0;
+    for (int e = 0; e < plan.cut_stride; ++e) {
+      const int32_t cut = plan.cuts[size_t(c) * size_t(plan.cut_stride) + size_t(e)];
+      if (cut == kNoCut) break;
+      out->add_cut_deltas(count == 0 ? cut : cut - prev);
+      prev = cut;
+      ++count;
+    }
+    out->add_cut_counts(count);
+  }
+}
+
+bool DecodeCuts(const v1::NodeRanges& in, int num_candidates, int cut_stride, std::vector<int32_t>* cuts) {
+  cuts->assign(size_t(num_candidates) * size_t(cut_stride), kNoCut);
+  if (in.cut_counts_size() != num_candidates) return false;
+  int pos = 0;
+  for (int c = 0; c < num_candidates; ++c) {
+    if (in.cut_counts(c) > uint32_t(cut_stride) || in.cut_counts(c) > uint32_t(in.cut_deltas_size() - pos))
+      return false;
+    int64_t v = 0;
+    for (uint32_t j = 0; j < in.cut_counts(c); ++j) {
+      const int32_t d = in.cut_deltas(pos++);
+      if (j > 0 && d <= 0) return false;
+      v = j == 0 ? int64_t(d) : v + int64_t(d);
+      if (v >= int64_t(kNoCut)) return false;
+      (*cuts)[size_t(c) * size_t(cut_stride) + j] = int32_t(v);
+    }
+  }
+  return pos == in.cut_deltas_size();
+}
+
+void EncodeNodeFrames(const SampleSet& samples, const NodeRange& range, v1::NodeRanges* out) {
+  out->set_num_samples(range.end - range.begin);
+  uint32_t prev_pixel = 0;
+  for (uint64_t j = range.begin; j < range.end; ++j) {
+    const uint64_t f = samples.frame_index(j);
+    const uint32_t pixel = uint32_t(samples.y()[j]) * uint32_t(samples.frames()[samples.frame()[j]].width) +
+                           uint32_t(samples.x()[j]);
+    if (out->frames_size() == 0 || out->frames(out->frames_size() - 1) != uint32_t(f)) {
+      out->add_frames(uint32_t(f));
+      out->add_frame_samples(0);
+      prev_pixel = 0;
+    }
+    out->set_frame_samples(out->frames_size() - 1, out->frame_samples(out->frames_size() - 1) + 1);
+    out->add_pixel_deltas(pixel - prev_pixel);
+    prev_pixel = pixel;
+  }
+}
+
 }  // namespace poseforest::engine

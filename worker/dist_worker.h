@@ -189,7 +189,7 @@ class DistWorker {
   WorkerStats Stats() const;
 
   struct Impl;
-  struct Live;  ///< the counters behind Stats(), written by Run()'s threads (dist_worker.cpp)
+  struct Live;  ///< the counters behind Stats(), written by Run()'s threads (context.h)
 
  private:
   WorkerOptions options_;
