@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
+#include <sstream>
 
 #include "apps/commands/commands.h"
 
@@ -11,10 +12,31 @@ namespace poseforest::apps::commands {
 
 namespace {
 
-/// The help layout: "--name VALUE   help line (default D)", positionals by name, groups as headings.
+/// `text` re-wrapped into lines of at most `width` characters (words never split).
+std::string Wrap(const std::string& text, size_t width) {
+  std::string out, line, word;
+  std::istringstream words(text);
+  while (words >> word) {
+    if (!line.empty() && line.size() + 1 + word.size() > width) {
+      out += line + "\n";
+      line.clear();
+    }
+    line += (line.empty() ? "" : " ") + word;
+  }
+  return out + line;
+}
+
+/// The help layout: the usage line, the description, then "--name VALUE   help line (default D)"
+/// wrapped to 100 columns, positionals by name, groups as headings.
 class HelpFormatter : public CLI::Formatter {
  public:
-  HelpFormatter() { column_width(34); }
+  static constexpr size_t kColumn = 34, kWidth = 100;
+  HelpFormatter() { column_width(kColumn); }
+  std::string make_help(const CLI::App* app, std::string name, CLI::AppFormatMode mode) const override {
+    if (mode == CLI::AppFormatMode::Sub) return make_expanded(app);
+    return make_usage(app, name) + "\n" + make_description(app) + make_positionals(app) + make_groups(app, mode) +
+           make_subcommands(app, mode) + "\n" + make_footer(app);
+  }
   std::string make_option_opts(const CLI::Option* opt) const override {
     if (opt->get_positional() || opt->get_type_size() == 0) return "";
     return opt->get_type_name().empty() ? "" : " " + opt->get_type_name();
@@ -24,7 +46,7 @@ class HelpFormatter : public CLI::Formatter {
     if (opt->get_required()) d += " (required)";
     if (!opt->get_positional() && opt->get_type_size() != 0 && !opt->get_default_str().empty())
       d += " (default " + opt->get_default_str() + ")";
-    return d;
+    return Wrap(d, kWidth - kColumn);
   }
   std::string make_usage(const CLI::App* app, std::string name) const override {
     std::string u = "usage: " + name + (app->get_options({}).size() > 1 ? " [options]" : "");
