@@ -13,15 +13,16 @@
 // before it says which method and both figures).
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include "apps/commands/args.h"
 #include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
 #include "runtime/classifier.h"
@@ -76,34 +77,41 @@ int main(int argc, char** argv) {
     ::setenv("OMP_WAIT_POLICY", "passive", 1);
     ::execv("/proc/self/exe", argv);  // returns only on failure: then measure as we are
   }
-  apps::commands::Args args({"forest", "frames", "seed", "poses", "clips", "test-fraction", "split-seed", "bodies", "data", "threads", "seed-cell", "min-probability", "cluster-cell"},
-                 {"help"});
-  if (auto st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.Get("forest")) {
-    std::fprintf(stderr,
-                 "usage: pipeline --forest F.pff [--frames N] [--seed S] [--poses L.pfposes --clips test] "
-                 "[--bodies procedural|makehuman|all] [--data DIR] [--threads N]\n"
-                 "                [--seed-cell F] [--min-probability P] [--cluster-cell F]   (ProposalOptions: "
-                 "seed_cell_fraction, min_probability, cluster_cell_fraction)\n%s\n",
-                 st.ok() ? "" : st.message().c_str());
-    return 2;
-  }
-  auto forest = core::LoadForest(*args.Get("forest"));
+  // ProposalOptions: seed_cell_fraction, min_probability, cluster_cell_fraction.
+  std::string forest_path, clips = "test", bodies = "procedural", data = "../shared/data";
+  std::optional<std::string> poses;
+  int frames = 50, threads = 0;
+  uint64_t seed = 777, split_seed = 1;
+  double test_fraction = 0.2;
+  std::optional<float> seed_cell, min_probability, cluster_cell;
+  CLI::App app("The runtime pipeline on 640x480 renders, timed per stage, and its joint AP.", "pipeline");
+  app.add_option("--forest", forest_path, "forest file")->required();
+  app.add_option("--frames", frames, "frames")->check(CLI::Range(1, 100000));
+  app.add_option("--seed", seed, "render seed")->check(CLI::Range(uint64_t(0), uint64_t(1) << 40));
+  app.add_option("--poses", poses, "a pose library (.pfposes) instead of the procedural poses");
+  app.add_option("--clips", clips, "clips of --poses: train, test or all");
+  app.add_option("--test-fraction", test_fraction, "share of test clips");
+  app.add_option("--split-seed", split_seed, "seed of the clip split");
+  app.add_option("--bodies", bodies, "procedural, makehuman or all");
+  app.add_option("--data", data, "shared data folder");
+  app.add_option("--threads", threads, "threads (0: all cores)")->check(CLI::Range(0, 256));
+  app.add_option("--seed-cell", seed_cell, "ProposalOptions::seed_cell_fraction");
+  app.add_option("--min-probability", min_probability, "ProposalOptions::min_probability");
+  app.add_option("--cluster-cell", cluster_cell, "ProposalOptions::cluster_cell_fraction");
+  CLI11_PARSE(app, argc, argv);
+  auto forest = core::LoadForest(forest_path);
   if (!forest.ok()) {
     std::fprintf(stderr, "pipeline: %s\n", forest.status().ToString().c_str());
     return 1;
   }
-  const int frames = int(args.GetInt("frames", 50, 1, 100000).value());
-  const uint64_t seed = uint64_t(args.GetInt("seed", 777, 0, 1L << 40).value());
-  const int threads = int(args.GetInt("threads", 0, 0, 256).value());
 
   renderer::SceneConfig scene;
-  if (auto poses = args.Get("poses")) {
+  if (poses) {
     renderer::PoseSelection sel;
     sel.library = *poses;
-    const std::string clips = args.GetOr("clips", "test");
     sel.clips = clips == "train" ? renderer::ClipSet::kTrain : clips == "all" ? renderer::ClipSet::kAll : renderer::ClipSet::kTest;
-    sel.test_fraction = std::stod(args.GetOr("test-fraction", "0.2"));
-    sel.split_seed = std::stoull(args.GetOr("split-seed", "1"));
+    sel.test_fraction = test_fraction;
+    sel.split_seed = split_seed;
     auto lib = renderer::LoadPoseSelection(sel);
     if (!lib.ok()) {
       std::fprintf(stderr, "pipeline: %s\n", lib.status().ToString().c_str());
@@ -111,9 +119,7 @@ int main(int argc, char** argv) {
     }
     scene.shared_poses = *lib;
   }
-  const std::string bodies = args.GetOr("bodies", "procedural");
   if (bodies != "procedural") {
-    const std::string data = args.GetOr("data", "../shared/data");
     auto mh = renderer::MakeHumanPresetBodies(data + "/meshes/makehuman_hm08_kit");
     if (!mh.ok()) {
       std::fprintf(stderr, "pipeline: %s\n", mh.status().ToString().c_str());
@@ -138,9 +144,9 @@ int main(int argc, char** argv) {
   mean_shift.params = forest->ProposalParamsFor(false).params;
   fast.params = forest->ProposalParamsFor(true).params;
   mean_shift.num_threads = fast.num_threads = threads;
-  if (auto v = args.Get("seed-cell")) mean_shift.seed_cell_fraction = std::stof(*v);
-  if (auto v = args.Get("min-probability")) mean_shift.min_probability = std::stof(*v);
-  if (auto v = args.Get("cluster-cell")) fast.cluster_cell_fraction = std::stof(*v);
+  if (seed_cell) mean_shift.seed_cell_fraction = *seed_cell;
+  if (min_probability) mean_shift.min_probability = *min_probability;
+  if (cluster_cell) fast.cluster_cell_fraction = *cluster_cell;
   fast.method = runtime::ProposalMethod::kFastClustering;
 
   runtime::JointApEvaluator ap_ms, ap_fast, ap_upper;
@@ -203,7 +209,7 @@ int main(int argc, char** argv) {
                       people);
   }
   std::printf("forest %s: %zu trees, depth %u, %zu nodes; %d held-out frames (seed %llu), %.0f foreground px/frame\n",
-              args.Get("forest")->c_str(), forest->trees.size(), forest->max_depth(), forest->total_nodes(), frames,
+              forest_path.c_str(), forest->trees.size(), forest->max_depth(), forest->total_nodes(), frames,
               (unsigned long long)seed, double(foreground) / frames);
   std::printf("%-11s %9s %9s %12s\n", "joint", "AP mean", "AP fast", "AP gt-parts");
   for (int j = 0; j < core::kNumJoints; ++j)

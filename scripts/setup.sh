@@ -2,13 +2,14 @@
 # Installs what poseforest needs on Debian 12 with apt-get, only if something is missing.
 # Idempotent and fast when everything is there (one dpkg query).
 #   scripts/setup.sh            everything (training + runtime + tests)
-#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen, libspng, nlohmann-json (+ Catch2 for its tests,
+#   scripts/setup.sh --runtime  just the runtime: compiler, CMake, Eigen, libspng, nlohmann-json, CLI11 (+ Catch2 for its tests,
 #                               pybind11 + NumPy for the optional Python module)
 set -euo pipefail
 
 runtime_pkgs=(g++ make cmake pkg-config libeigen3-dev catch2
   libspng-dev zlib1g-dev                      # PNG files (libspng over zlib: the runtime library and `poseforest`)
   nlohmann-json3-dev                          # JSON written by the runtime's commands (header-only)
+  libcli11-dev                                # every command's options and --help (header-only)
   python3-dev python3-pybind11 python3-numpy  # the optional Python module and its test (consumer_python)
   libcpp-httplib-dev                          # `live --http` (optional here); the coordinator's status server (training)
 )

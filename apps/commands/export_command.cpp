@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <string>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "coordinator/checkpoint_export.h"
 #include "runtime/core/forest_format.h"
@@ -13,27 +13,31 @@ namespace poseforest::apps::commands {
 
 using core::Status;
 
-int ExportMain(int argc, char** argv) {
-  Args args({"checkpoint", "out", "partial"}, {"help"});
-  if (Status st = args.Parse(argc, argv); !st.ok() || args.Has("help") || !args.positional().empty() ||
-                                          !args.Has("checkpoint") || !args.Has("out")) {
-    if (!st.ok()) std::fprintf(stderr, "export: %s\n", st.message().c_str());
-    std::fprintf(
-        stderr,
-        "usage: poseforest export --checkpoint DIR --out FOREST.pff [--partial leaves|drop]\n"
-        "  Writes the runtime forest from the checkpoint of a distributed job (`coordinator\n"
-        "  --checkpoint DIR`). A finished job gives the coordinator's --out file byte for byte. For\n"
-        "  a stopped job the finished trees are written, and the tree in progress is finished as\n"
-        "  leaves from its frontier's part counts (--partial leaves, the default) or dropped\n"
-        "  (--partial drop).\n");
-    return args.Has("help") ? 0 : 2;
+namespace {
+
+class ExportCommand final : public Command {
+ public:
+  ExportCommand()
+      : Command("export",
+                "Writes the runtime forest from the checkpoint of a distributed job (`coordinator\n"
+                "--checkpoint DIR`). A finished job gives the coordinator's --out file byte for byte. For\n"
+                "a stopped job the finished trees are written, and the tree in progress is finished as\n"
+                "leaves from its frontier's part counts (--partial leaves, the default) or dropped\n"
+                "(--partial drop).") {
+    app_.add_option("--checkpoint", dir_, "the job's checkpoint folder")->type_name("DIR")->required();
+    app_.add_option("--out", out_, "forest file to write")->type_name("FOREST.pff")->required();
+    app_.add_option("--partial", partial_, "the tree in progress: finished as leaves, or dropped")
+        ->type_name("leaves|drop")
+        ->check(OneOf({"leaves", "drop"}));
   }
-  const std::string partial = args.GetOr("partial", "leaves");
-  if (partial != "leaves" && partial != "drop") {
-    std::fprintf(stderr, "export: --partial %s: expected leaves or drop\n", partial.c_str());
-    return 2;
-  }
-  const std::string dir = *args.Get("checkpoint"), out = *args.Get("out");
+  int Run() override;
+
+ private:
+  std::string dir_, out_, partial_ = "leaves";
+};
+
+int ExportCommand::Run() {
+  const std::string &dir = dir_, &out = out_, &partial = partial_;
   auto r = coordinator::ForestFromCheckpoint(
       dir, partial == "leaves" ? coordinator::PartialTree::kFinishAsLeaves : coordinator::PartialTree::kDrop);
   if (!r.ok()) {
@@ -64,5 +68,9 @@ int ExportMain(int argc, char** argv) {
   std::printf("wrote %s: %zu trees, %zu nodes\n", out.c_str(), r->forest.trees.size(), nodes);
   return 0;
 }
+
+}  // namespace
+
+std::unique_ptr<Command> MakeExportCommand() { return std::make_unique<ExportCommand>(); }
 
 }  // namespace poseforest::apps::commands

@@ -2,10 +2,11 @@
 // .npy, a fakenect recording). The way to check a camera or a recording before inference.
 #include <cstdio>
 #include <filesystem>
-#include <set>
+#include <optional>
+#include <string>
 #include <vector>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "apps/commands/frame_options.h"
 #include "apps/devices/fakenect_recording.h"
@@ -17,42 +18,47 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kUsage = R"(usage: poseforest frames [options] SOURCE [SOURCE...]
-       poseforest frames --list-devices
-
-Reads depth frames from any source `poseforest infer` reads (files, folders, globs, - for raw
-frames on stdin, .npy, .pcd, freenect:N, openni2:URI; see docs/runtime/frames.md), prints one line
-per frame (size, valid pixels, depth range, timestamp) and optionally writes them out. Bad frames
-are reported naming the source and frame, skipped and counted (exit status 1 if any).
-
-options:
-  --out-dir DIR        write each frame as a 16-bit PNG in millimetres (DIR/<name>.png)
-  --npy FILE           write all frames as one uint16 .npy [N, H, W] (mm)
-  --fakenect DIR       write the frames as a fakenect recording (640x480 only): replay it through
-                       libfreenect with LD_LIBRARY_PATH=/usr/lib/<arch>/fakenect FAKENECT_PATH=DIR
-  --record-fps N       frame rate of the fakenect recording (default 30)
-  --max-frames N       stop after N good frames (a camera streams until stopped)
-  --camera PRESET, --fx --fy --cx --cy, --depth-scale S, --raw-size WxH, --fps N: as for infer
-  --list-devices       the device back ends built in and the devices they see
-  --quiet              print only errors and the summary
-  --help               this text
-)";
-
-}  // namespace
-
-int FramesMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"out-dir", "npy", "fakenect", "record-fps", "max-frames"};
-  for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
-  Args args(value_options, {"help", "quiet", "list-devices"});
-  if (auto st = args.Parse(argc, argv); !st.ok()) {
-    std::fprintf(stderr, "poseforest frames: %s\n\n%s", st.message().c_str(), kUsage);
-    return 2;
+class FramesCommand final : public Command {
+ public:
+  FramesCommand()
+      : Command("frames",
+                "Reads depth frames from any source `poseforest infer` reads (files, folders, globs, - for raw\n"
+                "frames on stdin, .npy, .pcd, freenect:N, openni2:URI; see docs/runtime/frames.md), prints one\n"
+                "line per frame (size, valid pixels, depth range, timestamp) and optionally writes them out.\n"
+                "Bad frames are reported naming the source and frame, skipped and counted (exit status 1 if\n"
+                "any). `poseforest frames --list-devices`: the device back ends built in and the devices they\n"
+                "see.") {
+    app_.add_option("SOURCE", sources_, "depth frames (required unless --list-devices)");
+    app_.add_option("--out-dir", out_dir_, "write each frame as a 16-bit PNG in millimetres (DIR/<name>.png)")
+        ->type_name("DIR");
+    app_.add_option("--npy", npy_, "write all frames as one uint16 .npy [N, H, W] (mm)")->type_name("FILE");
+    app_.add_option("--fakenect", fakenect_,
+                    "write the frames as a fakenect recording (640x480 only): replay it through libfreenect\n"
+                    "with LD_LIBRARY_PATH=/usr/lib/<arch>/fakenect FAKENECT_PATH=DIR")
+        ->type_name("DIR");
+    app_.add_option("--record-fps", record_fps_, "frame rate of the fakenect recording")
+        ->type_name("N")
+        ->check(NumberIn(0.001, 10000.0));
+    app_.add_option("--max-frames", max_frames_, "stop after N good frames (a camera streams until stopped)")
+        ->type_name("N")
+        ->check(IntIn(1, 1LL << 40));
+    app_.add_flag("--list-devices", list_devices_, "the device back ends built in and the devices they see");
+    app_.add_flag("--quiet", quiet_, "print only errors and the summary");
+    AddFrameSourceOptions(app_, &frames_);
   }
-  if (args.Has("help")) {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  if (args.Has("list-devices")) {
+  int Run() override;
+
+ private:
+  std::vector<std::string> sources_;
+  std::optional<std::string> out_dir_, npy_, fakenect_;
+  double record_fps_ = 30.0;
+  std::optional<int64_t> max_frames_;
+  bool list_devices_ = false, quiet_ = false;
+  FrameSourceFlags frames_;
+};
+
+int FramesCommand::Run() {
+  if (list_devices_) {
     const auto back_ends = runtime::FrameBackEnds();
     if (back_ends.empty())
       std::printf("no device back ends in this build (libfreenect, OpenNI2: found at configure time)\n");
@@ -60,27 +66,12 @@ int FramesMain(int argc, char** argv) {
       std::printf("%s: %s: %s\n", b.scheme.c_str(), b.describe.c_str(), b.list_devices().c_str());
     return 0;
   }
-  if (args.positional().empty()) {
-    std::fprintf(stderr, "poseforest frames: no source given\n\n%s", kUsage);
-    return 2;
-  }
-  runtime::FrameSourceOptions options;
-  if (auto st = ParseFrameSourceOptions(args, &options); !st.ok()) {
-    std::fprintf(stderr, "poseforest frames: %s\n", st.message().c_str());
-    return 2;
-  }
-  auto record_fps = GetDouble(args, "record-fps", 30.0, 0.001, 10000.0);
-  if (!record_fps.ok()) {
-    std::fprintf(stderr, "poseforest frames: %s\n", record_fps.status().message().c_str());
-    return 2;
-  }
-  auto max_frames = args.GetInt("max-frames", -1, 1, 1L << 40);
-  if (!max_frames.ok()) {
-    std::fprintf(stderr, "poseforest frames: %s\n", max_frames.status().message().c_str());
-    return 2;
-  }
-  const bool quiet = args.Has("quiet");
-  const auto out_dir = args.Get("out-dir");
+  if (sources_.empty()) return UsageError("no source given");
+  auto options = FrameSourceFromFlags(frames_);
+  if (!options.ok()) return UsageError(options.status().message());
+  const int64_t max_frames = max_frames_.value_or(-1);
+  const bool quiet = quiet_;
+  const auto& out_dir = out_dir_;
   if (out_dir) {
     std::error_code ec;
     fs::create_directories(*out_dir, ec);
@@ -90,16 +81,16 @@ int FramesMain(int argc, char** argv) {
       return 1;
     }
   }
-  auto source = runtime::OpenFrameSources(args.positional(), options);
+  auto source = runtime::OpenFrameSources(sources_, *options);
   if (!source.ok()) {
     std::fprintf(stderr, "poseforest frames: %s\n", source.status().ToString().c_str());
     return 1;
   }
   std::vector<core::DepthImage> kept;  // for --npy / --fakenect
-  const bool keep = args.Has("npy") || args.Has("fakenect");
+  const bool keep = npy_ || fakenect_;
   int good = 0, bad = 0, write_errors = 0, bad_in_a_row = 0;
   runtime::Frame f;
-  while (*max_frames < 0 || good < *max_frames) {
+  while (max_frames < 0 || good < max_frames) {
     auto r = (*source)->Next(&f);
     if (!r.ok()) {
       std::fprintf(stderr, "poseforest frames: %s\n", r.status().ToString().c_str());
@@ -129,12 +120,12 @@ int FramesMain(int argc, char** argv) {
     }
     if (keep) kept.push_back(f.depth);
   }
-  if (auto npy = args.Get("npy"); npy && !kept.empty()) {
+  if (const auto& npy = npy_; npy && !kept.empty()) {
     const auto st = runtime::WriteDepthNpy(*npy, kept);
     if (!st.ok()) std::fprintf(stderr, "poseforest frames: %s\n", st.ToString().c_str()), ++write_errors;
   }
-  if (auto dir = args.Get("fakenect"); dir && !kept.empty()) {
-    const auto st = apps::devices::WriteFakenectRecording(*dir, kept, *record_fps);
+  if (const auto& dir = fakenect_; dir && !kept.empty()) {
+    const auto st = apps::devices::WriteFakenectRecording(*dir, kept, record_fps_);
     if (!st.ok())
       std::fprintf(stderr, "poseforest frames: %s\n", st.ToString().c_str()), ++write_errors;
     else if (!quiet)
@@ -143,5 +134,9 @@ int FramesMain(int argc, char** argv) {
   std::printf("%s: %d frame(s), %d bad frame(s) skipped\n", (*source)->Describe().c_str(), good, bad);
   return bad == 0 && write_errors == 0 ? 0 : 1;
 }
+
+}  // namespace
+
+std::unique_ptr<Command> MakeFramesCommand() { return std::make_unique<FramesCommand>(); }
 
 }  // namespace poseforest::apps::commands

@@ -1,55 +1,53 @@
 // poseforest import-pcl: convert PCL's trained people trees into a poseforest forest file.
 #include <cstdio>
+#include <string>
+#include <vector>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/pcl_import.h"
 
 namespace poseforest::apps::commands {
 namespace {
-constexpr const char* kUsage = R"(usage: poseforest import-pcl --out FOREST.pff TREE [TREE...]
 
-Converts trees trained by the Point Cloud Library's Shotton-style people detector
-(pcl::gpu::people; text files "tree_20.txt", or their .bz2 as in shared/data/pretrained/
-pcl_people_trees) into one poseforest forest with PCL's 25-part table, so the runtime can
-run them (e.g. `poseforest infer --forest pcl.pff frame`). See runtime/pcl_import.h for how
-PCL's feature maps onto ours and the two small differences that remain.
+class ImportPclCommand final : public Command {
+ public:
+  ImportPclCommand()
+      : Command("import-pcl",
+                "Converts trees trained by the Point Cloud Library's Shotton-style people detector\n"
+                "(pcl::gpu::people; text files \"tree_20.txt\", or their .bz2 as in shared/data/pretrained/\n"
+                "pcl_people_trees) into one poseforest forest with PCL's 25-part table, so the runtime can\n"
+                "run them (e.g. `poseforest infer --forest pcl.pff frame`). See runtime/pcl_import.h for how\n"
+                "PCL's feature maps onto ours and the two small differences that remain.") {
+    app_.add_option("TREE", trees_, "PCL tree files")->required();
+    app_.add_option("--out", out_, "forest file to write")->type_name("FILE")->required();
+  }
+  int Run() override;
 
-options:
-  --out FILE   forest file to write (required)
-  --help       this text
-)";
-}  // namespace
+ private:
+  std::vector<std::string> trees_;
+  std::string out_;
+};
 
-int ImportPclMain(int argc, char** argv) {
-  Args args({"out"}, {"help"});
-  if (auto st = args.Parse(argc, argv); !st.ok()) {
-    std::fprintf(stderr, "poseforest import-pcl: %s\n\n%s", st.message().c_str(), kUsage);
-    return 2;
-  }
-  if (args.Has("help")) {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  const auto out = args.Get("out");
-  if (!out || args.positional().empty()) {
-    std::fprintf(stderr, "poseforest import-pcl: %s\n\n%s", !out ? "--out is required" : "no tree file given", kUsage);
-    return 2;
-  }
-  std::fprintf(stderr, "importing %zu PCL tree(s)...\n", args.positional().size());
-  auto forest = runtime::ImportPclTrees(args.positional());
+int ImportPclCommand::Run() {
+  std::fprintf(stderr, "importing %zu PCL tree(s)...\n", trees_.size());
+  auto forest = runtime::ImportPclTrees(trees_);
   if (!forest.ok()) {
     std::fprintf(stderr, "poseforest import-pcl: %s\n", forest.status().ToString().c_str());
     return 1;
   }
-  if (auto st = core::SaveForest(*forest, *out); !st.ok()) {
+  if (auto st = core::SaveForest(*forest, out_); !st.ok()) {
     std::fprintf(stderr, "poseforest import-pcl: %s\n", st.ToString().c_str());
     return 1;
   }
-  std::printf("wrote %s: %zu trees, depth %u, %zu nodes, %d parts\n", out->c_str(), forest->trees.size(),
+  std::printf("wrote %s: %zu trees, depth %u, %zu nodes, %d parts\n", out_.c_str(), forest->trees.size(),
               forest->max_depth(), forest->total_nodes(), forest->num_parts);
   return 0;
 }
+
+}  // namespace
+
+std::unique_ptr<Command> MakeImportPclCommand() { return std::make_unique<ImportPclCommand>(); }
 
 }  // namespace poseforest::apps::commands

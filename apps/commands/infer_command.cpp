@@ -18,7 +18,7 @@
 #include <cmath>
 #include <optional>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "apps/commands/frame_options.h"
 #include "runtime/camera_model.h"
@@ -35,64 +35,6 @@ namespace poseforest::apps::commands {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr const char* kUsage = R"(usage: poseforest infer --forest FOREST.pff [options] SOURCE [SOURCE...]
-
-Classifies every foreground pixel of each depth frame into the forest's body parts (eq. 2 of
-Shotton et al.: leaf distributions averaged over trees) and writes the most likely part per pixel
-as a colour PNG. Raw frames (a floor, walls, furniture) are segmented into people first; frames
-that are already segmented (most pixels 0, no floor) pass unchanged (--segment).
-
-SOURCE (also --source SOURCE; docs/runtime/frames.md):
-  FILE        a 16-bit greyscale PNG in millimetres, a raw little-endian uint16 frame (e.g. the
-              640x480 Kinect frames in shared/data/real), a .npy (uint16 mm or float32 metres,
-              [H,W] or [N,H,W]), or an organized .pcd point cloud (x y z, metres); 0 = no reading
-  FOLDER      every file in it, in name order;  'PATTERN'  a glob (quoted), in name order
-  -           raw uint16 frames on stdin, back to back (a pipe works)
-  freenect:N  Kinect v1 number N through libfreenect;  openni2:[URI]  an OpenNI2 device or .oni
-              (device back ends: those `poseforest --version` lists)
-A bad frame (truncated, wrong size) is reported naming the source and frame, skipped and counted.
-
-camera (the model frames are checked against; default kinect-v1):
-  --camera PRESET      kinect-v1 (640x480), kinect-v2 (512x424), azure-nfov (640x576),
-                       azure-nfov-binned (320x288), azure-wfov (512x512), azure-wfov-unbinned
-                       (1024x1024), realsense-d435 (848x480), realsense-d435-640 (640x480)
-  --fx F --fy F --cx C --cy C   intrinsics in pixels (override the preset's)
-  --depth-scale S      millimetres per raw depth unit (default 1; raw, PNG and uint16 .npy)
-  A forest records the focal length it was trained for; for another one its offsets are rescaled.
-
-segmentation:
-  --segment auto|on|off  auto (default): segment raw frames, pass pre-segmented ones unchanged;
-                       on: always segment; off: every pixel with depth > 0 is foreground
-  --floor A,B,C,D      a known floor plane A*x + B*y + C*z + D = 0 (camera frame, metres)
-  --near M --far M     depth band in metres (default 0.4, 4.5)
-  --masks              also write the person masks (<name>.mask.png: 0 background, k person k)
-
-options:
-  --forest FILE        forest file (.pff), required
-  --out FILE           colour part picture (one input only; default: <DEPTH>.parts.png)
-  --out-dir DIR        write <name>.parts.png (and other outputs) for each input into DIR
-  --labels             also write the raw part ids as an 8-bit PNG (<name>.labels.png, 255 = background)
-  --distributions      also write P(part | pixel) as float32 NumPy array [height, width, parts]
-                       (<name>.probs.npy); background pixels are all zero
-  --joints             also propose 3D joints (section 3.4): <name>.joints.json (per joint, every
-                       proposal: position in metres, camera frame; pixel; raw confidence; the
-                       calibrated confidence in 0..1, docs/runtime/live.md) and
-                       <name>.pose.png (depth, parts, joints, front/side/top views); uses the
-                       proposal parameters the forest stores for the method (`tune-joints`; the
-                       fast clustering without a set of its own uses the mean-shift set), or the
-                       paper's means
-  --method M           joint proposals by `meanshift` (default) or `fast` (bottom-up clustering)
-  --pixel-stride N     classify every N-th pixel in x and y only (default 1: every pixel); the
-                       others take their grid pixel's part; the joints are proposed from the
-                       grid pixels, each weighted as N x N pixels
-  --min-confidence C   joints drawn in the picture need this confidence (default 0.05)
-  --raw-size WxH       size of raw depth frames (default: the camera's, 640x480)
-  --fps N              deliver at most N frames per second (a folder played at camera rate)
-  --threads N          OpenMP threads (default: all cores)
-  --quiet              print nothing but errors
-  --help               this text
-)";
 
 // Confidence in 0..1 of a proposal: the forest's calibration (format 1.4, JCAL: the precision of
 // proposals of this support on validation renders) or the documented fallback (docs/runtime/live.md).
@@ -179,130 +121,184 @@ std::string FrameStem(const runtime::Frame& f) {
   return base + idx;
 }
 
-}  // namespace
+// Where an output of `frame` goes: DIR/<stem><suffix> with --out-dir DIR, else beside the file
+// it came from (the working folder for other sources).
+std::string OutputPath(const runtime::Frame& frame, const std::optional<std::string>& out_dir,
+                       const std::string& suffix) {
+  const std::string stem = FrameStem(frame);
+  if (out_dir) return (fs::path(*out_dir) / (stem + suffix)).string();
+  const bool file = frame.source.find(':') == std::string::npos && frame.source != "stdin";
+  fs::path parent = file ? fs::path(frame.source.substr(0, frame.source.find('['))).parent_path() : fs::path(".");
+  return (parent / (stem + suffix)).string();
+}
 
-int InferMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"forest",  "out",          "out-dir",        "threads",
-                                         "method",  "pixel-stride", "min-confidence", "source",
-                                         "segment", "floor",        "near",           "far"};
-  for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
-  Args args(value_options, {"labels", "distributions", "joints", "quiet", "help", "masks"});
-  if (auto st = args.Parse(argc, argv); !st.ok()) {
-    std::fprintf(stderr, "poseforest infer: %s\n\n%s", st.message().c_str(), kUsage);
-    return 2;
-  }
-  if (args.Has("help")) {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  std::vector<std::string> specs = args.positional();
-  if (auto src = args.Get("source")) specs.insert(specs.begin(), *src);
-  const auto forest_path = args.Get("forest");
-  if (!forest_path || specs.empty()) {
-    std::fprintf(stderr, "poseforest infer: %s\n\n%s", !forest_path ? "--forest is required" : "no depth image given", kUsage);
-    return 2;
-  }
-  if (args.Get("out") && specs.size() != 1) {
-    std::fprintf(stderr, "poseforest infer: --out takes one input; use --out-dir for several\n");
-    return 2;
-  }
-  auto usage_error = [](const std::string& msg) {
-    std::fprintf(stderr, "poseforest infer: %s\n", msg.c_str());
-    return 2;
+class InferCommand final : public Command {
+ public:
+  InferCommand();
+  int Run() override;
+
+ private:
+  /// What the frames of one run share: the forest (rescaled once per focal length met), the
+  /// options and the buffers.
+  struct Run_ {
+    core::Forest forest;
+    std::optional<core::Forest> rescaled;
+    double rescaled_fx = 0, rescaled_fy = 0;
+    const core::ConfidenceCalibration* calibration = nullptr;
+    core::ProposalParamsChoice params;
+    runtime::ProposalOptions proposal_options;
+    runtime::ClassifyOptions options;
+    runtime::SegmentationOptions seg_options;
+    runtime::Classification result;
+    runtime::SegmentationResult seg;
+    runtime::FrameSourceOptions source_options;
   };
-  runtime::FrameSourceOptions source_options;
-  if (auto st = ParseFrameSourceOptions(args, &source_options); !st.ok()) return usage_error(st.message());
-  const std::string segment_mode = args.GetOr("segment", "auto");
-  if (segment_mode != "auto" && segment_mode != "on" && segment_mode != "off")
-    return usage_error("--segment must be auto, on or off (got '" + segment_mode + "')");
-  runtime::SegmentationOptions seg_options;
-  if (segment_mode == "on") seg_options.presegmented = false;
-  if (auto fl = args.Get("floor")) {
-    double a, b, c, d;
-    if (std::sscanf(fl->c_str(), "%lf,%lf,%lf,%lf", &a, &b, &c, &d) != 4 || std::hypot(a, b, c) < 1e-9)
-      return usage_error("--floor must be A,B,C,D with (A,B,C) != 0 (got '" + *fl + "')");
-    const double n = std::hypot(a, b, c);
-    seg_options.floor_plane = Eigen::Vector4d(a / n, b / n, c / n, d / n);
-  }
-  {
-    auto near = GetDouble(args, "near", seg_options.near_m, 0.0, 60.0);
-    auto far = GetDouble(args, "far", seg_options.far_m, 0.0, 65.0);
-    if (!near.ok()) return usage_error(near.status().message());
-    if (!far.ok()) return usage_error(far.status().message());
-    if (*near >= *far) return usage_error("--near must be less than --far");
-    seg_options.near_m = *near, seg_options.far_m = *far;
-  }
-  auto threads = args.GetInt("threads", 0, 0, 1024);
-  if (!threads.ok()) {
-    std::fprintf(stderr, "poseforest infer: %s\n", threads.status().message().c_str());
-    return 2;
-  }
-  auto pixel_stride = args.GetInt("pixel-stride", 1, 1, 16);
-  if (!pixel_stride.ok()) {
-    std::fprintf(stderr, "poseforest infer: %s\n", pixel_stride.status().message().c_str());
-    return 2;
-  }
-  const bool quiet = args.Has("quiet");
-  const bool joints = args.Has("joints");
-  const std::string method = args.GetOr("method", "meanshift");
-  if (method != "meanshift" && method != "fast") {
-    std::fprintf(stderr, "poseforest infer: --method must be meanshift or fast (got '%s')\n", method.c_str());
-    return 2;
-  }
-  float min_confidence = 0.05f;
-  if (auto mc = args.Get("min-confidence")) {
-    char* end = nullptr;
-    min_confidence = std::strtof(mc->c_str(), &end);
-    if (end == mc->c_str() || *end != '\0' || !(min_confidence >= 0)) {
-      std::fprintf(stderr, "poseforest infer: --min-confidence must be a number >= 0 (got '%s')\n", mc->c_str());
-      return 2;
-    }
-  }
-  const auto out_dir = args.Get("out-dir");
-  if (out_dir) {
+  /// The options checked and the forest loaded into `run`: nullopt to go on, else the exit code.
+  std::optional<int> Prepare(Run_* run);
+  /// The forest for `frame`'s camera.
+  const core::Forest& ForestFor(Run_& run, const runtime::Frame& frame) const;
+  /// Writes the outputs of one classified frame; `parts_png`: where the part picture went.
+  core::Status WriteOutputs(Run_& run, const runtime::Frame& frame, const core::DepthImage& depth,
+                            const std::string& parts_png, runtime::FrameProposals* proposals,
+                            double* proposal_ms);
+  /// The lines printed for one frame.
+  void PrintFrame(const Run_& run, const runtime::Frame& frame, const core::DepthImage& depth,
+                  const std::string& parts_png, double ms, double seg_ms, const runtime::FrameProposals& proposals,
+                  double proposal_ms) const;
+
+  std::string forest_, method_ = "meanshift";
+  std::vector<std::string> sources_;
+  std::optional<std::string> source_, out_, out_dir_;
+  int threads_ = 0, pixel_stride_ = 1;
+  float min_confidence_ = 0.05f;
+  bool labels_ = false, distributions_ = false, joints_ = false, masks_ = false, quiet_ = false;
+  FrameSourceFlags frames_;
+  SegmentationFlags segmentation_;
+};
+
+InferCommand::InferCommand()
+    : Command("infer",
+              "Classifies every foreground pixel of each depth frame into the forest's body parts (eq. 2 of\n"
+              "Shotton et al.: leaf distributions averaged over trees) and writes the most likely part per\n"
+              "pixel as a colour PNG. Raw frames (a floor, walls, furniture) are segmented into people first;\n"
+              "frames that are already segmented (most pixels 0, no floor) pass unchanged (--segment).\n"
+              "\n"
+              "SOURCE (also --source SOURCE; docs/runtime/frames.md):\n"
+              "  FILE        a 16-bit greyscale PNG in millimetres, a raw little-endian uint16 frame (e.g. the\n"
+              "              640x480 Kinect frames in shared/data/real), a .npy (uint16 mm or float32 metres,\n"
+              "              [H,W] or [N,H,W]), or an organized .pcd point cloud (x y z, metres); 0 = no reading\n"
+              "  FOLDER      every file in it, in name order;  'PATTERN'  a glob (quoted), in name order\n"
+              "  -           raw uint16 frames on stdin, back to back (a pipe works)\n"
+              "  freenect:N  Kinect v1 number N through libfreenect;  openni2:[URI]  an OpenNI2 device or .oni\n"
+              "              (device back ends: those `poseforest --version` lists)\n"
+              "A bad frame (truncated, wrong size) is reported naming the source and frame, skipped and counted.\n"
+              "A forest records the focal length it was trained for; for another one its offsets are rescaled.") {
+  app_.add_option("SOURCE", sources_, "depth frames (above)");
+  app_.add_option("--source", source_, "one more SOURCE, read first")->type_name("SOURCE");
+  app_.add_option("--forest", forest_, "forest file (.pff)")->type_name("FILE")->required();
+  app_.add_option("--out", out_, "colour part picture (one input only; default: <DEPTH>.parts.png)")->type_name("FILE");
+  app_.add_option("--out-dir", out_dir_, "write <name>.parts.png (and other outputs) for each input into DIR")
+      ->type_name("DIR");
+  app_.add_flag("--labels", labels_, "also write the raw part ids as an 8-bit PNG (<name>.labels.png, 255 = background)");
+  app_.add_flag("--distributions", distributions_,
+                "also write P(part | pixel) as float32 NumPy array [height, width, parts]\n"
+                "(<name>.probs.npy); background pixels are all zero");
+  app_.add_flag("--joints", joints_,
+                "also propose 3D joints (section 3.4): <name>.joints.json (per joint, every proposal:\n"
+                "position in metres, camera frame; pixel; raw confidence; the calibrated confidence in\n"
+                "0..1, docs/runtime/live.md) and <name>.pose.png (depth, parts, joints, front/side/top\n"
+                "views); uses the proposal parameters the forest stores for the method (`tune-joints`;\n"
+                "the fast clustering without a set of its own uses the mean-shift set), or the paper's\n"
+                "means");
+  app_.add_option("--method", method_, "joint proposals by `meanshift` or `fast` (bottom-up clustering)")
+      ->type_name("M")
+      ->check(OneOf({"meanshift", "fast"}));
+  app_.add_option("--pixel-stride", pixel_stride_,
+                  "classify every N-th pixel in x and y only (1: every pixel); the others take their grid\n"
+                  "pixel's part; the joints are proposed from the grid pixels, each weighted as N x N pixels")
+      ->type_name("N")
+      ->check(IntIn(1, 16));
+  app_.add_option("--min-confidence", min_confidence_, "joints drawn in the picture need this confidence")
+      ->type_name("C")
+      ->check(NumberIn(0.0, 1e30));
+  app_.add_option("--threads", threads_, "OpenMP threads (0: all cores)")->type_name("N")->check(IntIn(0, 1024));
+  app_.add_flag("--quiet", quiet_, "print nothing but errors");
+  AddSegmentationOptions(app_, &segmentation_);
+  app_.add_flag("--masks", masks_, "also write the person masks (<name>.mask.png: 0 background, k person k)")
+      ->group("segmentation");
+  AddFrameSourceOptions(app_, &frames_);
+}
+
+std::optional<int> InferCommand::Prepare(Run_* run) {
+  if (sources_.empty() && !source_) return UsageError("no depth image given");
+  if (out_ && sources_.size() + (source_ ? 1 : 0) != 1)
+    return UsageError("--out takes one input; use --out-dir for several");
+  auto source_options = FrameSourceFromFlags(frames_);
+  if (!source_options.ok()) return UsageError(source_options.status().message());
+  run->source_options = *source_options;
+  if (segmentation_.segment == "on") run->seg_options.presegmented = false;
+  if (core::Status st = SegmentationFromFlags(segmentation_, &run->seg_options); !st.ok())
+    return UsageError(st.message());
+  if (out_dir_) {
     std::error_code ec;
-    std::filesystem::create_directories(*out_dir, ec);
-    if (ec) return Fail({core::ErrorCode::kIo, *out_dir + ": cannot create folder: " + ec.message()});
+    std::filesystem::create_directories(*out_dir_, ec);
+    if (ec) return Fail({core::ErrorCode::kIo, *out_dir_ + ": cannot create folder: " + ec.message()});
   }
-
-  auto forest = core::LoadForest(*forest_path);
+  auto forest = core::LoadForest(forest_);
   if (!forest.ok()) return Fail(forest.status());
-  if (!quiet)
-    std::printf("forest %s: %zu trees, depth %u, %zu nodes, %d parts\n", forest_path->c_str(), forest->trees.size(),
-                forest->max_depth(), forest->total_nodes(), forest->num_parts);
-
-  if (joints && (forest->num_parts != core::kNumParts || forest->part_names != core::Forest::DefaultPartNames()))
+  run->forest = std::move(*forest);
+  const core::Forest& f = run->forest;
+  if (!quiet_)
+    std::printf("forest %s: %zu trees, depth %u, %zu nodes, %d parts\n", forest_.c_str(), f.trees.size(),
+                f.max_depth(), f.total_nodes(), f.num_parts);
+  if (joints_ && (f.num_parts != core::kNumParts || f.part_names != core::Forest::DefaultPartNames()))
     return Fail({core::ErrorCode::kInvalidArgument,
-                 *forest_path + ": --joints needs a forest with the paper's 31-part taxonomy (this one has " +
-                     std::to_string(forest->num_parts) + " parts)"});
+                 forest_ + ": --joints needs a forest with the paper's 31-part taxonomy (this one has " +
+                     std::to_string(f.num_parts) + " parts)"});
   // The calibration applies to the method it was measured with.
-  const core::ConfidenceCalibration* calibration =
-      forest->confidence_calibration &&
-              (forest->confidence_calibration->method == core::ConfidenceCalibration::Method::kFastClustering) ==
-                  (method == "fast")
-          ? &*forest->confidence_calibration
+  run->calibration =
+      f.confidence_calibration &&
+              (f.confidence_calibration->method == core::ConfidenceCalibration::Method::kFastClustering) ==
+                  (method_ == "fast")
+          ? &*f.confidence_calibration
           : nullptr;
-  runtime::ProposalOptions proposal_options;
-  proposal_options.method = method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
-  const auto params =
-      forest->ProposalParamsFor(proposal_options.method == runtime::ProposalMethod::kFastClustering);
-  proposal_options.params = params.params;
-  proposal_options.num_threads = int(*threads);
-
-  auto source = runtime::OpenFrameSources(specs, source_options);
-  if (!source.ok()) return Fail(source.status());
-
-  // The forest for the frames' camera: rescaled once per focal length met.
-  std::optional<core::Forest> rescaled;
-  double rescaled_fx = 0, rescaled_fy = 0;
-  runtime::ClassifyOptions options;
-  options.num_threads = int(*threads);
+  runtime::ProposalOptions& proposal_options = run->proposal_options;
+  proposal_options.method =
+      method_ == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
+  run->params = f.ProposalParamsFor(proposal_options.method == runtime::ProposalMethod::kFastClustering);
+  proposal_options.params = run->params.params;
+  proposal_options.num_threads = threads_;
+  run->options.num_threads = threads_;
   // The compact per-foreground-pixel sums serve both the proposals and the .npy (no dense
   // W*H*stride array is cleared or written).
-  options.want_foreground_distributions = args.Has("distributions") || joints;
-  options.pixel_stride = int(*pixel_stride);
-  runtime::Classification result;
-  runtime::SegmentationResult seg;
+  run->options.want_foreground_distributions = distributions_ || joints_;
+  run->options.pixel_stride = pixel_stride_;
+  return std::nullopt;
+}
+
+const core::Forest& InferCommand::ForestFor(Run_& run, const runtime::Frame& frame) const {
+  const auto& cam = frame.camera.intrinsics;
+  const core::Forest& forest = run.forest;
+  if (runtime::SameFocalLength(forest, cam.fx, cam.fy)) return forest;
+  if (!run.rescaled || run.rescaled_fx != cam.fx || run.rescaled_fy != cam.fy) {
+    run.rescaled = runtime::ForestForFocalLength(forest, cam.fx, cam.fy);
+    run.rescaled_fx = cam.fx, run.rescaled_fy = cam.fy;
+    if (!quiet_)
+      std::printf("camera %s: the forest was trained for fx %.1f fy %.1f; offsets rescaled by %.4f x %.4f\n",
+                  frame.camera.Describe().c_str(), double(forest.training_fx), double(forest.training_fy),
+                  cam.fx / forest.training_fx, cam.fy / forest.training_fy);
+  }
+  return *run.rescaled;
+}
+
+int InferCommand::Run() {
+  Run_ run;
+  if (auto rc = Prepare(&run)) return *rc;
+  std::vector<std::string> specs = sources_;
+  if (source_) specs.insert(specs.begin(), *source_);
+  auto source = runtime::OpenFrameSources(specs, run.source_options);
+  if (!source.ok()) return Fail(source.status());
+
   int failures = 0, bad_frames = 0, frames_done = 0, segmented_frames = 0, bad_in_a_row = 0;
   runtime::Frame frame;
   while (true) {
@@ -319,131 +315,128 @@ int InferMain(int argc, char** argv) {
     }
     bad_in_a_row = 0;
     if (!*next) break;
-    if (args.Get("out") && frames_done > 0) {
+    if (out_ && frames_done > 0) {
       std::fprintf(stderr, "poseforest infer: %s: --out takes one frame but the source holds more; use --out-dir\n",
                    frame.Name().c_str());
       ++failures;
       break;
     }
-    const auto& cam = frame.camera.intrinsics;
-    const core::Forest* run_forest = &*forest;
-    if (!runtime::SameFocalLength(*forest, cam.fx, cam.fy)) {
-      if (!rescaled || rescaled_fx != cam.fx || rescaled_fy != cam.fy) {
-        rescaled = runtime::ForestForFocalLength(*forest, cam.fx, cam.fy);
-        rescaled_fx = cam.fx, rescaled_fy = cam.fy;
-        if (!quiet)
-          std::printf("camera %s: the forest was trained for fx %.1f fy %.1f; offsets rescaled by %.4f x %.4f\n",
-                      frame.camera.Describe().c_str(), double(forest->training_fx), double(forest->training_fy),
-                      cam.fx / forest->training_fx, cam.fy / forest->training_fy);
-      }
-      run_forest = &*rescaled;
-    }
+    const core::Forest& run_forest = ForestFor(run, frame);
     const core::DepthImage* depth = &frame.depth;
     const auto t_seg = std::chrono::steady_clock::now();
     double seg_ms = 0;
-    if (segment_mode != "off") {
-      runtime::SegmentPeople(frame.depth, cam, seg_options, &seg);
+    if (segmentation_.segment != "off") {
+      runtime::SegmentPeople(frame.depth, frame.camera.intrinsics, run.seg_options, &run.seg);
       seg_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_seg).count();
-      if (!seg.presegmented) {
-        depth = &seg.depth;
+      if (!run.seg.presegmented) {
+        depth = &run.seg.depth;
         ++segmented_frames;
       }
     }
-    runtime::Classifier classifier(*run_forest);
+    runtime::Classifier classifier(run_forest);
     const auto t0 = std::chrono::steady_clock::now();
-    classifier.Classify(*depth, options, &result);
+    classifier.Classify(*depth, run.options, &run.result);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     ++frames_done;
-
-    const std::string stem = FrameStem(frame);
-    auto out_path = [&](const std::string& suffix) {
-      if (out_dir) return (fs::path(*out_dir) / (stem + suffix)).string();
-      const bool file = frame.source.find(':') == std::string::npos && frame.source != "stdin";
-      fs::path parent = file ? fs::path(frame.source.substr(0, frame.source.find('['))).parent_path() : fs::path(".");
-      return (parent / (stem + suffix)).string();
-    };
-    const std::string parts_png = args.Get("out") ? *args.Get("out") : out_path(".parts.png");
-    core::Status st = runtime::WriteLabelColourPng(parts_png, result.labels);
-    if (st.ok() && args.Has("labels")) st = runtime::WriteLabelPng(out_path(".labels.png"), result.labels);
-    if (st.ok() && args.Has("masks")) {
-      core::LabelImage mask = seg.labels;
-      if (segment_mode == "off" || mask.empty()) {
-        mask = core::LabelImage(depth->width, depth->height, 0);
-        for (size_t i = 0; i < mask.pixels.size(); ++i) mask.pixels[i] = depth->pixels[i] ? 1 : 0;
-      }
-      st = runtime::WriteLabelPng(out_path(".mask.png"), mask);
-    }
-    if (st.ok() && args.Has("distributions")) st = WriteProbabilitiesNpy(out_path(".probs.npy"), result);
+    const std::string parts_png = out_ ? *out_ : OutputPath(frame, out_dir_, ".parts.png");
     runtime::FrameProposals proposals;
     double proposal_ms = 0;
-    if (st.ok() && joints) {
-      proposal_options.camera = cam;
-      const auto t1 = std::chrono::steady_clock::now();
-      proposals = runtime::ProposeJointsFromClassification(*depth, result, proposal_options);
-      proposal_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
-      const std::string json =
-          JointsJson(frame.source, *depth, proposals, method.c_str(), calibration, proposal_options.camera);
-      st = core::WriteFileAtomic(out_path(".joints.json"),
-                                 std::span(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
-      if (st.ok()) {
-        const auto fig = runtime::PoseFigure(*depth, result.labels, proposals, proposal_options.camera, min_confidence);
-        st = runtime::WriteRgbPng(out_path(".pose.png"), fig.width, fig.height, fig.rgb);
-      }
-    }
-    if (!st.ok()) {
+    if (core::Status st = WriteOutputs(run, frame, *depth, parts_png, &proposals, &proposal_ms); !st.ok()) {
       std::fprintf(stderr, "poseforest infer: %s\n", st.ToString().c_str());
       ++failures;
       continue;
     }
-    if (!quiet) {
-      std::vector<int> counts(size_t(forest->num_parts), 0);
-      int fg = 0;
-      for (uint8_t l : result.labels.pixels)
-        if (l != core::kBackgroundLabel) ++counts[l], ++fg;
-      std::printf("%s: %dx%d, %d foreground pixels, classified in %.2f ms -> %s\n", frame.Name().c_str(),
-                  depth->width, depth->height, fg, ms, parts_png.c_str());
-      if (segment_mode != "off") {
-        if (seg.presegmented)
-          std::printf("  segmentation: pre-segmented, passed unchanged\n");
-        else
-          std::printf("  segmentation: %zu person(s), floor %s, %d components, %.2f ms\n", seg.people.size(),
-                      seg.floor ? "found" : "none", seg.components, seg_ms);
-      }
-      std::vector<int> order(counts.size());
-      for (size_t i = 0; i < order.size(); ++i) order[i] = int(i);
-      std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return counts[size_t(a)] > counts[size_t(b)]; });
-      std::printf("  most frequent parts:");
-      for (size_t i = 0; i < std::min<size_t>(5, order.size()) && counts[size_t(order[i])] > 0; ++i)
-        std::printf(" %s %.1f%%", forest->part_names[size_t(order[i])].c_str(),
-                    100.0 * counts[size_t(order[i])] / std::max(1, fg));
-      std::printf("\n");
-      if (joints) {
-        std::printf(
-            "  joints (%s with %s, %.2f ms; most confident proposal of each, camera frame, metres):\n",
-            method.c_str(),
-            params.source == core::ProposalParamsSource::kLearned ? "the forest's learned parameters"
-            : params.source == core::ProposalParamsSource::kMeanShiftSet
-                ? "the forest's learned mean-shift parameters (none learned for the fast clustering)"
-                : "the paper's mean parameters",
-            proposal_ms);
-        for (int j = 0; j < core::kNumJoints; ++j) {
-          const auto& list = proposals[size_t(j)];
-          if (list.empty()) {
-            std::printf("    %-11s none\n", std::string(core::JointName(j)).c_str());
-            continue;
-          }
-          std::printf("    %-11s (%6.3f, %6.3f, %6.3f)  confidence %.4g, %s %.2f  (%zu proposals)\n",
-                      std::string(core::JointName(j)).c_str(), list[0].position.x(), list[0].position.y(),
-                      list[0].position.z(), double(list[0].confidence), calibration ? "calibrated" : "fallback",
-                      double(CalibratedConfidence(calibration, j, list[0], proposal_options.camera)), list.size());
-        }
-      }
-    }
+    if (!quiet_) PrintFrame(run, frame, *depth, parts_png, ms, seg_ms, proposals, proposal_ms);
   }
-  if (!quiet || bad_frames > 0)
+  if (!quiet_ || bad_frames > 0)
     std::printf("%s: %d frame(s) classified, %d bad frame(s) skipped, %d segmented\n", (*source)->Describe().c_str(),
                 frames_done, bad_frames, segmented_frames);
   return failures == 0 && bad_frames == 0 ? 0 : 1;
 }
+
+core::Status InferCommand::WriteOutputs(Run_& run, const runtime::Frame& frame, const core::DepthImage& depth,
+                                        const std::string& parts_png, runtime::FrameProposals* proposals,
+                                        double* proposal_ms) {
+  auto out_path = [&](const std::string& suffix) { return OutputPath(frame, out_dir_, suffix); };
+  const runtime::Classification& result = run.result;
+  core::Status st = runtime::WriteLabelColourPng(parts_png, result.labels);
+  if (st.ok() && labels_) st = runtime::WriteLabelPng(out_path(".labels.png"), result.labels);
+  if (st.ok() && masks_) {
+    core::LabelImage mask = run.seg.labels;
+    if (segmentation_.segment == "off" || mask.empty()) {
+      mask = core::LabelImage(depth.width, depth.height, 0);
+      for (size_t i = 0; i < mask.pixels.size(); ++i) mask.pixels[i] = depth.pixels[i] ? 1 : 0;
+    }
+    st = runtime::WriteLabelPng(out_path(".mask.png"), mask);
+  }
+  if (st.ok() && distributions_) st = WriteProbabilitiesNpy(out_path(".probs.npy"), result);
+  if (st.ok() && joints_) {
+    runtime::ProposalOptions& proposal_options = run.proposal_options;
+    proposal_options.camera = frame.camera.intrinsics;
+    const auto t1 = std::chrono::steady_clock::now();
+    *proposals = runtime::ProposeJointsFromClassification(depth, result, proposal_options);
+    *proposal_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
+    const std::string json =
+        JointsJson(frame.source, depth, *proposals, method_.c_str(), run.calibration, proposal_options.camera);
+    st = core::WriteFileAtomic(out_path(".joints.json"),
+                               std::span(reinterpret_cast<const uint8_t*>(json.data()), json.size()));
+    if (st.ok()) {
+      const auto fig = runtime::PoseFigure(depth, result.labels, *proposals, proposal_options.camera, min_confidence_);
+      st = runtime::WriteRgbPng(out_path(".pose.png"), fig.width, fig.height, fig.rgb);
+    }
+  }
+  return st;
+}
+
+void InferCommand::PrintFrame(const Run_& run, const runtime::Frame& frame, const core::DepthImage& depth,
+                              const std::string& parts_png, double ms, double seg_ms,
+                              const runtime::FrameProposals& proposals, double proposal_ms) const {
+  const core::Forest& forest = run.forest;
+  const runtime::SegmentationResult& seg = run.seg;
+  std::vector<int> counts(size_t(forest.num_parts), 0);
+  int fg = 0;
+  for (uint8_t l : run.result.labels.pixels)
+    if (l != core::kBackgroundLabel) ++counts[l], ++fg;
+  std::printf("%s: %dx%d, %d foreground pixels, classified in %.2f ms -> %s\n", frame.Name().c_str(), depth.width,
+              depth.height, fg, ms, parts_png.c_str());
+  if (segmentation_.segment != "off") {
+    if (seg.presegmented)
+      std::printf("  segmentation: pre-segmented, passed unchanged\n");
+    else
+      std::printf("  segmentation: %zu person(s), floor %s, %d components, %.2f ms\n", seg.people.size(),
+                  seg.floor ? "found" : "none", seg.components, seg_ms);
+  }
+  std::vector<int> order(counts.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = int(i);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return counts[size_t(a)] > counts[size_t(b)]; });
+  std::printf("  most frequent parts:");
+  for (size_t i = 0; i < std::min<size_t>(5, order.size()) && counts[size_t(order[i])] > 0; ++i)
+    std::printf(" %s %.1f%%", forest.part_names[size_t(order[i])].c_str(),
+                100.0 * counts[size_t(order[i])] / std::max(1, fg));
+  std::printf("\n");
+  if (!joints_) return;
+  std::printf("  joints (%s with %s, %.2f ms; most confident proposal of each, camera frame, metres):\n",
+              method_.c_str(),
+              run.params.source == core::ProposalParamsSource::kLearned ? "the forest's learned parameters"
+              : run.params.source == core::ProposalParamsSource::kMeanShiftSet
+                  ? "the forest's learned mean-shift parameters (none learned for the fast clustering)"
+                  : "the paper's mean parameters",
+              proposal_ms);
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    const auto& list = proposals[size_t(j)];
+    if (list.empty()) {
+      std::printf("    %-11s none\n", std::string(core::JointName(j)).c_str());
+      continue;
+    }
+    std::printf("    %-11s (%6.3f, %6.3f, %6.3f)  confidence %.4g, %s %.2f  (%zu proposals)\n",
+                std::string(core::JointName(j)).c_str(), list[0].position.x(), list[0].position.y(),
+                list[0].position.z(), double(list[0].confidence), run.calibration ? "calibrated" : "fallback",
+                double(CalibratedConfidence(run.calibration, j, list[0], run.proposal_options.camera)), list.size());
+  }
+}
+
+}  // namespace
+
+std::unique_ptr<Command> MakeInferCommand() { return std::make_unique<InferCommand>(); }
 
 }  // namespace poseforest::apps::commands

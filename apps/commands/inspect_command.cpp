@@ -2,46 +2,42 @@
 #include <algorithm>
 #include <cstdio>
 #include <string>
+#include <vector>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "runtime/core/forest_format.h"
 
 namespace poseforest::apps::commands {
 namespace {
-constexpr const char* kUsage = R"(usage: poseforest inspect [--parts] [--joints] FOREST.pff [FOREST.pff...]
 
-Loads each forest file, runs every validity check of the loader (sizes, checksum, child and leaf
-indices, thresholds, leaf sums), and prints its format version, trees, depth, node and leaf counts,
-bytes, feature constants and the joint-proposal parameters stored by `poseforest tune-joints`,
-one set per method (JPAR: mean shift, JPFC: the fast clustering; means over joints) and which
-set each method runs with, and the offset votes stored by `poseforest learn-votes` (JVOT: votes,
-trees, max offset, bandwidths, calibration bins) and its tracking decision (JTRK: the learned
-weights of the cues). Exit status 1 if any file is invalid.
+class InspectCommand final : public Command {
+ public:
+  InspectCommand()
+      : Command("inspect",
+                "Loads each forest file, runs every validity check of the loader (sizes, checksum, child and\n"
+                "leaf indices, thresholds, leaf sums), and prints its format version, trees, depth, node and\n"
+                "leaf counts, bytes, feature constants and the joint-proposal parameters stored by\n"
+                "`poseforest tune-joints`, one set per method (JPAR: mean shift, JPFC: the fast clustering;\n"
+                "means over joints) and which set each method runs with, and the offset votes stored by\n"
+                "`poseforest learn-votes` (JVOT: votes, trees, max offset, bandwidths, calibration bins) and\n"
+                "its tracking decision (JTRK: the learned weights of the cues). Exit status 1 if any file is\n"
+                "invalid.") {
+    app_.add_option("FOREST.pff", paths_, "forest files")->required();
+    app_.add_flag("--parts", parts_, "also list the part table");
+    app_.add_flag("--joints", joints_,
+                  "also list each joint's proposal parameters (b, lambda, zeta) for each method");
+  }
+  int Run() override;
 
-options:
-  --parts   also list the part table
-  --joints  also list each joint's proposal parameters (b, lambda, zeta) for each method
-  --help    this text
-)";
-}  // namespace
+ private:
+  std::vector<std::string> paths_;
+  bool parts_ = false, joints_ = false;
+};
 
-int InspectMain(int argc, char** argv) {
-  Args args({}, {"parts", "joints", "help"});
-  if (auto st = args.Parse(argc, argv); !st.ok()) {
-    std::fprintf(stderr, "poseforest inspect: %s\n\n%s", st.message().c_str(), kUsage);
-    return 2;
-  }
-  if (args.Has("help")) {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  if (args.positional().empty()) {
-    std::fprintf(stderr, "poseforest inspect: no forest file given\n\n%s", kUsage);
-    return 2;
-  }
+int InspectCommand::Run() {
   int failures = 0;
-  for (const std::string& path : args.positional()) {
+  for (const std::string& path : paths_) {
     auto bytes = core::ReadFileBytes(path);
     if (!bytes.ok()) {
       std::fprintf(stderr, "poseforest inspect: %s\n", bytes.status().ToString().c_str());
@@ -119,7 +115,7 @@ int InspectMain(int argc, char** argv) {
     } else {
       std::printf("  tracking decision: the hand-set rules (no JTRK section)\n");
     }
-    if (args.Has("joints")) {
+    if (joints_) {
       std::printf("  %-17s %26s   %26s\n", "", "mean shift: b, lambda, zeta",
                   "fast clustering: b, lambda, zeta");
       for (int j = 0; j < core::kNumJoints; ++j) {
@@ -131,10 +127,14 @@ int InspectMain(int argc, char** argv) {
                     double(q.z_offset_m));
       }
     }
-    if (args.Has("parts"))
+    if (parts_)
       for (size_t p = 0; p < f.part_names.size(); ++p) std::printf("  part %2zu: %s\n", p, f.part_names[p].c_str());
   }
   return failures == 0 ? 0 : 1;
 }
+
+}  // namespace
+
+std::unique_ptr<Command> MakeInspectCommand() { return std::make_unique<InspectCommand>(); }
 
 }  // namespace poseforest::apps::commands

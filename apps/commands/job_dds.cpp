@@ -25,50 +25,46 @@ core::Result<v1::TrainerConfig> ReadJobConfig(const std::string& path) {
   return config;
 }
 
-core::Result<JobDds> JobDdsDefaults(const v1::TrainerConfig& config, const std::string& job_path, const Args& args) {
+core::Result<JobDds> JobDdsDefaults(const v1::TrainerConfig& config, const std::string& job_path,
+                                    const proto::dds::DdsSettings& command_line, bool domain_given) {
   JobDds out;
+  out.settings = command_line;
   out.job_path = job_path;
   if (!config.has_dds()) return out;
   const v1::DdsSpec& d = config.dds();
   auto bad = [&](const std::string& m) { return Status(core::ErrorCode::kInvalidArgument, job_path + ": dds." + m); };
   if (d.has_domain()) {
     if (d.domain() > 232) return bad("domain " + std::to_string(d.domain()) + " is not a DDS domain id (0..232)");
-    if (!args.Has("domain")) out.values["domain"] = std::to_string(d.domain());
+    if (!domain_given) out.domain = long(d.domain());
   }
-  for (const char* name : {"profile", "peers", "interfaces", "dds-xml", "dds-profile", "discovery-server"})
-    if (args.Has(name)) return out;  // the command line's transport, whole
+  if (command_line.transport_given()) return out;  // the command line's transport, whole
   auto join = [](const auto& items) {
     std::string j;
     for (const std::string& i : items) j += (j.empty() ? "" : ",") + i;
     return j;
   };
+  proto::dds::DdsSettings& s = out.settings;
   if (d.has_profile()) {
     if (d.profile() != "shm" && d.profile() != "udp" && d.profile() != "default")
       return bad("profile \"" + d.profile() + "\" is not shm, udp or default");
-    out.values["profile"] = d.profile();
+    s.profile = d.profile();
   }
   for (const std::string& p : d.peers())
     if (p.empty() || p.find(',') != std::string::npos) return bad("peers: \"" + p + "\" is not one IP[:PORT]");
   for (const std::string& i : d.interfaces())
     if (i.empty() || i.find(',') != std::string::npos) return bad("interfaces: \"" + i + "\" is not one address");
-  if (d.peers_size() > 0) out.values["peers"] = join(d.peers());
-  if (d.interfaces_size() > 0) out.values["interfaces"] = join(d.interfaces());
-  if (d.has_discovery_server()) out.values["discovery-server"] = d.discovery_server();
+  if (d.peers_size() > 0) s.peers = join(d.peers());
+  if (d.interfaces_size() > 0) s.interfaces = join(d.interfaces());
+  if (d.has_discovery_server()) s.discovery_server = d.discovery_server();
   if (d.has_dds_xml()) {
     std::filesystem::path xml = d.dds_xml();
     if (xml.empty()) return bad("dds_xml is empty");
     if (xml.is_relative()) xml = (std::filesystem::path(job_path).parent_path() / xml).lexically_normal();
-    out.values["dds-xml"] = xml.string();
+    s.dds_xml = xml.string();
   }
-  if (d.has_dds_profile()) out.values["dds-profile"] = d.dds_profile();
-  out.transport = out.values.size() > out.values.count("domain");
+  if (d.has_dds_profile()) s.dds_profile = d.dds_profile();
+  out.transport = s.transport_given();
   return out;
-}
-
-/// `names` plus the DDS value options, for Args.
-std::set<std::string> WithDdsOptions(std::set<std::string> names) {
-  for (const char* o : proto::dds::kDdsValueOptions) names.insert(o);
-  return names;
 }
 
 }  // namespace poseforest::apps::commands

@@ -2,9 +2,10 @@
 // the job's own training frames, calibrated on validation frames (engine/vote_learning.h).
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <string>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "engine/evaluation.h"
 #include "engine/tracking_learning.h"
@@ -13,54 +14,6 @@
 
 namespace poseforest::apps::commands {
 namespace {
-constexpr const char* kUsage =
-    R"(usage: poseforest learn-votes --forest F.pff --job JOB.textproto --out F2.pff [options]
-
-Adds offset votes to a forest trained by JOB (`train` or the distributed service: the same
-forest): per leaf, the offset from a pixel to each joint that the leaf's training pixels agree
-on (Girshick et al. 2011). It renders each tree's training frames again (the same frames and
-pixels as training), walks the pixels to their leaves and keeps, per leaf and joint, the main
-mode of the offsets shorter than --max-offset-m. Then it measures, on validation frames
-(the job's training source with another seed, as tune-joints), how often a vote candidate is
-within 0.1 m of its joint per share of the joint's vote weight: the candidates' confidence. At
-run time (`live`, `eval`) the votes give every joint candidates, hidden joints included, which
-the skeleton weighs against the part proposals. Last, it fits the skeleton's tracking decision
-(format 1.6, runtime/core/tracking_model.h) on further validation frames: whether a joint is
-tracked is learned from its confidence and cues (votes agreeing, the image border, bone lengths,
-its parent) instead of hand-set rules. Run it after tune-joints (it keeps what the forest holds).
-
-options:
-  --forest PATH          the trained forest (required)
-  --job PATH             the job that trained it (required; its source must render joints)
-  --out PATH             where to write the forest with votes (required; may equal --forest)
-  --max-offset-m M       longest offset kept, metres (default 0.3)
-  --leaf-bandwidth-m B   mean shift over a leaf's offsets (default 0.05)
-  --vote-bandwidth-m B   run-time mean shift over the votes, every joint (default: per joint,
-                         the best of 0.04, 0.06, 0.09, 0.13 and 0.18 m on the validation frames)
-  --min-weight W         a leaf keeps a joint's mode holding at least this share of its
-                         pixels (default 0.1)
-  --validation-frames N  frames of the calibration (default 60; 0: none, confidences 0)
-  --tracking-frames N    validation frames of the tracking decision, after the calibration's
-                         (default 200; 0: no tracking model, the skeleton keeps its rules)
-  --tracking-only        keep the forest's votes and fit the tracking decision alone
-  --seed S               render seed of the validation frames (default: the source's seed +
-                         1000003, as tune-joints)
-  --threads N            threads (0 = all cores, default)
-  --quiet                no progress lines
-  --help                 this text
-)";
-
-core::Result<double> GetReal(const Args& args, const std::string& name, double fallback, double lo, double hi) {
-  const auto v = args.Get(name);
-  if (!v) return fallback;
-  char* end = nullptr;
-  const double x = std::strtod(v->c_str(), &end);
-  if (v->empty() || *end != '\0' || !(x >= lo && x <= hi))
-    return core::Status(core::ErrorCode::kInvalidArgument, "--" + name + " must be a number in [" +
-                                                               std::to_string(lo) + ", " + std::to_string(hi) +
-                                                               "], got '" + *v + "'");
-  return x;
-}
 void PrintVotes(const core::Forest& forest, const engine::VoteLearningReport& rep, const std::string& out) {
   const auto& v = *forest.offset_votes;
   std::printf("votes: %llu training pixels over %zu trees, %llu of %llu leaves vote (%.1f votes per leaf), %llu "
@@ -113,80 +66,116 @@ void PrintTracking(const core::TrackingModel& m, const engine::TrackingLearningR
               "%.3f (rules %.3f), tracked joints within 0.1 m %.3f (rules %.3f), in %.0f s\n",
               out.c_str(), rep.model_within, rep.rules_within, rep.model_precision, rep.rules_precision, rep.seconds);
 }
-}  // namespace
 
-int LearnVotesMain(int argc, char** argv) {
-  Args args({"forest", "job", "out", "max-offset-m", "leaf-bandwidth-m", "vote-bandwidth-m", "min-weight",
-             "validation-frames", "seed", "threads", "tracking-frames"},
-            {"help", "quiet", "tracking-only"});
-  if (auto st = args.Parse(argc, argv); !st.ok()) {
-    std::fprintf(stderr, "poseforest learn-votes: %s\n\n%s", st.message().c_str(), kUsage);
-    return 2;
+class LearnVotesCommand final : public Command {
+ public:
+  LearnVotesCommand()
+      : Command("learn-votes",
+                "Adds offset votes to a forest trained by JOB (`train` or the distributed service: the same\n"
+                "forest): per leaf, the offset from a pixel to each joint that the leaf's training pixels agree\n"
+                "on (Girshick et al. 2011). It renders each tree's training frames again (the same frames and\n"
+                "pixels as training), walks the pixels to their leaves and keeps, per leaf and joint, the main\n"
+                "mode of the offsets shorter than --max-offset-m. Then it measures, on validation frames\n"
+                "(the job's training source with another seed, as tune-joints), how often a vote candidate is\n"
+                "within 0.1 m of its joint per share of the joint's vote weight: the candidates' confidence. At\n"
+                "run time (`live`, `eval`) the votes give every joint candidates, hidden joints included, which\n"
+                "the skeleton weighs against the part proposals. Last, it fits the skeleton's tracking decision\n"
+                "(format 1.6, runtime/core/tracking_model.h) on further validation frames: whether a joint is\n"
+                "tracked is learned from its confidence and cues (votes agreeing, the image border, bone lengths,\n"
+                "its parent) instead of hand-set rules. Run it after tune-joints (it keeps what the forest holds).") {
+    app_.add_option("--forest", forest_, "the trained forest")->type_name("PATH")->required();
+    app_.add_option("--job", job_, "the job that trained it (its source must render joints)")
+        ->type_name("PATH")
+        ->required();
+    app_.add_option("--out", out_, "where to write the forest with votes (may equal --forest)")
+        ->type_name("PATH")
+        ->required();
+    app_.add_option("--max-offset-m", max_offset_m_, "longest offset kept, metres")
+        ->type_name("M")
+        ->check(NumberIn(0.05, 3.0));
+    app_.add_option("--leaf-bandwidth-m", leaf_bandwidth_m_, "mean shift over a leaf's offsets")
+        ->type_name("B")
+        ->check(NumberIn(0.005, 0.5));
+    app_.add_option("--vote-bandwidth-m", vote_bandwidth_m_,
+                    "run-time mean shift over the votes, every joint (default: per joint, the best of\n"
+                    "0.04, 0.06, 0.09, 0.13 and 0.18 m on the validation frames)")
+        ->type_name("B")
+        ->check(NumberIn(0.005, 0.5));
+    app_.add_option("--min-weight", min_weight_, "a leaf keeps a joint's mode holding at least this share of its pixels")
+        ->type_name("W")
+        ->check(NumberIn(0.001, 1.0));
+    app_.add_option("--validation-frames", validation_frames_, "frames of the calibration (0: none, confidences 0)")
+        ->type_name("N")
+        ->check(IntIn(0, 1'000'000));
+    app_.add_option("--tracking-frames", tracking_frames_,
+                    "validation frames of the tracking decision, after the calibration's (0: no\n"
+                    "tracking model, the skeleton keeps its rules)")
+        ->type_name("N")
+        ->check(IntIn(0, 1'000'000));
+    app_.add_flag("--tracking-only", tracking_only_, "keep the forest's votes and fit the tracking decision alone");
+    app_.add_option("--seed", seed_,
+                    "render seed of the validation frames (default: the source's seed + 1000003, as\n"
+                    "tune-joints)")
+        ->type_name("S")
+        ->check(IntIn(0, 1LL << 62));
+    app_.add_option("--threads", threads_, "threads (0 = all cores)")->type_name("N")->check(IntIn(0, 1024));
+    app_.add_flag("--quiet", quiet_, "no progress lines");
   }
-  if (args.Has("help")) {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  if (!args.Has("forest") || !args.Has("job") || !args.Has("out") || !args.positional().empty()) {
-    std::fprintf(stderr, "poseforest learn-votes: need --forest, --job and --out\n\n%s", kUsage);
-    return 2;
-  }
+  int Run() override;
+
+ private:
+  std::string forest_, job_, out_;
+  // The defaults are engine::VoteLearningOptions'.
+  std::optional<double> vote_bandwidth_m_;
+  double max_offset_m_ = kDefaults.max_offset_m, leaf_bandwidth_m_ = kDefaults.leaf_bandwidth_m,
+         min_weight_ = kDefaults.min_weight;
+  int validation_frames_ = kDefaults.validation_frames, tracking_frames_ = 200, threads_ = 0;
+  std::optional<int64_t> seed_;
+  bool tracking_only_ = false, quiet_ = false;
+  static inline const engine::VoteLearningOptions kDefaults{};
+};
+
+int LearnVotesCommand::Run() {
   engine::VoteLearningOptions opt;
-  auto max_offset = GetReal(args, "max-offset-m", opt.max_offset_m, 0.05, 3.0);
-  auto leaf_bw = GetReal(args, "leaf-bandwidth-m", opt.leaf_bandwidth_m, 0.005, 0.5);
-  auto vote_bw = GetReal(args, "vote-bandwidth-m", opt.vote_bandwidth_m, 0.005, 0.5);
-  auto min_weight = GetReal(args, "min-weight", opt.min_weight, 0.001, 1.0);
-  for (const auto* r : {&max_offset, &leaf_bw, &vote_bw, &min_weight})
-    if (!r->ok()) {
-      std::fprintf(stderr, "poseforest learn-votes: %s\n", r->status().message().c_str());
-      return 2;
-    }
-  auto frames = args.GetInt("validation-frames", opt.validation_frames, 0, 1'000'000);
-  auto tracking_frames = args.GetInt("tracking-frames", 200, 0, 1'000'000);
-  auto seed = args.GetInt("seed", -1, 0, 1L << 62);
-  auto threads = args.GetInt("threads", 0, 0, 1024);
-  for (const auto* r : {&frames, &seed, &threads, &tracking_frames})
-    if (!r->ok()) {
-      std::fprintf(stderr, "poseforest learn-votes: %s\n", r->status().message().c_str());
-      return 2;
-    }
-  auto job = engine::LoadJob(*args.Get("job"));
+  auto job = engine::LoadJob(job_);
   if (!job.ok()) {
     std::fprintf(stderr, "poseforest learn-votes: %s\n", job.status().ToString().c_str());
     return job.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
   }
   if (job->source.kind == engine::SourceKind::kProcedural) {
     std::fprintf(stderr, "poseforest learn-votes: %s: procedural frames have no joints\n",
-                 args.Get("job")->c_str());
+                 job_.c_str());
     return 2;
   }
-  auto forest = core::LoadForest(*args.Get("forest"));
+  auto forest = core::LoadForest(forest_);
   if (!forest.ok()) {
     std::fprintf(stderr, "poseforest learn-votes: %s\n", forest.status().ToString().c_str());
     return 1;
   }
-  const bool quiet = args.Has("quiet");
-  opt.max_offset_m = float(*max_offset);
-  opt.leaf_bandwidth_m = float(*leaf_bw);
-  opt.vote_bandwidth_m = float(*vote_bw);
-  if (args.Has("vote-bandwidth-m")) opt.bandwidth_grid.clear();
-  opt.min_weight = float(*min_weight);
-  opt.validation_frames = int(*frames);
-  opt.threads = int(*threads);
+  const bool quiet = quiet_;
+  opt.max_offset_m = float(max_offset_m_);
+  opt.leaf_bandwidth_m = float(leaf_bandwidth_m_);
+  if (vote_bandwidth_m_) {
+    opt.vote_bandwidth_m = float(*vote_bandwidth_m_);
+    opt.bandwidth_grid.clear();
+  }
+  opt.min_weight = float(min_weight_);
+  opt.validation_frames = validation_frames_;
+  opt.threads = threads_;
   opt.validation = job->source;
   if (opt.validation.kind == engine::SourceKind::kRendered)
-    opt.validation.seed = *seed >= 0 ? uint64_t(*seed) : job->source.seed + 1000003;
+    opt.validation.seed = seed_ ? uint64_t(*seed_) : job->source.seed + 1000003;
   if (!quiet)
     opt.progress = [](const std::string& line) {
       std::fprintf(stderr, "learn-votes: %s\n", line.c_str());
     };
-  const bool tracking_only = args.Has("tracking-only");
+  const bool tracking_only = tracking_only_;
   if (tracking_only && !forest->offset_votes) {
     std::fprintf(stderr, "poseforest learn-votes: --tracking-only: %s has no offset votes to keep\n",
-                 args.Get("forest")->c_str());
+                 forest_.c_str());
     return 2;
   }
-  if (tracking_only && *tracking_frames == 0) {
+  if (tracking_only && tracking_frames_ == 0) {
     std::fprintf(stderr, "poseforest learn-votes: --tracking-only needs --tracking-frames > 0\n");
     return 2;
   }
@@ -201,11 +190,11 @@ int LearnVotesMain(int argc, char** argv) {
     forest->tracking_model.reset();  // fitted for other votes
   }
   engine::TrackingLearningReport trep;
-  if (*tracking_frames > 0) {
+  if (tracking_frames_ > 0) {
     engine::TrackingLearningOptions to;
     to.validation = opt.validation;
     to.first_index = uint64_t(opt.validation_frames);
-    to.frames = int(*tracking_frames);
+    to.frames = tracking_frames_;
     to.threads = opt.threads;
     to.progress = opt.progress;
     auto model = engine::LearnTrackingModel(*forest, to, &trep);
@@ -215,13 +204,17 @@ int LearnVotesMain(int argc, char** argv) {
     }
     forest->tracking_model = *model;
   }
-  if (auto st = core::SaveForest(*forest, *args.Get("out")); !st.ok()) {
+  if (auto st = core::SaveForest(*forest, out_); !st.ok()) {
     std::fprintf(stderr, "poseforest learn-votes: %s\n", st.ToString().c_str());
     return 1;
   }
-  if (!tracking_only) PrintVotes(*forest, rep, *args.Get("out"));
-  if (forest->tracking_model) PrintTracking(*forest->tracking_model, trep, *args.Get("out"));
+  if (!tracking_only) PrintVotes(*forest, rep, out_);
+  if (forest->tracking_model) PrintTracking(*forest->tracking_model, trep, out_);
   return 0;
 }
+
+}  // namespace
+
+std::unique_ptr<Command> MakeLearnVotesCommand() { return std::make_unique<LearnVotesCommand>(); }
 
 }  // namespace poseforest::apps::commands

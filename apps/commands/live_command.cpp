@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "apps/commands/frame_options.h"
 #include "runtime/core/forest_format.h"
@@ -36,67 +36,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kUsage = R"(usage: poseforest live --forest FOREST.pff --source SOURCE [options]
-
-Per-person skeletons from depth frames, as they come: people segmentation, body parts (the
-forest), joint proposals (section 3.4 of Shotton et al.), then per person one position per joint
-with a confidence in 0..1, a tracked / not-tracked state and an id that stays with the person
-over the sequence. Outputs (any together; docs/runtime/live.md has the schema):
-  --jsonl FILE|-       JSON Lines, one object per frame (- = stdout)
-  --png-dir DIR        DIR/frame-NNNNNN.png per frame: depth | parts | skeletons (bones drawn)
-  --http ADDR          a live page at http://ADDR/ (HOST:PORT, or PORT for 127.0.0.1): depth | parts
-                       | skeletons at the camera's rate (server-sent events: /events, one JSON Lines
-                       record per frame); /skeletons.json (the latest), /frame.png (the
-                       latest picture, made while a page is open)
-  --dds                ROS 2-readable DDS topics (Fast DDS, rmw_fastrtps naming; builds with Fast DDS):
-                       rt/PREFIX/skeletons (poseforest_msgs/msg/Skeletons, msg/*.msg in the source)
-                       and rt/PREFIX/markers (visualization_msgs/msg/MarkerArray: joints and bones
-                       per person, for RViz); reliable, transient-local, keep-last 100
-  --dds-domain N       DDS domain (ROS_DOMAIN_ID; default 0)
-  --dds-topic PREFIX   ROS topics /PREFIX/skeletons and /PREFIX/markers (default poseforest)
-  --dds-frame-id ID    header.frame_id (default camera_depth_optical_frame)
-  --dds-wait N         before the first frame, wait up to 10 s for N subscribers (default 0)
-Progress (frames/s, latency, people) goes to stderr on one line; SIGINT / SIGTERM (Ctrl-C) stop
-cleanly after the current frame with a summary.
-
-SOURCE (also positional; the sources of `poseforest frames`, docs/runtime/frames.md):
-  FILE | FOLDER | 'PATTERN' | - (raw frames on stdin) | freenect:N | openni2:[URI]
-camera: --camera PRESET, --fx F --fy F --cx C --cy C, --depth-scale S, --raw-size WxH,
-        --fps N (deliver at most N frames/s: a folder played at the camera's rate)
-segmentation: --segment auto|on|off, --floor A,B,C,D, --near M, --far M (as `infer`)
-
-skeletons:
-  --method M           joint proposals: meanshift (default) or fast
-  --pixel-stride N     classify and propose from every N-th pixel in x and y only (default 2:
-                       one pixel in 2x2, as Kinect's tracker ran at 320x240; 2.1x the frames/s
-                       of 1 for 0.003 mAP: docs/runtime/live.md; 1: every pixel)
-  --fit F              greedy (default): each joint's most confident proposal on the person;
-                       kinematic: one fit per person choosing among each joint's proposals with
-                       bone lengths (runtime/skeleton.h)
-  --no-votes           ignore the forest's offset votes (format 1.5, `learn-votes`); by default
-                       a forest with votes gives every joint vote candidates too
-  --no-tracking-model  the hand-set tracking rules (--min-confidence, --min-support, the image
-                       border, bone lengths, a tracked parent) instead of the forest's learned
-                       tracking decision (format 1.6, `learn-votes`), which tracks a joint when
-                       its P(within 0.1 m) >= --track-probability (default 0.5)
-  --min-confidence C   without a tracking model: tracked only with a confidence >= C (default 0.3)
-  --min-support S      ... and a proposal support >= S m^2 (default 0.0001)
-  --max-match M        a person moving more than M metres between frames gets a new id (0.5)
-  --smooth             One Euro filter on tracked joints (Casiez et al. 2012), with
-  --smooth-min-cutoff HZ (default 1), --smooth-beta B (0.5), --smooth-d-cutoff HZ (1)
-  The confidence is the forest's calibration (`tune-joints`: the precision proposals of that
-  support had on validation renders); forests without one get a documented fallback (the
-  summary says which).
-
-options:
-  --forest FILE        forest file (.pff), required
-  --loop               replay a finite source forever (until SIGINT / SIGTERM or --max-frames)
-  --max-frames N       stop after N frames
-  --threads N          OpenMP threads (default: all cores)
-  --quiet              no progress line (the summary still goes to stderr)
-  --help               this text
-)";
-
 std::atomic<bool> g_stop{false};
 extern "C" void OnStopSignal(int) { g_stop.store(true); }
 
@@ -112,6 +51,130 @@ double Percentile(std::vector<double> v, double q) {
   return v[k];
 }
 
+// The command line as given: every option of `live`, declared once by DeclareLiveOptions.
+struct LiveFlags {
+  std::vector<std::string> sources;
+  std::optional<std::string> source, jsonl, png_dir, http, dds_topic, dds_frame_id;
+  std::string forest, method = "meanshift", fit = "greedy";
+  FrameSourceFlags frames;
+  SegmentationFlags segmentation;
+  // Default 2 for live video (docs/runtime/live.md, "Pixel stride"): bench/live's goals
+  // (>= 200 frames/s, p99 <= 10 ms on 2 cores) are met there, not at 1 (about 105 frames/s).
+  int pixel_stride = 2, threads = 0;
+  std::optional<int> dds_domain, dds_wait;
+  std::optional<int64_t> max_frames;
+  std::optional<double> min_confidence, track_probability, min_support, max_match;  ///< default: SkeletonOptions'
+  std::optional<double> smooth_min_cutoff, smooth_beta, smooth_d_cutoff;
+  bool smooth = false, loop = false, quiet = false, dds = false, no_votes = false, no_tracking_model = false;
+};
+
+void DeclareLiveOptions(CLI::App& app, LiveFlags* f) {
+  app.add_option("SOURCE", f->sources, "depth frames: the sources of `poseforest frames` (docs/runtime/frames.md)");
+  app.add_option("--source", f->source,
+                 "FILE | FOLDER | 'PATTERN' | - (raw frames on stdin) | freenect:N | openni2:[URI]")
+      ->type_name("SOURCE");
+  app.add_option("--forest", f->forest, "forest file (.pff)")->type_name("FILE")->required();
+  app.add_flag("--loop", f->loop, "replay a finite source forever (until SIGINT / SIGTERM or --max-frames)");
+  app.add_option("--max-frames", f->max_frames, "stop after N frames")->type_name("N")->check(IntIn(1, 1LL << 40));
+  app.add_option("--threads", f->threads, "OpenMP threads (0: all cores)")->type_name("N")->check(IntIn(0, 1024));
+  app.add_flag("--quiet", f->quiet, "no progress line (the summary still goes to stderr)");
+  const char* outputs = "outputs (any together; docs/runtime/live.md has the schema)";
+  app.add_option("--jsonl", f->jsonl, "JSON Lines, one object per frame (- = stdout)")->type_name("FILE|-")->group(outputs);
+  app.add_option("--png-dir", f->png_dir, "DIR/frame-NNNNNN.png per frame: depth | parts | skeletons (bones drawn)")
+      ->type_name("DIR")
+      ->group(outputs);
+  app.add_option("--http", f->http,
+                 "a live page at http://ADDR/ (HOST:PORT, or PORT for 127.0.0.1): depth | parts |\n"
+                 "skeletons at the camera's rate (server-sent events: /events, one JSON Lines record per\n"
+                 "frame); /skeletons.json (the latest), /frame.png (the latest picture, made while a page\n"
+                 "is open)")
+      ->type_name("ADDR")
+      ->group(outputs);
+  app.add_flag("--dds", f->dds,
+               "ROS 2-readable DDS topics (Fast DDS, rmw_fastrtps naming; builds with Fast DDS):\n"
+               "rt/PREFIX/skeletons (poseforest_msgs/msg/Skeletons, msg/*.msg in the source) and\n"
+               "rt/PREFIX/markers (visualization_msgs/msg/MarkerArray: joints and bones per person, for\n"
+               "RViz); reliable, transient-local, keep-last 100")
+      ->group(outputs);
+  app.add_option("--dds-domain", f->dds_domain, "DDS domain (ROS_DOMAIN_ID; default 0)")
+      ->type_name("N")
+      ->check(IntIn(0, 232))
+      ->group(outputs);
+  app.add_option("--dds-topic", f->dds_topic, "ROS topics /PREFIX/skeletons and /PREFIX/markers (default poseforest)")
+      ->type_name("PREFIX")
+      ->group(outputs);
+  app.add_option("--dds-frame-id", f->dds_frame_id, "header.frame_id (default camera_depth_optical_frame)")
+      ->type_name("ID")
+      ->group(outputs);
+  app.add_option("--dds-wait", f->dds_wait, "before the first frame, wait up to 10 s for N subscribers (default 0)")
+      ->type_name("N")
+      ->check(IntIn(0, 1000))
+      ->group(outputs);
+  AddFrameSourceOptions(app, &f->frames);
+  AddSegmentationOptions(app, &f->segmentation);
+  const char* sk = "skeletons";
+  app.add_option("--method", f->method, "joint proposals: meanshift or fast")
+      ->type_name("M")
+      ->check(OneOf({"meanshift", "fast"}))
+      ->group(sk);
+  app.add_option("--pixel-stride", f->pixel_stride,
+                 "classify and propose from every N-th pixel in x and y only (2: one pixel in 2x2, as\n"
+                 "Kinect's tracker ran at 320x240; 2.1x the frames/s of 1 for 0.003 mAP:\n"
+                 "docs/runtime/live.md; 1: every pixel)")
+      ->type_name("N")
+      ->check(IntIn(1, 16))
+      ->group(sk);
+  app.add_option("--fit", f->fit,
+                 "greedy: each joint's most confident proposal on the person; kinematic: one fit per\n"
+                 "person choosing among each joint's proposals with bone lengths (runtime/skeleton.h)")
+      ->type_name("F")
+      ->check(CLI::Validator(
+          [](std::string& v) -> std::string {
+            return runtime::SkeletonFitFromName(v) ? "" : "must be kinematic or greedy (got '" + v + "')";
+          },
+          ""))
+      ->group(sk);
+  app.add_flag("--no-votes", f->no_votes,
+               "ignore the forest's offset votes (format 1.5, `learn-votes`); by default a forest with\n"
+               "votes gives every joint vote candidates too")
+      ->group(sk);
+  app.add_flag("--no-tracking-model", f->no_tracking_model,
+               "the hand-set tracking rules (--min-confidence, --min-support, the image border, bone\n"
+               "lengths, a tracked parent) instead of the forest's learned tracking decision (format\n"
+               "1.6, `learn-votes`), which tracks a joint when its P(within 0.1 m) >= --track-probability")
+      ->group(sk);
+  app.add_option("--min-confidence", f->min_confidence,
+                 "without a tracking model: tracked only with a confidence >= C (default 0.3)")
+      ->type_name("C")
+      ->check(NumberIn(0.0, 1.0))
+      ->group(sk);
+  app.add_option("--track-probability", f->track_probability, "the learned tracking decision's threshold (default 0.5)")
+      ->type_name("P")
+      ->check(NumberIn(0.0, 1.0))
+      ->group(sk);
+  app.add_option("--min-support", f->min_support, "... and a proposal support >= S m^2 (default 0.0001)")
+      ->type_name("S")
+      ->check(NumberIn(0.0, 10.0))
+      ->group(sk);
+  app.add_option("--max-match", f->max_match, "a person moving more than M metres between frames gets a new id (default 0.5)")
+      ->type_name("M")
+      ->check(NumberIn(0.0, 100.0))
+      ->group(sk);
+  app.add_flag("--smooth", f->smooth, "One Euro filter on tracked joints (Casiez et al. 2012)")->group(sk);
+  app.add_option("--smooth-min-cutoff", f->smooth_min_cutoff, "--smooth: cutoff at rest (default 1)")
+      ->type_name("HZ")
+      ->check(NumberIn(1e-6, 1000.0))
+      ->group(sk);
+  app.add_option("--smooth-beta", f->smooth_beta, "--smooth: speed coefficient (default 0.5)")
+      ->type_name("B")
+      ->check(NumberIn(0.0, 1000.0))
+      ->group(sk);
+  app.add_option("--smooth-d-cutoff", f->smooth_d_cutoff, "--smooth: cutoff of the speed (default 1)")
+      ->type_name("HZ")
+      ->check(NumberIn(1e-6, 1000.0))
+      ->group(sk);
+}
+
 // What the command line asks for (the outputs aside).
 struct LiveOptions {
   std::vector<std::string> specs;
@@ -124,96 +187,52 @@ struct LiveOptions {
 
 // The options of the pipeline, the sources and the loop; on a usage error, the exit code (the
 // message printed).
-std::optional<int> ParseLiveOptions(const Args& args, LiveOptions* out) {
-  out->specs = args.positional();
-  if (auto src = args.Get("source")) out->specs.insert(out->specs.begin(), *src);
+std::optional<int> ParseLiveOptions(const LiveFlags& f, LiveOptions* out) {
+  out->specs = f.sources;
+  if (f.source) out->specs.insert(out->specs.begin(), *f.source);
+  // The first DDS option given, for the messages.
+  const char* dds_option = f.dds_domain ? "dds-domain" : f.dds_topic ? "dds-topic" : f.dds_frame_id ? "dds-frame-id"
+                           : f.dds_wait ? "dds-wait" : nullptr;
 #ifndef POSEFOREST_HAS_SKELETON_DDS
-  for (const char* o : {"dds", "dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
-    if (args.Has(o))
-      return UsageError(
-          std::string("--") + o +
-          ": this program was built without Fast DDS (the DDS output is built with the training side, "
-          "-DPOSEFOREST_TRAINING=ON)");
+  if (f.dds || dds_option)
+    return UsageError(
+        std::string("--") + (f.dds ? "dds" : dds_option) +
+        ": this program was built without Fast DDS (the DDS output is built with the training side, "
+        "-DPOSEFOREST_TRAINING=ON)");
 #endif
-  if (!args.Has("dds"))
-    for (const char* o : {"dds-domain", "dds-topic", "dds-frame-id", "dds-wait"})
-      if (args.Has(o)) return UsageError(std::string("--") + o + " needs --dds");
-  const auto forest_path = args.Get("forest");
-  if (!forest_path) return UsageError("--forest is required (see --help)");
-  out->forest_path = *forest_path;
+  if (!f.dds && dds_option) return UsageError(std::string("--") + dds_option + " needs --dds");
+  out->forest_path = f.forest;
   if (out->specs.empty()) return UsageError("no source given: --source SOURCE (see --help)");
 
-  if (auto st = ParseFrameSourceOptions(args, &out->source); !st.ok()) return UsageError(st.message());
+  auto source = FrameSourceFromFlags(f.frames);
+  if (!source.ok()) return UsageError(source.status().message());
+  out->source = *source;
   runtime::SkeletonPipelineOptions& options = out->pipeline;
-  const std::string segment = args.GetOr("segment", "auto");
-  if (segment == "auto")
-    options.segment = runtime::SegmentMode::kAuto;
-  else if (segment == "on")
-    options.segment = runtime::SegmentMode::kOn;
-  else if (segment == "off")
-    options.segment = runtime::SegmentMode::kOff;
-  else
-    return UsageError("--segment must be auto, on or off (got '" + segment + "')");
-  if (auto fl = args.Get("floor")) {
-    double a, b, c, d;
-    if (std::sscanf(fl->c_str(), "%lf,%lf,%lf,%lf", &a, &b, &c, &d) != 4 || std::hypot(a, b, c) < 1e-9)
-      return UsageError("--floor must be A,B,C,D with (A,B,C) != 0 (got '" + *fl + "')");
-    const double n = std::hypot(a, b, c);
-    options.segmentation.floor_plane = Eigen::Vector4d(a / n, b / n, c / n, d / n);
-  }
-  {
-    auto near = GetDouble(args, "near", options.segmentation.near_m, 0.0, 60.0);
-    auto far = GetDouble(args, "far", options.segmentation.far_m, 0.0, 65.0);
-    if (!near.ok()) return UsageError(near.status().message());
-    if (!far.ok()) return UsageError(far.status().message());
-    if (*near >= *far) return UsageError("--near must be less than --far");
-    options.segmentation.near_m = *near, options.segmentation.far_m = *far;
-  }
-  const std::string method = args.GetOr("method", "meanshift");
-  if (method != "meanshift" && method != "fast")
-    return UsageError("--method must be meanshift or fast (got '" + method + "')");
+  options.segment = f.segmentation.segment == "on"    ? runtime::SegmentMode::kOn
+                    : f.segmentation.segment == "off" ? runtime::SegmentMode::kOff
+                                                      : runtime::SegmentMode::kAuto;
+  if (core::Status st = SegmentationFromFlags(f.segmentation, &options.segmentation); !st.ok())
+    return UsageError(st.message());
   options.method =
-      method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
+      f.method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
   auto& sk = options.skeleton;
-  {
-    const std::string fit = args.GetOr("fit", "greedy");
-    const auto parsed = runtime::SkeletonFitFromName(fit);
-    if (!parsed) return UsageError("--fit must be kinematic or greedy (got '" + fit + "')");
-    sk.fit = *parsed;
-  }
-  options.votes = !args.Has("no-votes");
-  sk.use_tracking_model = !args.Has("no-tracking-model");
-  {
-    auto min_conf = GetDouble(args, "min-confidence", sk.min_confidence, 0.0, 1.0);
-    auto track_p = GetDouble(args, "track-probability", sk.track_probability, 0.0, 1.0);
-    auto min_support = GetDouble(args, "min-support", sk.min_support_m2, 0.0, 10.0);
-    auto max_match = GetDouble(args, "max-match", sk.max_match_distance_m, 0.0, 100.0);
-    auto min_cutoff = GetDouble(args, "smooth-min-cutoff", sk.min_cutoff_hz, 1e-6, 1000.0);
-    auto beta = GetDouble(args, "smooth-beta", sk.beta, 0.0, 1000.0);
-    auto d_cutoff = GetDouble(args, "smooth-d-cutoff", sk.d_cutoff_hz, 1e-6, 1000.0);
-    for (const auto* r : {&min_conf, &track_p, &min_support, &max_match, &min_cutoff, &beta, &d_cutoff})
-      if (!r->ok()) return UsageError(r->status().message());
-    sk.min_confidence = float(*min_conf), sk.min_support_m2 = float(*min_support);
-    sk.track_probability = float(*track_p);
-    sk.max_match_distance_m = float(*max_match);
-    sk.smooth = args.Has("smooth");
-    sk.min_cutoff_hz = *min_cutoff, sk.beta = *beta, sk.d_cutoff_hz = *d_cutoff;
-    if (!sk.smooth &&
-        (args.Has("smooth-min-cutoff") || args.Has("smooth-beta") || args.Has("smooth-d-cutoff")))
-      return UsageError("--smooth-min-cutoff / --smooth-beta / --smooth-d-cutoff need --smooth");
-  }
-  auto threads = args.GetInt("threads", 0, 0, 1024);
-  auto max_frames = args.GetInt("max-frames", -1, 1, 1L << 40);
-  // Default 2 for live video (docs/runtime/live.md, "Pixel stride"): bench/live's goals
-  // (>= 200 frames/s, p99 <= 10 ms on 2 cores) are met there, not at 1 (about 105 frames/s).
-  auto pixel_stride = args.GetInt("pixel-stride", 2, 1, 16);
-  if (!threads.ok()) return UsageError(threads.status().message());
-  if (!pixel_stride.ok()) return UsageError(pixel_stride.status().message());
-  options.pixel_stride = int(*pixel_stride);
-  if (!max_frames.ok()) return UsageError(max_frames.status().message());
-  out->max_frames = *max_frames;
-  options.num_threads = int(*threads);
-  out->quiet = args.Has("quiet"), out->loop = args.Has("loop");
+  sk.fit = *runtime::SkeletonFitFromName(f.fit);
+  options.votes = !f.no_votes;
+  sk.use_tracking_model = !f.no_tracking_model;
+  if (f.min_confidence) sk.min_confidence = float(*f.min_confidence);
+  if (f.min_support) sk.min_support_m2 = float(*f.min_support);
+  if (f.track_probability) sk.track_probability = float(*f.track_probability);
+  if (f.max_match) sk.max_match_distance_m = float(*f.max_match);
+  sk.smooth = f.smooth;
+  if (f.smooth_min_cutoff) sk.min_cutoff_hz = *f.smooth_min_cutoff;
+  if (f.smooth_beta) sk.beta = *f.smooth_beta;
+  if (f.smooth_d_cutoff) sk.d_cutoff_hz = *f.smooth_d_cutoff;
+  if (!sk.smooth && (f.smooth_min_cutoff || f.smooth_beta || f.smooth_d_cutoff))
+    return UsageError("--smooth-min-cutoff / --smooth-beta / --smooth-d-cutoff need --smooth");
+  options.pixel_stride = f.pixel_stride;
+  out->max_frames = f.max_frames.value_or(-1);
+  options.num_threads = f.threads;
+  out->quiet = f.quiet, out->loop = f.loop;
   return std::nullopt;
 }
 
@@ -231,8 +250,8 @@ struct LiveOutputs {
 };
 
 // --jsonl and --png-dir; on failure, the exit code (the message printed).
-std::optional<int> OpenFileOutputs(const Args& args, LiveOutputs* out) {
-  if (auto j = args.Get("jsonl")) {
+std::optional<int> OpenFileOutputs(const LiveFlags& f, LiveOutputs* out) {
+  if (const auto& j = f.jsonl) {
     if (*j == "-") {
       out->jsonl = stdout;
     } else {
@@ -244,7 +263,7 @@ std::optional<int> OpenFileOutputs(const Args& args, LiveOutputs* out) {
       out->jsonl = out->jsonl_file.get();
     }
   }
-  out->png_dir = args.Get("png-dir");
+  out->png_dir = f.png_dir;
   if (out->png_dir) {
     std::error_code ec;
     fs::create_directories(*out->png_dir, ec);
@@ -258,9 +277,9 @@ std::optional<int> OpenFileOutputs(const Args& args, LiveOutputs* out) {
 }
 
 // --http: the live page; on failure, the exit code (the message printed).
-std::optional<int> StartLivePage(const Args& args, LiveOutputs* out) {
+std::optional<int> StartLivePage(const LiveFlags& f, LiveOutputs* out) {
 #ifdef POSEFOREST_HAS_HTTPLIB
-  if (auto addr = args.Get("http")) {
+  if (const auto& addr = f.http) {
     const auto address = live::ParseAddress(*addr);
     if (!address) return UsageError("--http must be HOST:PORT or PORT (got '" + *addr + "')");
     const int bound = out->page.Start(*address);
@@ -273,7 +292,7 @@ std::optional<int> StartLivePage(const Args& args, LiveOutputs* out) {
   }
 #else
   (void)out;
-  if (args.Has("http"))
+  if (f.http)
     return UsageError(
         "--http: this program was built without cpp-httplib (Debian libcpp-httplib-dev, found at configure "
         "time)");
@@ -282,17 +301,13 @@ std::optional<int> StartLivePage(const Args& args, LiveOutputs* out) {
 }
 
 // --dds: the ROS 2 topics; on failure, the exit code (the message printed).
-std::optional<int> StartDds(const Args& args, LiveOutputs* out) {
+std::optional<int> StartDds(const LiveFlags& f, LiveOutputs* out) {
 #ifdef POSEFOREST_HAS_SKELETON_DDS
-  if (args.Has("dds")) {
+  if (f.dds) {
     ros2::DdsOptions o;
-    auto domain = args.GetInt("dds-domain", 0, 0, 232);
-    auto wait = args.GetInt("dds-wait", 0, 0, 1000);
-    if (!domain.ok()) return UsageError(domain.status().message());
-    if (!wait.ok()) return UsageError(wait.status().message());
-    o.domain = int(*domain);
-    o.topic_prefix = args.GetOr("dds-topic", o.topic_prefix);
-    o.frame_id = args.GetOr("dds-frame-id", o.frame_id);
+    o.domain = f.dds_domain.value_or(0);
+    if (f.dds_topic) o.topic_prefix = *f.dds_topic;
+    if (f.dds_frame_id) o.frame_id = *f.dds_frame_id;
     auto p = ros2::SkeletonPublisher::Create(o);
     if (!p.ok()) {
       std::fprintf(stderr, "poseforest live: %s\n", p.status().ToString().c_str());
@@ -300,12 +315,12 @@ std::optional<int> StartDds(const Args& args, LiveOutputs* out) {
     }
     out->dds = std::move(*p);
     std::fprintf(stderr, "poseforest live: publishing on %s\n", out->dds->Describe().c_str());
-    if (*wait > 0 && !out->dds->WaitForSubscribers(int(*wait), 10.0))
-      std::fprintf(stderr, "poseforest live: DDS: fewer than %ld subscribers after 10 s; publishing anyway\n",
-                   *wait);
+    if (const int wait = f.dds_wait.value_or(0); wait > 0 && !out->dds->WaitForSubscribers(wait, 10.0))
+      std::fprintf(stderr, "poseforest live: DDS: fewer than %d subscribers after 10 s; publishing anyway\n",
+                   wait);
   }
 #else
-  (void)args, (void)out;
+  (void)f, (void)out;
 #endif
   return std::nullopt;
 }
@@ -497,35 +512,31 @@ void PrintSummary(const LiveStats& stats, double seconds, const runtime::Skeleto
   }
 }
 
-}  // namespace
+class LiveCommand final : public Command {
+ public:
+  LiveCommand()
+      : Command("live",
+                "Per-person skeletons from depth frames, as they come: people segmentation, body parts (the\n"
+                "forest), joint proposals (section 3.4 of Shotton et al.), then per person one position per\n"
+                "joint with a confidence in 0..1, a tracked / not-tracked state and an id that stays with the\n"
+                "person over the sequence. Progress (frames/s, latency, people) goes to stderr on one line;\n"
+                "SIGINT / SIGTERM (Ctrl-C) stop cleanly after the current frame with a summary.\n"
+                "The confidence is the forest's calibration (`tune-joints`: the precision proposals of that\n"
+                "support had on validation renders); forests without one get a documented fallback (the\n"
+                "summary says which).") {
+    DeclareLiveOptions(app_, &f_);
+  }
+  int Run() override;
 
-int LiveMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"forest",         "source",
-                                         "jsonl",          "png-dir",
-                                         "http",           "method",
-                                         "min-confidence", "track-probability", "min-support",
-                                         "max-match",      "smooth-min-cutoff",
-                                         "smooth-beta",    "smooth-d-cutoff",
-                                         "max-frames",     "threads",
-                                         "segment",        "floor",
-                                         "near",           "far",
-                                         "dds-domain",     "dds-topic",
-                                         "dds-frame-id",   "dds-wait",
-                                         "pixel-stride",   "fit"};
-  for (const char* o : kFrameSourceValueOptions) value_options.insert(o);
-  Args args(value_options, {"help", "quiet", "smooth", "loop", "dds", "no-votes", "no-tracking-model"});
-  if (auto st = args.Parse(argc, argv); !st.ok()) {
-    std::fprintf(stderr, "poseforest live: %s\n\n%s", st.message().c_str(), kUsage);
-    return 2;
-  }
-  if (args.Has("help")) {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
+ private:
+  LiveFlags f_;
+};
+
+int LiveCommand::Run() {
   LiveOptions o;
-  if (auto failed = ParseLiveOptions(args, &o)) return *failed;
+  if (auto failed = ParseLiveOptions(f_, &o)) return *failed;
   LiveOutputs out;
-  if (auto failed = OpenFileOutputs(args, &out)) return *failed;
+  if (auto failed = OpenFileOutputs(f_, &out)) return *failed;
 
   auto forest = core::LoadForest(o.forest_path);
   if (!forest.ok()) {
@@ -543,8 +554,8 @@ int LiveMain(int argc, char** argv) {
     std::fprintf(stderr, "poseforest live: %s\n", source.status().ToString().c_str());
     return 1;
   }
-  if (auto failed = StartLivePage(args, &out)) return *failed;
-  if (auto failed = StartDds(args, &out)) return *failed;
+  if (auto failed = StartLivePage(f_, &out)) return *failed;
+  if (auto failed = StartDds(f_, &out)) return *failed;
   InstallStopHandlers();
 
   const bool tty = isatty(STDERR_FILENO);
@@ -573,5 +584,9 @@ int LiveMain(int argc, char** argv) {
   PrintSummary(stats, seconds, **pipeline);
   return stats.bad == 0 && stats.write_errors == 0 ? 0 : 1;
 }
+
+}  // namespace
+
+std::unique_ptr<Command> MakeLiveCommand() { return std::make_unique<LiveCommand>(); }
 
 }  // namespace poseforest::apps::commands

@@ -14,7 +14,8 @@
 #include <string>
 #include <thread>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
+#include "apps/commands/dds_options.h"
 #include "apps/commands/commands.h"
 #include "coordinator/monitoring/status_model.h"
 #include "poseforest/v1/status.pb.h"
@@ -330,78 +331,94 @@ int MonitorDds(uint32_t domain, const proto::dds::DdsFlags& dds_flags, std::stri
 }
 }  // namespace
 
-int MonitorMain(int argc, char** argv) {
-  std::set<std::string> value_options = {"url",       "http-token-file", "http-ca-file", "interval-ms",
-                                         "timeout-s", "domain",          "job"};
-  for (const char* o : proto::dds::kDdsValueOptions) value_options.insert(o);  // the DDS transport flags
-  Args args(value_options, {"once", "levels", "help"});
-  if (Status st = args.Parse(argc, argv);
-      !st.ok() || args.Has("help") || !args.positional().empty() || args.Has("url") == args.Has("domain")) {
-    if (!st.ok()) std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
-    std::fprintf(
-        stderr,
-        "usage: poseforest monitor --url http[s]://HOST:PORT [--http-token-file FILE] [--http-ca-file "
-        "CA.pem]\n"
-        "                          [--once] [--interval-ms 1000]\n"
-        "                          [--timeout-s 10] [--levels]\n"
-        "       poseforest monitor --domain D [--job ID] [DDS transport flags] [--once] [--levels] ...\n"
-        "  Shows a training job's live status from its coordinator (the URL the coordinator prints,\n"
-        "  `--http` there): tree, level, nodes done/total, samples/s, evaluations/s, ETA, workers.\n"
-        "  Refreshes every second and exits when the job is done (0) or failed (1); --once prints one\n"
-        "  snapshot. Exits 1 when the coordinator cannot be reached for --timeout-s seconds.\n"
-        "  --levels: add the per-level table (tree, level, nodes, split, samples, mean entropy and gain\n"
-        "  in bits, evaluations/s, seconds, workers: the dashboard's Levels table), oldest first; over\n"
-        "  --domain the newest 64 levels (the status event carries no more).\n"
-        "  --http-token-file: the coordinator's token file (its --http-token-file), sent as\n"
-        "  \"Authorization: Bearer TOKEN\"; the same checks (mode 600, one line). A wrong or missing token\n"
-        "  (HTTP 401) exits 1 at once.\n"
-        "  https:// (a coordinator with --http-tls-cert): the certificate must name HOST and chain to\n"
-        "  --http-ca-file CA.pem (PEM; default: the system's trust store); TLS 1.2+. An untrusted\n"
-        "  certificate exits 1 at once, saying why.\n"
-        "  --domain: reads the job announcement and the coordinator's status events from DDS instead\n"
-        "  (the same figures and worker table, no URL needed); --job picks one job of the domain.\n"
-        "  DDS transport flags, as for the job's coordinator and workers (`poseforest coordinator --help`):\n"
-        "  --profile shm|udp|default, --peers, --interfaces, --dds-xml FILE --dds-profile NAME,\n"
-        "  --discovery-server [ID@]HOST[:PORT], --security DIR (a worker's credentials: a worker grant\n"
-        "  reads the job and status topics).\n");
-    return args.Has("help") ? 0 : 2;
-  }
-  auto interval = args.GetInt("interval-ms", 1000, 50, 3600000);
-  auto timeout = args.GetInt("timeout-s", 10, 1, 86400);
-  if (!interval.ok() || !timeout.ok()) {
-    std::fprintf(stderr, "monitor: %s\n",
-                 (!interval.ok() ? interval.status() : timeout.status()).message().c_str());
-    return 2;
-  }
-  if ((args.Has("http-token-file") || args.Has("http-ca-file")) && args.Has("domain")) {
+namespace {
+
+class MonitorCommand final : public Command {
+ public:
+  MonitorCommand();
+  int Run() override;
+
+ private:
+  /// --url: polls the coordinator's /status.json.
+  int MonitorUrl();
+
+  std::string url_, token_file_, ca_file_, job_;
+  long interval_ms_ = 1000, timeout_s_ = 10;
+  std::optional<long> domain_;
+  bool once_ = false, levels_ = false;
+  proto::dds::DdsSettings dds_;
+};
+
+MonitorCommand::MonitorCommand()
+    : Command("monitor",
+              "Shows a training job's live status from its coordinator (the URL the coordinator prints,\n"
+              "`--http` there): tree, level, nodes done/total, samples/s, evaluations/s, ETA, workers.\n"
+              "Refreshes every second and exits when the job is done (0) or failed (1); --once prints one\n"
+              "snapshot. Exits 1 when the coordinator cannot be reached for --timeout-s seconds.\n"
+              "Give --url or --domain (not both).") {
+  app_.add_option("--url", url_, "the coordinator's status server")->type_name("http[s]://HOST:PORT");
+  app_.add_option("--http-token-file", token_file_,
+                  "the coordinator's token file (its --http-token-file), sent as \"Authorization: Bearer\n"
+                  "TOKEN\"; the same checks (mode 600, one line). A wrong or missing token (HTTP 401)\n"
+                  "exits 1 at once.")
+      ->type_name("FILE");
+  app_.add_option("--http-ca-file", ca_file_,
+                  "https:// (a coordinator with --http-tls-cert): the certificate must name HOST and\n"
+                  "chain to CA.pem (PEM; default: the system's trust store); TLS 1.2+. An untrusted\n"
+                  "certificate exits 1 at once, saying why.")
+      ->type_name("CA.pem");
+  app_.add_flag("--once", once_, "print one snapshot");
+  app_.add_option("--interval-ms", interval_ms_, "refresh interval")->type_name("MS")->check(IntIn(50, 3600000));
+  app_.add_option("--timeout-s", timeout_s_, "give up when the coordinator cannot be reached for S seconds")
+      ->type_name("S")
+      ->check(IntIn(1, 86400));
+  app_.add_flag("--levels", levels_,
+                "add the per-level table (tree, level, nodes, split, samples, mean entropy and gain in\n"
+                "bits, evaluations/s, seconds, workers: the dashboard's Levels table), oldest first;\n"
+                "over --domain the newest 64 levels (the status event carries no more)");
+  app_.add_option("--domain", domain_,
+                  "read the job announcement and the coordinator's status events from DDS instead (the\n"
+                  "same figures and worker table, no URL needed), with the DDS transport options of the\n"
+                  "job's coordinator and workers (--security: a worker's credentials: a worker grant\n"
+                  "reads the job and status topics)")
+      ->type_name("D")
+      ->check(IntIn(0, 232));
+  app_.add_option("--job", job_, "--domain: the job to show, of the domain's jobs")->type_name("ID");
+  AddDdsOptions(app_, &dds_);
+}
+
+int MonitorCommand::Run() {
+  if (Given("url") == Given("domain")) return UsageError("give --url or --domain (one of them)");
+  if ((Given("http-token-file") || Given("http-ca-file")) && Given("domain")) {
     std::fprintf(
         stderr,
         "monitor: --http-token-file and --http-ca-file are for --url (the coordinator's HTTP status)\n");
     return 2;
   }
-  if (args.Has("domain")) {
-    auto domain = args.GetInt("domain", 0, 0, 232);
-    auto dds_flags = proto::dds::ParseDdsFlags([&](const std::string& name) { return args.Get(name); });
-    if (!domain.ok() || !dds_flags.ok()) {
-      std::fprintf(stderr, "monitor: %s\n",
-                   (!domain.ok() ? domain.status() : dds_flags.status()).message().c_str());
+  if (Given("domain")) {
+    auto dds_flags = proto::dds::CheckDdsSettings(dds_);
+    if (!dds_flags.ok()) {
+      std::fprintf(stderr, "monitor: %s\n", dds_flags.status().message().c_str());
       return 2;
     }
-    return MonitorDds(uint32_t(*domain), *dds_flags, args.GetOr("job", ""), args.Has("once"), *interval,
-                      *timeout, args.Has("levels"));
+    return MonitorDds(uint32_t(*domain_), *dds_flags, job_, once_, interval_ms_, timeout_s_, levels_);
   }
+  return MonitorUrl();
+}
+
+int MonitorCommand::MonitorUrl() {
   std::string token;
-  if (args.Has("http-token-file")) {
-    auto t = proto::http::ReadHttpTokenFile(*args.Get("http-token-file"));
+  if (Given("http-token-file")) {
+    auto t = proto::http::ReadHttpTokenFile(token_file_);
     if (!t.ok()) {
       std::fprintf(stderr, "monitor: %s\n", t.status().message().c_str());
       return 2;
     }
     token = *t;
   }
-  std::string url = *args.Get("url");
+  std::string url = url_;
   while (!url.empty() && url.back() == '/') url.pop_back();
-  const std::string ca_file = args.GetOr("http-ca-file", "");
+  const std::string& ca_file = ca_file_;
   if (!ca_file.empty()) {
     if (url.rfind("https://", 0) != 0) {
       std::fprintf(stderr, "monitor: --http-ca-file is for https:// URLs (%s)\n", url.c_str());
@@ -412,7 +429,7 @@ int MonitorMain(int argc, char** argv) {
       return 2;
     }
   }
-  const bool once = args.Has("once");
+  const bool once = once_;
   const bool tty = ::isatty(1) && !once;
   auto last_ok = std::chrono::steady_clock::now();
   std::string last_state;
@@ -433,15 +450,15 @@ int MonitorMain(int argc, char** argv) {
         std::fprintf(stderr, "monitor: %s\n", st.message().c_str());
         return 1;
       }
-      if (std::chrono::steady_clock::now() - last_ok > std::chrono::seconds(*timeout)) {
-        std::fprintf(stderr, "monitor: %s (for %ld s; last state: %s)\n", st.message().c_str(), *timeout,
+      if (std::chrono::steady_clock::now() - last_ok > std::chrono::seconds(timeout_s_)) {
+        std::fprintf(stderr, "monitor: %s (for %ld s; last state: %s)\n", st.message().c_str(), timeout_s_,
                      last_state.empty() ? "never reached" : last_state.c_str());
         return 1;
       }
     } else {
       last_ok = std::chrono::steady_clock::now();
       last_state = status.state();
-      const std::string text = Render(status, args.Has("levels"));
+      const std::string text = Render(status, levels_);
       if (tty) std::fputs("\033[H\033[2J", stdout);
       std::fputs(text.c_str(), stdout);
       if (!tty && !once) std::fputs("\n", stdout);
@@ -450,8 +467,12 @@ int MonitorMain(int argc, char** argv) {
       if (last_state == "done") return 0;
       if (last_state == "failed") return 1;
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(*interval));
+    std::this_thread::sleep_for(std::chrono::milliseconds(interval_ms_));
   }
 }
+
+}  // namespace
+
+std::unique_ptr<Command> MakeMonitorCommand() { return std::make_unique<MonitorCommand>(); }
 
 }  // namespace poseforest::apps::commands

@@ -7,9 +7,10 @@
 #include <cstring>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
-#include "apps/commands/args.h"
+#include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "engine/evaluation.h"
 #include "engine/job_spec.h"
@@ -18,72 +19,67 @@
 
 namespace poseforest::apps::commands {
 namespace {
-constexpr const char* kUsage = R"(usage: poseforest train JOB.textproto --out FOREST.pff [options]
 
-Trains a randomized decision forest (Shotton et al. 2011, section 3.3) from a job config in
-protobuf text format (poseforest.v1.TrainerConfig, proto/poseforest/v1/job.proto; examples in
-docs/training/). Trees grow level by level; every level prints: tree, level, frontier nodes,
-nodes split, samples, feature evaluations per second, elapsed seconds, memory. The forest is
-byte-identical for a given config whatever --threads and --shards are.
-If the job has a test_set, the average per-class accuracy on it is printed at the end.
+class TrainCommand final : public Command {
+ public:
+  TrainCommand()
+      : Command("train",
+                "Trains a randomized decision forest (Shotton et al. 2011, section 3.3) from a job config in\n"
+                "protobuf text format (poseforest.v1.TrainerConfig, proto/poseforest/v1/job.proto; examples in\n"
+                "docs/training/). Trees grow level by level; every level prints: tree, level, frontier nodes,\n"
+                "nodes split, samples, feature evaluations per second, elapsed seconds, memory. The forest is\n"
+                "byte-identical for a given config whatever --threads and --shards are.\n"
+                "If the job has a test_set, the average per-class accuracy on it is printed at the end.\n"
+                "\n"
+                "With --local-workers N (or --domain D / --min-workers N, or --dds-xml, --dds-profile,\n"
+                "--discovery-server, --security) the same job runs through the distributed service instead:\n"
+                "a coordinator in this process and N worker processes on this machine (or workers that join\n"
+                "over Fast DDS), with every option of `poseforest coordinator` (see `poseforest coordinator\n"
+                "--help`); the forest is byte-identical.") {
+    app_.add_option("JOB.textproto", job_, "the job config")->required();
+    app_.add_option("--out", out_, "forest file to write")->type_name("PATH")->required();
+    app_.add_option("--threads", threads_, "override the job's thread count (0 = all cores)")
+        ->type_name("N")
+        ->check(IntIn(0, 1024));
+    app_.add_option("--shards", shards_, "split the frames over N in-process worker shards (same forest)")
+        ->type_name("N")
+        ->check(IntIn(1, 256));
+    app_.add_flag("--quiet", quiet_, "no per-level progress");
+    app_.add_option("--event-log", event_log_,
+                    "append a JSON line per level to F (JSON Lines: event LEVEL_DONE, tree, level,\n"
+                    "nodes, split, samples, evaluations, evaluations_per_s, seconds, elapsed_s;\n"
+                    "the coordinator's event log names, docs/distributed/monitoring.md)")
+        ->type_name("F");
+  }
+  int Run() override;
 
-With --local-workers N (or --domain D / --min-workers N) the same job runs through the
-distributed service instead: a coordinator in this process and N worker processes on this
-machine (or workers that join over Fast DDS), with every option of `poseforest coordinator`
-(see `poseforest coordinator --help`); the forest is byte-identical.
+ private:
+  std::string job_, out_, event_log_;
+  std::optional<int> threads_;
+  int shards_ = 1;
+  bool quiet_ = false;
+};
 
-options:
-  --out PATH      forest file to write (required)
-  --threads N     override the job's thread count (0 = all cores)
-  --shards N      split the frames over N in-process worker shards (default 1; same forest)
-  --quiet         no per-level progress
-  --event-log F   append a JSON line per level to F (JSON Lines: event LEVEL_DONE, tree, level,
-                  nodes, split, samples, evaluations, evaluations_per_s, seconds, elapsed_s;
-                  the coordinator's event log names, docs/distributed/monitoring.md)
-  --help          this text
-)";
-}  // namespace
-
-int TrainMain(int argc, char** argv) {
-  Args args({"out", "threads", "shards", "event-log"}, {"quiet", "help"});
-  if (auto st = args.Parse(argc, argv); !st.ok()) {
-    std::fprintf(stderr, "poseforest train: %s\n\n%s", st.message().c_str(), kUsage);
-    return 2;
-  }
-  if (args.Has("help")) {
-    std::fputs(kUsage, stdout);
-    return 0;
-  }
-  if (args.positional().size() != 1 || !args.Has("out")) {
-    std::fprintf(stderr, "poseforest train: need one JOB.textproto and --out FOREST.pff\n\n%s", kUsage);
-    return 2;
-  }
-  auto threads = args.GetInt("threads", -1, 0, 1024);
-  auto shards = args.GetInt("shards", 1, 1, 256);
-  if (!threads.ok() || !shards.ok()) {
-    std::fprintf(stderr, "poseforest train: %s\n",
-                 (!threads.ok() ? threads.status() : shards.status()).message().c_str());
-    return 2;
-  }
-  auto params = engine::LoadJob(args.positional()[0]);
+int TrainCommand::Run() {
+  auto params = engine::LoadJob(job_);
   if (!params.ok()) {
     std::fprintf(stderr, "poseforest train: %s\n", params.status().ToString().c_str());
     return 2;
   }
-  if (*threads >= 0) params->threads = int(*threads);
-  const bool quiet = args.Has("quiet");
-  std::printf("job %s: %s\n", args.positional()[0].c_str(), engine::DescribeParams(*params).c_str());
+  if (threads_) params->threads = *threads_;
+  const bool quiet = quiet_;
+  std::printf("job %s: %s\n", job_.c_str(), engine::DescribeParams(*params).c_str());
   engine::LocalTrainerOptions opt;
-  opt.num_shards = int(*shards);
+  opt.num_shards = shards_;
   opt.log = [](const std::string& m) {
     std::printf("%s\n", m.c_str());
     std::fflush(stdout);
   };
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> event_log(nullptr, std::fclose);
-  if (args.Has("event-log")) {
-    event_log.reset(std::fopen(args.Get("event-log")->c_str(), "ae"));
+  if (!event_log_.empty()) {
+    event_log.reset(std::fopen(event_log_.c_str(), "ae"));
     if (!event_log) {
-      std::fprintf(stderr, "poseforest train: --event-log %s: %s\n", args.Get("event-log")->c_str(),
+      std::fprintf(stderr, "poseforest train: --event-log %s: %s\n", event_log_.c_str(),
                    std::strerror(errno));
       return 2;
     }
@@ -122,11 +118,11 @@ int TrainMain(int argc, char** argv) {
     return 1;
   }
   const auto& s = trainer.stats();
-  if (auto st = core::SaveForest(*forest, *args.Get("out")); !st.ok()) {
+  if (auto st = core::SaveForest(*forest, out_); !st.ok()) {
     std::fprintf(stderr, "poseforest train: %s\n", st.ToString().c_str());
     return 1;
   }
-  std::printf("wrote %s: %zu trees, %zu nodes, max depth %u\n", args.Get("out")->c_str(),
+  std::printf("wrote %s: %zu trees, %zu nodes, max depth %u\n", out_.c_str(),
               forest->trees.size(), forest->total_nodes(), forest->max_depth());
   std::printf(
       "%llu samples, %.3g evaluations in %.1f s (histograms %.1f s, ranges %.1f s, frames %.1f s) on %d "
@@ -154,5 +150,9 @@ int TrainMain(int argc, char** argv) {
   }
   return 0;
 }
+
+}  // namespace
+
+std::unique_ptr<Command> MakeTrainCommand() { return std::make_unique<TrainCommand>(); }
 
 }  // namespace poseforest::apps::commands

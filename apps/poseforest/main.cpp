@@ -17,42 +17,14 @@ namespace {
 
 namespace commands = poseforest::apps::commands;
 
-struct Command {
-  const char* name;
-  int (*main)(int, char**);
-  const char* summary;
-};
-
-const Command kCommands[] = {
-    {"infer", commands::InferMain, "classify depth images into body parts with a forest"},
-    {"inspect", commands::InspectMain, "print and validate a forest file"},
-    {"import-pcl", commands::ImportPclMain, "convert PCL's trained people trees into a forest file"},
-    {"frames", commands::FramesMain,
-     "read depth frames from files, stdin or a camera; check and convert them"},
-    {"live", commands::LiveMain, "per-person skeletons from depth frames: JSON Lines, pictures, a live page"},
-#ifdef POSEFOREST_WITH_TRAINING
-    {"render", commands::RenderMain, "render a synthetic labelled depth dataset and a preview montage"},
-    {"train", commands::TrainMain, "train a forest from a job config (protobuf text format)"},
-    {"eval", commands::EvalMain, "joint AP / mAP and per-class accuracy of a forest on a held-out test set"},
-    {"tune-joints", commands::TuneJointsMain, "learn the joint-proposal parameters on validation renders"},
-    {"learn-votes", commands::LearnVotesMain,
-     "add offset votes (joint positions per leaf) to a trained forest"},
-    {"coordinator", commands::CoordinatorMain,
-     "run a distributed training job (Fast DDS), optionally with local workers"},
-    {"worker", commands::WorkerMain, "join distributed training jobs as a worker"},
-    {"monitor", commands::MonitorMain,
-     "live status of a distributed training job (coordinator's HTTP status)"},
-    {"export", commands::ExportMain, "write the runtime forest from a distributed job's checkpoint"},
-#endif
-};
-
 void Usage(FILE* out) {
   std::fprintf(out,
                "poseforest %s - human pose recognition in parts from single depth images\n"
                "(Shotton et al. 2011)\n\n"
                "usage: poseforest <command> [options]     poseforest <command> --help\n\ncommands:\n",
                POSEFOREST_VERSION);
-  for (const Command& c : kCommands) std::fprintf(out, "  %-11s %s\n", c.name, c.summary);
+  for (const commands::CommandInfo& c : commands::AllCommands())
+    if (c.make) std::fprintf(out, "  %-11s %s\n", c.name, c.summary);
 #ifndef POSEFOREST_WITH_TRAINING
   std::fprintf(out, "\n(runtime-only build: training commands need -DPOSEFOREST_TRAINING=ON)\n");
 #endif
@@ -75,6 +47,11 @@ int main(int argc, char** argv) {
   }
   const std::string_view cmd = argv[1];
   if (cmd == "help" || cmd == "--help" || cmd == "-h") {
+    // --markdown: the README's command table (tests/apps checks the README against it).
+    if (argc > 2 && std::string_view(argv[2]) == "--markdown") {
+      std::fputs(commands::CommandTableMarkdown().c_str(), stdout);
+      return 0;
+    }
     Usage(stdout);
     return 0;
   }
@@ -102,8 +79,8 @@ int main(int argc, char** argv) {
     }
   }
 #endif
-  for (const Command& c : kCommands)
-    if (cmd == c.name) return c.main(argc - 1, argv + 1);
+  if (const commands::CommandInfo* c = commands::FindCommand(cmd); c && c->make)
+    return commands::RunCommandMain(argc - 1, argv + 1);
   std::fprintf(stderr, "poseforest: unknown command '%s'\n\n", argv[1]);
   Usage(stderr);
   return 2;

@@ -212,12 +212,12 @@ Result<SecurityFiles> SecurityFilesIn(const std::string& dir, const std::string&
   return s;
 }
 
-Result<DdsFlags> ParseDdsFlags(const std::function<std::optional<std::string>(const std::string&)>& get) {
+Result<DdsFlags> CheckDdsSettings(const DdsSettings& written) {
   auto invalid = [](const std::string& m) { return Status(ErrorCode::kInvalidArgument, m); };
   DdsFlags f;
-  const auto profile = get("profile"), peers = get("peers"), interfaces = get("interfaces"),
-             server = get("discovery-server"), security = get("security");
-  auto xml = get("dds-xml"), xml_profile = get("dds-profile");
+  const auto &profile = written.profile, &peers = written.peers, &interfaces = written.interfaces,
+             &server = written.discovery_server, &security = written.security;
+  auto xml = written.dds_xml, xml_profile = written.dds_profile;
   const bool xml_from_flags = xml || xml_profile;
   const bool builtin_flags = profile || peers || interfaces || server;
   // "--dds-xml FILE" or "POSEFOREST_DDS_XML=FILE": where a value came from, for messages.

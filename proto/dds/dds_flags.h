@@ -1,25 +1,16 @@
 #pragma once
-// The DDS flags shared by every command that joins Fast DDS (`coordinator`, `worker`,
+// The DDS settings shared by every command that joins Fast DDS (`coordinator`, `worker`,
 // `train --local-workers`, `monitor --domain`): how the participant reaches its peers and with
-// which credentials. docs/distributed/README.md ("Transports and deployment profiles").
+// which credentials, as written (DdsSettings: the command line's flags, declared in
+// apps/commands/dds_options.h, or a job's dds section) and checked (DdsFlags).
+// docs/distributed/README.md ("Transports and deployment profiles").
 //
-//   --profile shm|udp|default   built-in transports (default shm)
-//   --peers HOST[:PORT],...     --profile udp: initial peers (IPv4 addresses or host names)
-//   --interfaces IP,...         --profile udp or --discovery-server: local addresses to use
-//   --dds-xml FILE --dds-profile NAME   a Fast DDS XML participant profile (deploy/fastdds/profiles.xml);
-//                               env POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE when no transport flag is
-//                               given
-//   --discovery-server [ID@]HOST[:PORT],...  discovery through fast-discovery-server -i ID (default
-//                               0, port 11811): a client of every listed server (UDP, no multicast)
-//
-// Host names (--peers, --discovery-server) are resolved to IPv4 addresses once, by ParseDdsFlags
-// at start-up (getaddrinfo, AF_INET), never again: Fast DDS 2.9 fixes a participant's initial
-// peers and server locators when it is created. IPv6 addresses are refused (UDPv4 transports).
-//   --security DIR              DDS-Security with the six files of DIR (deploy/security/make-test-ca.sh)
+// Host names (--peers, --discovery-server) are resolved to IPv4 addresses once, by
+// CheckDdsSettings at start-up (getaddrinfo, AF_INET), never again: Fast DDS 2.9 fixes a
+// participant's initial peers and server locators when it is created. IPv6 addresses are
+// refused (UDPv4 transports).
 
-#include <array>
 #include <chrono>
-#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -43,9 +34,20 @@ struct TransportExtras {
   std::chrono::milliseconds write_block_slice{10000};
 };
 
-/// The value options ParseDdsFlags reads (to register with a command's argument parser).
-inline constexpr std::array<const char*, 7> kDdsValueOptions = {
-    "profile", "peers", "interfaces", "dds-xml", "dds-profile", "discovery-server", "security"};
+/// The DDS settings as written, each named after its flag; nullopt: not given.
+struct DdsSettings {
+  std::optional<std::string> profile;           ///< --profile shm|udp|default
+  std::optional<std::string> peers;             ///< --peers HOST[:PORT],...
+  std::optional<std::string> interfaces;        ///< --interfaces IP,...
+  std::optional<std::string> dds_xml;           ///< --dds-xml FILE
+  std::optional<std::string> dds_profile;       ///< --dds-profile NAME
+  std::optional<std::string> discovery_server;  ///< --discovery-server [ID@]HOST[:PORT],...
+  std::optional<std::string> security;          ///< --security DIR
+  /// Whether a transport setting (anything but --security) is given.
+  bool transport_given() const {
+    return profile || peers || interfaces || dds_xml || dds_profile || discovery_server;
+  }
+};
 
 /// Environment fallbacks of --dds-xml / --dds-profile.
 inline constexpr const char* kEnvDdsXml = "POSEFOREST_DDS_XML";
@@ -89,7 +91,7 @@ struct DdsFlags {
   std::vector<std::string> TransportArgs() const;
 };
 
-/// Reads and checks the DDS flags; `get(name)` returns the value of --name when it was given.
+/// Checks the DDS settings as written.
 /// POSEFOREST_DDS_XML / POSEFOREST_DDS_PROFILE stand in for a missing --dds-xml / --dds-profile
 /// unless --profile, --peers, --interfaces or --discovery-server is given (flags win; the
 /// environment of a container image never contradicts an explicit command line).
@@ -98,8 +100,7 @@ struct DdsFlags {
 /// that the XML file loads in Fast DDS and has the participant profile (the error lists the
 /// profiles it has), that every security file is readable (the error names the missing one).
 /// Errors: kInvalidArgument / kNotFound / kIo with a message naming the flag or variable.
-core::Result<DdsFlags> ParseDdsFlags(
-    const std::function<std::optional<std::string>(const std::string&)>& get);
+core::Result<DdsFlags> CheckDdsSettings(const DdsSettings& written);
 
 /// The six DDS-Security files for --security DIR (`flag` names it in errors). cert.pem, key.pem
 /// and permissions.p7s are this participant's and sit in DIR; identity_ca.pem,

@@ -196,7 +196,7 @@ struct DiscoveryServerAddress {
   int id = 0;             ///< the server's -i, 0..255 (selects its GUID prefix)
   bool id_given = false;  ///< written as ID@...; otherwise id is 0
   /// IPv4 a.b.c.d, or a host name as written (ParseDiscoveryServers accepts names; a
-  /// NodeConfig needs addresses: ParseDdsFlags resolves names at start-up).
+  /// NodeConfig needs addresses: CheckDdsSettings resolves names at start-up).
   std::string host;
   uint32_t port = 11811;  ///< UDP port, 1..65535 (11811 when not written)
 };

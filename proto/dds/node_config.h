@@ -32,7 +32,7 @@ NodeConfig MakeNodeConfig(uint32_t domain, TransportKind transport, bool coordin
 
 /// Splits a comma-separated --peers / --interfaces value; InvalidArgument naming `flag` and the
 /// entry for one that is not an IPv4 address, or with `allow_names` a host name (CheckHost;
-/// the names are kept as written: ParseDdsFlags resolves them), with an optional :port when
+/// the names are kept as written: CheckDdsSettings resolves them), with an optional :port when
 /// `allow_port`. IPv6 addresses are refused by name.
 core::Result<std::vector<std::string>> ParseAddressList(const std::string& value, const std::string& flag,
                                                         bool allow_port, bool allow_names = false);

@@ -278,7 +278,7 @@ TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect a
   // Errors: a usage error names what is missing; a procedural job has no joints.
   auto usage = RunPoseforest("learn-votes --forest " + forest + " --out " + voted);
   CHECK(usage.exit_code == 2);
-  CHECK_THAT(usage.output, Catch::Contains("need --forest, --job and --out"));
+  CHECK_THAT(usage.output, Catch::Contains("--job is required"));
   const std::string proc = (dir / "proc.textproto").string();
   std::ofstream(proc) << "seed: 3 num_trees: 2 images_per_tree: 4 source { procedural { seed: 1 } }\n";
   auto no_joints = RunPoseforest("learn-votes --forest " + forest + " --job " + proc + " --out " + voted);

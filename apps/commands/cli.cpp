@@ -1,0 +1,176 @@
+#include "apps/commands/cli.h"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <sstream>
+
+#include "apps/commands/commands.h"
+
+namespace poseforest::apps::commands {
+
+namespace {
+
+/// `text` re-wrapped into lines of at most `width` characters (words never split).
+std::string Wrap(const std::string& text, size_t width) {
+  std::string out, line, word;
+  std::istringstream words(text);
+  while (words >> word) {
+    if (!line.empty() && line.size() + 1 + word.size() > width) {
+      out += line + "\n";
+      line.clear();
+    }
+    line += (line.empty() ? "" : " ") + word;
+  }
+  return out + line;
+}
+
+/// The help layout: the usage line, the description, then "--name VALUE   help line (default D)"
+/// wrapped to 100 columns, positionals by name, groups as headings.
+class HelpFormatter : public CLI::Formatter {
+ public:
+  static constexpr size_t kColumn = 34, kWidth = 100;
+  HelpFormatter() { column_width(kColumn); }
+  std::string make_help(const CLI::App* app, std::string name, CLI::AppFormatMode mode) const override {
+    if (mode == CLI::AppFormatMode::Sub) return make_expanded(app);
+    return make_usage(app, name) + "\n" + make_description(app) + make_positionals(app) + make_groups(app, mode) +
+           make_subcommands(app, mode) + "\n" + make_footer(app);
+  }
+  std::string make_option_opts(const CLI::Option* opt) const override {
+    if (opt->get_positional() || opt->get_type_size() == 0) return "";
+    return opt->get_type_name().empty() ? "" : " " + opt->get_type_name();
+  }
+  std::string make_option_desc(const CLI::Option* opt) const override {
+    std::string d = opt->get_description();
+    if (opt->get_required()) d += " (required)";
+    if (!opt->get_positional() && opt->get_type_size() != 0 && !opt->get_default_str().empty())
+      d += " (default " + opt->get_default_str() + ")";
+    return Wrap(d, kWidth - kColumn);
+  }
+  std::string make_usage(const CLI::App* app, std::string name) const override {
+    std::string u = "usage: " + name + (app->get_options({}).size() > 1 ? " [options]" : "");
+    for (const CLI::Option* p : app->get_options([](const CLI::Option* o) { return o->get_positional(); }))
+      u += p->get_required() ? " " + p->get_name() + (p->get_expected_max() > 1 ? "..." : "")
+                             : " [" + p->get_name() + (p->get_expected_max() > 1 ? "..." : "") + "]";
+    return u + "\n";
+  }
+};
+
+/// The option a CLI11 message is about, spelt as on the command line ("--out", "-x").
+std::string Unexpected(const std::string& arg) {
+  if (arg.size() > 2 && arg.compare(0, 2, "--") == 0) return "unknown option " + arg.substr(0, arg.find('='));
+  if (arg.size() > 1 && arg[0] == '-') return "unknown option " + arg + " (options are spelt --name)";
+  return "unexpected argument '" + arg + "'";
+}
+
+}  // namespace
+
+Command::Command(const std::string& name, const std::string& description)
+    : app_("", "poseforest " + name), name_(name) {
+  const CommandInfo* info = FindCommand(name);
+  std::string text = info ? std::string(info->summary) : "";
+  if (!description.empty()) text += (text.empty() ? "" : "\n\n") + description;
+  app_.description(text);
+  app_.formatter(std::make_shared<HelpFormatter>());
+  app_.set_help_flag("-h,--help", "this text");
+  // A repeated option keeps its last value (scripts append overrides); defaults show in --help.
+  app_.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)->always_capture_default();
+}
+
+int Command::UsageError(const std::string& message) const {
+  std::fprintf(stderr, "poseforest %s: %s\n", name_.c_str(), message.c_str());
+  return 2;
+}
+
+int RunCommand(Command& command, int argc, char** argv) {
+  CLI::App& app = command.app();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp&) {
+    std::fputs(app.help().c_str(), stdout);
+    return 0;
+  } catch (const CLI::ParseError& e) {
+    std::string message = e.what();
+    if (dynamic_cast<const CLI::ExtrasError*>(&e) && !app.remaining().empty()) {
+      message = Unexpected(app.remaining().front());
+    } else if (dynamic_cast<const CLI::ArgumentMismatch*>(&e) && message.ends_with(" missing")) {
+      message = "option " + message.substr(0, message.find(':')) + " needs a value";
+    } else if (const size_t at = message.find(": must be "); at != std::string::npos) {
+      message.erase(at, 1);  // "--threads: must be ..." -> "--threads must be ..."
+    }
+    std::fprintf(stderr, "poseforest %s: %s\n(poseforest %s --help lists the options)\n",
+                 command.name().c_str(), message.c_str(), command.name().c_str());
+    return 2;
+  }
+  return command.Run();
+}
+
+std::vector<std::string> OptionNames(const CLI::App& app) {
+  std::vector<std::string> names;
+  for (const CLI::Option* o : app.get_options()) {
+    if (o->get_positional()) {
+      names.push_back(o->get_name());
+      continue;
+    }
+    for (const std::string& l : o->get_lnames()) names.push_back("--" + l);
+  }
+  return names;
+}
+
+CLI::Validator IntIn(long long lo, long long hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& v) -> std::string {
+        char* end = nullptr;
+        errno = 0;
+        const long long x = std::strtoll(v.c_str(), &end, 10);
+        if (errno != 0 || end == v.c_str() || *end != '\0' || x < lo || x > hi)
+          return "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got '" + v +
+                 "'";
+        return "";
+      },
+      "");
+}
+
+CLI::Validator NonNegativeInt() {
+  return CLI::Validator(
+      [](std::string& v) -> std::string {
+        char* end = nullptr;
+        errno = 0;
+        (void)std::strtoull(v.c_str(), &end, 10);
+        if (v.empty() || v[0] == '-' || errno != 0 || *end != '\0')
+          return "must be a non-negative integer, not '" + v + "'";
+        return "";
+      },
+      "");
+}
+
+CLI::Validator NumberIn(double lo, double hi, const std::string& what) {
+  return CLI::Validator(
+      [lo, hi, what](std::string& v) -> std::string {
+        char* end = nullptr;
+        const double d = std::strtod(v.c_str(), &end);
+        if (end == v.c_str() || *end != '\0' || !(d >= lo && d <= hi)) {
+          char range[96];
+          std::snprintf(range, sizeof range, "[%g, %g]", lo, hi);
+          return "must be " + what + " in " + range + " (got '" + v + "')";
+        }
+        return "";
+      },
+      "");
+}
+
+CLI::Validator OneOf(std::vector<std::string> names) {
+  return CLI::Validator(
+      [names](std::string& v) -> std::string {
+        for (const std::string& n : names)
+          if (v == n) return "";
+        std::string list;
+        for (size_t i = 0; i < names.size(); ++i)
+          list += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
+        return "must be " + list + ", not '" + v + "'";
+      },
+      "");
+}
+
+}  // namespace poseforest::apps::commands

@@ -1,0 +1,61 @@
+#pragma once
+// The commands' command lines on CLI11 (Debian libcli11-dev, header-only): each command declares
+// its options once (name, type, default, help line) on a Command's CLI::App; `--help` is
+// generated from that declaration, and a usage error (an unknown option, a missing or bad value)
+// prints one line naming the option and exits 2. Conventions shared by every command: options
+// are spelt --name (--name VALUE or --name=VALUE), a repeated option keeps its last value, `--`
+// ends the options, -h is --help.
+
+#include <CLI/CLI.hpp>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace poseforest::apps::commands {
+
+/// One command of the program: its parser, with the options bound to the command's own
+/// fields, and the work. Run() sees the fields filled in by a successful parse.
+class Command {
+ public:
+  /// `name`: the command's name in commands.h's table (its summary opens the help text);
+  /// `description`: the paragraphs between the summary and the options.
+  Command(const std::string& name, const std::string& description);
+  virtual ~Command() = default;
+  Command(const Command&) = delete;
+  Command& operator=(const Command&) = delete;
+
+  CLI::App& app() { return app_; }
+  const std::string& name() const { return name_; }
+  /// The work after a successful parse: the process exit code (0 ok, 1 failure, 2 usage error).
+  virtual int Run() = 0;
+
+ protected:
+  /// Whether --`option` was given on the command line (for defaults that depend on it).
+  bool Given(const std::string& option) const { return app_.count("--" + option) > 0; }
+  /// Prints "poseforest NAME: message" on stderr and returns 2 (a usage error found after parsing).
+  int UsageError(const std::string& message) const;
+
+  CLI::App app_;
+  std::string name_;
+};
+
+/// Parses argv[1..argc) (argv[0] is the command's name) and runs the command: 0 after --help
+/// (on stdout), 2 after a usage error (on stderr, naming the option), else what Run() returns.
+int RunCommand(Command& command, int argc, char** argv);
+
+/// The option names of `app` as written on a command line (--name, positionals by name).
+std::vector<std::string> OptionNames(const CLI::App& app);
+
+// Checks for option values. Each error message starts "must be" and is printed after the
+// option's name: "--threads must be an integer in [1, 1024], got 'four'".
+
+/// An integer in [lo, hi].
+CLI::Validator IntIn(long long lo, long long hi);
+/// A non-negative integer that fits 64 bits (seeds).
+CLI::Validator NonNegativeInt();
+/// A number in [lo, hi]; `what` names it in the message ("a number", "metres").
+CLI::Validator NumberIn(double lo, double hi, const std::string& what = "a number");
+/// One of `names`.
+CLI::Validator OneOf(std::vector<std::string> names);
+
+}  // namespace poseforest::apps::commands
