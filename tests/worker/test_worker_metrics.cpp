@@ -452,7 +452,7 @@ TEST_CASE("worker --http: bad values exit 2 naming the flag; a port in use exits
   {
     auto help = run("--help");
     CHECK(help.exit_code == 0);
-    CHECK(help.output.find("[--http HOST:PORT|off]") != std::string::npos);
+    CHECK(help.output.find("--http HOST:PORT|off") != std::string::npos);
     CHECK(help.output.find("--http-token-file FILE") != std::string::npos);
   }
 }
