@@ -559,7 +559,8 @@ struct ScaleLevel {
   uint64_t reply_nodes = 0;  ///< node entries in them (ranges or histograms of one node from one worker)
   uint64_t heartbeats = 0;   ///< workers' heartbeats accepted while the level ran
   /// Control messages written: one request per round, one SplitDecisions, the SubtreeTasks
-  /// messages (dist_coordinator.cpp Round, ApplySplits, FlushTasks); each reaches every worker.
+  /// messages (coordinator/rounds.cpp Round, remote_shard_set.cpp ApplySplits, subtree_scheduler.cpp
+  /// FlushTasks); each reaches every worker.
   uint64_t sent = 0;
   uint64_t bytes_received = 0, bytes_sent = 0;
   double cpu_s = 0;    ///< coordinator process CPU from the level's start to its end (all threads)

@@ -179,8 +179,8 @@ Result<std::vector<Reply>> Rounds::Round(v1::Phase phase, const std::vector<uint
       // them (its control reader matched after we wrote): send it again, after 3 s, then 6,
       // 12, .. at most 30 s apart, and ask the round again. One that got any of them has its
       // frames: it is loading them or busy, and is waited for (resending to a busy worker
-      // every 3 s, each with a new epoch, made it load each in turn: the livelock of issue
-      // 13's run of record; the worker also skips to the newest one queued).
+      // every 3 s, each with a new epoch, made it load each in turn: a livelock once seen in a
+      // 12,000-image run; the worker also skips to the newest one queued).
       bool resent = false;
       for (auto& [id, w] : registry_.workers())
         if (w.assigned && w.alive && !replies.count(id) && w.seen_epoch < w.frames_epoch &&
