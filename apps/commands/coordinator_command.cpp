@@ -122,7 +122,7 @@ class CoordinatorCommand final : public Command {
   int local_ = 0, worker_threads_ = 1, wait_s_ = 60, linger_s_ = 2;
   std::optional<long> domain_;
   std::optional<int> min_workers_;
-  bool resume_ = false, check_config_ = false;
+  bool resume_ = false, check_config_ = false, quiet_ = false;
   proto::dds::DdsSettings dds_;
 
   // Filled in by Prepare.
@@ -144,6 +144,9 @@ CoordinatorCommand::CoordinatorCommand() : Command("coordinator", "") {
       ->check(IntIn(0, 232));
   app_.add_option("--checkpoint", checkpoint_, "write a checkpoint after every level into DIR")->type_name("DIR");
   app_.add_flag("--resume", resume_, "go on from the checkpoint of --checkpoint DIR");
+  // `train JOB --local-workers N --quiet` runs this command: --quiet means what it means for train.
+  app_.add_flag("--quiet", quiet_,
+                "no per-level progress lines (the event log, status and metrics still get every level)");
   app_.add_option("--status-file", status_file_, "a JSON line with the last level's figures, rewritten each level")
       ->type_name("F");
   app_.add_option("--min-workers", min_workers_, "workers to wait for before the first level (default: --local-workers, at least 1)")
@@ -381,7 +384,9 @@ int CoordinatorCommand::Run() {
     std::printf("DDS host names resolved at start-up: %s\n", dds_flags_.ResolvedText().c_str());
     std::fflush(stdout);
   }
-  opt.progress = [this](const coordinator::DistLevelStats& s) { PrintLevel(s); };
+  opt.progress = [this](const coordinator::DistLevelStats& s) {
+    if (!quiet_) PrintLevel(s);
+  };
   // Monitoring: status model, HTTP (dashboard, /status.json, /metrics), event log.
   std::string http_token;
   if (int rc = CheckHttpFiles(&http_token); rc != 0) return rc;

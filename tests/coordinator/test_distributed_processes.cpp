@@ -72,14 +72,16 @@ TEST_CASE("train --local-workers as pid 1 (a container's entrypoint): its worker
   REQUIRE(coord.Start({"unshare", "--pid", "--fork", "--mount-proc", Program(), "train",
                        (dir.path / "job.textproto").string(), "--out", (dir.path / "forest.pff").string(),
                        "--local-workers", "2", "--domain", std::to_string(Domain(77)), "--http", "off",
-                       "--worker-wait-s", "30"},
+                       "--worker-wait-s", "30", "--quiet"},
                       &error));
   auto rc = coord.Wait(120s);
   INFO(coord.output());
   REQUIRE(rc.has_value());
   REQUIRE(*rc == 0);
-  CHECK(coord.output().find("2 workers alive") != std::string::npos);
+  CHECK(coord.output().find("0 workers lost") != std::string::npos);
   CHECK(coord.output().find("is gone; exiting") == std::string::npos);
+  // train's --quiet holds on the service too: no per-level lines.
+  CHECK(coord.output().find("tree 0 level 0:") == std::string::npos);
   CHECK(ReadAll(dir.path / "forest.pff") == reference);
 }
 
