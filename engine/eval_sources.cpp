@@ -27,12 +27,6 @@ using core::Status;
 
 namespace {
 
-std::string IndexedPath(const std::string& folder, const char* stem, uint64_t index, const char* ext) {
-  char name[64];
-  std::snprintf(name, sizeof name, "%s_%06llu.%s", stem, static_cast<unsigned long long>(index), ext);
-  return (std::filesystem::path(folder) / name).string();
-}
-
 class ProceduralEvalSource final : public EvalFrameSource {
  public:
   explicit ProceduralEvalSource(SourceSpec spec) : spec_(std::move(spec)) {}
@@ -61,17 +55,17 @@ class DatasetEvalSource final : public EvalFrameSource {
     EvalFrame out{std::move(f->depth), std::move(f->labels), {}, {}};
     if (out.depth.width != camera_.width || out.depth.height != camera_.height)
       return Status(ErrorCode::kInvalidArgument,
-                    IndexedPath(spec_.folder, "depth", file, "png") + " is " +
+                    DatasetFramePath(spec_.folder, "depth", file, "png") + " is " +
                         std::to_string(out.depth.width) + "x" + std::to_string(out.depth.height) +
                         " but the folder's camera is " + std::to_string(camera_.width) + "x" +
                         std::to_string(camera_.height));
     if (joints_) {
-      auto people = ReadJointsJson(IndexedPath(spec_.folder, "joints", file, "json"));
+      auto people = ReadJointsJson(DatasetFramePath(spec_.folder, "joints", file, "json"));
       if (!people.ok()) return people.status();
       out.people = std::move(*people);
     }
     if (masks_) {
-      const std::string path = IndexedPath(spec_.folder, "mask", file, "png");
+      const std::string path = DatasetFramePath(spec_.folder, "mask", file, "png");
       auto bytes = core::ReadFileBytes(path);
       if (!bytes.ok()) return bytes.status();
       auto png = runtime::DecodePng(*bytes, path);
@@ -207,9 +201,9 @@ Result<std::unique_ptr<EvalFrameSource>> MakeEvalFrameSource(const SourceSpec& s
       if (!probe.ok()) return probe.status();
       std::error_code ec;
       const bool joints =
-          std::filesystem::exists(IndexedPath(source.folder, "joints", source.first_index, "json"), ec);
+          std::filesystem::exists(DatasetFramePath(source.folder, "joints", source.first_index, "json"), ec);
       const bool masks =
-          std::filesystem::exists(IndexedPath(source.folder, "mask", source.first_index, "png"), ec);
+          std::filesystem::exists(DatasetFramePath(source.folder, "mask", source.first_index, "png"), ec);
       core::CameraIntrinsics camera = core::CameraIntrinsics::KinectV1();
       const std::string camera_file = (std::filesystem::path(source.folder) / "camera.txt").string();
       if (std::filesystem::exists(camera_file, ec)) {

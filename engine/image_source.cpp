@@ -30,11 +30,6 @@ using core::Status;
 
 namespace {
 
-std::string FramePath(const std::string& folder, const char* stem, uint64_t index) {
-  char name[64];
-  std::snprintf(name, sizeof(name), "%s_%06llu.png", stem, static_cast<unsigned long long>(index));
-  return (std::filesystem::path(folder) / name).string();
-}
 
 class ProceduralImageSource final : public ImageSource {
  public:
@@ -214,6 +209,8 @@ Result<core::Forest> EmptyForest(const TrainParams& params) {
 #if POSEFOREST_HAS_RENDERER
 Status ApplySceneOptions(const SourceSpec& spec, renderer::SceneConfig* scene) {
   scene->rotation_range_deg = spec.rotation_range_deg;
+  scene->turned_share = spec.turned_share;
+  scene->turned_range_deg = spec.turned_range_deg;
   scene->min_people = 1;
   scene->max_people = spec.max_people;
   scene->noise.enabled = spec.kinect_noise;
@@ -355,9 +352,15 @@ LabelledFrame MakeProceduralFrame(const SourceSpec& spec, uint64_t index) {
   return frame;
 }
 
+std::string DatasetFramePath(const std::string& folder, const char* stem, uint64_t index, const char* ext) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "%s_%06llu.%s", stem, static_cast<unsigned long long>(index), ext);
+  return (std::filesystem::path(folder) / name).string();
+}
+
 Result<LabelledFrame> ReadDatasetFrame(const std::string& folder, uint64_t index) {
-  const std::string depth_path = FramePath(folder, "depth", index),
-                    label_path = FramePath(folder, "labels", index);
+  const std::string depth_path = DatasetFramePath(folder, "depth", index),
+                    label_path = DatasetFramePath(folder, "labels", index);
   auto depth = runtime::ReadDepthImage(depth_path);
   if (!depth.ok()) return depth.status();
   auto bytes = core::ReadFileBytes(label_path);
@@ -395,14 +398,14 @@ Result<std::unique_ptr<ImageSource>> MakeImageSource(const SourceSpec& spec) {
         return Status(ErrorCode::kNotFound, spec.folder + ": dataset folder not found");
       uint64_t count = spec.count;
       if (count == 0) {
-        while (fs::exists(FramePath(spec.folder, "depth", spec.first_index + count), ec)) ++count;
+        while (fs::exists(DatasetFramePath(spec.folder, "depth", spec.first_index + count), ec)) ++count;
         if (count == 0)
           return Status(ErrorCode::kNotFound,
                         spec.folder + ": no " +
-                            fs::path(FramePath(spec.folder, "depth", spec.first_index)).filename().string() +
+                            fs::path(DatasetFramePath(spec.folder, "depth", spec.first_index)).filename().string() +
                             " (expected depth_%06d.png + labels_%06d.png from `poseforest render`)");
-      } else if (!fs::exists(FramePath(spec.folder, "depth", spec.first_index + count - 1), ec)) {
-        return Status(ErrorCode::kNotFound, FramePath(spec.folder, "depth", spec.first_index + count - 1) +
+      } else if (!fs::exists(DatasetFramePath(spec.folder, "depth", spec.first_index + count - 1), ec)) {
+        return Status(ErrorCode::kNotFound, DatasetFramePath(spec.folder, "depth", spec.first_index + count - 1) +
                                                 ": missing (dataset.count = " + std::to_string(count) + ")");
       }
       return std::unique_ptr<ImageSource>(new DatasetImageSource(spec, count));

@@ -68,6 +68,10 @@ core::Status CheckBoneMap(const std::vector<std::pair<std::string, std::string>>
 /// spec.num_parts labelled cells at 1.5..4 m, randomly placed and deformed per frame.
 LabelledFrame MakeProceduralFrame(const SourceSpec& spec, uint64_t index);
 
+/// `folder`/STEM_NNNNNN.EXT: how `poseforest render` names a data set's files (depth, labels,
+/// joints, mask), the index zero-padded to six digits.
+std::string DatasetFramePath(const std::string& folder, const char* stem, uint64_t index, const char* ext = "png");
+
 /// Reads depth_%06d.png (16-bit mm) and labels_%06d.png (8-bit) from `folder`; errors name
 /// the file. Sizes must agree; labels must be < 31 or 255.
 core::Result<LabelledFrame> ReadDatasetFrame(const std::string& folder, uint64_t index);

@@ -58,6 +58,13 @@ Status SceneFromProto(const v1::RenderedSource& r, const std::string& source, co
   if (!std::isfinite(spec.rotation_range_deg) || spec.rotation_range_deg < 0 || spec.rotation_range_deg > 180)
     return Bad(source, field + ".rendered.rotation_range_deg", Str(spec.rotation_range_deg),
                "must be in 0..180 degrees");
+  spec.turned_share = r.has_turned_share() ? r.turned_share() : 0.0;
+  if (!std::isfinite(spec.turned_share) || spec.turned_share < 0 || spec.turned_share > 1)
+    return Bad(source, field + ".rendered.turned_share", Str(spec.turned_share), "must be in 0..1");
+  spec.turned_range_deg = r.has_turned_range_deg() ? r.turned_range_deg() : 180.0;
+  if (!std::isfinite(spec.turned_range_deg) || spec.turned_range_deg < 0 || spec.turned_range_deg > 180)
+    return Bad(source, field + ".rendered.turned_range_deg", Str(spec.turned_range_deg),
+               "must be in 0..180 degrees");
   spec.max_people = r.has_max_people() ? int(r.max_people()) : 1;
   if (spec.max_people < 1 || spec.max_people > 8)
     return Bad(source, field + ".rendered.max_people", Str(r.max_people()), "must be in 1..8");

@@ -30,6 +30,8 @@ struct SourceSpec {
   SourceKind kind = SourceKind::kProcedural;
   uint64_t seed = 1;                ///< rendered / procedural: frame i is a pure function of (seed, i)
   double rotation_range_deg = 120;  ///< rendered: +- yaw, degrees
+  double turned_share = 0.0;        ///< rendered: share of people turned further (job.proto field 32)
+  double turned_range_deg = 180;    ///< rendered: their +- yaw, degrees (field 33)
   int max_people = 1;               ///< rendered
   bool kinect_noise = true;         ///< rendered: the renderer's Kinect v1 noise model
   double min_distance_m = 1.5;      ///< rendered: metres

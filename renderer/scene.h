@@ -158,6 +158,10 @@ struct SceneConfig {
 
   /// Rotation of each person about the vertical: uniform in +-rotation_range_deg (180 = any).
   double rotation_range_deg = 120.0;
+  /// A mixture of headings: this share of the people turn further, their yaw uniform in
+  /// +-turned_range_deg instead. Drawn from its own random stream: 0 leaves every scene as it was.
+  double turned_share = 0.0;
+  double turned_range_deg = 180.0;
   double mirror_probability = 0.5;  ///< chance the whole frame is mirrored left<->right
 
   double min_distance_m = 1.5;  ///< camera to person along the ground, metres

@@ -50,6 +50,8 @@ Status ValidateConfig(const SceneConfig& c) {
     return bad("people must satisfy 1 <= min <= max <= 8");
   if (!(c.rotation_range_deg >= 0 && c.rotation_range_deg <= 180))
     return bad("rotation_range_deg must be in [0, 180]");
+  if (!(c.turned_share >= 0 && c.turned_share <= 1)) return bad("turned_share must be in [0, 1]");
+  if (!(c.turned_range_deg >= 0 && c.turned_range_deg <= 180)) return bad("turned_range_deg must be in [0, 180]");
   if (!(c.mirror_probability >= 0 && c.mirror_probability <= 1))
     return bad("mirror_probability must be in [0, 1]");
   if (!(c.height_jitter >= 0 && c.height_jitter < 0.5)) return bad("height_jitter must be in [0, 0.5)");
@@ -229,6 +231,7 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
   core::RngStream arms_rng(core::CounterRng(seed, 0xA4A5, index, 1));
   core::RngStream sit_rng(core::CounterRng(seed, 0x517D, index, 1));
   core::RngStream lean_rng(core::CounterRng(seed, 0x1EA7, index, 1));
+  core::RngStream turn_rng(core::CounterRng(seed, 0x7A2E, index, 1));
   double cam_h_used = cam_h;
 
   double pitch = 0;
@@ -254,7 +257,10 @@ SceneSample SyntheticRenderer::Sample(uint64_t seed, uint64_t index) const {
     if (adapt_pose_[size_t(person.body)])
       person.pose = assets::AdaptPose(person.pose, bodies_[size_t(person.body)].rest_joints);
     person.scale = 1.0 + rng.UniformIn(-c.height_jitter, c.height_jitter);
-    const double yaw = rng.UniformIn(-c.rotation_range_deg, c.rotation_range_deg);
+    // One draw from rng either way, so the rest of the scene stays what it was.
+    const bool turned = c.turned_share > 0 && turn_rng.Uniform01() < c.turned_share;
+    const double yaw_range = turned ? c.turned_range_deg : c.rotation_range_deg;
+    const double yaw = rng.UniformIn(-yaw_range, yaw_range);
     // Place people at least 0.7 m apart on the floor (a few deterministic retries; after
     // those, the last draw stands even if close: crowded frames are rare and harmless).
     double dist = 0, lateral = 0;

@@ -17,6 +17,7 @@
 #include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
 #include "apps/commands/frame_options.h"
+#include "engine/image_source.h"
 #include "renderer/montage.h"
 #include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
@@ -30,12 +31,6 @@
 
 namespace poseforest::apps::commands {
 namespace {
-
-std::string FrameName(const std::string& dir, const char* stem, uint64_t i, const char* ext) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%s_%06llu.%s", stem, static_cast<unsigned long long>(i), ext);
-  return (std::filesystem::path(dir) / buf).string();
-}
 
 /// `v` rounded to `decimals` places: the precision the files have always had (0.01 mm, 0.01 px).
 double Rounded(double v, double decimals) {
@@ -355,11 +350,11 @@ int RenderCommand::RenderFrames(const renderer::SceneConfig& config, const runti
     for (uint64_t i = next++; i < n && !failed; i = next++) {
       auto f = (*r)->Render(seed, i);
       core::Status st = f.ok() ? core::Status::Ok() : f.status();
-      if (st.ok()) st = runtime::WriteDepthPng(FrameName(*out, "depth", i, "png"), f->depth);
-      if (st.ok()) st = runtime::WriteLabelPng(FrameName(*out, "labels", i, "png"), f->labels);
-      if (st.ok() && write_masks) st = runtime::WriteLabelPng(FrameName(*out, "mask", i, "png"), f->people);
+      if (st.ok()) st = runtime::WriteDepthPng(engine::DatasetFramePath(*out, "depth", i, "png"), f->depth);
+      if (st.ok()) st = runtime::WriteLabelPng(engine::DatasetFramePath(*out, "labels", i, "png"), f->labels);
+      if (st.ok() && write_masks) st = runtime::WriteLabelPng(engine::DatasetFramePath(*out, "mask", i, "png"), f->people);
       if (st.ok()) {
-        const std::string path = FrameName(*out, "joints", i, "json");
+        const std::string path = engine::DatasetFramePath(*out, "joints", i, "json");
         std::ofstream js(path);
         js << JointsJson(*f, config.camera, seed, i);
         if (!js) st = core::Status(core::ErrorCode::kIo, path + ": write failed");

@@ -309,6 +309,16 @@ TEST_CASE("the rendering realism fields: defaults, values, the scene they make, 
   CHECK(sl->source.leaning_share == 0.6);
   CHECK_THAT(ErrorOf(r + "sitting_share: 2 } }"), Catch::Contains("source.rendered.sitting_share"));
   CHECK_THAT(ErrorOf(r + "leaning_share: -1 } }"), Catch::Contains("source.rendered.leaning_share"));
+  // The heading mixture: off by default (every person within rotation_range_deg), values kept,
+  // bad values named.
+  CHECK(d->source.turned_share == 0);
+  CHECK(d->source.turned_range_deg == 180);
+  auto tm = Parse("images_per_tree: 5 source { rendered { rotation_range_deg: 60 turned_share: 0.25 turned_range_deg: 120 } }");
+  REQUIRE(tm.ok());
+  CHECK(tm->source.turned_share == 0.25);
+  CHECK(tm->source.turned_range_deg == 120);
+  CHECK_THAT(ErrorOf(r + "turned_share: 1.5 } }"), Catch::Contains("source.rendered.turned_share"));
+  CHECK_THAT(ErrorOf(r + "turned_range_deg: 200 } }"), Catch::Contains("source.rendered.turned_range_deg"));
 }
 
 #if POSEFOREST_HAS_RENDERER
@@ -392,6 +402,11 @@ TEST_CASE("sitting and leaning shares reach the scene", "[training][config][real
   REQUIRE(engine::ApplySceneOptions(sl->source, &scene).ok());
   CHECK(scene.sit_share == 0.3);
   CHECK(scene.lean_share == 0.6);
+  auto tm = Parse("images_per_tree: 5 source { rendered { turned_share: 0.25 turned_range_deg: 150 } }");
+  REQUIRE(tm.ok());
+  REQUIRE(engine::ApplySceneOptions(tm->source, &scene).ok());
+  CHECK(scene.turned_share == 0.25);
+  CHECK(scene.turned_range_deg == 150);
 }
 #endif
 

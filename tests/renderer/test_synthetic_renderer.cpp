@@ -355,6 +355,55 @@ TEST_CASE("arm re-posing: a share of people; the others render as before", "[egl
   CHECK(same <= n * 4 / 5);
 }
 
+TEST_CASE("turned_share: a share of people take the wider heading range; the others are placed as before",
+          "[egl]") {
+  SceneConfig facing = SmallConfig();
+  facing.rotation_range_deg = 0;  // everyone faces the camera
+  SceneConfig mixed = facing;
+  mixed.turned_share = 0.5;
+  mixed.turned_range_deg = 180;
+  SceneConfig off = facing;
+  off.turned_range_deg = 180;  // the range alone changes nothing while the share is 0
+  auto rf = Make(facing), rm = Make(mixed), ro = Make(off);
+  const int n = 200;
+  int turned = 0, behind = 0;
+  double widest = 0;
+  for (uint64_t i = 0; i < uint64_t(n); ++i) {
+    const SceneSample f = rf->Sample(4, i), m = rm->Sample(4, i), o = ro->Sample(4, i);
+    REQUIRE(f.people.size() == 1);
+    REQUIRE(m.people.size() == 1);
+    CHECK(o.people[0].camera_from_body.matrix() == f.people[0].camera_from_body.matrix());
+    // The same camera and floor position either way (one draw of the main stream per heading):
+    // the body's rotation relative to the facing one is its yaw about the vertical.
+    CHECK(m.people[0].camera_from_body.translation().isApprox(f.people[0].camera_from_body.translation(), 1e-9));
+    const Eigen::Matrix3d rel =
+        f.people[0].camera_from_body.linear().transpose() * m.people[0].camera_from_body.linear();
+    const double yaw = std::atan2(rel(0, 2), rel(0, 0)) * 180.0 / M_PI;
+    CHECK(std::abs(rel(1, 1) - 1.0) < 1e-9);  // about the body's vertical only
+    if (std::abs(yaw) > 1e-6) {
+      ++turned;
+      widest = std::max(widest, std::abs(yaw));
+      behind += std::abs(yaw) > 90;
+    } else {
+      CHECK(m.people[0].camera_from_body.matrix() == f.people[0].camera_from_body.matrix());
+    }
+  }
+  INFO(turned << " of " << n << " people turned, " << behind << " of them showing their back, widest " << widest);
+  CHECK(turned >= n * 2 / 5);
+  CHECK(turned <= n * 3 / 5);
+  CHECK(behind >= turned / 3);
+  CHECK(widest > 150);
+  CHECK(widest <= 180);
+  // Deterministic in (seed, index).
+  CHECK(rm->Sample(4, 7).people[0].camera_from_body.matrix() == Make(mixed)->Sample(4, 7).people[0].camera_from_body.matrix());
+  SceneConfig bad = mixed;
+  bad.turned_share = -0.1;
+  CHECK_FALSE(SyntheticRenderer::Create(bad).ok());
+  bad = mixed;
+  bad.turned_range_deg = 190;
+  CHECK_FALSE(SyntheticRenderer::Create(bad).ok());
+}
+
 TEST_CASE("sitting and leaning: a share of people each; the others render as before", "[egl]") {
   SceneConfig classic = SmallConfig();
   SceneConfig sit = classic, lean = classic;
