@@ -79,19 +79,8 @@ Status RemoteShardSet::Ranges(int /*tree*/, int level, engine::Batch* batch, con
     batch->fused[p] = 1;
     const Reply& r = (*r1)[size_t(fused_by[p])];
     const v1::NodeRanges& nr = r.body.ranges(int(p));
-    plans[p].cuts.assign(size_t(k) * size_t(cut_stride), engine::kNoCut);
-    int pos = 0;
-    bool ok = r.body.nodes(int(p)).samples() == plans[p].num_samples;
-    for (int c = 0; c < k && ok; ++c) {
-      int64_t v = 0;
-      for (uint32_t j = 0; j < nr.cut_counts(c); ++j) {
-        const int32_t d = nr.cut_deltas(pos++);
-        if (j > 0 && d <= 0) ok = false;
-        v = j == 0 ? int64_t(d) : v + int64_t(d);
-        if (v >= int64_t(engine::kNoCut)) ok = false;
-        plans[p].cuts[size_t(c) * size_t(cut_stride) + j] = int32_t(v);
-      }
-    }
+    bool ok = r.body.nodes(int(p)).samples() == plans[p].num_samples &&
+              engine::DecodeCuts(nr, k, cut_stride, &plans[p].cuts);
     engine::NodeHistogram hist;
     hist.Reset(plans[p].node, k, t_count + 1, plans[p].num_slots, false);
     if (ok) ok = engine::AddWireRuns(r.body.nodes(int(p)).runs(), dims, plans[p], &hist);
