@@ -37,6 +37,9 @@ std::string FormatSkeletonTable(const Evaluation& e) {
       "frames, D = %.2f m, confidence %s):\n",
       a.frames, double(e.distance_m), e.calibrated ? "calibrated (JCAL)" : "the uncalibrated fallback");
   out += buf;
+  // Skeletons are scored on one-person frames only: with none, a table of zeros would read as
+  // a forest that tracks nothing.
+  if (a.frames == 0) return out + "(no figures: the test set has no one-person frames)\n";
   std::snprintf(buf, sizeof buf, "%-11s %8s %16s %16s %18s %14s %18s\n", "joint", "visible", "tracked within D",
                 "tracked & right", "not tracked right", "found within", "hidden: in 0.15 m");
   out += buf;

@@ -110,6 +110,8 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   CHECK_THAT(two.output, Catch::Contains("2 frames, 4 people"));
   CHECK_THAT(two.output,
              Catch::Contains("0 one-person frames"));  // skeletons are scored on one-person frames only
+  CHECK_THAT(two.output, Catch::Contains("no figures: the test set has no one-person frames") &&
+                             !Catch::Contains("mean over joints"));  // not a table of zeros
   // The fast clustering did not run: no figures for it, not zeros.
   CHECK_THAT(two.output, !Catch::Contains("fast clustering") && Catch::Contains("mAP: mean shift"));
 

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
@@ -26,12 +27,35 @@ inline std::filesystem::path BinDir() {
   return ec ? std::filesystem::current_path() : self.parent_path();
 }
 
-/// A fresh empty scratch folder under the system temp dir, unique to this process and `name`.
+/// The scratch folders this test process made, removed when it exits (a test that fails keeps
+/// nothing either: set POSEFOREST_KEEP_TEST_DIRS=1 to keep them for a look). Only the process
+/// that made them removes them: a forked child that exits leaves them to its parent.
+struct ScratchDirs {
+  pid_t owner = ::getpid();
+  std::vector<std::filesystem::path> dirs;
+  ~ScratchDirs() {
+    if (::getpid() != owner) return;
+    if (const char* keep = std::getenv("POSEFOREST_KEEP_TEST_DIRS"); keep && *keep && std::string(keep) != "0")
+      return;
+    for (const auto& dir : dirs) {
+      std::error_code ec;
+      std::filesystem::remove_all(dir, ec);
+    }
+  }
+};
+inline ScratchDirs& MadeScratchDirs() {
+  static ScratchDirs made;
+  return made;
+}
+
+/// A fresh empty scratch folder under the system temp dir, unique to this process and `name`;
+/// removed when the process exits (ScratchDirs).
 inline std::filesystem::path ScratchDir(const std::string& name) {
   auto dir = std::filesystem::temp_directory_path() /
              ("poseforest-test-" + name + "-" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
+  MadeScratchDirs().dirs.push_back(dir);
   return dir;
 }
 
