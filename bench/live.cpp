@@ -10,7 +10,7 @@
 // The forest: --forest F, else scripts/accuracy-recipe.sh's 4,000-image-per-tree forest
 // (out/accuracy-4000/forest_tuned.pff, then forest.pff); it says which it ran.
 //
-//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--no-votes] [--no-tracking-model]
+//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--no-votes] [--no-tracking-model] [--fit kinematic|greedy]
 //                    [--checksum]
 //
 // --pixel-stride N: classify and propose from every N-th pixel in x and y (`live --pixel-stride`;
@@ -27,6 +27,7 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -76,6 +77,7 @@ int main(int argc, char** argv) {
   double seconds = 5.0;
   bool checksum = false, votes = true, tracking_model = true;
   std::string forest_path;
+  std::optional<runtime::SkeletonFit> fit;  // unset: as `live`, the forest's decision's fit
   for (int i = 1; i < argc; i += 2) {
     if (!std::strcmp(argv[i], "--checksum")) {
       checksum = true;
@@ -103,6 +105,13 @@ int main(int argc, char** argv) {
       seconds = std::atof(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--forest"))
       forest_path = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--fit")) {
+      fit = runtime::SkeletonFitFromName(argv[i + 1]);
+      if (!fit) {
+        std::fprintf(stderr, "bench/live: --fit must be kinematic or greedy (got '%s')\n", argv[i + 1]);
+        return 2;
+      }
+    }
   }
   std::string which = "given with --forest";
   if (forest_path.empty()) {
@@ -174,6 +183,13 @@ int main(int argc, char** argv) {
   options.pixel_stride = pixel_stride;
   options.votes = votes;
   options.skeleton.use_tracking_model = tracking_model;
+  options.skeleton.fit = fit;
+  const auto& model = forest->tracking_model;
+  std::printf("skeleton fit: %s%s\n",
+              std::string(runtime::SkeletonFitName(runtime::ResolveSkeletonFit(
+                                                      options.skeleton, model ? &*model : nullptr)))
+                  .c_str(),
+              fit ? " (--fit)" : " (`live`'s default for this forest)");
   std::printf("tracking decision: %s\n", !forest->tracking_model ? "the hand-set rules (none in the forest)"
                                           : tracking_model        ? "learned (the forest's, format 1.6)"
                                                                   : "the hand-set rules (--no-tracking-model)");

@@ -34,8 +34,9 @@ std::string FormatSkeletonTable(const Evaluation& e) {
   std::snprintf(
       buf, sizeof buf,
       "skeleton accuracy (what `live` reports: per joint one position, tracked or not; %d one-person "
-      "frames, D = %.2f m, confidence %s):\n",
-      a.frames, double(e.distance_m), e.calibrated ? "calibrated (JCAL)" : "the uncalibrated fallback");
+      "frames, D = %.2f m, confidence %s, %s fit):\n",
+      a.frames, double(e.distance_m), e.calibrated ? "calibrated (JCAL)" : "the uncalibrated fallback",
+      std::string(runtime::SkeletonFitName(a.fit)).c_str());
   out += buf;
   // Skeletons are scored on one-person frames only: with none, a table of zeros would read as
   // a forest that tracks nothing.

@@ -170,13 +170,14 @@ void ScoreSkeleton(const runtime::Classifier& classifier, const runtime::Classif
     mask.pixels[k] = has_mask ? (frame.person_masks.pixels[k] == 1) : (frame.depth.pixels[k] ? 1 : 0);
   runtime::SkeletonOptions so;
   so.fit = options.skeleton_fit;
-  so.agree_radius_m = options.agree_radius_m;
   so.use_tracking_model = options.tracking_model;
+  const auto& model = classifier.forest().tracking_model;
+  skeleton->fit = runtime::ResolveSkeletonFit(so, so.use_tracking_model && model ? &*model : nullptr);
+  so.agree_radius_m = options.agree_radius_m;
   // The forest's offset votes (format 1.5), when it has them and they are not turned off.
   std::vector<runtime::PersonVotes> votes;
   if (options.votes && classifier.forest().offset_votes)
     votes = runtime::CastVotes(classifier.forest(), frame.depth, mask, 1, camera, {}, &out);
-  const auto& model = classifier.forest().tracking_model;
   const auto skeletons = runtime::BuildSkeletons(proposals, mask, 1, frame.depth, camera, calibration, so,
                                                  votes.empty() ? nullptr : &votes, model ? &*model : nullptr);
   if (!skeletons.empty()) {

@@ -101,8 +101,9 @@ struct JointEvalOptions {
   bool votes = true;
   /// The skeleton's tracked decision is the forest's learned model (format 1.6) when it has one.
   bool tracking_model = true;
-  /// How the skeleton (the `skeleton accuracy` table) picks its joints (runtime::SkeletonFit).
-  runtime::SkeletonFit skeleton_fit = runtime::SkeletonFit::kGreedy;
+  /// How the skeleton (the `skeleton accuracy` table) picks its joints (runtime::SkeletonFit);
+  /// unset: as `live` does by default (runtime::ResolveSkeletonFit).
+  std::optional<runtime::SkeletonFit> skeleton_fit;
   float agree_radius_m = runtime::SkeletonOptions{}.agree_radius_m;  ///< SkeletonOptions::agree_radius_m
   bool fast = true;         ///< also the fast clustering
   bool upper_bound = true;  ///< also mean shift on the ground-truth parts
@@ -134,6 +135,7 @@ struct PersonSegmentation {
 /// tracked" was right (the joint was not visible: occluded or out of the picture).
 struct SkeletonAccuracy {
   int frames = 0;  ///< one-person frames scored
+  runtime::SkeletonFit fit = runtime::SkeletonFit::kKinematic;  ///< the fit that chose the positions
   std::array<int, core::kNumJoints> visible{}, tracked_within{}, tracked{}, tracked_right{}, untracked{},
       untracked_invisible{};
   /// Visible and the skeleton's position (tracked or not) within D: what a better tracked

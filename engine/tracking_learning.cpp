@@ -143,6 +143,8 @@ core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
   for (size_t i = 0; i < joints.size(); ++i)
     if (joints[i] >= 0) fj.push_back(joints[i]), fc.push_back(confidences[i]), ff.push_back(cues[i]), fl.push_back(labels[i]);
   core::TrackingModel model = FitTrackingModel(fj, fc, ff, fl, options.l2, &rep.iterations);
+  // The skeletons above had no model to resolve the fit from: options.skeleton.fit, else kinematic.
+  model.fit = core::TrackingFit(runtime::ResolveSkeletonFit(options.skeleton, nullptr));
   rep.samples = int(fj.size());
   // In-sample figures, rules against model (the same positions; only the decision differs).
   std::array<double, core::kNumJoints> vis{}, rules_hit{}, model_hit{};

@@ -2,9 +2,9 @@
 // Fitting the learned tracking decision (core::TrackingModel, format 1.6) on validation renders.
 //
 // Each validation frame (one person) is classified, its joints proposed and voted as `live` does,
-// and its skeleton built with the hand-set rules' choice of positions; every joint the skeleton
-// found gives one sample: its joint, calibrated confidence and cues (SkeletonJoint::cues), and
-// whether it lies within 0.1 m of the true joint. Logistic regression (Newton's method, an L2
+// and its skeleton built with the hand-set rules, options.skeleton's fit choosing the positions;
+// every joint the skeleton found gives one sample: its joint, calibrated confidence and cues
+// (SkeletonJoint::cues), and whether it lies within 0.1 m of the true joint. Logistic regression (Newton's method, an L2
 // penalty on the weights) fits P(within 0.1 m). The frames are the validation source's frames
 // [first_index, first_index + frames): after the vote calibration's, so the model is not fitted
 // on the frames its inputs were calibrated on. Deterministic: same forest and options, same
@@ -26,7 +26,9 @@ struct TrackingLearningOptions {
   int frames = 200;
   int threads = 0;            ///< 0 = all cores
   double l2 = 1.0;            ///< penalty on the squared weights (the log-likelihood's scale)
-  runtime::SkeletonOptions skeleton;  ///< how positions are chosen (the default: greedy, agreement)
+  /// How positions are chosen: the fit (unset: kinematic, the run-time default) whose choices
+  /// the model learns from, and which it records (core::TrackingModel::fit).
+  runtime::SkeletonOptions skeleton;
   std::function<void(const std::string&)> progress;  ///< may be empty
 };
 

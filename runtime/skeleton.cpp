@@ -50,6 +50,17 @@ std::optional<SkeletonFit> SkeletonFitFromName(std::string_view name) {
   return std::nullopt;
 }
 
+std::string_view SkeletonFitName(SkeletonFit fit) { return fit == SkeletonFit::kKinematic ? "kinematic" : "greedy"; }
+
+static_assert(int(SkeletonFit::kGreedy) == int(core::TrackingFit::kGreedy) &&
+              int(SkeletonFit::kKinematic) == int(core::TrackingFit::kKinematic));
+
+SkeletonFit ResolveSkeletonFit(const SkeletonOptions& options, const core::TrackingModel* tracking) {
+  if (options.fit) return *options.fit;
+  if (tracking && options.use_tracking_model) return SkeletonFit(tracking->fit);
+  return SkeletonFit::kKinematic;
+}
+
 float TypicalBoneLength(int parent, int child) {
   using J = core::Joint;
   const auto p = J(parent), c = J(child);
@@ -87,7 +98,7 @@ double Pair(const FitCandidates& cands, const SkeletonOptions& options, int a, i
   const float len = (cands[size_t(a)][size_t(sa - 1)].position - cands[size_t(b)][size_t(sb - 1)].position).norm();
   if (options.check_bone_lengths) {
     const auto [lo, hi] = BoneLengthRange(a, b);
-    if (len < lo || len > hi) return kImpossible;
+    if (len < lo || len > hi) return std::min(0.0, double(options.implausible_bone_log));
   }
   const double mu = TypicalBoneLength(a, b), sigma = 0.3 * mu + 0.03;
   return mu > 0 ? -0.5 * ((len - mu) / sigma) * ((len - mu) / sigma) : 0.0;
@@ -212,14 +223,15 @@ struct PersonFit {
     }
     return v;
   }
-  void PlaceVote(int j, const UsableVote& u) {
+  /// Places vote candidate `u`; `confidence` (>= 0) replaces its own (an agreement's noisy-OR).
+  void PlaceVote(int j, const UsableVote& u, float confidence = -1) {
     SkeletonJoint& joint = s.joints[size_t(j)];
     joint = SkeletonJoint();
     joint.found = true;
     joint.voted = true;
     joint.position_m = u.vote->position;
     joint.pixel = u.pixel;
-    joint.confidence = u.vote->confidence;
+    joint.confidence = confidence >= 0 ? confidence : u.vote->confidence;
     const float gap = u.vote->position.z() - float(u.mask_depth) * 1e-3f;
     joint.tracked = joint.confidence >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
     // Confident, but behind what the camera sees there: a hidden joint, placed by the votes.
@@ -228,14 +240,15 @@ struct PersonFit {
   float Calibrated(int j, float support_m2) const {
     return calibration ? calibration->Confidence(j, support_m2) : core::FallbackConfidence(support_m2);
   }
-  void Place(int j, const JointProposal& p, int mask_depth) {
+  /// Places proposal `p`; `confidence` (>= 0) replaces its calibrated one (an agreement's noisy-OR).
+  void Place(int j, const JointProposal& p, int mask_depth, float confidence = -1) {
     SkeletonJoint& joint = s.joints[size_t(j)];
     joint = SkeletonJoint();
     joint.found = true;
     joint.position_m = p.position;
     joint.pixel = p.pixel;
     joint.support_m2 = float(double(p.confidence) / area);
-    joint.confidence = Calibrated(j, joint.support_m2);
+    joint.confidence = confidence >= 0 ? confidence : Calibrated(j, joint.support_m2);
     const float gap = p.position.z() - float(mask_depth) * 1e-3f;
     joint.tracked = joint.support_m2 >= options.min_support_m2 && joint.confidence >= options.min_confidence &&
                     std::abs(gap) <= options.max_depth_gap_m;
@@ -307,6 +320,24 @@ struct PersonFit {
         cand_depth[size_t(j)].push_back(u.mask_depth);
         vote_of[size_t(j)].push_back(u);
       }
+    // Two readings of the trees agreeing (a part proposal and a vote candidate within
+    // agree_radius_m of each other): each takes the noisy-OR of the two confidences, with the
+    // most confident candidate of the other kind there, as kGreedy's agreement does.
+    if (options.agree_radius_m > 0)
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        std::vector<FitCandidate>& c = cands[size_t(j)];
+        const size_t proposals_end = c.size() - vote_of[size_t(j)].size();
+        std::vector<float> fused(c.size());
+        for (size_t i = 0; i < c.size(); ++i) {
+          const bool is_proposal = i < proposals_end;
+          float other = 0;
+          for (size_t k = is_proposal ? proposals_end : 0; k < (is_proposal ? c.size() : proposals_end); ++k)
+            if ((c[i].position - c[k].position).norm() <= options.agree_radius_m)
+              other = std::max(other, c[k].confidence);
+          fused[i] = 1.0f - (1.0f - c[i].confidence) * (1.0f - other);
+        }
+        for (size_t i = 0; i < c.size(); ++i) c[i].confidence = fused[i];
+      }
     for (int j = 0; j < core::kNumJoints; ++j) {
       if (first_on_mask[size_t(j)])
         cand_cues[size_t(j)].has_proposal = true, cand_cues[size_t(j)].proposal = first_on_mask[size_t(j)]->position;
@@ -316,10 +347,12 @@ struct PersonFit {
     const auto chosen = FitSkeleton(cands, options);
     for (int j = 0; j < core::kNumJoints; ++j) {
       const int c = chosen[size_t(j)];
+      const float confidence = c >= 0 ? cands[size_t(j)][size_t(c)].confidence : -1.0f;
       if (c >= 0 && !cand_proposal[size_t(j)][size_t(c)]) {
-        PlaceVote(j, vote_of[size_t(j)][size_t(c) - (cand_proposal[size_t(j)].size() - vote_of[size_t(j)].size())]);
+        PlaceVote(j, vote_of[size_t(j)][size_t(c) - (cand_proposal[size_t(j)].size() - vote_of[size_t(j)].size())],
+                  confidence);
       } else if (c >= 0) {
-        Place(j, *cand_proposal[size_t(j)][size_t(c)], cand_depth[size_t(j)][size_t(c)]);
+        Place(j, *cand_proposal[size_t(j)][size_t(c)], cand_depth[size_t(j)][size_t(c)], confidence);
       } else if (first_on_mask[size_t(j)]) {  // found, but the fit leaves it out: not tracked
         Place(j, *first_on_mask[size_t(j)], first_depth[size_t(j)]);
         s.joints[size_t(j)].tracked = false;
@@ -449,7 +482,7 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
     const PersonVotes* person_votes =
         votes && size_t(label - 1) < votes->size() ? &(*votes)[size_t(label - 1)] : nullptr;
     PersonFit fit{proposals, masks, depth, camera, calibration, options, person_votes, label, area, m, s};
-    if (options.fit == SkeletonFit::kGreedy)
+    if (ResolveSkeletonFit(options, tracking) == SkeletonFit::kGreedy)
       fit.FitGreedy();
     else
       fit.FitJointly();

@@ -3,8 +3,10 @@
 // 0..1 that means something, a tracked / not-tracked state, ids stable over a sequence and
 // optional One Euro smoothing - what Kinect's SDK, NiTE and Azure Kinect Body Tracking give.
 //
-// Per person (a mask label) and joint, the joint's position is its most confident proposal whose
-// pixel lies on that person's mask (section 3.4's proposals are made for the whole frame). Its
+// Per person (a mask label), each joint's position is chosen among its candidates on that
+// person's mask (section 3.4's proposals are made for the whole frame; offset votes add more):
+// by one kinematic fit of the whole skeleton (SkeletonFit::kKinematic, the default) or joint by
+// joint, the most confident (kGreedy). Its
 // confidence is the forest's calibration (core::ConfidenceCalibration: the precision proposals of
 // that support had on validation renders) or, for forests without one, FallbackConfidence. A
 // joint is *tracked* only if it has such a proposal, the proposal's support and calibrated
@@ -32,28 +34,47 @@
 
 namespace poseforest::runtime {
 
-/// How a person's joints are chosen among the proposals on their mask.
-enum class SkeletonFit {
-  /// Each joint alone: its most confident proposal on the mask.
-  kGreedy,
+/// How a person's joints are chosen among the proposals on their mask. The values are
+/// core::TrackingFit's (the fit a learned tracking decision was fitted on).
+enum class SkeletonFit : uint8_t {
+  /// Each joint alone: its most confident proposal on the mask (or vote candidate, when more
+  /// confident).
+  kGreedy = 0,
   /// One exact fit per person (pictorial structures, Felzenszwalb & Huttenlocher 2005) choosing
-  /// WHICH proposal each joint takes: per joint up to fit_candidates proposals on the mask (depth
-  /// agreeing, support enough), the choice maximizing the sum of log calibrated confidences and
-  /// of bone terms along SkeletonBones (FitScore), by dynamic programming on the tree. A bone
-  /// outside BoneLengthRange is impossible, so a confident left wrist on the right arm gives way
-  /// to a less confident one that the left elbow can reach. A joint is "missing" only where no
-  /// candidate fits; whether a chosen joint is tracked is decided as for kGreedy (its own
-  /// confidence, support, depth, the image border, a tracked parent). Measured against kGreedy
-  /// in docs/runtime/live.md ("Skeleton fit"): it has not beaten it yet, so it is not the default.
-  kKinematic,
+  /// WHICH candidate each joint takes: per joint up to fit_candidates proposals on the mask (depth
+  /// agreeing, support enough) and its usable vote candidates, a proposal and a vote candidate
+  /// that agree (within agree_radius_m) each taking the noisy-OR of their confidences; the choice
+  /// maximizing the sum of log confidences and of bone terms along SkeletonBones (FitScore), by
+  /// dynamic programming on the tree. A bone outside BoneLengthRange costs implausible_bone_log,
+  /// so a confident left wrist on the right arm gives way to a less confident one that the left
+  /// elbow can reach, while a wrong elbow does not drag a well-found wrist with it. Whether a
+  /// chosen joint is tracked is decided as for kGreedy (the learned decision, or the rules).
+  /// The default since 28 Nov 2026: it tracks more visible joints right than kGreedy on
+  /// held-out renders with every forest measured (docs/runtime/live.md, "Skeleton fit").
+  kKinematic = 1,
 };
 
 /// "greedy" or "kinematic" (the `--fit` flag of live and eval); nullopt for any other name.
 std::optional<SkeletonFit> SkeletonFitFromName(std::string_view name);
+/// "greedy" or "kinematic".
+std::string_view SkeletonFitName(SkeletonFit fit);
+
+struct SkeletonOptions;
+/// The fit BuildSkeletons runs: options.fit if set, else the fit `tracking` (the forest's learned
+/// decision, may be null) was fitted on when options.use_tracking_model, else kKinematic.
+SkeletonFit ResolveSkeletonFit(const SkeletonOptions& options, const core::TrackingModel* tracking);
 
 struct SkeletonOptions {
-  SkeletonFit fit = SkeletonFit::kGreedy;
+  /// The fit; unset: the one the forest's tracking decision was learned on (core::TrackingModel::
+  /// fit: kGreedy for decisions of format 1.6), and kKinematic for a forest without one or when
+  /// the decision is not used (ResolveSkeletonFit).
+  std::optional<SkeletonFit> fit;
   int fit_candidates = 8;  ///< kKinematic: proposals per joint considered (most confident first)
+  /// kKinematic: the log-likelihood of a bone outside BoneLengthRange (one of its ends is a
+  /// wrong candidate), instead of ruling the pair out. log(0.05): on the main job's validation
+  /// renders -2, -3 and -4 tracked the most visible joints right (docs/runtime/live.md); a
+  /// very negative value (-1e30) makes such bones impossible, as before 28 Nov 2026.
+  float implausible_bone_log = -3.0f;
   float min_confidence = 0.3f;   ///< calibrated confidence below this: not tracked
   float min_support_m2 = 1e-4f;  ///< proposal support (raw confidence / (fx fy)) below this: not tracked
   int mask_margin_px = 2;        ///< a proposal's pixel may miss the mask by this many pixels
@@ -158,7 +179,8 @@ struct FitCandidate {
 using FitCandidates = std::array<std::vector<FitCandidate>, core::kNumJoints>;
 /// The fit's objective for `choice` (per joint a candidate index, -1 = missing): the sum of log
 /// confidences (missing: a constant below any candidate's) and of the bones' terms (BoneLengthRange
-/// outside: impossible, -1e30; within: a Gaussian about TypicalBoneLength, sigma 0.3 mu + 3 cm).
+/// outside: options.implausible_bone_log; within: a Gaussian about TypicalBoneLength, sigma
+/// 0.3 mu + 3 cm; a joint below the shoulders with a missing parent: impossible, -1e30).
 double FitScore(const FitCandidates& candidates, const std::array<int, core::kNumJoints>& choice,
                 const SkeletonOptions& options);
 /// The choice maximizing FitScore, exactly (dynamic programming on SkeletonBones' tree).

@@ -34,7 +34,7 @@ class EvalCommand final : public Command {
   /// The segmentation's lines of a --test-set run.
   void PrintSegmentation(const engine::Evaluation& e, bool ap) const;
 
-  std::string forest_, test_set_, pr_png_, png_, real_labels_, png_dir_, segment_ = "auto", fit_ = "greedy";
+  std::string forest_, test_set_, pr_png_, png_, real_labels_, png_dir_, segment_ = "auto", fit_;
   std::optional<std::string> method_;  ///< default: both (--test-set), meanshift (--real-labels)
   std::optional<int> images_, people_, pixel_stride_;  ///< pixel stride default: 1, live's 2 with --real-labels
   int64_t first_ = 0;
@@ -121,7 +121,8 @@ EvalCommand::EvalCommand()
   app_.add_option("--fit", fit_,
                   "how the skeleton picks its joints: greedy (each joint's most confident proposal on the\n"
                   "person) or kinematic (one fit per person choosing among each joint's proposals with\n"
-                  "bone lengths; runtime/skeleton.h)")
+                  "bone lengths; runtime/skeleton.h) (default: the fit the forest's tracking decision\n"
+                  "was learned on, kinematic without one)")
       ->type_name("F")
       ->check(CLI::Validator(
           [](std::string& v) -> std::string {
@@ -187,7 +188,7 @@ int EvalCommand::RunRealLabels() {
       method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
   options.num_threads = threads_;
   options.pixel_stride = pixel_stride_.value_or(2);  // live's default
-  options.skeleton.fit = *runtime::SkeletonFitFromName(fit_);
+  if (!fit_.empty()) options.skeleton.fit = *runtime::SkeletonFitFromName(fit_);
   if (agree_radius_) options.skeleton.agree_radius_m = float(*agree_radius_);
   options.votes = !no_votes_;
   options.skeleton.use_tracking_model = !no_tracking_model_;
@@ -232,9 +233,12 @@ int EvalCommand::RunRealLabels() {
     }
   }
   const engine::RealScore score = engine::SummarizeReal(outcomes);
-  std::printf("forest %s on %zu real frames (%s), pixel stride %d, %s\n\n", forest_.c_str(),
+  const auto& model = forest->tracking_model;
+  const runtime::SkeletonFit fit = runtime::ResolveSkeletonFit(
+      options.skeleton, options.skeleton.use_tracking_model && model ? &*model : nullptr);
+  std::printf("forest %s on %zu real frames (%s), pixel stride %d, %s, %s fit\n\n", forest_.c_str(),
               labels->frames.size(), labels_path.c_str(), options.pixel_stride,
-              method == "fast" ? "fast clustering" : "mean shift");
+              method == "fast" ? "fast clustering" : "mean shift", std::string(runtime::SkeletonFitName(fit)).c_str());
   std::fputs(engine::FormatRealScore(score).c_str(), stdout);
   if (png_dir) std::printf("pictures: %s/<frame>.png\n", png_dir->c_str());
   const auto& all = score.all();
@@ -268,7 +272,7 @@ int EvalCommand::RunTestSet() {
   eo.threads = threads_;
   eo.people = people_.value_or(0);
   eo.pixel_stride = pixel_stride_.value_or(1);
-  eo.skeleton_fit = *runtime::SkeletonFitFromName(fit_);
+  if (!fit_.empty()) eo.skeleton_fit = *runtime::SkeletonFitFromName(fit_);
   if (agree_radius_) eo.agree_radius_m = float(*agree_radius_);
   eo.votes = !no_votes_;
   eo.tracking_model = !no_tracking_model_;

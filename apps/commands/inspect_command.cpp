@@ -21,7 +21,8 @@ class InspectCommand final : public Command {
                 "`poseforest tune-joints`, one set per method (JPAR: mean shift, JPFC: the fast clustering;\n"
                 "means over joints) and which set each method runs with, and the offset votes stored by\n"
                 "`poseforest learn-votes` (JVOT: votes, trees, max offset, bandwidths, calibration bins) and\n"
-                "its tracking decision (JTRK: the learned weights of the cues). Exit status 1 if any file is\n"
+                "its tracking decision (JTRK: the learned weights of the cues; JTFT: the skeleton fit it was\n"
+                "learned on). Exit status 1 if any file is\n"
                 "invalid.") {
     app_.add_option("FOREST.pff", paths_, "forest files")->required();
     app_.add_flag("--parts", parts_, "also list the part table");
@@ -108,7 +109,9 @@ int InspectCommand::Run() {
       std::printf("  offset votes: none (the skeleton uses part proposals only)\n");
     }
     if (const auto& model = f.tracking_model) {
-      std::printf("  tracking decision (JTRK): learned on %u validation joints; cue weights:", model->samples);
+      std::printf("  tracking decision (JTRK): learned on %u validation joints of the %s fit%s; cue weights:",
+                  model->samples, core::TrackingFitName(model->fit),
+                  model->fit == core::TrackingFit::kGreedy ? "" : " (JTFT)");
       for (int k = 0; k < core::kNumTrackingFeatures; ++k)
         std::printf(" %s %.2f%s", core::TrackingFeatureName(k), double(model->shared[size_t(k)]),
                     k + 1 < core::kNumTrackingFeatures ? "," : "\n");

@@ -52,9 +52,9 @@ void PrintVotes(const core::Forest& forest, const engine::VoteLearningReport& re
 }
 
 void PrintTracking(const core::TrackingModel& m, const engine::TrackingLearningReport& rep, const std::string& out) {
-  std::printf("tracking decision (%d validation frames, %d found joints, %d Newton steps): P(within 0.1 m) = "
-              "sigmoid(a_j + b_j logit(confidence) + w . cues)\n  joint        a_j    b_j\n",
-              rep.frames, rep.samples, rep.iterations);
+  std::printf("tracking decision (%s fit, %d validation frames, %d found joints, %d Newton steps): P(within "
+              "0.1 m) = sigmoid(a_j + b_j logit(confidence) + w . cues)\n  joint        a_j    b_j\n",
+              core::TrackingFitName(m.fit), rep.frames, rep.samples, rep.iterations);
   for (int j = 0; j < core::kNumJoints; ++j)
     std::printf("  %-11s %6.2f %6.2f\n", std::string(core::JointName(j)).c_str(), double(m.intercept[size_t(j)]),
                 double(m.slope[size_t(j)]));
@@ -113,6 +113,15 @@ class LearnVotesCommand final : public Command {
         ->type_name("N")
         ->check(IntIn(0, 1'000'000));
     app_.add_flag("--tracking-only", tracking_only_, "keep the forest's votes and fit the tracking decision alone");
+    app_.add_option("--fit", fit_,
+                    "the skeleton fit whose choices the tracking decision learns from, and which `live`\n"
+                    "and `eval` then run by default: kinematic or greedy (runtime/skeleton.h)")
+        ->type_name("F")
+        ->check(CLI::Validator(
+            [](std::string& v) -> std::string {
+              return runtime::SkeletonFitFromName(v) ? "" : "must be kinematic or greedy (got '" + v + "')";
+            },
+            ""));
     app_.add_option("--seed", seed_,
                     "render seed of the validation frames (default: the source's seed + 1000003, as\n"
                     "tune-joints)")
@@ -124,7 +133,7 @@ class LearnVotesCommand final : public Command {
   int Run() override;
 
  private:
-  std::string forest_, job_, out_;
+  std::string forest_, job_, out_, fit_ = "kinematic";
   // The defaults are engine::VoteLearningOptions'.
   std::optional<double> vote_bandwidth_m_;
   double max_offset_m_ = kDefaults.max_offset_m, leaf_bandwidth_m_ = kDefaults.leaf_bandwidth_m,
@@ -197,6 +206,7 @@ int LearnVotesCommand::Run() {
     to.frames = tracking_frames_;
     to.threads = opt.threads;
     to.progress = opt.progress;
+    to.skeleton.fit = *runtime::SkeletonFitFromName(fit_);
     auto model = engine::LearnTrackingModel(*forest, to, &trep);
     if (!model.ok()) {
       std::fprintf(stderr, "poseforest learn-votes: %s\n", model.status().ToString().c_str());

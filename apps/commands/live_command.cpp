@@ -55,7 +55,7 @@ double Percentile(std::vector<double> v, double q) {
 struct LiveFlags {
   std::vector<std::string> sources;
   std::optional<std::string> source, jsonl, png_dir, http, dds_topic, dds_frame_id;
-  std::string forest, method = "meanshift", fit = "greedy";
+  std::string forest, method = "meanshift", fit;
   FrameSourceFlags frames;
   SegmentationFlags segmentation;
   // Default 2 for live video (docs/runtime/live.md, "Pixel stride"): bench/live's goals
@@ -126,7 +126,8 @@ void DeclareLiveOptions(CLI::App& app, LiveFlags* f) {
       ->group(sk);
   app.add_option("--fit", f->fit,
                  "greedy: each joint's most confident proposal on the person; kinematic: one fit per\n"
-                 "person choosing among each joint's proposals with bone lengths (runtime/skeleton.h)")
+                 "person choosing among each joint's proposals with bone lengths (runtime/skeleton.h)\n"
+                 "(default: the fit the forest's tracking decision was learned on, kinematic without one)")
       ->type_name("F")
       ->check(CLI::Validator(
           [](std::string& v) -> std::string {
@@ -216,7 +217,7 @@ std::optional<int> ParseLiveOptions(const LiveFlags& f, LiveOptions* out) {
   options.method =
       f.method == "fast" ? runtime::ProposalMethod::kFastClustering : runtime::ProposalMethod::kMeanShift;
   auto& sk = options.skeleton;
-  sk.fit = *runtime::SkeletonFitFromName(f.fit);
+  if (!f.fit.empty()) sk.fit = *runtime::SkeletonFitFromName(f.fit);
   options.votes = !f.no_votes;
   sk.use_tracking_model = !f.no_tracking_model;
   if (f.min_confidence) sk.min_confidence = float(*f.min_confidence);
@@ -563,6 +564,18 @@ int LiveCommand::Run() {
                o.forest_path.c_str(), (*source)->Describe().c_str(),
                runtime::DescribeConfidence((*pipeline)->calibration()).c_str(),
                core::DescribeProposalParamsSource((*pipeline)->params_source()));
+  {
+    const auto& model = forest->tracking_model;
+    const bool learned = model && o.pipeline.skeleton.use_tracking_model;
+    std::fprintf(stderr, "poseforest live: skeleton fit %s (%s); tracked: %s\n",
+                 std::string(runtime::SkeletonFitName(
+                                 runtime::ResolveSkeletonFit(o.pipeline.skeleton, learned ? &*model : nullptr)))
+                     .c_str(),
+                 o.pipeline.skeleton.fit ? "--fit"
+                 : learned               ? "the one the forest's tracking decision was learned on"
+                                         : "the default",
+                 learned ? "the forest's learned decision" : "the hand-set rules");
+  }
   if (o.pipeline.pixel_stride > 1)
     std::fprintf(stderr,
                  "poseforest live: pixel stride %d: one pixel in %dx%d classified (--pixel-stride 1: all)\n",

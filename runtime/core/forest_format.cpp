@@ -164,6 +164,13 @@ void WriteTracking(Writer& w, const TrackingModel& model) {
   for (float v : model.slope) w.F32(v);
   for (float v : model.shared) w.F32(v);
   EndSection(w, at);
+  // JTFT (1.7): only for a model of the kinematic fit's choices; without it, the greedy fit's.
+  if (model.fit != TrackingFit::kGreedy) {
+    const size_t fit_at = BeginSection(w, kTagTrackingFit, 0);
+    w.U32(uint32_t(model.fit));
+    w.U32(0);
+    EndSection(w, fit_at);
+  }
 }
 }  // namespace
 
@@ -172,7 +179,8 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
                                  (forest.fast_proposal_params ? 1 : 0) + 1 +
                                  (forest.confidence_calibration ? 1 : 0) + (forest.offset_votes ? 1 : 0) +
-                                 (forest.tracking_model ? 1 : 0);
+                                 (forest.tracking_model ? 1 : 0) +
+                                 (forest.tracking_model && forest.tracking_model->fit != TrackingFit::kGreedy ? 1 : 0);
   WriteHeader(w, section_count);
   WriteMeta(w, forest);
   for (size_t t = 0; t < forest.trees.size(); ++t) WriteTree(w, forest.trees[t], t);
@@ -195,7 +203,7 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   if (const auto& cal = forest.confidence_calibration) WriteCalibration(w, *cal);
   // JVOT (1.5): the offset votes learn-votes built; older readers skip it.
   if (const auto& votes = forest.offset_votes) WriteOffsetVotes(w, *votes);
-  // JTRK (1.6): the tracking decision learn-votes fitted; older readers skip it.
+  // JTRK (1.6) and JTFT (1.7): the tracking decision learn-votes fitted; older readers skip them.
   if (const auto& model = forest.tracking_model) WriteTracking(w, *model);
 
   const uint64_t file_size = w.size() + kTrailerSize;

@@ -1,5 +1,5 @@
 #pragma once
-// Forest file format v1 (.pff, "poseforest forest"), minor version 5: reading and writing. The layout is
+// Forest file format v1 (.pff, "poseforest forest"), minor version 7: reading and writing. The layout is
 // documented in runtime/FORMAT.md; keep the two in step.
 
 #include <cstdint>
@@ -20,8 +20,11 @@ inline constexpr uint16_t kFormatMajor = 1;
 /// mean the Kinect v1 (575.8 px), older readers skip it.
 /// 1.4 added the optional JCAL section (joint confidence calibration); older readers skip it.
 /// 1.5 added the optional JVOT section (per-leaf offset votes to the joints); older readers skip it.
+/// 1.6 added the optional JTRK section (the learned tracking decision); older readers skip it.
+/// 1.7 added the optional JTFT section (which skeleton fit JTRK was fitted on, written when it is
+/// the kinematic fit); older readers skip it, and a JTRK without it was fitted on the greedy fit.
 /// Every file is written with the newest minor version, whichever optional sections it holds.
-inline constexpr uint16_t kFormatMinor = 6;
+inline constexpr uint16_t kFormatMinor = 7;
 
 /// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
 std::vector<uint8_t> SerializeForest(const Forest& forest);

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <optional>
 
 #include "runtime/core/crc32.h"
 #include "runtime/core/forest_layout.h"
@@ -106,6 +107,7 @@ struct ParseState {
   const Loss& loss;
   uint32_t section_count = 0;
   bool have_meta = false, have_focal = false, have_calibration = false, have_votes = false, have_tracking = false;
+  std::optional<TrackingFit> tracking_fit;  ///< JTFT, applied to the JTRK model after the loop
   uint32_t tree_count = 0, stride = 0;
 };
 
@@ -342,6 +344,22 @@ Status ParseTracking(Reader& p, const std::string& where, ParseState& st) {
   return Status::Ok();
 }
 
+/// JTFT (1.7): the skeleton fit the JTRK model was fitted on.
+Status ParseTrackingFit(Reader& p, const std::string& where, ParseState& st) {
+  const Loss& loss = st.loss;
+  if (st.tracking_fit) return loss(where + "second JTFT section");
+  if (p.remaining() != kTrackingFitSize)
+    return loss(where + "JTFT holds " + std::to_string(p.remaining()) + " bytes, expected " +
+                std::to_string(kTrackingFitSize));
+  const uint32_t fit = p.U32();
+  const uint32_t reserved = p.U32();
+  if (fit != uint32_t(TrackingFit::kGreedy) && fit != uint32_t(TrackingFit::kKinematic))
+    return loss(where + "JTFT names skeleton fit " + std::to_string(fit) + ", expected 0 (greedy) or 1 (kinematic)");
+  if (reserved != 0) return loss(where + "JTFT's reserved word is " + std::to_string(reserved) + ", expected 0");
+  st.tracking_fit = TrackingFit(fit);
+  return Status::Ok();
+}
+
 }  // namespace
 
 Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& source) {
@@ -384,6 +402,8 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       POSEFOREST_RETURN_IF_ERROR(ParseOffsetVotes(p, where, st));
     } else if (tag == kTagTracking) {
       POSEFOREST_RETURN_IF_ERROR(ParseTracking(p, where, st));
+    } else if (tag == kTagTrackingFit) {
+      POSEFOREST_RETURN_IF_ERROR(ParseTrackingFit(p, where, st));
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");
@@ -392,6 +412,10 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
   }
   if (r.remaining() != 0) return loss("unexpected " + std::to_string(r.remaining()) + " bytes after the last section");
   if (!st.have_meta) return loss("no META section");
+  if (st.tracking_fit) {
+    if (!forest.tracking_model) return loss("a JTFT section without the JTRK section it describes");
+    forest.tracking_model->fit = *st.tracking_fit;
+  }
   if (forest.trees.size() != st.tree_count)
     return loss("declares " + std::to_string(st.tree_count) + " trees but holds " + std::to_string(forest.trees.size()));
   POSEFOREST_RETURN_IF_ERROR(ValidateForest(forest, source));

@@ -13,6 +13,10 @@ const char* TrackingFeatureName(int feature) {
   return feature >= 0 && feature < kNumTrackingFeatures ? kNames[feature] : "?";
 }
 
+const char* TrackingFitName(TrackingFit fit) {
+  return fit == TrackingFit::kKinematic ? "kinematic" : "greedy";
+}
+
 float ClampedLogit(float confidence) {
   const float c = std::clamp(confidence, 0.01f, 0.99f);
   return std::log(c / (1.0f - c));

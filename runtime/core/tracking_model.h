@@ -46,11 +46,21 @@ const char* TrackingFeatureName(int feature);
 
 using TrackingFeatures = std::array<float, kNumTrackingFeatures>;
 
+/// Which skeleton fit's choices a model was fitted on (runtime::SkeletonFit, the same values): a
+/// model weighs the cues of the positions that fit chooses, and another fit's positions are
+/// another population. Format 1.7 stores it (section JTFT, written for kKinematic); a model
+/// without that section was fitted on kGreedy's choices (every 1.6 file).
+enum class TrackingFit : uint8_t { kGreedy = 0, kKinematic = 1 };
+
+/// "greedy" or "kinematic".
+const char* TrackingFitName(TrackingFit fit);
+
 struct TrackingModel {
   std::array<float, kNumJoints> intercept{};  ///< a_j
   std::array<float, kNumJoints> slope{};      ///< b_j, on logit(calibrated confidence)
   std::array<float, kNumTrackingFeatures> shared{};  ///< w
   uint32_t samples = 0;  ///< validation joints behind the fit (informative)
+  TrackingFit fit = TrackingFit::kGreedy;  ///< the skeleton fit whose choices it was fitted on
   bool operator==(const TrackingModel&) const = default;
 
   /// P(within 0.1 m) of joint j with calibrated confidence `confidence` and cues `f`.

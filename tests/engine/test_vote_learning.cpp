@@ -129,10 +129,18 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
   CHECK(trep.iterations > 1);
   CHECK(trep.model_within > 0);
   CHECK(core::ValidateTrackingModel(*m1, "model").ok());
+  CHECK(m1->fit == core::TrackingFit::kKinematic);  // unset: the run-time default, recorded
   to.threads = 2;
   auto m2 = engine::LearnTrackingModel(with, to);
   REQUIRE(m2.ok());
   CHECK(*m2 == *m1);
+  // Fitted on the greedy fit's choices: another population of positions, recorded as greedy.
+  to.skeleton.fit = runtime::SkeletonFit::kGreedy;
+  auto mg = engine::LearnTrackingModel(with, to);
+  REQUIRE(mg.ok());
+  CHECK(mg->fit == core::TrackingFit::kGreedy);
+  CHECK(mg->shared != m1->shared);
+  to.skeleton.fit.reset();
   // A procedural source has no joints.
   to.validation = engine::SourceSpec{};
   to.validation.kind = engine::SourceKind::kProcedural;
@@ -227,7 +235,7 @@ TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect a
   CHECK_THAT(learn.output, Catch::Contains("learn-votes: tree 1: 16 / 16 training frames") &&
                                Catch::Contains("votes: ") && Catch::Contains("calibration (4 validation frames") &&
                                Catch::Contains("learn-votes: wrote " + voted) &&
-                               Catch::Contains("tracking decision (5 validation frames"));
+                               Catch::Contains("tracking decision (kinematic fit, 5 validation frames"));
   auto before = core::LoadForest(forest);
   auto after = core::LoadForest(voted);
   REQUIRE(before.ok());
@@ -248,7 +256,9 @@ TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect a
   CHECK(inspect.exit_code == 0);
   CHECK_THAT(inspect.output, Catch::Contains("offset votes (JVOT): ") &&
                                  Catch::Contains("tracking decision (JTRK): learned on " +
-                                                 std::to_string(after->tracking_model->samples)));
+                                                 std::to_string(after->tracking_model->samples) +
+                                                 " validation joints of the kinematic fit (JTFT)"));
+  CHECK(after->tracking_model->fit == core::TrackingFit::kKinematic);
   auto inspect_plain = RunPoseforest("inspect " + forest);
   CHECK_THAT(inspect_plain.output, Catch::Contains("tracking decision: the hand-set rules (no JTRK section)"));
   // --tracking-only keeps the votes and fits the same model again: the same file.
@@ -257,7 +267,7 @@ TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect a
                             " --validation-frames 4 --tracking-frames 5");
   INFO(only.output);
   REQUIRE(only.exit_code == 0);
-  CHECK_THAT(only.output, Catch::Contains("tracking decision (5 validation frames"));
+  CHECK_THAT(only.output, Catch::Contains("tracking decision (kinematic fit, 5 validation frames"));
   CHECK_THAT(only.output, !Catch::Contains("training frames"));  // no votes learned again
   CHECK(core::ReadFileBytes(again).value() == core::ReadFileBytes(voted).value());
   auto no_votes = RunPoseforest("learn-votes --tracking-only --forest " + forest + " --job " + job + " --out " + again);
@@ -268,13 +278,31 @@ TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect a
   CHECK(no_frames.exit_code == 2);
   CHECK_THAT(no_frames.output, Catch::Contains("--tracking-only needs --tracking-frames > 0"));
   // eval's skeleton table with and without the votes (both run; the numbers are the figures'
-  // business, not this test's).
-  for (const std::string extra : {"", " --no-votes", " --no-tracking-model"}) {
+  // business, not this test's), and which fit chose the positions: by default the one the
+  // forest's decision learned, kinematic without one, or --fit's.
+  for (const auto& [extra, fit] : std::vector<std::pair<std::string, std::string>>{
+           {"", "kinematic"}, {" --no-votes", "kinematic"}, {" --no-tracking-model", "kinematic"},
+           {" --fit greedy", "greedy"}}) {
     auto eval = RunPoseforest("eval --forest " + voted + " --test-set " + job + " --images 3 --quiet" + extra);
     INFO(eval.output);
     CHECK(eval.exit_code == 0);
-    CHECK_THAT(eval.output, Catch::Contains("found within"));
+    CHECK_THAT(eval.output, Catch::Contains("found within") && Catch::Contains(", " + fit + " fit):"));
   }
+  // A decision learned on the greedy fit's choices: eval runs greedy unless told otherwise.
+  const std::string greedy = (dir / "greedy.pff").string();
+  auto learn_greedy = RunPoseforest("learn-votes --tracking-only --fit greedy --forest " + voted + " --job " + job +
+                                    " --out " + greedy + " --validation-frames 4 --tracking-frames 5");
+  INFO(learn_greedy.output);
+  REQUIRE(learn_greedy.exit_code == 0);
+  CHECK_THAT(learn_greedy.output, Catch::Contains("tracking decision (greedy fit, 5 validation frames"));
+  CHECK(core::LoadForest(greedy)->tracking_model->fit == core::TrackingFit::kGreedy);
+  auto eval_greedy = RunPoseforest("eval --forest " + greedy + " --test-set " + job + " --images 3 --quiet");
+  INFO(eval_greedy.output);
+  CHECK_THAT(eval_greedy.output, Catch::Contains(", greedy fit):"));
+  auto bad_fit = RunPoseforest("learn-votes --tracking-only --fit exact --forest " + voted + " --job " + job +
+                               " --out " + greedy);
+  CHECK(bad_fit.exit_code == 2);
+  CHECK_THAT(bad_fit.output, Catch::Contains("must be kinematic or greedy (got 'exact')"));
   // Errors: a usage error names what is missing; a procedural job has no joints.
   auto usage = RunPoseforest("learn-votes --forest " + forest + " --out " + voted);
   CHECK(usage.exit_code == 2);

@@ -595,7 +595,7 @@ TEST_CASE(
   REQUIRE(core::ValidateForest(forest, "mem").ok());
   const auto bytes = core::SerializeForest(forest);
   CHECK(bytes[10] == core::kFormatMinor);
-  CHECK(core::kFormatMinor == 6);
+  CHECK(core::kFormatMinor == 7);
   // Head (16 + 16 x 4 bytes), calibration (3 x 8), per tree (8 + (L + 1) x 4 + V x 8), padding.
   size_t payload = 16 + 16 * 4 + 3 * 4 * 17;
   for (size_t t = 0; t < forest.trees.size(); ++t)
@@ -942,6 +942,73 @@ TEST_CASE("corrupt or truncated JTRK sections give errors naming the file and th
   auto ok = core::ParseForest(once, "ok.pff");
   REQUIRE(ok.ok());
   CHECK(ok->tracking_model == model);
+}
+
+TEST_CASE("the tracking decision's skeleton fit (format 1.7, JTFT): written for kinematic, greedy without it",
+          "[format][tracking]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(43));
+  forest.tracking_model = SomeTrackingModel();
+  REQUIRE(forest.tracking_model->fit == core::TrackingFit::kGreedy);  // the default: what 1.6 files mean
+  const auto greedy = core::SerializeForest(forest);
+  forest.tracking_model->fit = core::TrackingFit::kKinematic;
+  const auto kinematic = core::SerializeForest(forest);
+  // JTFT after JTRK: u32 fit 1, u32 reserved 0; a greedy model's file has no JTFT.
+  PayloadBytes fit;
+  fit.U32(1);
+  fit.U32(0);
+  CHECK(WithSection(greedy, "JTFT", 0, fit.out) == kinematic);
+  CHECK(kinematic.size() == greedy.size() + 16 + 8);
+  auto parsed = core::ParseForest(kinematic, "kin.pff");
+  REQUIRE(parsed.ok());
+  REQUIRE(parsed->tracking_model.has_value());
+  CHECK(parsed->tracking_model->fit == core::TrackingFit::kKinematic);
+  CHECK(*parsed->tracking_model == *forest.tracking_model);
+  CHECK(core::SerializeForest(*parsed) == kinematic);
+  auto old = core::ParseForest(greedy, "old.pff");
+  REQUIRE(old.ok());
+  CHECK(old->tracking_model->fit == core::TrackingFit::kGreedy);
+  CHECK(std::string(core::TrackingFitName(core::TrackingFit::kKinematic)) == "kinematic");
+  CHECK(std::string(core::TrackingFitName(core::TrackingFit::kGreedy)) == "greedy");
+}
+
+TEST_CASE("corrupt JTFT sections, or one without JTRK, give errors naming the file and the section",
+          "[format][tracking][hostile]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(44));
+  const auto plain = core::SerializeForest(forest);
+  forest.tracking_model = SomeTrackingModel();
+  const auto with_model = core::SerializeForest(forest);
+  auto payload = [](uint32_t fit, uint32_t reserved) {
+    PayloadBytes b;
+    b.U32(fit);
+    b.U32(reserved);
+    return b.out;
+  };
+  auto expect = [](const std::vector<uint8_t>& bytes, const std::string& text) {
+    auto r = core::ParseForest(bytes, "bad.pff");
+    REQUIRE_FALSE(r.ok());
+    INFO(r.status().ToString());
+    CHECK(r.status().code() == ErrorCode::kDataLoss);
+    CHECK_THAT(r.status().message(), Catch::StartsWith("bad.pff: ") && Catch::Contains("JTFT") &&
+                                         Catch::Contains(text));
+  };
+  const auto good = payload(1, 0);
+  for (size_t n : {0, 4, 7})
+    expect(WithSection(with_model, "JTFT", 0, {good.begin(), good.begin() + std::ptrdiff_t(n)}),
+           "JTFT holds " + std::to_string(n) + " bytes, expected 8");
+  auto longer = good;
+  longer.resize(12);
+  expect(WithSection(with_model, "JTFT", 0, longer), "JTFT holds 12 bytes, expected 8");
+  expect(WithSection(with_model, "JTFT", 0, payload(2, 0)), "skeleton fit 2, expected 0 (greedy) or 1 (kinematic)");
+  expect(WithSection(with_model, "JTFT", 0, payload(0xFFFFFFFFu, 0)), "skeleton fit 4294967295");
+  expect(WithSection(with_model, "JTFT", 0, payload(1, 7)), "reserved word is 7");
+  const auto once = WithSection(with_model, "JTFT", 0, good);
+  expect(WithSection(once, "JTFT", 0, good), "second JTFT section");
+  // A fit for a tracking decision the file does not hold.
+  expect(WithSection(plain, "JTFT", 0, good), "a JTFT section without the JTRK section it describes");
+  // Explicitly greedy (0) loads as greedy.
+  auto zero = core::ParseForest(WithSection(with_model, "JTFT", 0, payload(0, 0)), "zero.pff");
+  REQUIRE(zero.ok());
+  CHECK(zero->tracking_model->fit == core::TrackingFit::kGreedy);
 }
 
 TEST_CASE("the tracking model's probability: sigmoid of intercept, slope on the confidence's logit, and cues",

@@ -598,12 +598,65 @@ TEST_CASE("the kinematic fit prefers a reachable wrist to a confident one on the
   const auto fit = runtime::FitSkeleton(c, opt);
   CHECK(fit[size_t(int(J::kLWrist))] == 1);
   CHECK(fit[size_t(int(J::kLElbow))] == 0);
-  // The greedy choice would be candidate 0; with it the forearm would be 1.1 m long: impossible.
+  // The greedy choice would be candidate 0; with it the forearm would be 1.1 m long: implausible,
+  // costing implausible_bone_log (log 0.05), or impossible when that is -1e30.
   std::array<int, core::kNumJoints> greedy = fit;
   greedy[size_t(int(J::kLWrist))] = 0;
-  CHECK(runtime::FitScore(c, greedy, opt) < -1e29);
+  REQUIRE(opt.implausible_bone_log == Approx(-3.0f));
+  CHECK(runtime::FitScore(c, greedy, opt) < runtime::FitScore(c, fit, opt) - 1.0);
+  runtime::SkeletonOptions hard = opt;
+  hard.implausible_bone_log = -1e30f;
+  CHECK(runtime::FitScore(c, greedy, hard) < -1e29);
+  CHECK(runtime::FitSkeleton(c, hard) == fit);
   // No candidate: missing.
   CHECK(fit[size_t(int(J::kRElbow))] == -1);
+}
+
+TEST_CASE("the kinematic fit: a wrong elbow does not drag a well-found wrist and hand with it", "[skeleton][fit]") {
+  using J = core::Joint;
+  runtime::SkeletonOptions opt;
+  runtime::FitCandidates c;
+  auto add = [&](J j, Eigen::Vector3f p, float conf) { c[size_t(int(j))].push_back({p, conf}); };
+  add(J::kNeck, {0, 0, 1.5f}, 0.9f);
+  add(J::kLShoulder, {0.19f, 0.05f, 1.5f}, 0.9f);
+  add(J::kLElbow, {0.2f, 0.62f, 1.5f}, 0.5f);    // the only elbow: 0.57 m below the shoulder, too far
+  add(J::kLWrist, {0.4f, 0.1f, 1.3f}, 0.85f);    // where the forest is sure the wrist is
+  add(J::kLWrist, {0.2f, 0.85f, 1.5f}, 0.02f);   // a stray proposal a forearm from that elbow
+  add(J::kLHand, {0.43f, 0.06f, 1.27f}, 0.8f);   // beside the sure wrist
+  add(J::kLHand, {0.2f, 0.92f, 1.5f}, 0.02f);    // beside the stray one
+  const auto fit = runtime::FitSkeleton(c, opt);
+  // The upper arm is implausible either way; the wrist and hand keep what the forest is sure of.
+  CHECK(fit[size_t(int(J::kLElbow))] == 0);
+  CHECK(fit[size_t(int(J::kLWrist))] == 0);
+  CHECK(fit[size_t(int(J::kLHand))] == 0);
+  // With implausible bones impossible, the wrong elbow decides: the whole arm follows it.
+  runtime::SkeletonOptions hard = opt;
+  hard.implausible_bone_log = -1e30f;
+  const auto chained = runtime::FitSkeleton(c, hard);
+  CHECK(chained[size_t(int(J::kLElbow))] == -1);  // no possible upper arm: missing, and with it the
+  CHECK(chained[size_t(int(J::kLWrist))] == -1);  // wrist and hand (a joint below the shoulder
+  CHECK(chained[size_t(int(J::kLHand))] == -1);   // hangs from a present parent)
+}
+
+TEST_CASE("the skeleton's fit: set, else the one the forest's tracking decision learned, else kinematic",
+          "[skeleton][fit]") {
+  runtime::SkeletonOptions opt;
+  CHECK_FALSE(opt.fit.has_value());
+  core::TrackingModel greedy, kinematic;
+  kinematic.fit = core::TrackingFit::kKinematic;
+  CHECK(runtime::ResolveSkeletonFit(opt, nullptr) == runtime::SkeletonFit::kKinematic);
+  CHECK(runtime::ResolveSkeletonFit(opt, &greedy) == runtime::SkeletonFit::kGreedy);  // a 1.6 forest
+  CHECK(runtime::ResolveSkeletonFit(opt, &kinematic) == runtime::SkeletonFit::kKinematic);
+  opt.use_tracking_model = false;  // --no-tracking-model: the model does not choose
+  CHECK(runtime::ResolveSkeletonFit(opt, &greedy) == runtime::SkeletonFit::kKinematic);
+  opt.use_tracking_model = true;
+  opt.fit = runtime::SkeletonFit::kGreedy;
+  CHECK(runtime::ResolveSkeletonFit(opt, &kinematic) == runtime::SkeletonFit::kGreedy);
+  opt.fit = runtime::SkeletonFit::kKinematic;
+  CHECK(runtime::ResolveSkeletonFit(opt, &greedy) == runtime::SkeletonFit::kKinematic);
+  CHECK(runtime::SkeletonFitName(runtime::SkeletonFit::kKinematic) == "kinematic");
+  CHECK(runtime::SkeletonFitFromName(runtime::SkeletonFitName(runtime::SkeletonFit::kGreedy)) ==
+        runtime::SkeletonFit::kGreedy);
 }
 
 TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hidden one is found not tracked",
@@ -664,9 +717,9 @@ TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hid
       far[0][kLKnee] = {vote(150, 380, 2.7f, 0.8f)};
       const auto f = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &far);
       CHECK_FALSE(f[0].joints[kLKnee].found);
-      // A vote more confident than the proposal takes the joint.
+      // A vote more confident than the proposal takes the joint (0.14 m away: they do not agree).
       auto sure = votes;
-      sure[0][kHead] = {vote(175, 125, 2.06f, 0.95f)};
+      sure[0][kHead] = {vote(210, 125, 2.06f, 0.95f)};
       const auto h = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &sure);
       CHECK(h[0].joints[kHead].voted);
       CHECK(h[0].joints[kHead].tracked);
@@ -691,7 +744,11 @@ TEST_CASE("skeletons with offset votes: a proposal and a vote that agree combine
   std::vector<runtime::PersonVotes> near(1), far(1);
   near[0][kLHand] = {vote(134, 252, 2.05f, 0.4f)};  // 1.5 cm from the proposal
   far[0][kLHand] = {vote(200, 250, 2.05f, 0.4f)};   // 0.24 m from it
+  for (const auto fit : {runtime::SkeletonFit::kGreedy, runtime::SkeletonFit::kKinematic}) {
+  DYNAMIC_SECTION("fit " << runtime::SkeletonFitName(fit)) {
+  near[0][kLHand] = {vote(134, 252, 2.05f, 0.4f)};
   runtime::SkeletonOptions opt;
+  opt.fit = fit;
   opt.min_confidence = 1.0f - (1.0f - cp) * (1.0f - 0.4f) - 0.01f;  // reached only together
   opt.require_tracked_parent = false;
   opt.check_bone_lengths = false;
@@ -718,9 +775,13 @@ TEST_CASE("skeletons with offset votes: a proposal and a vote that agree combine
   const float cv = cp + 0.05f;
   near[0][kLHand] = {vote(134, 252, 2.05f, cv)};
   const auto v = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &near);
-  CHECK(v[0].joints[kLHand].voted);
+  // Greedy takes the more confident one's position; in the kinematic fit both candidates carry
+  // the combined confidence, and of equals the earlier (the proposal) wins.
+  CHECK(v[0].joints[kLHand].voted == (fit == runtime::SkeletonFit::kGreedy));
   CHECK(v[0].joints[kLHand].tracked);
   CHECK(v[0].joints[kLHand].confidence == Approx(1.0f - (1.0f - cp) * (1.0f - cv)).margin(1e-4));
+  }
+  }
 }
 
 TEST_CASE("CastVotes: every pixel votes its leaf's offset; mean shift finds the mode; confidence from the table",
