@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "apps/commands/commands.h"
+#include "runtime/skeleton.h"
 
 namespace poseforest::apps::commands {
 
@@ -156,6 +157,14 @@ CLI::Validator NumberIn(double lo, double hi, const std::string& what) {
           return "must be " + what + " in " + range + " (got '" + v + "')";
         }
         return "";
+      },
+      "");
+}
+
+CLI::Validator SkeletonFitValidator() {
+  return CLI::Validator(
+      [](std::string& v) -> std::string {
+        return runtime::SkeletonFitFromName(v) ? "" : "must be kinematic or greedy (got '" + v + "')";
       },
       "");
 }

@@ -57,5 +57,7 @@ CLI::Validator NonNegativeInt();
 CLI::Validator NumberIn(double lo, double hi, const std::string& what = "a number");
 /// One of `names`.
 CLI::Validator OneOf(std::vector<std::string> names);
+/// A skeleton fit's name (runtime::SkeletonFitFromName): "kinematic" or "greedy" (`--fit`).
+CLI::Validator SkeletonFitValidator();
 
 }  // namespace poseforest::apps::commands

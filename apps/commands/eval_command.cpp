@@ -124,11 +124,7 @@ EvalCommand::EvalCommand()
                   "bone lengths; runtime/skeleton.h) (default: the fit the forest's tracking decision\n"
                   "was learned on, kinematic without one)")
       ->type_name("F")
-      ->check(CLI::Validator(
-          [](std::string& v) -> std::string {
-            return runtime::SkeletonFitFromName(v) ? "" : "must be kinematic or greedy (got '" + v + "')";
-          },
-          ""));
+      ->check(SkeletonFitValidator());
   app_.add_flag("--no-votes", no_votes_, "the skeleton ignores the forest's offset votes (format 1.5, `learn-votes`)");
   app_.add_flag("--no-tracking-model", no_tracking_model_,
                 "the skeleton's hand-set tracking rules instead of the forest's learned tracking\n"

@@ -117,11 +117,7 @@ class LearnVotesCommand final : public Command {
                     "the skeleton fit whose choices the tracking decision learns from, and which `live`\n"
                     "and `eval` then run by default: kinematic or greedy (runtime/skeleton.h)")
         ->type_name("F")
-        ->check(CLI::Validator(
-            [](std::string& v) -> std::string {
-              return runtime::SkeletonFitFromName(v) ? "" : "must be kinematic or greedy (got '" + v + "')";
-            },
-            ""));
+        ->check(SkeletonFitValidator());
     app_.add_option("--seed", seed_,
                     "render seed of the validation frames (default: the source's seed + 1000003, as\n"
                     "tune-joints)")

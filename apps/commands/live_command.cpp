@@ -129,11 +129,7 @@ void DeclareLiveOptions(CLI::App& app, LiveFlags* f) {
                  "person choosing among each joint's proposals with bone lengths (runtime/skeleton.h)\n"
                  "(default: the fit the forest's tracking decision was learned on, kinematic without one)")
       ->type_name("F")
-      ->check(CLI::Validator(
-          [](std::string& v) -> std::string {
-            return runtime::SkeletonFitFromName(v) ? "" : "must be kinematic or greedy (got '" + v + "')";
-          },
-          ""))
+      ->check(SkeletonFitValidator())
       ->group(sk);
   app.add_flag("--no-votes", f->no_votes,
                "ignore the forest's offset votes (format 1.5, `learn-votes`); by default a forest with\n"
