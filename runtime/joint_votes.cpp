@@ -7,6 +7,7 @@
 #include <omp.h>
 
 #include "runtime/core/feature.h"
+#include "runtime/mean_shift.h"
 
 namespace poseforest::runtime {
 
@@ -29,49 +30,52 @@ namespace {
 struct Vote {
   Eigen::Vector3f p;
   float w;
+  uint32_t order;  ///< cast order within the joint: ties in weight keep it
 };
 
-// Weighted mean shift (Gaussian kernel) over `votes` from the heaviest `seeds`; modes merged
-// within half a bandwidth; each mode's score is its kernel-weighted sum of vote weights.
-std::vector<std::pair<Eigen::Vector3f, float>> Modes(const std::vector<Vote>& votes, float bandwidth, int seeds,
-                                                     int iterations) {
+// Heavier first, ties in cast order: a strict total order, so sorting by it is stable_sort by
+// weight.
+bool Heavier(const Vote& a, const Vote& b) { return a.w > b.w || (a.w == b.w && a.order < b.order); }
+
+// Weighted mean shift (Gaussian kernel, cut at 3 bandwidths) over the votes, whose positions and
+// weights are (x, y, z, w), from the first `seeds` (the heaviest); modes merged within half a
+// bandwidth; each mode's score is its kernel-weighted sum of vote weights. The kernel sums are
+// the proposals' vector kernel (mean_shift.h).
+std::vector<std::pair<Eigen::Vector3f, float>> Modes(const std::vector<float>& x, const std::vector<float>& y,
+                                                     const std::vector<float>& z, const std::vector<float>& w,
+                                                     float bandwidth, int seeds, int iterations) {
   std::vector<std::pair<Eigen::Vector3f, float>> modes;
-  if (votes.empty() || !(bandwidth > 0)) return modes;
+  if (w.empty() || !(bandwidth > 0)) return modes;
   const float inv = 1.0f / (bandwidth * bandwidth);
-  // Beyond 3 bandwidths the kernel is below 1e-4: those votes are skipped (no exp).
+  // Beyond 3 bandwidths the kernel is below 1e-4: those votes are skipped.
   const float cut2 = 9.0f * bandwidth * bandwidth;
-  auto density = [&](const Eigen::Vector3f& x, Eigen::Vector3f* mean) {
-    Eigen::Vector3f s(0, 0, 0);
-    float sw = 0;
-    for (const Vote& v : votes) {
-      const float d2 = (v.p - x).squaredNorm();
-      if (d2 > cut2) continue;
-      const float k = v.w * std::exp(-d2 * inv);
-      s += k * v.p;
-      sw += k;
-    }
-    if (mean && sw > 0) *mean = s / sw;
-    return sw;
+  const uint32_t all[1][2] = {{0u, uint32_t(w.size())}};
+  auto density = [&](const Eigen::Vector3f& q, Eigen::Vector3f* mean) {
+    float s[4];
+    const float at[3] = {q.x(), q.y(), q.z()};
+    detail::KernelSums(x.data(), y.data(), z.data(), w.data(), all, 1, at, cut2, inv, &s[0], &s[1], &s[2], &s[3]);
+    if (mean && s[3] > 0) *mean = Eigen::Vector3f(s[0], s[1], s[2]) / s[3];
+    return s[3];
   };
-  const int n = std::min<int>(seeds, int(votes.size()));  // votes come heaviest first
+  const int n = std::min<int>(seeds, int(w.size()));
   for (int i = 0; i < n; ++i) {
-    Eigen::Vector3f x = votes[size_t(i)].p;
+    Eigen::Vector3f at(x[size_t(i)], y[size_t(i)], z[size_t(i)]);
     for (int it = 0; it < iterations; ++it) {
-      Eigen::Vector3f next = x;
-      if (!(density(x, &next) > 0)) break;
-      const float step = (next - x).norm();
-      x = next;
+      Eigen::Vector3f next = at;
+      if (!(density(at, &next) > 0)) break;
+      const float step = (next - at).norm();
+      at = next;
       if (step < 1e-3f) break;
     }
-    const float score = density(x, nullptr);
+    const float score = density(at, nullptr);
     bool merged = false;
     for (auto& [m, s] : modes)
-      if ((m - x).norm() < 0.5f * bandwidth) {
-        if (score > s) m = x, s = score;
+      if ((m - at).norm() < 0.5f * bandwidth) {
+        if (score > s) m = at, s = score;
         merged = true;
         break;
       }
-    if (!merged) modes.emplace_back(x, score);
+    if (!merged) modes.emplace_back(at, score);
   }
   std::stable_sort(modes.begin(), modes.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
   return modes;
@@ -88,23 +92,45 @@ PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& tabl
                        const core::CameraIntrinsics& camera, const VoteOptions& options) {
   PersonVotes out;
   if (table.trees.size() != forest.trees.size()) return out;
-  std::array<std::vector<Vote>, core::kNumJoints> votes;
+  // Reused across calls on this thread. The joints' loop below runs on other threads too, which
+  // must read this thread's votes: through this reference, not the thread_local's name.
+  thread_local std::array<std::vector<Vote>, core::kNumJoints> this_threads_votes;
+  thread_local std::vector<std::array<uint32_t, 2>> runs;
+  std::array<std::vector<Vote>, core::kNumJoints>& votes = this_threads_votes;
+  for (auto& v : votes) v.clear();
   const size_t num_trees = forest.trees.size();
+  // Each (pixel, tree)'s run of votes in the table first: the table is large (megabytes), so
+  // these reads miss the cache, and apart they overlap.
+  runs.assign(pixels.size() * num_trees, {0u, 0u});
   for (size_t i = 0; i < pixels.size(); ++i) {
     const uint32_t idx = pixels[i];
+    if (depth.pixels[idx] == 0) continue;
     const int x = int(idx % uint32_t(depth.width)), y = int(idx / uint32_t(depth.width));
+    for (size_t t = 0; t < num_trees; ++t) {
+      const uint32_t leaf = leaves ? (*leaves)[i * num_trees + t] : LeafOf(forest.trees[t], forest.constants, depth, x, y);
+      const std::vector<uint32_t>& first = table.trees[t].first;
+      runs[i * num_trees + t] = {first[leaf], first[leaf + 1]};
+    }
+  }
+  // Then the votes, each run's fetched a few runs ahead.
+  constexpr size_t kAhead = 8;
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    const uint32_t idx = pixels[i];
     const uint16_t d = depth.pixels[idx];
     if (d == 0) continue;
+    const int x = int(idx % uint32_t(depth.width)), y = int(idx / uint32_t(depth.width));
     const Eigen::Vector3f point = camera.Unproject(x, y, d * 1e-3).cast<float>();
     const float area = float(d) * float(d) * 1e-6f;  // the pixel's surface, up to fx fy
-    for (size_t t = 0; t < forest.trees.size(); ++t) {
-      const uint32_t leaf = leaves ? (*leaves)[i * num_trees + t] : LeafOf(forest.trees[t], forest.constants, depth, x, y);
+    for (size_t t = 0; t < num_trees; ++t) {
+      const size_t r = i * num_trees + t;
+      if (r + kAhead < runs.size())
+        __builtin_prefetch(table.trees[(r + kAhead) % num_trees].votes.data() + runs[r + kAhead][0]);
       const core::TreeVotes& tv = table.trees[t];
-      for (uint32_t k = tv.first[leaf]; k < tv.first[leaf + 1]; ++k) {
+      for (uint32_t k = runs[r][0]; k < runs[r][1]; ++k) {
         const core::JointVote& v = tv.votes[k];
-        votes[v.joint].push_back(
-            {point + Eigen::Vector3f(float(v.dx_mm), float(v.dy_mm), float(v.dz_mm)) * 1e-3f,
-             float(v.weight) * (1.0f / 255.0f) * area});
+        std::vector<Vote>& vj = votes[v.joint];
+        vj.push_back({point + Eigen::Vector3f(float(v.dx_mm), float(v.dy_mm), float(v.dz_mm)) * 1e-3f,
+                      float(v.weight) * (1.0f / 255.0f) * area, uint32_t(vj.size())});
       }
     }
   }
@@ -115,11 +141,28 @@ PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& tabl
     if (vj.empty()) continue;
     float total = 0;
     for (const Vote& v : vj) total += v.w;
-    // Heaviest first (ties: cast order), the lightest dropped past the cap.
-    std::stable_sort(vj.begin(), vj.end(), [](const Vote& a, const Vote& b) { return a.w > b.w; });
-    if (int(vj.size()) > options.max_votes_per_joint) vj.resize(size_t(std::max(1, options.max_votes_per_joint)));
+    // Heaviest first (ties: cast order), the lightest dropped past the cap: only the kept ones
+    // are sorted.
+    const size_t keep = std::min(vj.size(), size_t(std::max(1, options.max_votes_per_joint)));
+    if (keep < vj.size()) {
+      std::nth_element(vj.begin(), vj.begin() + std::ptrdiff_t(keep), vj.end(), Heavier);
+      vj.resize(keep);
+    }
+    std::sort(vj.begin(), vj.end(), Heavier);
+    // As structure of arrays for the vector kernel (thread_local: reused across joints and frames).
+    thread_local std::vector<float> x, y, z, w;
+    x.resize(keep);
+    y.resize(keep);
+    z.resize(keep);
+    w.resize(keep);
+    for (size_t k = 0; k < keep; ++k) {
+      x[k] = vj[k].p.x();
+      y[k] = vj[k].p.y();
+      z[k] = vj[k].p.z();
+      w[k] = vj[k].w;
+    }
     const float bandwidth = table.bandwidth_m[size_t(j)] * options.bandwidth_scale;
-    for (const auto& [m, score] : Modes(vj, bandwidth, options.seeds, options.iterations)) {
+    for (const auto& [m, score] : Modes(x, y, z, w, bandwidth, options.seeds, options.iterations)) {
       if (int(out[size_t(j)].size()) >= options.max_candidates) break;
       VoteCandidate c;
       c.position = m;

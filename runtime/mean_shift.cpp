@@ -31,10 +31,9 @@ inline float ExpNonPositive(float a) {
   return p * std::bit_cast<float>(uint32_t(n + 127) << 23);
 }
 
-/// Sum over the points k in the runs ranges[r][0] <= k < ranges[r][1] of the Gaussian kernel
-/// weight kw = w[k] * exp(-|p_k - q|^2 / b^2), cut at |p_k - q|^2 <= cutoff2: adds sum kw * p_k
-/// to (sx, sy, sz) and sum kw to sw. Vector kernels for AVX-512, AVX2 and 64-bit ARM (NEON),
-/// scalar otherwise; they differ only in the order of the float sums (NEON's is AVX-512's).
+// KernelSums (declared in mean_shift.h; the joint votes use it too): vector kernels for AVX-512,
+// AVX2 and 64-bit ARM (NEON), scalar otherwise; they differ only in the order of the float sums
+// (NEON's is AVX-512's).
 #if defined(__AVX512F__)
 // GCC 12's AVX-512 intrinsics start from _mm512_undefined_*(), which its -Wmaybe-uninitialized
 // wrongly reports when inlined (GCC bug 105593, fixed in 12.3/13), as in classifier.cpp.
@@ -55,7 +54,7 @@ inline __m512 ExpNonPositive(__m512 a) {
   return _mm512_mul_ps(p, _mm512_castsi512_ps(_mm512_slli_epi32(_mm512_add_epi32(n, _mm512_set1_epi32(127)), 23)));
 }
 
-void KernelSums(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
+void KernelSumsImpl(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
                 int num_ranges, const float q[3], float cutoff2, float inv_b2, float* sx, float* sy, float* sz,
                 float* sw) {
   const __m512 qx = _mm512_set1_ps(q[0]), qy = _mm512_set1_ps(q[1]), qz = _mm512_set1_ps(q[2]);
@@ -106,7 +105,7 @@ inline float HorizontalSum(__m256 v) {
   return _mm_cvtss_f32(s);
 }
 
-void KernelSums(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
+void KernelSumsImpl(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
                 int num_ranges, const float q[3], float cutoff2, float inv_b2, float* sx, float* sy, float* sz,
                 float* sw) {
   const __m256 qx = _mm256_set1_ps(q[0]), qy = _mm256_set1_ps(q[1]), qz = _mm256_set1_ps(q[2]);
@@ -162,7 +161,7 @@ inline float ReduceAdd16(const float32x4_t a[4]) {
   return (vgetq_lane_f32(q, 0) + vgetq_lane_f32(q, 2)) + (vgetq_lane_f32(q, 1) + vgetq_lane_f32(q, 3));
 }
 
-void KernelSums(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
+void KernelSumsImpl(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
                 int num_ranges, const float q[3], float cutoff2, float inv_b2, float* sx, float* sy, float* sz,
                 float* sw) {
   const float32x4_t qx = vdupq_n_f32(q[0]), qy = vdupq_n_f32(q[1]), qz = vdupq_n_f32(q[2]);
@@ -209,7 +208,7 @@ void KernelSums(const float* px, const float* py, const float* pz, const float* 
   *sw = ReduceAdd16(aw);
 }
 #else
-void KernelSums(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
+void KernelSumsImpl(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
                 int num_ranges, const float q[3], float cutoff2, float inv_b2, float* sx, float* sy, float* sz,
                 float* sw) {
   float ax = 0, ay = 0, az = 0, aw = 0;
@@ -230,6 +229,16 @@ void KernelSums(const float* px, const float* py, const float* pz, const float* 
   *sw = aw;
 }
 #endif
+
+}  // namespace
+
+void KernelSums(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
+                int num_ranges, const float q[3], float cutoff2, float inv_b2, float* sx, float* sy, float* sz,
+                float* sw) {
+  KernelSumsImpl(px, py, pz, pw, ranges, num_ranges, q, cutoff2, inv_b2, sx, sy, sz, sw);
+}
+
+namespace {
 
 /// The cells of at least the kernel's cut-off radius that the points are bucketed by, over
 /// their bounding box plus one empty cell each side (so that a query's 3x3x3 block never leaves
@@ -391,7 +400,7 @@ void Climb(const CutoffGrid& g, float bandwidth, int max_iterations, float merge
           num_ranges += ranges[num_ranges][1] > ranges[num_ranges][0];
         }
       float sum_x = 0, sum_y = 0, sum_z = 0, den = 0;
-      KernelSums(px, py, pz, pw, ranges, num_ranges, q, cutoff2, inv_b2, &sum_x, &sum_y, &sum_z, &den);
+      KernelSumsImpl(px, py, pz, pw, ranges, num_ranges, q, cutoff2, inv_b2, &sum_x, &sum_y, &sum_z, &den);
       if (!(den > 0)) break;
       const Eigen::Vector3f next(sum_x / den, sum_y / den, sum_z / den);
       const float step2 = (next - x).squaredNorm();

@@ -130,6 +130,15 @@ struct MeanShiftScratch {
   CellIds ids;
 };
 
+/// Sum over the points k in the runs ranges[r][0] <= k < ranges[r][1] of the Gaussian kernel
+/// weight kw = w[k] * exp(-|p_k - q|^2 / b^2) (inv_b2 = 1 / b^2), cut at |p_k - q|^2 <= cutoff2:
+/// sets (sx, sy, sz) to sum kw * p_k and sw to sum kw. Vector kernels for AVX-512, AVX2 and
+/// 64-bit ARM (NEON), scalar otherwise; they differ only in the order of the float sums. exp is
+/// a degree-6 polynomial (relative error ~2e-7).
+void KernelSums(const float* px, const float* py, const float* pz, const float* pw, const uint32_t (*ranges)[2],
+                int num_ranges, const float q[3], float cutoff2, float inv_b2, float* sx, float* sy, float* sz,
+                float* sw);
+
 /// This thread's working memory (reused across joints and frames).
 MeanShiftScratch& ThreadScratch();
 

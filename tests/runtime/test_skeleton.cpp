@@ -830,3 +830,113 @@ TEST_CASE("CastVotes: every pixel votes its leaf's offset; mean shift finds the 
   // The leaf walk: a root leaf is leaf 0 for any pixel.
   CHECK(runtime::LeafOf(forest.trees[0], forest.constants, scene.depth, 305, 205) == 0);
 }
+
+TEST_CASE("CastVotes: the kept votes and the modes equal a plain reference (stable sort, std::exp)",
+          "[skeleton][votes]") {
+  // Three single-leaf trees, each one vote per joint, the same for every joint: trees 0 and 1 a
+  // few cm apart, tree 2 0.3 m away, so two modes. Depths vary over the patch, so the votes'
+  // weights (leaf weight x d^2) vary and many tie; more votes than the cap, so which are kept
+  // matters. Every joint is checked: the joints' loop runs on several threads (OpenMP).
+  core::Forest forest;
+  forest.num_parts = core::kNumParts;
+  forest.part_names = core::Forest::DefaultPartNames();
+  core::OffsetVotes table;
+  table.bandwidth_m.fill(0.06f);
+  table.share_edges = {0.0f, 0.5f};
+  for (int j = 0; j < core::kNumJoints; ++j) table.precision.insert(table.precision.end(), {0.2f, 0.7f});
+  const int16_t dx[3] = {0, 30, 300}, dz[3] = {100, 80, 0};
+  const uint8_t weight[3] = {200, 255, 90};
+  for (int t = 0; t < 3; ++t) {
+    core::Tree tree;
+    tree.nodes.push_back(core::Node::Leaf(0));
+    tree.num_leaves = 1;
+    tree.leaves.assign(size_t(forest.leaf_stride()), 0);
+    tree.leaves[0] = 255;
+    forest.trees.push_back(tree);
+    core::TreeVotes tv;
+    tv.first = {0, uint32_t(core::kNumJoints)};
+    for (int j = 0; j < core::kNumJoints; ++j) tv.votes.push_back({dx[t], -50, dz[t], uint8_t(j), weight[t]});
+    table.trees.push_back(tv);
+  }
+  forest.offset_votes = table;
+  REQUIRE(core::ValidateForest(forest, "votes").ok());
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 300, 200, 319, 219, 2000);  // 20 x 20 pixels: all vote (below target_pixels)
+  for (int y = 200; y <= 219; ++y)
+    for (int x = 300; x <= 319; ++x) scene.depth.at(x, y) = uint16_t(2000 + (x * 7 + y * 3) % 40);
+  runtime::VoteOptions options;
+  options.max_votes_per_joint = 500;  // of 1,200
+  const auto got = runtime::CastVotes(forest, scene.depth, scene.masks, 1, cam, options);
+  REQUIRE(got.size() == 1);
+
+  // The reference: votes in cast order (pixels row by row, trees in order), the heaviest kept
+  // by a stable sort, mean shift with std::exp over them.
+  struct V {
+    Eigen::Vector3f p;
+    float w;
+  };
+  std::vector<V> all;
+  for (int y = 200; y <= 219; ++y)
+    for (int x = 300; x <= 319; ++x) {
+      const uint16_t d = scene.depth.at(x, y);
+      const Eigen::Vector3f point = cam.Unproject(x, y, d * 1e-3).cast<float>();
+      for (int t = 0; t < 3; ++t)
+        all.push_back({point + Eigen::Vector3f(dx[t], -50, dz[t]) * 1e-3f,
+                       float(weight[t]) / 255.0f * float(d) * float(d) * 1e-6f});
+    }
+  float total = 0;
+  for (const V& v : all) total += v.w;
+  std::stable_sort(all.begin(), all.end(), [](const V& a, const V& b) { return a.w > b.w; });
+  all.resize(size_t(options.max_votes_per_joint));
+  const float b = 0.06f;
+  auto density = [&](const Eigen::Vector3f& q, Eigen::Vector3f* mean) {
+    Eigen::Vector3f s(0, 0, 0);
+    float sw = 0;
+    for (const V& v : all) {
+      const float d2 = (v.p - q).squaredNorm();
+      if (d2 > 9 * b * b) continue;
+      const float k = v.w * std::exp(-d2 / (b * b));
+      s += k * v.p;
+      sw += k;
+    }
+    if (mean && sw > 0) *mean = s / sw;
+    return sw;
+  };
+  std::vector<std::pair<Eigen::Vector3f, float>> modes;
+  for (int i = 0; i < options.seeds; ++i) {
+    Eigen::Vector3f q = all[size_t(i)].p;
+    for (int it = 0; it < options.iterations; ++it) {
+      Eigen::Vector3f next = q;
+      if (!(density(q, &next) > 0)) break;
+      const float step = (next - q).norm();
+      q = next;
+      if (step < 1e-3f) break;
+    }
+    const float score = density(q, nullptr);
+    bool merged = false;
+    for (auto& [m, sc] : modes)
+      if ((m - q).norm() < 0.5f * b) {
+        if (score > sc) m = q, sc = score;
+        merged = true;
+        break;
+      }
+    if (!merged) modes.emplace_back(q, score);
+  }
+  std::stable_sort(modes.begin(), modes.end(), [](const auto& x, const auto& y) { return x.second > y.second; });
+  // The seeds are the heaviest votes: tree 1's (weight 255) at the deepest pixels, one mode.
+  REQUIRE(modes.size() == 1);
+  for (int j = 0; j < core::kNumJoints; ++j) {
+    INFO("joint " << j);
+    const auto& cands = got[0][size_t(j)];
+    REQUIRE(cands.size() == modes.size());
+    CHECK((cands[0].position - modes[0].first).norm() < 1e-4f);
+    CHECK(cands[0].share == Approx(modes[0].second / total).epsilon(1e-4));
+  }
+  // Seeds from every vote (tree 2's are the lightest): the far mode too, after the near one.
+  options.max_votes_per_joint = 1200;
+  options.seeds = 1200;
+  const auto both = runtime::CastVotes(forest, scene.depth, scene.masks, 1, cam, options);
+  REQUIRE(both[0][kLHand].size() == 2);
+  CHECK((both[0][kLHand][0].position - both[0][kLHand][1].position).norm() > 0.25f);
+}
