@@ -92,86 +92,104 @@ PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& tabl
                        const core::CameraIntrinsics& camera, const VoteOptions& options) {
   PersonVotes out;
   if (table.trees.size() != forest.trees.size()) return out;
-  // Reused across calls on this thread. The joints' loop below runs on other threads too, which
-  // must read this thread's votes: through this reference, not the thread_local's name.
-  thread_local std::array<std::vector<Vote>, core::kNumJoints> this_threads_votes;
-  thread_local std::vector<std::array<uint32_t, 2>> runs;
-  std::array<std::vector<Vote>, core::kNumJoints>& votes = this_threads_votes;
-  for (auto& v : votes) v.clear();
   const size_t num_trees = forest.trees.size();
-  // Each (pixel, tree)'s run of votes in the table first: the table is large (megabytes), so
-  // these reads miss the cache, and apart they overlap.
-  runs.assign(pixels.size() * num_trees, {0u, 0u});
-  for (size_t i = 0; i < pixels.size(); ++i) {
-    const uint32_t idx = pixels[i];
-    if (depth.pixels[idx] == 0) continue;
-    const int x = int(idx % uint32_t(depth.width)), y = int(idx / uint32_t(depth.width));
-    for (size_t t = 0; t < num_trees; ++t) {
-      const uint32_t leaf = leaves ? (*leaves)[i * num_trees + t] : LeafOf(forest.trees[t], forest.constants, depth, x, y);
-      const std::vector<uint32_t>& first = table.trees[t].first;
-      runs[i * num_trees + t] = {first[leaf], first[leaf + 1]};
-    }
-  }
-  // Then the votes, each run's fetched a few runs ahead.
-  constexpr size_t kAhead = 8;
-  for (size_t i = 0; i < pixels.size(); ++i) {
-    const uint32_t idx = pixels[i];
-    const uint16_t d = depth.pixels[idx];
-    if (d == 0) continue;
-    const int x = int(idx % uint32_t(depth.width)), y = int(idx / uint32_t(depth.width));
-    const Eigen::Vector3f point = camera.Unproject(x, y, d * 1e-3).cast<float>();
-    const float area = float(d) * float(d) * 1e-6f;  // the pixel's surface, up to fx fy
-    for (size_t t = 0; t < num_trees; ++t) {
-      const size_t r = i * num_trees + t;
-      if (r + kAhead < runs.size())
-        __builtin_prefetch(table.trees[(r + kAhead) % num_trees].votes.data() + runs[r + kAhead][0]);
-      const core::TreeVotes& tv = table.trees[t];
-      for (uint32_t k = runs[r][0]; k < runs[r][1]; ++k) {
-        const core::JointVote& v = tv.votes[k];
-        std::vector<Vote>& vj = votes[v.joint];
-        vj.push_back({point + Eigen::Vector3f(float(v.dx_mm), float(v.dy_mm), float(v.dz_mm)) * 1e-3f,
-                      float(v.weight) * (1.0f / 255.0f) * area, uint32_t(vj.size())});
+  const int num_threads = std::max(1, options.threads > 0 ? options.threads : omp_get_max_threads());
+  // Reused across calls on this thread. The loops below run on other threads too, which must
+  // use this thread's buffers: through these references, not the thread_locals' names.
+  // parts[c][j]: chunk c's votes for joint j in cast order; votes[j]: the chunks' in order.
+  thread_local std::vector<std::array<std::vector<Vote>, core::kNumJoints>> this_threads_parts;
+  thread_local std::array<std::vector<Vote>, core::kNumJoints> this_threads_votes;
+  std::vector<std::array<std::vector<Vote>, core::kNumJoints>>& parts = this_threads_parts;
+  std::array<std::vector<Vote>, core::kNumJoints>& votes = this_threads_votes;
+  parts.resize(size_t(num_threads));
+  // Casts the votes of pixels [begin, end) into `into`, in cast order (pixel, then tree).
+  auto cast = [&](size_t begin, size_t end, std::array<std::vector<Vote>, core::kNumJoints>& into) {
+    for (auto& v : into) v.clear();
+    // Each (pixel, tree)'s run of votes in the table first: the table is large (megabytes), so
+    // these reads miss the cache, and apart they overlap.
+    thread_local std::vector<std::array<uint32_t, 2>> runs;
+    runs.assign((end - begin) * num_trees, {0u, 0u});
+    for (size_t i = begin; i < end; ++i) {
+      const uint32_t idx = pixels[i];
+      if (depth.pixels[idx] == 0) continue;
+      const int x = int(idx % uint32_t(depth.width)), y = int(idx / uint32_t(depth.width));
+      for (size_t t = 0; t < num_trees; ++t) {
+        const uint32_t leaf =
+            leaves ? (*leaves)[i * num_trees + t] : LeafOf(forest.trees[t], forest.constants, depth, x, y);
+        const std::vector<uint32_t>& first = table.trees[t].first;
+        runs[(i - begin) * num_trees + t] = {first[leaf], first[leaf + 1]};
       }
     }
-  }
-  // Joints are independent: one per thread (the result does not depend on how many).
-#pragma omp parallel for schedule(dynamic, 1) num_threads(options.threads > 0 ? options.threads : omp_get_max_threads())
-  for (int j = 0; j < core::kNumJoints; ++j) {
-    std::vector<Vote>& vj = votes[size_t(j)];
-    if (vj.empty()) continue;
-    float total = 0;
-    for (const Vote& v : vj) total += v.w;
-    // Heaviest first (ties: cast order), the lightest dropped past the cap: only the kept ones
-    // are sorted.
-    const size_t keep = std::min(vj.size(), size_t(std::max(1, options.max_votes_per_joint)));
-    if (keep < vj.size()) {
-      std::nth_element(vj.begin(), vj.begin() + std::ptrdiff_t(keep), vj.end(), Heavier);
-      vj.resize(keep);
+    // Then the votes, each run's fetched a few runs ahead.
+    constexpr size_t kAhead = 8;
+    for (size_t i = begin; i < end; ++i) {
+      const uint32_t idx = pixels[i];
+      const uint16_t d = depth.pixels[idx];
+      if (d == 0) continue;
+      const int x = int(idx % uint32_t(depth.width)), y = int(idx / uint32_t(depth.width));
+      const Eigen::Vector3f point = camera.Unproject(x, y, d * 1e-3).cast<float>();
+      const float area = float(d) * float(d) * 1e-6f;  // the pixel's surface, up to fx fy
+      for (size_t t = 0; t < num_trees; ++t) {
+        const size_t r = (i - begin) * num_trees + t;
+        if (r + kAhead < runs.size())
+          __builtin_prefetch(table.trees[(r + kAhead) % num_trees].votes.data() + runs[r + kAhead][0]);
+        const core::TreeVotes& tv = table.trees[t];
+        for (uint32_t k = runs[r][0]; k < runs[r][1]; ++k) {
+          const core::JointVote& v = tv.votes[k];
+          into[v.joint].push_back({point + Eigen::Vector3f(float(v.dx_mm), float(v.dy_mm), float(v.dz_mm)) * 1e-3f,
+                                   float(v.weight) * (1.0f / 255.0f) * area, 0u});
+        }
+      }
     }
-    std::sort(vj.begin(), vj.end(), Heavier);
-    // As structure of arrays for the vector kernel (thread_local: reused across joints and frames).
-    thread_local std::vector<float> x, y, z, w;
-    x.resize(keep);
-    y.resize(keep);
-    z.resize(keep);
-    w.resize(keep);
-    for (size_t k = 0; k < keep; ++k) {
-      x[k] = vj[k].p.x();
-      y[k] = vj[k].p.y();
-      z[k] = vj[k].p.z();
-      w[k] = vj[k].w;
+  };
+  // One contiguous chunk of pixels per thread, then the joints, one per thread: the result does
+  // not depend on how many threads (the chunks join in pixel order).
+#pragma omp parallel num_threads(num_threads)
+  {
+    const size_t n = pixels.size(), chunks = size_t(num_threads);
+#pragma omp for schedule(static, 1)
+    for (int c = 0; c < num_threads; ++c) cast(n * size_t(c) / chunks, n * size_t(c + 1) / chunks, parts[size_t(c)]);
+#pragma omp for schedule(dynamic, 1)
+    for (int j = 0; j < core::kNumJoints; ++j) {
+      std::vector<Vote>& vj = votes[size_t(j)];
+      vj.clear();
+      for (const auto& part : parts) vj.insert(vj.end(), part[size_t(j)].begin(), part[size_t(j)].end());
+      if (vj.empty()) continue;
+      for (size_t k = 0; k < vj.size(); ++k) vj[k].order = uint32_t(k);
+      float total = 0;
+      for (const Vote& v : vj) total += v.w;
+      // Heaviest first (ties: cast order), the lightest dropped past the cap: only the kept ones
+      // are sorted.
+      const size_t keep = std::min(vj.size(), size_t(std::max(1, options.max_votes_per_joint)));
+      if (keep < vj.size()) {
+        std::nth_element(vj.begin(), vj.begin() + std::ptrdiff_t(keep), vj.end(), Heavier);
+        vj.resize(keep);
+      }
+      std::sort(vj.begin(), vj.end(), Heavier);
+      // As structure of arrays for the vector kernel (thread_local: reused across joints and frames).
+      thread_local std::vector<float> x, y, z, w;
+      x.resize(keep);
+      y.resize(keep);
+      z.resize(keep);
+      w.resize(keep);
+      for (size_t k = 0; k < keep; ++k) {
+        x[k] = vj[k].p.x();
+        y[k] = vj[k].p.y();
+        z[k] = vj[k].p.z();
+        w[k] = vj[k].w;
+      }
+      const float bandwidth = table.bandwidth_m[size_t(j)] * options.bandwidth_scale;
+      for (const auto& [m, score] : Modes(x, y, z, w, bandwidth, options.seeds, options.iterations)) {
+        if (int(out[size_t(j)].size()) >= options.max_candidates) break;
+        VoteCandidate c;
+        c.position = m;
+        c.share = total > 0 ? std::clamp(score / total, 0.0f, 1.0f) : 0.0f;
+        c.confidence = table.Confidence(j, c.share);
+        out[size_t(j)].push_back(c);
+      }
+      std::stable_sort(out[size_t(j)].begin(), out[size_t(j)].end(),
+                       [](const VoteCandidate& a, const VoteCandidate& b) { return a.confidence > b.confidence; });
     }
-    const float bandwidth = table.bandwidth_m[size_t(j)] * options.bandwidth_scale;
-    for (const auto& [m, score] : Modes(x, y, z, w, bandwidth, options.seeds, options.iterations)) {
-      if (int(out[size_t(j)].size()) >= options.max_candidates) break;
-      VoteCandidate c;
-      c.position = m;
-      c.share = total > 0 ? std::clamp(score / total, 0.0f, 1.0f) : 0.0f;
-      c.confidence = table.Confidence(j, c.share);
-      out[size_t(j)].push_back(c);
-    }
-    std::stable_sort(out[size_t(j)].begin(), out[size_t(j)].end(),
-                     [](const VoteCandidate& a, const VoteCandidate& b) { return a.confidence > b.confidence; });
   }
   return out;
 }
