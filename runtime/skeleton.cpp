@@ -159,6 +159,10 @@ std::string DescribeConfidence(const core::ConfidenceCalibration* calibration) {
 
 namespace {
 
+/// Two readings of the trees that agree (a part proposal and a vote candidate at one place),
+/// taken as independent: the confidence that at least one is right.
+float NoisyOr(float a, float b) { return 1.0f - (1.0f - a) * (1.0f - b); }
+
 /// Per joint, what the candidates say before one is chosen (cues of the tracking model): a
 /// proposal on the mask, a usable vote candidate, and how far apart the best of each lie.
 struct CandidateCues {
@@ -258,9 +262,12 @@ struct PersonFit {
   /// person's mask wins, unless a vote candidate is more confident.
   void FitGreedy() {
     for (int j = 0; j < core::kNumJoints; ++j) {
+      const JointProposal* placed = nullptr;
+      int placed_depth = 0;
       for (const JointProposal& p : proposals[size_t(j)])
         if (const int d = MaskDepthAt(p); d != 0) {
           Place(j, p, d);
+          placed = &p, placed_depth = d;
           cand_cues[size_t(j)].has_proposal = true;
           cand_cues[size_t(j)].proposal = p.position;
           break;
@@ -269,24 +276,15 @@ struct PersonFit {
       if (v.empty()) continue;
       cand_cues[size_t(j)].has_vote = true;
       cand_cues[size_t(j)].vote = v[0].vote->position;
-      SkeletonJoint& joint = s.joints[size_t(j)];
-      const bool agree = joint.found && options.agree_radius_m > 0 &&
+      const SkeletonJoint& joint = s.joints[size_t(j)];
+      // A proposal and the vote agreeing: the one placed takes their noisy-OR.
+      const bool agree = placed && options.agree_radius_m > 0 &&
                          (joint.position_m - v[0].vote->position).norm() <= options.agree_radius_m;
-      const float proposal_confidence = joint.confidence;
-      if (!joint.found || v[0].vote->confidence > joint.confidence) PlaceVote(j, v[0]);
-      if (agree) {
-        const float c = 1.0f - (1.0f - proposal_confidence) * (1.0f - v[0].vote->confidence);
-        joint.confidence = c;
-        if (joint.voted) {
-          const float gap = joint.position_m.z() - float(v[0].mask_depth) * 1e-3f;
-          joint.tracked = c >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
-          joint.inferred = c >= options.min_confidence && gap > options.max_depth_gap_m;
-        } else {
-          const float gap = joint.position_m.z() - float(MaskDepthPx(joint.pixel)) * 1e-3f;
-          joint.tracked = joint.support_m2 >= options.min_support_m2 && c >= options.min_confidence &&
-                          std::abs(gap) <= options.max_depth_gap_m;
-        }
-      }
+      const float confidence = agree ? NoisyOr(joint.confidence, v[0].vote->confidence) : -1.0f;
+      if (!placed || v[0].vote->confidence > joint.confidence)
+        PlaceVote(j, v[0], confidence);
+      else if (agree)
+        Place(j, *placed, placed_depth, confidence);
     }
   }
 
@@ -334,7 +332,7 @@ struct PersonFit {
           for (size_t k = is_proposal ? proposals_end : 0; k < (is_proposal ? c.size() : proposals_end); ++k)
             if ((c[i].position - c[k].position).norm() <= options.agree_radius_m)
               other = std::max(other, c[k].confidence);
-          fused[i] = 1.0f - (1.0f - c[i].confidence) * (1.0f - other);
+          fused[i] = NoisyOr(c[i].confidence, other);
         }
         for (size_t i = 0; i < c.size(); ++i) c[i].confidence = fused[i];
       }
