@@ -458,25 +458,36 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
   std::vector<Skeleton> out;
   if (num_people <= 0 || masks.empty() || masks.width != depth.width || masks.height != depth.height)
     return out;
-  // Centroids and sizes in one pass.
-  std::vector<Eigen::Vector3d> sum(size_t(num_people) + 1, Eigen::Vector3d::Zero());
-  std::vector<int> count(size_t(num_people) + 1, 0);
-  for (int y = 0; y < masks.height; ++y)
+  // Centroids and sizes in one pass over the frame. Unproject is linear in depth, so the
+  // integer sums of d, x d and y d (exact in 64 bits) give the mean point.
+  struct Sums {
+    int64_t d = 0, xd = 0, yd = 0;
+    int count = 0;
+  };
+  std::vector<Sums> sums(size_t(num_people) + 1);
+  for (int y = 0; y < masks.height; ++y) {
+    const uint8_t* mask_row = masks.pixels.data() + size_t(y) * size_t(masks.width);
+    const uint16_t* depth_row = depth.pixels.data() + size_t(y) * size_t(depth.width);
     for (int x = 0; x < masks.width; ++x) {
-      const int l = masks.at(x, y);
-      const uint16_t d = depth.at(x, y);
+      const int l = mask_row[x];
+      const int64_t d = depth_row[x];
       if (l <= 0 || l > num_people || d == 0) continue;
-      sum[size_t(l)] += camera.Unproject(x, y, d * 1e-3);
-      ++count[size_t(l)];
+      Sums& sl = sums[size_t(l)];
+      sl.d += d, sl.xd += x * d, sl.yd += int64_t(y) * d, ++sl.count;
     }
+  }
   const double area = camera.fx * camera.fy;
   const int m = std::max(0, options.mask_margin_px);
   for (int label = 1; label <= num_people; ++label) {
-    if (count[size_t(label)] == 0) continue;
+    const Sums& sl = sums[size_t(label)];
+    if (sl.count == 0) continue;
     Skeleton s;
     s.mask_label = label;
-    s.pixels = count[size_t(label)];
-    s.centroid_m = (sum[size_t(label)] / count[size_t(label)]).cast<float>();
+    s.pixels = sl.count;
+    const double n = sl.count, mean_z = double(sl.d) * 1e-3 / n;
+    s.centroid_m = Eigen::Vector3d((double(sl.xd) * 1e-3 / n - camera.cx * mean_z) / camera.fx,
+                                   (double(sl.yd) * 1e-3 / n - camera.cy * mean_z) / camera.fy, mean_z)
+                       .cast<float>();
     const PersonVotes* person_votes =
         votes && size_t(label - 1) < votes->size() ? &(*votes)[size_t(label - 1)] : nullptr;
     PersonFit fit{proposals, masks, depth, camera, calibration, options, person_votes, label, area, m, s};
