@@ -784,27 +784,42 @@ TEST_CASE("skeletons with offset votes: a proposal and a vote that agree combine
   }
 }
 
-TEST_CASE("CastVotes: every pixel votes its leaf's offset; mean shift finds the mode; confidence from the table",
-          "[skeleton][votes]") {
-  // One tree that is a single leaf: every pixel of the patch casts the same offsets.
+namespace {
+
+// A forest of single-leaf trees (every pixel reaches leaf 0 of each) whose offset votes are
+// `leaf_votes[t]` for tree t (in joint order, at most one per joint), bandwidth 0.06 m, and
+// confidence 0.2 for a share below 0.5, 0.7 above.
+core::Forest SingleLeafVoteForest(const std::vector<std::vector<core::JointVote>>& leaf_votes) {
   core::Forest forest;
   forest.num_parts = core::kNumParts;
   forest.part_names = core::Forest::DefaultPartNames();
-  core::Tree tree;
-  tree.nodes.push_back(core::Node::Leaf(0));
-  tree.num_leaves = 1;
-  tree.leaves.assign(size_t(forest.leaf_stride()), 0);
-  tree.leaves[0] = 255;
-  forest.trees.push_back(tree);
   core::OffsetVotes table;
   table.bandwidth_m.fill(0.06f);
   table.share_edges = {0.0f, 0.5f};
   for (int j = 0; j < core::kNumJoints; ++j) table.precision.insert(table.precision.end(), {0.2f, 0.7f});
-  core::TreeVotes tv;
-  tv.first = {0, 2};
-  tv.votes = {{0, -300, 100, uint8_t(kHead), 255}, {50, 0, 80, uint8_t(kLHand), 128}};
-  table.trees.push_back(tv);
+  for (const auto& votes : leaf_votes) {
+    core::Tree tree;
+    tree.nodes.push_back(core::Node::Leaf(0));
+    tree.num_leaves = 1;
+    tree.leaves.assign(size_t(forest.leaf_stride()), 0);
+    tree.leaves[0] = 255;
+    forest.trees.push_back(tree);
+    core::TreeVotes tv;
+    tv.first = {0, uint32_t(votes.size())};
+    tv.votes = votes;
+    table.trees.push_back(tv);
+  }
   forest.offset_votes = table;
+  return forest;
+}
+
+}  // namespace
+
+TEST_CASE("CastVotes: every pixel votes its leaf's offset; mean shift finds the mode; confidence from the table",
+          "[skeleton][votes]") {
+  // One tree that is a single leaf: every pixel of the patch casts the same offsets.
+  const core::Forest forest =
+      SingleLeafVoteForest({{{0, -300, 100, uint8_t(kHead), 255}, {50, 0, 80, uint8_t(kLHand), 128}}});
   REQUIRE(core::ValidateForest(forest, "votes").ok());
   const auto cam = core::CameraIntrinsics::KinectV1();
   Scene scene;
@@ -837,28 +852,12 @@ TEST_CASE("CastVotes: the kept votes and the modes equal a plain reference (stab
   // few cm apart, tree 2 0.3 m away, so two modes. Depths vary over the patch, so the votes'
   // weights (leaf weight x d^2) vary and many tie; more votes than the cap, so which are kept
   // matters. Every joint is checked: the joints' loop runs on several threads (OpenMP).
-  core::Forest forest;
-  forest.num_parts = core::kNumParts;
-  forest.part_names = core::Forest::DefaultPartNames();
-  core::OffsetVotes table;
-  table.bandwidth_m.fill(0.06f);
-  table.share_edges = {0.0f, 0.5f};
-  for (int j = 0; j < core::kNumJoints; ++j) table.precision.insert(table.precision.end(), {0.2f, 0.7f});
   const int16_t dx[3] = {0, 30, 300}, dz[3] = {100, 80, 0};
   const uint8_t weight[3] = {200, 255, 90};
-  for (int t = 0; t < 3; ++t) {
-    core::Tree tree;
-    tree.nodes.push_back(core::Node::Leaf(0));
-    tree.num_leaves = 1;
-    tree.leaves.assign(size_t(forest.leaf_stride()), 0);
-    tree.leaves[0] = 255;
-    forest.trees.push_back(tree);
-    core::TreeVotes tv;
-    tv.first = {0, uint32_t(core::kNumJoints)};
-    for (int j = 0; j < core::kNumJoints; ++j) tv.votes.push_back({dx[t], -50, dz[t], uint8_t(j), weight[t]});
-    table.trees.push_back(tv);
-  }
-  forest.offset_votes = table;
+  std::vector<std::vector<core::JointVote>> leaf_votes(3);
+  for (int t = 0; t < 3; ++t)
+    for (int j = 0; j < core::kNumJoints; ++j) leaf_votes[size_t(t)].push_back({dx[t], -50, dz[t], uint8_t(j), weight[t]});
+  const core::Forest forest = SingleLeafVoteForest(leaf_votes);
   REQUIRE(core::ValidateForest(forest, "votes").ok());
   const auto cam = core::CameraIntrinsics::KinectV1();
   Scene scene;
