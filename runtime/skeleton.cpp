@@ -87,8 +87,9 @@ constexpr double kMissing = -20.0;       // below any candidate's log confidence
 double Unary(const FitCandidates& cands, int j, int state) {
   // The fit chooses WHICH proposal (the tracked state is the candidate's own calibrated
   // confidence, as for the greedy pick): "missing" only where no candidate fits the bones.
-  return state == 0 ? kMissing
-                    : std::log(std::max(kMinConfidence, double(cands[size_t(j)][size_t(state - 1)].confidence)));
+  if (state == 0) return kMissing;
+  const FitCandidate& c = cands[size_t(j)][size_t(state - 1)];
+  return c.excluded ? kImpossible : std::log(std::max(kMinConfidence, double(c.confidence)));
 }
 
 double Pair(const FitCandidates& cands, const SkeletonOptions& options, int a, int sa, int b, int sb) {
@@ -144,6 +145,42 @@ std::array<int, core::kNumJoints> FitSkeleton(const FitCandidates& cands, const 
   for (const auto& [a, b] : bones) state[size_t(b)] = arg[size_t(b)][size_t(state[size_t(a)])];
   for (int& st : state) st -= 1;
   return state;
+}
+
+void SeparateCounterparts(FitCandidates& cands, std::array<int, core::kNumJoints>& chosen,
+                          const SkeletonOptions& options) {
+  const float d = options.counterpart_min_distance_m;
+  if (!(d > 0)) return;
+  using J = core::Joint;
+  static constexpr std::array<std::pair<J, J>, 6> kPairs = {{{J::kLElbow, J::kRElbow},
+                                                             {J::kLWrist, J::kRWrist},
+                                                             {J::kLHand, J::kRHand},
+                                                             {J::kLKnee, J::kRKnee},
+                                                             {J::kLAnkle, J::kRAnkle},
+                                                             {J::kLFoot, J::kRFoot}}};
+  for (const auto& [left, right] : kPairs) {
+    const int l = int(left), r = int(right);
+    if (chosen[size_t(l)] < 0 || chosen[size_t(r)] < 0) continue;
+    const Eigen::Vector3f pl = cands[size_t(l)][size_t(chosen[size_t(l)])].position;
+    const Eigen::Vector3f pr = cands[size_t(r)][size_t(chosen[size_t(r)])].position;
+    if ((pl - pr).norm() >= d) continue;
+    // Side j gives way: its candidates within d of the other side's position are excluded.
+    auto give_way = [&](int j, const Eigen::Vector3f& other) {
+      FitCandidates c = cands;
+      for (FitCandidate& fc : c[size_t(j)])
+        if ((fc.position - other).norm() < d) fc.excluded = true;
+      return c;
+    };
+    FitCandidates without_l = give_way(l, pr), without_r = give_way(r, pl);
+    const auto fit_l = FitSkeleton(without_l, options), fit_r = FitSkeleton(without_r, options);
+    if (FitScore(without_l, fit_l, options) >= FitScore(without_r, fit_r, options)) {
+      cands = std::move(without_l);
+      chosen = fit_l;
+    } else {
+      cands = std::move(without_r);
+      chosen = fit_r;
+    }
+  }
 }
 
 std::string DescribeConfidence(const core::ConfidenceCalibration* calibration) {
@@ -342,7 +379,8 @@ struct PersonFit {
       if (!vote_of[size_t(j)].empty())
         cand_cues[size_t(j)].has_vote = true, cand_cues[size_t(j)].vote = vote_of[size_t(j)][0].vote->position;
     }
-    const auto chosen = FitSkeleton(cands, options);
+    auto chosen = FitSkeleton(cands, options);
+    SeparateCounterparts(cands, chosen, options);
     for (int j = 0; j < core::kNumJoints; ++j) {
       const int c = chosen[size_t(j)];
       const float confidence = c >= 0 ? cands[size_t(j)][size_t(c)].confidence : -1.0f;

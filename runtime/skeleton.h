@@ -75,6 +75,12 @@ struct SkeletonOptions {
   /// renders -2, -3 and -4 tracked the most visible joints right (docs/runtime/live.md); a
   /// very negative value (-1e30) makes such bones impossible, as before 28 Nov 2026.
   float implausible_bone_log = -3.0f;
+  /// kKinematic: a left joint and its right counterpart (elbows, wrists, hands, knees, ankles,
+  /// feet) placed within this distance of each other are one body part read twice, so one is
+  /// wrong: SeparateCounterparts. 0 disables. 0.12 m: on the main job's validation renders 0,
+  /// 0.05, 0.08, 0.12, 0.16, 0.2 and 0.25 m tracked 0.753, 0.755, 0.755, 0.758, 0.746, 0.741
+  /// and 0.717 of the visible joints right (docs/runtime/live.md, "Skeleton fit").
+  float counterpart_min_distance_m = 0.12f;
   float min_confidence = 0.3f;   ///< calibrated confidence below this: not tracked
   float min_support_m2 = 1e-4f;  ///< proposal support (raw confidence / (fx fy)) below this: not tracked
   int mask_margin_px = 2;        ///< a proposal's pixel may miss the mask by this many pixels
@@ -175,16 +181,26 @@ float TypicalBoneLength(int parent, int child);
 struct FitCandidate {
   Eigen::Vector3f position{0, 0, 0};
   float confidence = 0;
+  bool excluded = false;  ///< the fit may not choose it (SkeletonOptions::counterpart_min_distance_m)
 };
 using FitCandidates = std::array<std::vector<FitCandidate>, core::kNumJoints>;
 /// The fit's objective for `choice` (per joint a candidate index, -1 = missing): the sum of log
-/// confidences (missing: a constant below any candidate's) and of the bones' terms (BoneLengthRange
+/// confidences (missing: a constant below any candidate's; an excluded candidate: impossible,
+/// -1e30) and of the bones' terms (BoneLengthRange
 /// outside: options.implausible_bone_log; within: a Gaussian about TypicalBoneLength, sigma
 /// 0.3 mu + 3 cm; a joint below the shoulders with a missing parent: impossible, -1e30).
 double FitScore(const FitCandidates& candidates, const std::array<int, core::kNumJoints>& choice,
                 const SkeletonOptions& options);
 /// The choice maximizing FitScore, exactly (dynamic programming on SkeletonBones' tree).
 std::array<int, core::kNumJoints> FitSkeleton(const FitCandidates& candidates, const SkeletonOptions& options);
+/// After FitSkeleton (`chosen`): where a left joint and its right counterpart (elbows, wrists,
+/// hands, knees, ankles, feet, in that order) were chosen within
+/// options.counterpart_min_distance_m of each other, the fit is run again twice, once with each
+/// side's candidates within that distance of the other side's position excluded; the one with
+/// the higher FitScore stands (its exclusions stay in `candidates`, and `chosen` becomes its
+/// choice). The tree has no edge between the two sides, so the exact fit cannot keep them apart.
+void SeparateCounterparts(FitCandidates& candidates, std::array<int, core::kNumJoints>& chosen,
+                          const SkeletonOptions& options);
 
 /// Which confidence a table gives: "calibrated (tune-joints, N validation proposals)" or the
 /// fallback's name, for messages.

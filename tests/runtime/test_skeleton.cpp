@@ -555,6 +555,7 @@ TEST_CASE("the kinematic fit is exact: dynamic programming equals brute force", 
           runtime::FitCandidate c;
           c.position = at + Eigen::Vector3f(u(rng), u(rng), u(rng));
           c.confidence = conf(rng);
+          c.excluded = count(rng) == 0;  // a quarter of them may not be chosen
           cands[size_t(j)].push_back(c);
         }
         if (n) at = cands[size_t(j)][0].position;
@@ -580,8 +581,66 @@ TEST_CASE("the kinematic fit is exact: dynamic programming equals brute force", 
       all(0);
       INFO("trial " << trial << (parent_rule ? " with" : " without") << " the parent rule");
       REQUIRE(fit_score == Approx(best).margin(1e-9));
-      for (int j = 0; j < core::kNumJoints; ++j) REQUIRE(fit[size_t(j)] < int(cands[size_t(j)].size()));
+      for (int j = 0; j < core::kNumJoints; ++j) {
+        REQUIRE(fit[size_t(j)] < int(cands[size_t(j)].size()));
+        if (fit[size_t(j)] >= 0) REQUIRE_FALSE(cands[size_t(j)][size_t(fit[size_t(j)])].excluded);
+      }
     }
+}
+
+TEST_CASE("the kinematic fit keeps a left joint and its right counterpart apart (SeparateCounterparts)",
+          "[skeleton][fit]") {
+  using J = core::Joint;
+  runtime::SkeletonOptions opt;
+  REQUIRE(opt.counterpart_min_distance_m == Approx(0.12f));
+  runtime::FitCandidates c;
+  auto add = [&](J j, Eigen::Vector3f p, float conf) { c[size_t(int(j))].push_back({p, conf}); };
+  add(J::kNeck, {0, 0, 1.5f}, 0.9f);
+  add(J::kLShoulder, {0.19f, 0.05f, 1.5f}, 0.9f);
+  add(J::kRShoulder, {-0.19f, 0.05f, 1.5f}, 0.9f);
+  add(J::kLElbow, {0.3f, 0.3f, 1.45f}, 0.8f);
+  add(J::kRElbow, {-0.1f, 0.3f, 1.45f}, 0.8f);
+  // Both wrists' best candidate is one place in front of the belly (the right forearm crossed
+  // over): the left wrist has a second candidate a forearm from its elbow, the right none.
+  const Eigen::Vector3f belly(0.1f, 0.45f, 1.35f);
+  add(J::kLWrist, belly, 0.7f);
+  add(J::kLWrist, {0.35f, 0.52f, 1.4f}, 0.3f);
+  add(J::kRWrist, belly + Eigen::Vector3f(0.02f, 0, 0), 0.6f);
+  const int lw = int(J::kLWrist), rw = int(J::kRWrist);
+  auto chosen = runtime::FitSkeleton(c, opt);
+  REQUIRE(chosen[size_t(lw)] == 0);  // the exact fit alone: both at the belly
+  REQUIRE(chosen[size_t(rw)] == 0);
+  runtime::FitCandidates separated = c;
+  runtime::SeparateCounterparts(separated, chosen, opt);
+  // The left wrist gives way (its other candidate costs less than a missing right wrist).
+  CHECK(chosen[size_t(lw)] == 1);
+  CHECK(chosen[size_t(rw)] == 0);
+  CHECK(separated[size_t(lw)][0].excluded);
+  CHECK_FALSE(separated[size_t(rw)][0].excluded);
+  CHECK(chosen == runtime::FitSkeleton(separated, opt));
+  CHECK(runtime::FitScore(separated, chosen, opt) < runtime::FitScore(c, runtime::FitSkeleton(c, opt), opt));
+  // With a second right-wrist candidate that is more likely than the left's, the right gives way.
+  runtime::FitCandidates both = c;
+  both[size_t(rw)].push_back({{-0.15f, 0.55f, 1.4f}, 0.55f});
+  chosen = runtime::FitSkeleton(both, opt);
+  runtime::SeparateCounterparts(both, chosen, opt);
+  CHECK(chosen[size_t(lw)] == 0);
+  CHECK(chosen[size_t(rw)] == 1);
+  // Apart by more than the distance, or the rule off: nothing changes.
+  runtime::SkeletonOptions off = opt;
+  off.counterpart_min_distance_m = 0;
+  chosen = runtime::FitSkeleton(c, off);
+  runtime::FitCandidates untouched = c;
+  runtime::SeparateCounterparts(untouched, chosen, off);
+  CHECK(chosen[size_t(lw)] == 0);
+  CHECK(chosen[size_t(rw)] == 0);
+  runtime::SkeletonOptions near = opt;
+  near.counterpart_min_distance_m = 0.01f;  // the two wrists are 0.02 m apart
+  chosen = runtime::FitSkeleton(c, near);
+  untouched = c;
+  runtime::SeparateCounterparts(untouched, chosen, near);
+  CHECK(chosen[size_t(lw)] == 0);
+  CHECK(chosen[size_t(rw)] == 0);
 }
 
 TEST_CASE("the kinematic fit prefers a reachable wrist to a confident one on the other arm", "[skeleton][fit]") {
