@@ -49,6 +49,7 @@ enum class SkeletonFit : uint8_t {
   /// so a confident left wrist on the right arm gives way to a less confident one that the left
   /// elbow can reach, while a wrong elbow does not drag a well-found wrist with it. Whether a
   /// chosen joint is tracked is decided as for kGreedy (the learned decision, or the rules).
+  /// Then SeparateCounterparts keeps a left joint and its right counterpart apart.
   /// The default since 28 Nov 2026: it tracks more visible joints right than kGreedy on
   /// held-out renders with every forest measured (docs/runtime/live.md, "Skeleton fit").
   kKinematic = 1,
