@@ -115,7 +115,9 @@ core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
     const auto& truth = frame->people[0];
     for (int j = 0; j < core::kNumJoints; ++j) {
       const runtime::SkeletonJoint& joint = skeletons[0].joints[size_t(j)];
-      if (!joint.found) continue;
+      // A joint placed beyond the frame (SkeletonOptions::votes_beyond_frame) is never tracked:
+      // not a sample of the decision.
+      if (!joint.found || !runtime::PixelInImage(joint.pixel, frame->depth.width, frame->depth.height)) continue;
       joints.push_back(j);
       confidences.push_back(joint.base_confidence);
       cues.push_back(joint.cues);

@@ -257,12 +257,22 @@ struct PersonFit {
       if (!(c.position.z() > 0)) continue;
       const Eigen::Vector2f pixel = camera.Project(c.position.cast<double>()).cast<float>();
       const int d = MaskDepthPx(pixel);
-      if (d == 0) continue;
+      if (d == 0) {
+        // Beyond the image, past a side that cuts the person: a joint out of the frame, which
+        // only the votes can place (never tracked: the camera does not see it).
+        if (options.votes_beyond_frame && BeyondCutSide(pixel)) v.push_back({&c, pixel, 0});
+        continue;
+      }
       const float gap = c.position.z() - float(d) * 1e-3f;
       if (gap < -options.max_depth_gap_m || gap > options.max_vote_behind_m) continue;
       v.push_back({&c, pixel, d});
     }
     return v;
+  }
+  /// Whether `pixel` lies outside the image past a side that cuts this person's mask.
+  bool BeyondCutSide(const Eigen::Vector2f& pixel) const {
+    return (left && pixel.x() < 0) || (right && pixel.x() > float(masks.width - 1)) || (top && pixel.y() < 0) ||
+           (bottom && pixel.y() > float(masks.height - 1));
   }
   /// Places vote candidate `u`; `confidence` (>= 0) replaces its own (an agreement's noisy-OR).
   void PlaceVote(int j, const UsableVote& u, float confidence = -1) {
@@ -273,6 +283,10 @@ struct PersonFit {
     joint.position_m = u.vote->position;
     joint.pixel = u.pixel;
     joint.confidence = confidence >= 0 ? confidence : u.vote->confidence;
+    if (u.mask_depth == 0) {  // beyond the frame: hidden by its edge
+      joint.inferred = joint.confidence >= options.min_confidence;
+      return;
+    }
     const float gap = u.vote->position.z() - float(u.mask_depth) * 1e-3f;
     joint.tracked = joint.confidence >= options.min_confidence && std::abs(gap) <= options.max_depth_gap_m;
     // Confident, but behind what the camera sees there: a hidden joint, placed by the votes.
@@ -529,11 +543,11 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
     const PersonVotes* person_votes =
         votes && size_t(label - 1) < votes->size() ? &(*votes)[size_t(label - 1)] : nullptr;
     PersonFit fit{proposals, masks, depth, camera, calibration, options, person_votes, label, area, m, s};
+    fit.FindCutSides();
     if (ResolveSkeletonFit(options, tracking) == SkeletonFit::kGreedy)
       fit.FitGreedy();
     else
       fit.FitJointly();
-    fit.FindCutSides();
     fit.SetCues();
     if (tracking && options.use_tracking_model)
       fit.DecideWithModel(*tracking);

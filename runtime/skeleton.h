@@ -82,6 +82,10 @@ struct SkeletonOptions {
   /// 0.05, 0.08, 0.12, 0.16, 0.2 and 0.25 m tracked 0.753, 0.755, 0.755, 0.758, 0.746, 0.741
   /// and 0.717 of the visible joints right (docs/runtime/live.md, "Skeleton fit").
   float counterpart_min_distance_m = 0.12f;
+  /// Vote candidates that project outside the image, past a side that cuts the person, are
+  /// candidates too: a joint out of the frame is placed (inferred, never tracked) instead of
+  /// being left without a position.
+  bool votes_beyond_frame = true;
   float min_confidence = 0.3f;   ///< calibrated confidence below this: not tracked
   float min_support_m2 = 1e-4f;  ///< proposal support (raw confidence / (fx fy)) below this: not tracked
   int mask_margin_px = 2;        ///< a proposal's pixel may miss the mask by this many pixels
@@ -151,6 +155,12 @@ enum class JointState : uint8_t { kNotTracked = 0, kInferred = 1, kTracked = 2 }
 
 /// kTracked if `tracked`; kInferred if found and `inferred` (and not tracked); else kNotTracked.
 JointState StateOf(const SkeletonJoint& joint);
+/// Whether a joint's pixel lies in a width x height image (one placed beyond the frame,
+/// SkeletonOptions::votes_beyond_frame, does not).
+inline bool PixelInImage(const Eigen::Vector2f& pixel, int width, int height) {
+  return pixel.x() >= -0.5f && pixel.y() >= -0.5f && pixel.x() < float(width) - 0.5f &&
+         pixel.y() < float(height) - 0.5f;
+}
 /// "tracked", "inferred" or "not_tracked" (the JSON Lines and Python `state` strings).
 std::string_view JointStateName(JointState state);
 

@@ -278,7 +278,8 @@ core::Rgb PersonColour(int id) {
   return kColours[size_t((id % 8 + 8) % 8)];
 }
 
-void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, float scale, int ox, int oy) {
+void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, float scale, int ox, int oy,
+                   int frame_width, int frame_height) {
   const int thick = std::max(2, int(std::lround(4 * scale)));
   for (const Skeleton& s : skeletons) {
     auto at = [&](int j) {
@@ -294,6 +295,7 @@ void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, fl
     for (int j = 0; j < core::kNumJoints; ++j) {
       const SkeletonJoint& joint = s.joints[size_t(j)];
       if (!joint.found) continue;
+      if (frame_width > 0 && !PixelInImage(joint.pixel, frame_width, frame_height)) continue;
       const auto p = at(j);
       switch (StateOf(joint)) {
         case JointState::kTracked:
@@ -325,7 +327,7 @@ RgbImage SkeletonFigure(const core::DepthImage& depth, const core::LabelImage& l
   if (labels.width == depth.width && labels.height == depth.height)
     Blit(fig, PartsPicture(labels), pw, 0, factor);
   Blit(fig, grey, 2 * pw, 0, factor);
-  DrawSkeletons(fig, skeletons, 1.0f / float(factor), 2 * pw, 0);
+  DrawSkeletons(fig, skeletons, 1.0f / float(factor), 2 * pw, 0, depth.width, depth.height);
   for (int y = 0; y < ph; ++y)  // panel separators
     for (int k = 1; k < 3; ++k) fig.Set(k * pw, y, {60, 60, 60});
   return fig;

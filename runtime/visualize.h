@@ -53,9 +53,10 @@ core::Rgb PersonColour(int id);
 /// as discs in the joint's colour ringed white, inferred joints (JointState::kInferred) as hollow
 /// circles of the same size in the joint's colour with no bones to them, other joints found but
 /// not tracked as small grey discs ringed white, and "ID n" above the person's highest tracked
-/// joint.
+/// joint. With a frame size (frame_width > 0), joints placed beyond the frame
+/// (SkeletonOptions::votes_beyond_frame) are not drawn: they would land on a neighbouring panel.
 void DrawSkeletons(RgbImage& picture, const std::vector<Skeleton>& skeletons, float scale = 1.0f, int ox = 0,
-                   int oy = 0);
+                   int oy = 0, int frame_width = 0, int frame_height = 0);
 /// `live`'s picture: depth | parts | depth with the skeletons, side by side, each panel the
 /// frame's size divided by `factor` (1 = full size).
 RgbImage SkeletonFigure(const core::DepthImage& depth, const core::LabelImage& labels,

@@ -786,6 +786,76 @@ TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hid
   }
 }
 
+TEST_CASE("skeletons with offset votes: a joint beyond the frame's edge that cuts the person is inferred",
+          "[skeleton][votes]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  const auto cal = RampCalibration();
+  const runtime::FrameProposals proposals{};
+  const int lfoot = int(core::Joint::kLFoot), rfoot = int(core::Joint::kRFoot);
+  auto vote = [&](int x, int y, float z, float confidence) { return VoteAt(cam, x, y, z, confidence); };
+  std::vector<runtime::PersonVotes> votes(1);
+  votes[0][lfoot] = {vote(150, 560, 2.1f, 0.8f)};  // below the image: the bottom edge cuts the person
+  votes[0][rfoot] = {vote(-40, 300, 2.1f, 0.8f)};  // left of it: the left edge does not
+  for (const auto fit : {runtime::SkeletonFit::kGreedy, runtime::SkeletonFit::kKinematic}) {
+    DYNAMIC_SECTION("fit " << int(fit)) {
+      runtime::SkeletonOptions opt;
+      opt.fit = fit;
+      opt.require_tracked_parent = false;
+      opt.check_bone_lengths = false;
+      Scene scene;
+      scene.Person(1, 100, 100, 250, 479, 2000);  // cut by the bottom edge only
+      const auto s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &votes);
+      REQUIRE(s.size() == 1);
+      const runtime::SkeletonJoint& foot = s[0].joints[size_t(lfoot)];
+      CHECK(foot.found);
+      CHECK(foot.voted);
+      CHECK_FALSE(foot.tracked);  // the camera does not see it
+      CHECK(foot.inferred);       // confident: placed by the votes
+      CHECK(foot.pixel.y() == Approx(560).margin(0.01));
+      CHECK_FALSE(runtime::PixelInImage(foot.pixel, 640, 480));
+      CHECK(foot.position_m.z() == Approx(2.1f));
+      CHECK_FALSE(s[0].joints[size_t(rfoot)].found);  // beyond a side that does not cut the person
+      const std::string line = runtime::SkeletonsJsonLine(0, 0, "x", s);
+      const size_t at = line.find("{\"name\":\"L_foot\"");
+      REQUIRE(at != std::string::npos);
+      CHECK_THAT(line.substr(at, line.find('}', at) - at + 1),
+                 Catch::Contains("\"pixel\":[150.0,560.0]") && Catch::EndsWith("\"state\":\"inferred\"}"));
+      // Not confident enough: found beyond the frame, not inferred.
+      auto weak = votes;
+      weak[0][lfoot] = {vote(150, 560, 2.1f, 0.1f)};
+      const auto w = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &weak);
+      CHECK(w[0].joints[size_t(lfoot)].found);
+      CHECK(runtime::StateOf(w[0].joints[size_t(lfoot)]) == runtime::JointState::kNotTracked);
+      // Turned off: neither foot.
+      runtime::SkeletonOptions off = opt;
+      off.votes_beyond_frame = false;
+      const auto o = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, off, &votes);
+      CHECK_FALSE(o[0].joints[size_t(lfoot)].found);
+      CHECK_FALSE(o[0].joints[size_t(rfoot)].found);
+      // A person the left edge cuts: the vote left of the image places that foot.
+      Scene left;
+      left.Person(1, 0, 100, 150, 400, 2000);
+      const auto l = runtime::BuildSkeletons(proposals, left.masks, 1, left.depth, cam, &cal, opt, &votes);
+      CHECK(l[0].joints[size_t(rfoot)].found);
+      CHECK(l[0].joints[size_t(rfoot)].inferred);
+      CHECK_FALSE(l[0].joints[size_t(lfoot)].found);  // the bottom edge does not cut this one
+      // live's picture does not draw it (it would land on the parts panel, left of the skeletons').
+      auto without = l;
+      without[0].joints[size_t(rfoot)] = runtime::SkeletonJoint();
+      const core::LabelImage labels(640, 480, 0);
+      // (bools: Catch would print two 2.8 MB vectors on a failure)
+      const bool figure_unchanged = runtime::SkeletonFigure(left.depth, labels, l, 1).rgb ==
+                                    runtime::SkeletonFigure(left.depth, labels, without, 1).rgb;
+      CHECK(figure_unchanged);
+      runtime::RgbImage plain(3 * 640, 480, 0), clipped(3 * 640, 480, 0);
+      runtime::DrawSkeletons(plain, l, 1.0f, 1280, 0);  // no frame size: drawn where it projects
+      runtime::DrawSkeletons(clipped, l, 1.0f, 1280, 0, 640, 480);
+      const bool drawn_without_size = plain.rgb != clipped.rgb;
+      CHECK(drawn_without_size);
+    }
+  }
+}
+
 TEST_CASE("skeletons with offset votes: a proposal and a vote that agree combine their confidences",
           "[skeleton][votes]") {
   const auto cam = core::CameraIntrinsics::KinectV1();
