@@ -56,6 +56,15 @@ runtime::VoteCandidate VoteAt(const core::CameraIntrinsics& cam, int x, int y, f
   return v;
 }
 
+// The vote tests' options: the given fit, no bone or parent rule in the way.
+runtime::SkeletonOptions VoteTestOptions(runtime::SkeletonFit fit) {
+  runtime::SkeletonOptions opt;
+  opt.fit = fit;
+  opt.require_tracked_parent = false;
+  opt.check_bone_lengths = false;
+  return opt;
+}
+
 }  // namespace
 
 TEST_CASE("calibrated confidence interpolates the table in log support and stays in 0..1", "[skeleton]") {
@@ -735,10 +744,7 @@ TEST_CASE("skeletons with offset votes: a confident vote on the mask wins, a hid
   votes[0][int(core::Joint::kRHand)] = {vote(400, 250, 2.05f, 0.9f)};  // off the mask
   for (const auto fit : {runtime::SkeletonFit::kGreedy, runtime::SkeletonFit::kKinematic}) {
     DYNAMIC_SECTION("fit " << int(fit)) {
-      runtime::SkeletonOptions opt;
-      opt.fit = fit;
-      opt.require_tracked_parent = false;
-      opt.check_bone_lengths = false;
+      const runtime::SkeletonOptions opt = VoteTestOptions(fit);
       const auto plain = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
       const auto s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &votes);
       REQUIRE(s.size() == 1);
@@ -798,10 +804,7 @@ TEST_CASE("skeletons with offset votes: a joint beyond the frame's edge that cut
   votes[0][rfoot] = {vote(-40, 300, 2.1f, 0.8f)};  // left of it: the left edge does not
   for (const auto fit : {runtime::SkeletonFit::kGreedy, runtime::SkeletonFit::kKinematic}) {
     DYNAMIC_SECTION("fit " << int(fit)) {
-      runtime::SkeletonOptions opt;
-      opt.fit = fit;
-      opt.require_tracked_parent = false;
-      opt.check_bone_lengths = false;
+      const runtime::SkeletonOptions opt = VoteTestOptions(fit);
       Scene scene;
       scene.Person(1, 100, 100, 250, 479, 2000);  // cut by the bottom edge only
       const auto s = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &votes);
@@ -876,11 +879,8 @@ TEST_CASE("skeletons with offset votes: a proposal and a vote that agree combine
   for (const auto fit : {runtime::SkeletonFit::kGreedy, runtime::SkeletonFit::kKinematic}) {
   DYNAMIC_SECTION("fit " << runtime::SkeletonFitName(fit)) {
   near[0][kLHand] = {vote(134, 252, 2.05f, 0.4f)};
-  runtime::SkeletonOptions opt;
-  opt.fit = fit;
+  runtime::SkeletonOptions opt = VoteTestOptions(fit);
   opt.min_confidence = 1.0f - (1.0f - cp) * (1.0f - 0.4f) - 0.01f;  // reached only together
-  opt.require_tracked_parent = false;
-  opt.check_bone_lengths = false;
   REQUIRE(opt.agree_radius_m == Approx(0.1f));  // the default
   const auto agree = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, &near);
   REQUIRE(agree.size() == 1);
