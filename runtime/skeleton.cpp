@@ -269,10 +269,12 @@ struct PersonFit {
     }
     return v;
   }
-  /// Whether `pixel` lies outside the image past a side that cuts this person's mask.
+  /// Whether `pixel` lies outside the image (as PixelInImage bounds it) past a side that cuts
+  /// this person's mask.
   bool BeyondCutSide(const Eigen::Vector2f& pixel) const {
-    return (left && pixel.x() < 0) || (right && pixel.x() > float(masks.width - 1)) || (top && pixel.y() < 0) ||
-           (bottom && pixel.y() > float(masks.height - 1));
+    const float w = float(masks.width) - 0.5f, h = float(masks.height) - 0.5f;
+    return (left && pixel.x() < -0.5f) || (right && pixel.x() >= w) || (top && pixel.y() < -0.5f) ||
+           (bottom && pixel.y() >= h);
   }
   /// Places vote candidate `u`; `confidence` (>= 0) replaces its own (an agreement's noisy-OR).
   void PlaceVote(int j, const UsableVote& u, float confidence = -1) {
