@@ -56,6 +56,19 @@ runtime::VoteCandidate VoteAt(const core::CameraIntrinsics& cam, int x, int y, f
   return v;
 }
 
+// Fit candidates: one more for joint j.
+void AddCandidate(runtime::FitCandidates& c, core::Joint j, const Eigen::Vector3f& p, float conf) {
+  c[size_t(int(j))].push_back({p, conf});
+}
+
+// The fit tests' start: the neck and left shoulder of a person 1.5 m away.
+runtime::FitCandidates NeckAndLeftShoulder() {
+  runtime::FitCandidates c;
+  AddCandidate(c, core::Joint::kNeck, {0, 0, 1.5f}, 0.9f);
+  AddCandidate(c, core::Joint::kLShoulder, {0.19f, 0.05f, 1.5f}, 0.9f);
+  return c;
+}
+
 // The vote tests' options: the given fit, no bone or parent rule in the way.
 runtime::SkeletonOptions VoteTestOptions(runtime::SkeletonFit fit) {
   runtime::SkeletonOptions opt;
@@ -602,19 +615,16 @@ TEST_CASE("the kinematic fit keeps a left joint and its right counterpart apart 
   using J = core::Joint;
   runtime::SkeletonOptions opt;
   REQUIRE(opt.counterpart_min_distance_m == Approx(0.12f));
-  runtime::FitCandidates c;
-  auto add = [&](J j, Eigen::Vector3f p, float conf) { c[size_t(int(j))].push_back({p, conf}); };
-  add(J::kNeck, {0, 0, 1.5f}, 0.9f);
-  add(J::kLShoulder, {0.19f, 0.05f, 1.5f}, 0.9f);
-  add(J::kRShoulder, {-0.19f, 0.05f, 1.5f}, 0.9f);
-  add(J::kLElbow, {0.3f, 0.3f, 1.45f}, 0.8f);
-  add(J::kRElbow, {-0.1f, 0.3f, 1.45f}, 0.8f);
+  runtime::FitCandidates c = NeckAndLeftShoulder();
+  AddCandidate(c, J::kRShoulder, {-0.19f, 0.05f, 1.5f}, 0.9f);
+  AddCandidate(c, J::kLElbow, {0.3f, 0.3f, 1.45f}, 0.8f);
+  AddCandidate(c, J::kRElbow, {-0.1f, 0.3f, 1.45f}, 0.8f);
   // Both wrists' best candidate is one place in front of the belly (the right forearm crossed
   // over): the left wrist has a second candidate a forearm from its elbow, the right none.
   const Eigen::Vector3f belly(0.1f, 0.45f, 1.35f);
-  add(J::kLWrist, belly, 0.7f);
-  add(J::kLWrist, {0.35f, 0.52f, 1.4f}, 0.3f);
-  add(J::kRWrist, belly + Eigen::Vector3f(0.02f, 0, 0), 0.6f);
+  AddCandidate(c, J::kLWrist, belly, 0.7f);
+  AddCandidate(c, J::kLWrist, {0.35f, 0.52f, 1.4f}, 0.3f);
+  AddCandidate(c, J::kRWrist, belly + Eigen::Vector3f(0.02f, 0, 0), 0.6f);
   const int lw = int(J::kLWrist), rw = int(J::kRWrist);
   auto chosen = runtime::FitSkeleton(c, opt);
   REQUIRE(chosen[size_t(lw)] == 0);  // the exact fit alone: both at the belly
@@ -655,14 +665,11 @@ TEST_CASE("the kinematic fit keeps a left joint and its right counterpart apart 
 TEST_CASE("the kinematic fit prefers a reachable wrist to a confident one on the other arm", "[skeleton][fit]") {
   using J = core::Joint;
   runtime::SkeletonOptions opt;
-  runtime::FitCandidates c;
-  auto add = [&](J j, Eigen::Vector3f p, float conf) { c[size_t(int(j))].push_back({p, conf}); };
-  add(J::kNeck, {0, 0, 1.5f}, 0.9f);
-  add(J::kLShoulder, {0.19f, 0.05f, 1.5f}, 0.9f);
-  add(J::kRShoulder, {-0.19f, 0.05f, 1.5f}, 0.9f);
-  add(J::kLElbow, {0.45f, 0.1f, 1.45f}, 0.6f);
-  add(J::kLWrist, {-0.65f, 0.1f, 1.4f}, 0.5f);  // beyond the right elbow: the other arm
-  add(J::kLWrist, {0.68f, 0.05f, 1.35f}, 0.2f);
+  runtime::FitCandidates c = NeckAndLeftShoulder();
+  AddCandidate(c, J::kRShoulder, {-0.19f, 0.05f, 1.5f}, 0.9f);
+  AddCandidate(c, J::kLElbow, {0.45f, 0.1f, 1.45f}, 0.6f);
+  AddCandidate(c, J::kLWrist, {-0.65f, 0.1f, 1.4f}, 0.5f);  // beyond the right elbow: the other arm
+  AddCandidate(c, J::kLWrist, {0.68f, 0.05f, 1.35f}, 0.2f);
   const auto fit = runtime::FitSkeleton(c, opt);
   CHECK(fit[size_t(int(J::kLWrist))] == 1);
   CHECK(fit[size_t(int(J::kLElbow))] == 0);
@@ -683,15 +690,12 @@ TEST_CASE("the kinematic fit prefers a reachable wrist to a confident one on the
 TEST_CASE("the kinematic fit: a wrong elbow does not drag a well-found wrist and hand with it", "[skeleton][fit]") {
   using J = core::Joint;
   runtime::SkeletonOptions opt;
-  runtime::FitCandidates c;
-  auto add = [&](J j, Eigen::Vector3f p, float conf) { c[size_t(int(j))].push_back({p, conf}); };
-  add(J::kNeck, {0, 0, 1.5f}, 0.9f);
-  add(J::kLShoulder, {0.19f, 0.05f, 1.5f}, 0.9f);
-  add(J::kLElbow, {0.2f, 0.62f, 1.5f}, 0.5f);    // the only elbow: 0.57 m below the shoulder, too far
-  add(J::kLWrist, {0.4f, 0.1f, 1.3f}, 0.85f);    // where the forest is sure the wrist is
-  add(J::kLWrist, {0.2f, 0.85f, 1.5f}, 0.02f);   // a stray proposal a forearm from that elbow
-  add(J::kLHand, {0.43f, 0.06f, 1.27f}, 0.8f);   // beside the sure wrist
-  add(J::kLHand, {0.2f, 0.92f, 1.5f}, 0.02f);    // beside the stray one
+  runtime::FitCandidates c = NeckAndLeftShoulder();
+  AddCandidate(c, J::kLElbow, {0.2f, 0.62f, 1.5f}, 0.5f);    // the only elbow: 0.57 m below the shoulder, too far
+  AddCandidate(c, J::kLWrist, {0.4f, 0.1f, 1.3f}, 0.85f);    // where the forest is sure the wrist is
+  AddCandidate(c, J::kLWrist, {0.2f, 0.85f, 1.5f}, 0.02f);   // a stray proposal a forearm from that elbow
+  AddCandidate(c, J::kLHand, {0.43f, 0.06f, 1.27f}, 0.8f);   // beside the sure wrist
+  AddCandidate(c, J::kLHand, {0.2f, 0.92f, 1.5f}, 0.02f);    // beside the stray one
   const auto fit = runtime::FitSkeleton(c, opt);
   // The upper arm is implausible either way; the wrist and hand keep what the forest is sure of.
   CHECK(fit[size_t(int(J::kLElbow))] == 0);
