@@ -76,6 +76,9 @@ struct Context {
   std::atomic<bool>& stop;
   DistWorker::Live& live;  ///< what Stats() reads (the /metrics of `worker --http`)
   std::unique_ptr<proto::dds::DdsNode> node;
+  /// Set by Run()'s thread when the participant must be replaced (DistWorker::Run): the heartbeat
+  /// and intake threads return, Run() creates a new DdsNode and starts them again.
+  std::atomic<bool> node_restart{false};
   WorkerCpu cpu;  ///< written by the receiving (Run's) thread only
 
   std::mutex send_mu;  // guards stamper + job identity used by the heartbeat thread

@@ -53,6 +53,9 @@ struct DistWorker::Impl {
   /// Decisions and level requests below this epoch belong to a skipped assignment (Dispatch).
   uint64_t skip_below_epoch = 0;
   std::string control_writer;  ///< the coordinator's control writer (GUID), once heard
+  std::string coordinator_participant;  ///< the job's coordinator's DDS participant (GUID prefix)
+  /// Our participant was replaced since we last joined a coordinator (OnDdsEvent, OnJob).
+  bool participant_fresh = false;
 
   /// Messages taken off DDS while collecting a batch of SubtreeTasks, handled next (in order).
   struct Pending {
@@ -81,7 +84,7 @@ struct DistWorker::Impl {
     // (time, evaluations): the rate over the last ~10 s, from the start (work done before the
     // first heartbeat counts).
     std::deque<std::pair<double, uint64_t>> recent{{proto::dds::NowSeconds(), ctx.evaluations.load()}};
-    while (!ctx.stop) {
+    while (!ctx.stop && !ctx.node_restart) {
       if (ctx.has_job) {
         v1::Envelope env;
         if (!ctx.assigned_any) {
@@ -133,6 +136,10 @@ struct DistWorker::Impl {
           std::to_string(core::kNumParts));
       return;
     }
+    // A restarted coordinator: joined, and our participant replaced right after (see
+    // OnDdsEvent), unless that was done when the old one's lease ran out.
+    const bool replace =
+        ctx.has_job && job.coordinator_id() != ctx.coordinator_id && !participant_fresh && SharedMemory();
     // A new job, or a restarted coordinator: start from scratch.
     ctx.params = std::move(*p);
     ctx.params.threads = std::max(1, opt.threads);
@@ -162,7 +169,12 @@ struct DistWorker::Impl {
     skip_below_epoch = 0;
     control_writer.clear();
     ctx.has_job = true;
+    participant_fresh = false;
     Log("joined job " + ctx.job_id + " of " + ctx.coordinator_id + ": " + engine::DescribeParams(ctx.params));
+    if (replace) {
+      Log("the job's coordinator was restarted: starting a new DDS participant (fresh shared-memory ports)");
+      ReplaceParticipant();
+    }
   }
 
   /// Called by a subtree batch between its histogram batches and levels: answers the level
@@ -228,11 +240,44 @@ struct DistWorker::Impl {
     ctx.cpu.subtree_train -= ThreadCpu() - cpu_serve;
   }
 
+  /// Shared memory among our transports (the profiles shm and default).
+  bool SharedMemory() const {
+    const auto t = ctx.opt.transport;
+    return t == proto::dds::TransportKind::kSharedMemoryOnly || t == proto::dds::TransportKind::kDefault;
+  }
+
+  /// Asks Run() for a new DDS participant (between messages).
+  void ReplaceParticipant() {
+    ctx.node_restart = true;
+    participant_fresh = true;
+  }
+
+  /// The job's coordinator's participant gone (it exited, or its lease ran out: killed) on a
+  /// transport with shared memory: the participant is replaced. Fast DDS 2.9 keeps the
+  /// shared-memory port it opened to a peer after the peer is gone. A coordinator restarted on
+  /// this host may take the dead one's participant id, and so its port numbers, and open a new
+  /// segment under that name (the old one failed its health check): our messages would still go
+  /// into the old segment, and the restarted coordinator would wait for workers it never hears
+  /// ("0 of N workers", seen in CI after `coordinator --resume`). A new participant opens every
+  /// port afresh. (A coordinator restarted before the lease runs out: OnJob.)
+  void OnDdsEvent(const proto::dds::DdsEvent& e) {
+    if (e.kind != proto::dds::DdsEvent::Kind::kParticipantLost || coordinator_participant.empty() ||
+        e.peer_participant != coordinator_participant || !SharedMemory())
+      return;
+    coordinator_participant.clear();
+    Log("the coordinator's DDS participant is gone: starting a new participant (fresh shared-memory ports)");
+    ReplaceParticipant();
+  }
+
   void OnSample(const proto::dds::ReceivedSample& s) {
     if (s.topic == Topic::kJob) {
       auto out = job_gate.Check(s.topic, s.bytes, s.writer_guid);
       ctx.CountDropped(out);
-      if (out.verdict == proto::dds::MessageGate::Verdict::kAccepted) OnJob(out.envelope);
+      if (out.verdict == proto::dds::MessageGate::Verdict::kAccepted) {
+        OnJob(out.envelope);
+        if (ctx.has_job && out.envelope.job().coordinator_id() == ctx.coordinator_id)
+          coordinator_participant = s.writer_participant;
+      }
       return;
     }
     if (!gate) return;
@@ -242,6 +287,7 @@ struct DistWorker::Impl {
     ctx.CountDropped(out);
     if (out.verdict != proto::dds::MessageGate::Verdict::kAccepted) return;
     if (s.topic == Topic::kControl && out.sender == ctx.coordinator_id) control_writer = s.writer_guid;
+    if (out.sender == ctx.coordinator_id) coordinator_participant = s.writer_participant;
     ctx.dispatch_received_s = s.received_s;
     Dispatch(out.envelope, out.sender);
   }
@@ -421,6 +467,25 @@ Status DistWorker::Run() {
   std::thread heartbeat([&] { impl.HeartbeatLoop(); });
   std::thread intake([&] { impl.intake.Loop(); });
   while (!stop_) {
+    while (auto e = impl.ctx.node->NextEvent(std::chrono::milliseconds(0))) impl.OnDdsEvent(*e);
+    if (impl.ctx.node_restart) {  // between messages: no phase is running on this thread
+      heartbeat.join();
+      intake.join();
+      {
+        CpuTimer timer(&impl.ctx.cpu.participant);
+        impl.ctx.node.reset();
+        auto fresh = proto::dds::DdsNode::Create(node_config);
+        if (!fresh.ok()) {
+          stop_ = true;
+          impl.intake.Wake();
+          return Status(fresh.status().code(), "new DDS participant: " + fresh.status().message());
+        }
+        impl.ctx.node = std::move(*fresh);
+      }
+      impl.ctx.node_restart = false;
+      heartbeat = std::thread([&] { impl.HeartbeatLoop(); });
+      intake = std::thread([&] { impl.intake.Loop(); });
+    }
     if (!impl.pending.empty()) {  // taken off DDS while a batch of subtree tasks was collected
       Impl::Pending p = std::move(impl.pending.front());
       impl.pending.pop_front();

@@ -8,7 +8,7 @@ using proto::dds::Topic;
 
 void Intake::Loop() {
   CpuTimer timer(&cpu_);
-  while (!ctx_.stop) {
+  while (!ctx_.stop && !ctx_.node_restart) {
     {
       std::unique_lock<std::mutex> lock(mu_);
       if (bytes_ > kMaxBytes) {

@@ -24,7 +24,8 @@ class Intake {
 
   explicit Intake(Context& ctx) : ctx_(ctx) {}
 
-  /// The intake thread's body: until ctx.stop, samples off ctx.node into the queue.
+  /// The intake thread's body: until ctx.stop (or ctx.node_restart), samples off ctx.node into
+  /// the queue.
   void Loop();
   /// The next sample the intake thread queued, waiting up to `timeout`.
   std::optional<proto::dds::ReceivedSample> Take(std::chrono::milliseconds timeout);

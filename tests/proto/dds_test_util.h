@@ -177,10 +177,13 @@ class Child {
   pid_t pid() const { return pid_; }
   /// Every line read so far (for failure messages).
   const std::string& output() const { return output_; }
-  /// Reads what a running child has written by now (waiting at most ~1 ms a line), then every
+  /// Reads what a running child has written by now (until it is quiet for 20 ms), then every
   /// line so far: for failure messages about children still running.
   const std::string& OutputNow() {
-    while (ReadLine(std::chrono::milliseconds(1))) {
+    // 20 ms, not 1: ReadLine rounds what is left of its timeout down to whole milliseconds, and
+    // with 1 ms it returned before reading anything (the workers' output in the --resume test's
+    // failure message was always empty).
+    while (ReadLine(std::chrono::milliseconds(20))) {
     }
     return output_;
   }
