@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Stress check of a coordinator SIGKILLed mid-job (after tree 0's level 2) and restarted at once with --resume (what a
-# supervisor such as `restart: on-failure` does), with 2 worker processes on one host.
+# Stress check of a coordinator SIGKILLed mid-job (after tree 0's level 2) and restarted at once
+# with --resume (what a supervisor such as `restart: on-failure` does), with 2 worker processes
+# on one host.
 #
 #   scripts/stress-coordinator-restart.sh [TRIALS] [PARALLEL] [BUSY] [PROFILE]
 #
@@ -54,8 +55,7 @@ trial() {
   local w1=$!
   local args=(coordinator "$dir/job.textproto" --out "$t/forest.pff" "${common[@]}" --job-id "stress$d"
     --min-workers 2 --checkpoint "$t/ckpt" --http off)
-  # Line-buffered, so the kill lands right after level 3 (a block-buffered log showed the line
-  # only when the job had ended).
+  # Line-buffered, so that the level line reaches the log file as soon as it is printed.
   stdbuf -oL -eL "$bin" "${args[@]}" >"$t/c1.log" 2>&1 &
   local c1=$! i
   for i in $(seq 1 900); do grep -q "tree 0 level 2:" "$t/c1.log" && break; sleep 0.1; done
