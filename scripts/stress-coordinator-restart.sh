@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Stress check of a coordinator SIGKILLed mid-job (after tree 0's level 2) and restarted at once
+# Stress check of a coordinator SIGKILLed mid-job (after tree 0's level 1) and restarted at once
 # with --resume (what a supervisor such as `restart: on-failure` does), with 2 worker processes
 # on one host.
 #
@@ -32,8 +32,8 @@ cp "$bin" "$dir/poseforest"
 bin="$dir/poseforest"
 cat >"$dir/job.textproto" <<'EOF'
 seed: 5
-num_trees: 2
-max_depth: 6
+num_trees: 3
+max_depth: 8
 images_per_tree: 12
 pixels_per_image: 150
 candidate_features: 40
@@ -58,16 +58,16 @@ trial() {
   # Line-buffered, so that the level line reaches the log file as soon as it is printed.
   stdbuf -oL -eL "$bin" "${args[@]}" >"$t/c1.log" 2>&1 &
   local c1=$! i
-  for i in $(seq 1 900); do grep -q "tree 0 level 2:" "$t/c1.log" && break; sleep 0.1; done
+  for i in $(seq 1 4500); do grep -q "tree 0 level 1:" "$t/c1.log" && break; sleep 0.02; done
   kill -9 "$c1" 2>/dev/null || true
   wait "$c1" 2>/dev/null || true
   stdbuf -oL -eL "$bin" "${args[@]}" --resume --worker-wait-s 45 >"$t/c2.log" 2>&1 &
   local c2=$! rc=0
   # The last levels can take milliseconds: when the first coordinator had finished the job
-  # before the kill (the restarted one resumes "at tree 2 level 0", after the last tree), the
+  # before the kill (the restarted one resumes "at tree 3 level 0", after the last tree), the
   # workers may have left on its JOB_DONE, and there is no restart to test.
   for i in $(seq 1 100); do grep -q "resuming" "$t/c2.log" && break; sleep 0.1; done
-  if grep -q "resuming .* at tree 2 level 0" "$t/c2.log"; then
+  if grep -q "resuming .* at tree 3 level 0" "$t/c2.log"; then
     kill "$c2" "$w0" "$w1" 2>/dev/null || true
     wait 2>/dev/null || true
     return 2
