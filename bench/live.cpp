@@ -191,8 +191,10 @@ int main(int argc, char** argv) {
                   .c_str(),
               fit ? " (--fit)" : " (`live`'s default for this forest)");
   std::printf("tracking decision: %s\n", !forest->tracking_model ? "the hand-set rules (none in the forest)"
-                                          : tracking_model        ? "learned (the forest's, format 1.6)"
-                                                                  : "the hand-set rules (--no-tracking-model)");
+                                          : !tracking_model       ? "the hand-set rules (--no-tracking-model)"
+                                          : forest->tracking_model->seen
+                                              ? "learned (the forest's, format 1.6), tracked when likely seen (1.8)"
+                                              : "learned (the forest's, format 1.6)");
   std::printf("offset votes: %s\n", !forest->offset_votes ? "none in the forest"
                                      : votes            ? "on (the forest's, format 1.5)"
                                                         : "off (--no-votes)");

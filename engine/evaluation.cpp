@@ -171,6 +171,7 @@ void ScoreSkeleton(const runtime::Classifier& classifier, const runtime::Classif
   runtime::SkeletonOptions so;
   so.fit = options.skeleton_fit;
   so.use_tracking_model = options.tracking_model;
+  so.use_seen_model = options.seen_model;
   const auto& model = classifier.forest().tracking_model;
   skeleton->fit = runtime::ResolveSkeletonFit(so, so.use_tracking_model && model ? &*model : nullptr);
   so.agree_radius_m = options.agree_radius_m;

@@ -101,6 +101,8 @@ struct JointEvalOptions {
   bool votes = true;
   /// The skeleton's tracked decision is the forest's learned model (format 1.6) when it has one.
   bool tracking_model = true;
+  /// With it, "tracked" is the model's seen decision (format 1.8) when the forest has one.
+  bool seen_model = true;
   /// How the skeleton (the `skeleton accuracy` table) picks its joints (runtime::SkeletonFit);
   /// unset: as `live` does by default (runtime::ResolveSkeletonFit).
   std::optional<runtime::SkeletonFit> skeleton_fit;

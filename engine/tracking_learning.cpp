@@ -115,65 +115,74 @@ core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
     const auto& truth = frame->people[0];
     for (int j = 0; j < core::kNumJoints; ++j) {
       const runtime::SkeletonJoint& joint = skeletons[0].joints[size_t(j)];
-      // A joint placed beyond the frame (SkeletonOptions::votes_beyond_frame) is never tracked:
-      // not a sample of the decision.
-      if (!joint.found || !runtime::PixelInImage(joint.pixel, frame->depth.width, frame->depth.height)) continue;
+      const bool seen = truth.visible[size_t(j)];
+      // A joint the skeleton did not find, or placed beyond the frame
+      // (SkeletonOptions::votes_beyond_frame), is never tracked: scored, not a sample of the fit.
+      if (!joint.found || !runtime::PixelInImage(joint.pixel, frame->depth.width, frame->depth.height)) {
+        joints.push_back(-1 - j);  // the marker
+        confidences.push_back(0);
+        cues.push_back({});
+        labels.push_back(0);
+        visible.push_back(seen);
+        rules_tracked.push_back(0);
+        continue;
+      }
       joints.push_back(j);
       confidences.push_back(joint.base_confidence);
       cues.push_back(joint.cues);
       labels.push_back((joint.position_m - truth.position[size_t(j)]).norm() <= 0.1f);
-      visible.push_back(truth.visible[size_t(j)]);
+      visible.push_back(seen);
       rules_tracked.push_back(joint.tracked);
     }
-    // Visible joints the skeleton did not find count against both decisions.
-    for (int j = 0; j < core::kNumJoints; ++j)
-      if (!skeletons[0].joints[size_t(j)].found && truth.visible[size_t(j)]) {
-        joints.push_back(-1 - j);  // a marker: scored, not fitted
-        confidences.push_back(0);
-        cues.push_back({});
-        labels.push_back(0);
-        visible.push_back(1);
-          rules_tracked.push_back(0);
-      }
   }
   if (rep.frames == 0)
     return Status(ErrorCode::kInvalidArgument, (*src)->Describe() + ": no one-person validation frame");
   std::vector<int> fj;
   std::vector<float> fc;
   std::vector<core::TrackingFeatures> ff;
-  std::vector<uint8_t> fl;
+  std::vector<uint8_t> fl, fv;
   for (size_t i = 0; i < joints.size(); ++i)
-    if (joints[i] >= 0) fj.push_back(joints[i]), fc.push_back(confidences[i]), ff.push_back(cues[i]), fl.push_back(labels[i]);
+    if (joints[i] >= 0)
+      fj.push_back(joints[i]), fc.push_back(confidences[i]), ff.push_back(cues[i]), fl.push_back(labels[i]),
+          fv.push_back(visible[i]);
   core::TrackingModel model = FitTrackingModel(fj, fc, ff, fl, options.l2, &rep.iterations);
+  // The seen decision: the same samples and form, labelled by whether the camera sees the joint.
+  if (options.seen_model) model.seen = core::TrackingWeights(FitTrackingModel(fj, fc, ff, fv, options.l2));
   // The skeletons above had no model to resolve the fit from: options.skeleton.fit, else kinematic.
   model.fit = core::TrackingFit(runtime::ResolveSkeletonFit(options.skeleton, nullptr));
   rep.samples = int(fj.size());
   // In-sample figures, rules against model (the same positions; only the decision differs).
-  std::array<double, core::kNumJoints> vis{}, rules_hit{}, model_hit{};
-  double rules_tr = 0, rules_ok = 0, model_tr = 0, model_ok = 0;
+  struct Tally {
+    std::array<double, core::kNumJoints> hit{};
+    double tracked = 0, right = 0, untracked = 0, untracked_hidden = 0;
+  };
+  std::array<double, core::kNumJoints> vis{};
+  Tally rules, within, seen;
+  auto count = [&](Tally& t, size_t i, int j, bool tracked) {
+    if (visible[i]) t.hit[size_t(j)] += tracked && labels[i];
+    t.tracked += tracked, t.right += tracked && labels[i];
+    t.untracked += !tracked, t.untracked_hidden += !tracked && !visible[i];
+  };
   for (size_t i = 0; i < joints.size(); ++i) {
     const int j = joints[i] >= 0 ? joints[i] : -1 - joints[i];
-    const bool model_tracked =
-        joints[i] >= 0 && model.Probability(j, confidences[i], cues[i]) >= options.skeleton.track_probability &&
-        cues[i][core::kFeatDepthGap] <= options.skeleton.max_depth_gap_m;
-    if (visible[i]) {
-      vis[size_t(j)] += 1;
-      rules_hit[size_t(j)] += rules_tracked[i] && labels[i];
-      model_hit[size_t(j)] += model_tracked && labels[i];
-    }
-    rules_tr += rules_tracked[i], rules_ok += rules_tracked[i] && labels[i];
-    model_tr += model_tracked, model_ok += model_tracked && labels[i];
+    const bool at_surface = joints[i] >= 0 && cues[i][core::kFeatDepthGap] <= options.skeleton.max_depth_gap_m;
+    const float p = options.skeleton.track_probability;
+    vis[size_t(j)] += visible[i];
+    count(rules, i, j, rules_tracked[i]);
+    count(within, i, j, at_surface && model.Probability(j, confidences[i], cues[i]) >= p);
+    if (model.seen) count(seen, i, j, at_surface && model.seen->Probability(j, confidences[i], cues[i]) >= p);
   }
-  int scored = 0;
-  for (int j = 0; j < core::kNumJoints; ++j)
-    if (vis[size_t(j)] > 0) {
-      rep.rules_within += rules_hit[size_t(j)] / vis[size_t(j)];
-      rep.model_within += model_hit[size_t(j)] / vis[size_t(j)];
-      ++scored;
-    }
-  if (scored) rep.rules_within /= scored, rep.model_within /= scored;
-  rep.rules_precision = rules_tr > 0 ? rules_ok / rules_tr : 0;
-  rep.model_precision = model_tr > 0 ? model_ok / model_tr : 0;
+  auto figures = [&](const Tally& t, TrackingLearningReport::Figures& f) {
+    int scored = 0;
+    for (int j = 0; j < core::kNumJoints; ++j)
+      if (vis[size_t(j)] > 0) f.visible_within += t.hit[size_t(j)] / vis[size_t(j)], ++scored;
+    if (scored) f.visible_within /= scored;
+    f.precision = t.tracked > 0 ? t.right / t.tracked : 0;
+    f.untracked_hidden = t.untracked > 0 ? t.untracked_hidden / t.untracked : 0;
+  };
+  figures(rules, rep.rules);
+  figures(within, rep.model);
+  if (model.seen) figures(seen, rep.seen);
   rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (report) *report = rep;
   return model;

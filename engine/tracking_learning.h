@@ -4,8 +4,10 @@
 // Each validation frame (one person) is classified, its joints proposed and voted as `live` does,
 // and its skeleton built with the hand-set rules, options.skeleton's fit choosing the positions;
 // every joint the skeleton found gives one sample: its joint, calibrated confidence and cues
-// (SkeletonJoint::cues), and whether it lies within 0.1 m of the true joint. Logistic regression (Newton's method, an L2
-// penalty on the weights) fits P(within 0.1 m). The frames are the validation source's frames
+// (SkeletonJoint::cues), whether it lies within 0.1 m of the true joint, and whether the camera
+// sees the true joint (the renders' `visible`). Logistic regression (Newton's method, an L2
+// penalty on the weights) fits P(within 0.1 m), and on the same samples the seen decision
+// P(seen) (format 1.8). The frames are the validation source's frames
 // [first_index, first_index + frames): after the vote calibration's, so the model is not fitted
 // on the frames its inputs were calibrated on. Deterministic: same forest and options, same
 // model, whatever the number of threads.
@@ -29,6 +31,9 @@ struct TrackingLearningOptions {
   /// How positions are chosen: the fit (unset: kinematic, the run-time default) whose choices
   /// the model learns from, and which it records (core::TrackingModel::fit).
   runtime::SkeletonOptions skeleton;
+  /// Also fit the seen decision (core::TrackingModel::seen, format 1.8): P(the camera sees the
+  /// joint) on the same samples.
+  bool seen_model = true;
   std::function<void(const std::string&)> progress;  ///< may be empty
 };
 
@@ -36,9 +41,13 @@ struct TrackingLearningReport {
   int frames = 0;       ///< one-person frames used
   int samples = 0;      ///< found joints (the fit's samples)
   int iterations = 0;   ///< Newton steps
-  /// On the fitting frames, mean over joints: visible joints tracked within 0.1 m, and the
-  /// share of tracked joints within 0.1 m; by the hand-set rules and by the fitted model.
-  double rules_within = 0, rules_precision = 0, model_within = 0, model_precision = 0;
+  /// On the fitting frames: visible joints tracked within 0.1 m (mean over joints), the share
+  /// of tracked joints within 0.1 m, and the share of joints left untracked that are hidden.
+  struct Figures {
+    double visible_within = 0, precision = 0, untracked_hidden = 0;
+  };
+  /// By the hand-set rules, by the model's P(within 0.1 m), and by its seen decision.
+  Figures rules, model, seen;
   double seconds = 0;
 };
 

@@ -464,17 +464,23 @@ struct PersonFit {
     }
   }
 
-  /// The learned decision: P(within 0.1 m) from all the cues; tracked when likely enough and
-  /// at the surface's depth (a joint behind the surface stays inferred or not tracked).
+  /// The learned decision: P(within 0.1 m) from all the cues is the confidence; tracked when
+  /// likely seen (the seen model), else when likely within 0.1 m, and at the surface's depth (a
+  /// joint behind the surface stays inferred or not tracked).
   void DecideWithModel(const core::TrackingModel& tracking) {
+    const core::TrackingWeights* seen = tracking.seen && options.use_seen_model ? &*tracking.seen : nullptr;
     for (int j = 0; j < core::kNumJoints; ++j) {
       SkeletonJoint& joint = s.joints[size_t(j)];
       if (!joint.found) continue;
       joint.confidence = tracking.Probability(j, joint.base_confidence, joint.cues);
+      const float decide = seen ? seen->Probability(j, joint.base_confidence, joint.cues) : joint.confidence;
       const int d = MaskDepthPx(joint.pixel);
       const bool at_surface = d && std::abs(joint.position_m.z() - float(d) * 1e-3f) <= options.max_depth_gap_m;
-      joint.tracked = at_surface && joint.confidence >= options.track_probability;
+      joint.tracked = at_surface && decide >= options.track_probability;
       if (joint.tracked) joint.inferred = false;
+      // Likely hidden, and its candidate confident: placed, not seen (Azure Kinect's "LOW").
+      else if (seen && decide < options.track_probability && joint.base_confidence >= options.min_confidence)
+        joint.inferred = true;
     }
   }
 

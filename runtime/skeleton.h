@@ -14,7 +14,8 @@
 // image border that cuts the person, and its bone to its parent joint has a possible length: an
 // upper-body frame whose legs are out of view gets no invented knees. A forest with a learned
 // tracking decision (core::TrackingModel, format 1.6) replaces those rules: its P(within 0.1 m)
-// of the joint, from the confidence and the same cues, is the confidence, and P >= 0.5 tracks.
+// of the joint, from the confidence and the same cues, is the confidence, and P >= 0.5 tracks;
+// with its seen model (format 1.8) P(the camera sees the joint) >= 0.5 tracks instead.
 
 #include <Eigen/Core>
 #include <array>
@@ -113,6 +114,12 @@ struct SkeletonOptions {
   /// image-border, bone-length and tracked-parent rules are then cues of the model, not vetoes.
   /// false (`--no-tracking-model`) keeps the rules.
   bool use_tracking_model = true;
+  /// With the decision's seen model (format 1.8, JSEE; core::TrackingModel::seen): a joint is
+  /// tracked when P(the camera sees it) reaches track_probability and it lies at the surface's
+  /// depth, as Kinect's and Azure Kinect's trackers mean "tracked"; a found joint likely hidden
+  /// is inferred. Its confidence stays P(within 0.1 m). false (`--no-seen-model`): tracked when
+  /// P(within 0.1 m) reaches track_probability, as before 1.8.
+  bool use_seen_model = true;
   float track_probability = 0.5f;
   /// A joint below the shoulders (elbow, wrist, hand, knee, ankle, foot) is tracked only if its
   /// parent is: a foot found below knees that are not tracked is a guess.

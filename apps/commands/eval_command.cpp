@@ -40,7 +40,8 @@ class EvalCommand final : public Command {
   int64_t first_ = 0;
   int threads_ = 0;
   std::optional<double> agree_radius_;
-  bool quiet_ = false, per_person_ = false, no_rescale_ = false, no_votes_ = false, no_tracking_model_ = false;
+  bool quiet_ = false, per_person_ = false, no_rescale_ = false, no_votes_ = false, no_tracking_model_ = false,
+       no_seen_model_ = false;
 };
 
 EvalCommand::EvalCommand()
@@ -129,6 +130,9 @@ EvalCommand::EvalCommand()
   app_.add_flag("--no-tracking-model", no_tracking_model_,
                 "the skeleton's hand-set tracking rules instead of the forest's learned tracking\n"
                 "decision (format 1.6, `learn-votes`; runtime/core/tracking_model.h)");
+  app_.add_flag("--no-seen-model", no_seen_model_,
+                "with the learned decision: track a joint when P(within 0.1 m) >= 0.5 instead of when the\n"
+                "decision's seen model (format 1.8) says the camera likely sees it");
   app_.add_option("--agree-radius", agree_radius_,
                   "a joint whose part proposal and best vote candidate lie within M metres of each other\n"
                   "gets their combined confidence (default 0.1; 0: off; runtime/skeleton.h\n"
@@ -188,6 +192,7 @@ int EvalCommand::RunRealLabels() {
   if (agree_radius_) options.skeleton.agree_radius_m = float(*agree_radius_);
   options.votes = !no_votes_;
   options.skeleton.use_tracking_model = !no_tracking_model_;
+  options.skeleton.use_seen_model = !no_seen_model_;
   runtime::FrameSourceOptions source_options;
   source_options.camera = labels->camera;
   source_options.camera_given = true;
@@ -272,6 +277,7 @@ int EvalCommand::RunTestSet() {
   if (agree_radius_) eo.agree_radius_m = float(*agree_radius_);
   eo.votes = !no_votes_;
   eo.tracking_model = !no_tracking_model_;
+  eo.seen_model = !no_seen_model_;
   eo.fast = method == "both";
   eo.rescale = !no_rescale_;
   eo.segment = segment_ == "on"    ? engine::JointEvalOptions::Segment::kOn

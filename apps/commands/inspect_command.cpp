@@ -21,9 +21,8 @@ class InspectCommand final : public Command {
                 "`poseforest tune-joints`, one set per method (JPAR: mean shift, JPFC: the fast clustering;\n"
                 "means over joints) and which set each method runs with, and the offset votes stored by\n"
                 "`poseforest learn-votes` (JVOT: votes, trees, max offset, bandwidths, calibration bins) and\n"
-                "its tracking decision (JTRK: the learned weights of the cues; JTFT: the skeleton fit it was\n"
-                "learned on). Exit status 1 if any file is\n"
-                "invalid.") {
+                "its tracking decision (JTRK: the learned weights of the cues; JSEE: the seen decision's;\n"
+                "JTFT: the skeleton fit it was learned on). Exit status 1 if any file is invalid.") {
     app_.add_option("FOREST.pff", paths_, "forest files")->required();
     app_.add_flag("--parts", parts_, "also list the part table");
     app_.add_flag("--joints", joints_,
@@ -115,6 +114,14 @@ int InspectCommand::Run() {
       for (int k = 0; k < core::kNumTrackingFeatures; ++k)
         std::printf(" %s %.2f%s", core::TrackingFeatureName(k), double(model->shared[size_t(k)]),
                     k + 1 < core::kNumTrackingFeatures ? "," : "\n");
+      if (const auto& seen = model->seen) {
+        std::printf("  seen decision (JSEE): a joint is tracked when likely seen; cue weights:");
+        for (int k = 0; k < core::kNumTrackingFeatures; ++k)
+          std::printf(" %s %.2f%s", core::TrackingFeatureName(k), double(seen->shared[size_t(k)]),
+                      k + 1 < core::kNumTrackingFeatures ? "," : "\n");
+      } else {
+        std::printf("  seen decision: none (no JSEE section: a joint is tracked when P(within 0.1 m) >= 0.5)\n");
+      }
     } else {
       std::printf("  tracking decision: the hand-set rules (no JTRK section)\n");
     }

@@ -62,9 +62,22 @@ void PrintTracking(const core::TrackingModel& m, const engine::TrackingLearningR
   for (int k = 0; k < core::kNumTrackingFeatures; ++k)
     std::printf(" %s %.2f%s", core::TrackingFeatureName(k), double(m.shared[size_t(k)]),
                 k + 1 < core::kNumTrackingFeatures ? "," : "\n");
-  std::printf("learn-votes: wrote %s; tracking decision on its fitting frames: visible joints tracked within 0.1 m "
-              "%.3f (rules %.3f), tracked joints within 0.1 m %.3f (rules %.3f), in %.0f s\n",
-              out.c_str(), rep.model_within, rep.rules_within, rep.model_precision, rep.rules_precision, rep.seconds);
+  if (m.seen) {
+    std::printf("seen decision (format 1.8): P(the camera sees the joint), the same form and samples; a joint is "
+                "tracked when it reaches 0.5\n  cues:");
+    for (int k = 0; k < core::kNumTrackingFeatures; ++k)
+      std::printf(" %s %.2f%s", core::TrackingFeatureName(k), double(m.seen->shared[size_t(k)]),
+                  k + 1 < core::kNumTrackingFeatures ? "," : "\n");
+  }
+  auto line = [](const char* what, const engine::TrackingLearningReport::Figures& f) {
+    std::printf("  %-37s visible tracked within 0.1 m %.3f, tracked right %.3f, not tracked and hidden %.3f\n", what,
+                f.visible_within, f.precision, f.untracked_hidden);
+  };
+  std::printf("on its fitting frames (the same positions; only the decision differs):\n");
+  line("the hand-set rules:", rep.rules);
+  line("tracked when P(within 0.1 m) >= 0.5:", rep.model);
+  if (m.seen) line("tracked when P(seen) >= 0.5:", rep.seen);
+  std::printf("learn-votes: wrote %s; tracking decision fitted in %.0f s\n", out.c_str(), rep.seconds);
 }
 
 class LearnVotesCommand final : public Command {
@@ -82,7 +95,9 @@ class LearnVotesCommand final : public Command {
                 "the skeleton weighs against the part proposals. Last, it fits the skeleton's tracking decision\n"
                 "(format 1.6, runtime/core/tracking_model.h) on further validation frames: whether a joint is\n"
                 "tracked is learned from its confidence and cues (votes agreeing, the image border, bone lengths,\n"
-                "its parent) instead of hand-set rules. Run it after tune-joints (it keeps what the forest holds).") {
+                "its parent) instead of hand-set rules: P(within 0.1 m) is the joint's confidence, and a seen\n"
+                "decision (format 1.8) on the same cues, P(the camera sees the joint), says which joints are\n"
+                "tracked (seen) and which inferred. Run it after tune-joints (it keeps what the forest holds).") {
     app_.add_option("--forest", forest_, "the trained forest")->type_name("PATH")->required();
     app_.add_option("--job", job_, "the job that trained it (its source must render joints)")
         ->type_name("PATH")

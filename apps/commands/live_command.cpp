@@ -65,7 +65,8 @@ struct LiveFlags {
   std::optional<int64_t> max_frames;
   std::optional<double> min_confidence, track_probability, min_support, max_match;  ///< default: SkeletonOptions'
   std::optional<double> smooth_min_cutoff, smooth_beta, smooth_d_cutoff;
-  bool smooth = false, loop = false, quiet = false, dds = false, no_votes = false, no_tracking_model = false;
+  bool smooth = false, loop = false, quiet = false, dds = false, no_votes = false, no_tracking_model = false,
+       no_seen_model = false;
 };
 
 void DeclareLiveOptions(CLI::App& app, LiveFlags* f) {
@@ -139,6 +140,11 @@ void DeclareLiveOptions(CLI::App& app, LiveFlags* f) {
                "the hand-set tracking rules (--min-confidence, --min-support, the image border, bone\n"
                "lengths, a tracked parent) instead of the forest's learned tracking decision (format\n"
                "1.6, `learn-votes`), which tracks a joint when its P(within 0.1 m) >= --track-probability")
+      ->group(sk);
+  app.add_flag("--no-seen-model", f->no_seen_model,
+               "with the learned decision: track a joint when its P(within 0.1 m) >= --track-probability\n"
+               "instead of when the decision's seen model (format 1.8) gives P(seen) >= --track-probability\n"
+               "(a found joint likely hidden is inferred)")
       ->group(sk);
   app.add_option("--min-confidence", f->min_confidence,
                  "without a tracking model: tracked only with a confidence >= C (default 0.3)")
@@ -216,6 +222,7 @@ std::optional<int> ParseLiveOptions(const LiveFlags& f, LiveOptions* out) {
   if (!f.fit.empty()) sk.fit = *runtime::SkeletonFitFromName(f.fit);
   options.votes = !f.no_votes;
   sk.use_tracking_model = !f.no_tracking_model;
+  sk.use_seen_model = !f.no_seen_model;
   if (f.min_confidence) sk.min_confidence = float(*f.min_confidence);
   if (f.min_support) sk.min_support_m2 = float(*f.min_support);
   if (f.track_probability) sk.track_probability = float(*f.track_probability);
@@ -570,7 +577,9 @@ int LiveCommand::Run() {
                  o.pipeline.skeleton.fit ? "--fit"
                  : learned               ? "the one the forest's tracking decision was learned on"
                                          : "the default",
-                 learned ? "the forest's learned decision" : "the hand-set rules");
+                 !learned                                          ? "the hand-set rules"
+                 : model->seen && o.pipeline.skeleton.use_seen_model ? "the forest's learned decision, when likely seen"
+                                                                     : "the forest's learned decision");
   }
   if (o.pipeline.pixel_stride > 1)
     std::fprintf(stderr,

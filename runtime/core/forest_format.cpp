@@ -155,14 +155,18 @@ void WriteOffsetVotes(Writer& w, const OffsetVotes& votes) {
   EndSection(w, at);
 }
 
+void WriteWeights(Writer& w, const TrackingWeights& weights) {
+  for (float v : weights.intercept) w.F32(v);
+  for (float v : weights.slope) w.F32(v);
+  for (float v : weights.shared) w.F32(v);
+}
+
 void WriteTracking(Writer& w, const TrackingModel& model) {
   const size_t at = BeginSection(w, kTagTracking, 0);
   w.U32(uint32_t(kNumJoints));
   w.U32(uint32_t(kNumTrackingFeatures));
   w.U32(model.samples);
-  for (float v : model.intercept) w.F32(v);
-  for (float v : model.slope) w.F32(v);
-  for (float v : model.shared) w.F32(v);
+  WriteWeights(w, model);
   EndSection(w, at);
   // JTFT (1.7): only for a model of the kinematic fit's choices; without it, the greedy fit's.
   if (model.fit != TrackingFit::kGreedy) {
@@ -170,6 +174,14 @@ void WriteTracking(Writer& w, const TrackingModel& model) {
     w.U32(uint32_t(model.fit));
     w.U32(0);
     EndSection(w, fit_at);
+  }
+  // JSEE (1.8): the seen decision, when learn-votes fitted one.
+  if (const auto& seen = model.seen) {
+    const size_t seen_at = BeginSection(w, kTagTrackingSeen, 0);
+    w.U32(uint32_t(kNumJoints));
+    w.U32(uint32_t(kNumTrackingFeatures));
+    WriteWeights(w, *seen);
+    EndSection(w, seen_at);
   }
 }
 }  // namespace
@@ -180,7 +192,8 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
                                  (forest.fast_proposal_params ? 1 : 0) + 1 +
                                  (forest.confidence_calibration ? 1 : 0) + (forest.offset_votes ? 1 : 0) +
                                  (forest.tracking_model ? 1 : 0) +
-                                 (forest.tracking_model && forest.tracking_model->fit != TrackingFit::kGreedy ? 1 : 0);
+                                 (forest.tracking_model && forest.tracking_model->fit != TrackingFit::kGreedy ? 1 : 0) +
+                                 (forest.tracking_model && forest.tracking_model->seen ? 1 : 0);
   WriteHeader(w, section_count);
   WriteMeta(w, forest);
   for (size_t t = 0; t < forest.trees.size(); ++t) WriteTree(w, forest.trees[t], t);
@@ -203,7 +216,8 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   if (const auto& cal = forest.confidence_calibration) WriteCalibration(w, *cal);
   // JVOT (1.5): the offset votes learn-votes built; older readers skip it.
   if (const auto& votes = forest.offset_votes) WriteOffsetVotes(w, *votes);
-  // JTRK (1.6) and JTFT (1.7): the tracking decision learn-votes fitted; older readers skip them.
+  // JTRK (1.6), JTFT (1.7) and JSEE (1.8): the tracking decision learn-votes fitted; older
+  // readers skip them.
   if (const auto& model = forest.tracking_model) WriteTracking(w, *model);
 
   const uint64_t file_size = w.size() + kTrailerSize;

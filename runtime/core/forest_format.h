@@ -1,5 +1,5 @@
 #pragma once
-// Forest file format v1 (.pff, "poseforest forest"), minor version 7: reading and writing. The layout is
+// Forest file format v1 (.pff, "poseforest forest"), minor version 8: reading and writing. The layout is
 // documented in runtime/FORMAT.md; keep the two in step.
 
 #include <cstdint>
@@ -23,8 +23,10 @@ inline constexpr uint16_t kFormatMajor = 1;
 /// 1.6 added the optional JTRK section (the learned tracking decision); older readers skip it.
 /// 1.7 added the optional JTFT section (which skeleton fit JTRK was fitted on, written when it is
 /// the kinematic fit); older readers skip it, and a JTRK without it was fitted on the greedy fit.
+/// 1.8 added the optional JSEE section (the tracking decision's seen model: a joint is tracked
+/// when the camera likely sees it); older readers skip it and track by P(within 0.1 m).
 /// Every file is written with the newest minor version, whichever optional sections it holds.
-inline constexpr uint16_t kFormatMinor = 7;
+inline constexpr uint16_t kFormatMinor = 8;
 
 /// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
 std::vector<uint8_t> SerializeForest(const Forest& forest);

@@ -34,9 +34,11 @@ constexpr uint32_t kTagCalibration = Tag("JCAL");      // joint confidence calib
 constexpr uint32_t kTagOffsetVotes = Tag("JVOT");      // offset votes (1.5)
 constexpr uint32_t kTagTracking = Tag("JTRK");         // learned tracking decision (1.6)
 constexpr uint32_t kTagTrackingFit = Tag("JTFT");      // the skeleton fit JTRK was fitted on (1.7)
+constexpr uint32_t kTagTrackingSeen = Tag("JSEE");     // the seen decision beside JTRK (1.8)
 // JTFT: u32 fit (TrackingFit: 1 = kinematic; written only then), u32 reserved zero.
 constexpr uint32_t kTrackingFitSize = 8;
 // JTRK: u32 joints, u32 cues, u32 samples, joints x f32 intercept, joints x f32 slope, cues x f32.
+// JSEE: u32 joints, u32 cues, joints x f32 intercept, joints x f32 slope, cues x f32.
 // JVOT: u32 trees, u32 joints, f32 max offset, joints x f32 bandwidth, u32 calibration bins.
 constexpr uint32_t kVotesHeadSize = 16 + 4 * uint32_t(kNumJoints);
 constexpr uint32_t kVoteSize = 8;  // i16 dx, dy, dz (mm), u8 joint, u8 weight

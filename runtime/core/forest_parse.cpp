@@ -108,6 +108,7 @@ struct ParseState {
   uint32_t section_count = 0;
   bool have_meta = false, have_focal = false, have_calibration = false, have_votes = false, have_tracking = false;
   std::optional<TrackingFit> tracking_fit;  ///< JTFT, applied to the JTRK model after the loop
+  std::optional<TrackingWeights> tracking_seen;  ///< JSEE, the JTRK model's seen decision after the loop
   uint32_t tree_count = 0, stride = 0;
 };
 
@@ -318,29 +319,43 @@ Status ParseOffsetVotes(Reader& p, const std::string& where, ParseState& st) {
   return Status::Ok();
 }
 
-Status ParseTracking(Reader& p, const std::string& where, ParseState& st) {
-  Forest& forest = st.forest;
-  const Loss& loss = st.loss;
-  bool& have_tracking = st.have_tracking;
-  if (have_tracking) return loss(where + "second JTRK section");
-  const size_t need = 12 + 4 * (2 * size_t(kNumJoints) + size_t(kNumTrackingFeatures));
+/// A JTRK or JSEE payload: u32 joints, u32 cues, JTRK's u32 samples (when `samples` is given),
+/// then the weights; its size exact and its counts this reader's.
+Status ParseWeights(Reader& p, const std::string& where, const Loss& loss, const std::string& tag,
+                    TrackingWeights& weights, uint32_t* samples) {
+  const size_t need = (samples ? 12 : 8) + 4 * (2 * size_t(kNumJoints) + size_t(kNumTrackingFeatures));
   if (p.remaining() != need)
-    return loss(where + "JTRK holds " + std::to_string(p.remaining()) + " bytes, expected " +
+    return loss(where + tag + " holds " + std::to_string(p.remaining()) + " bytes, expected " +
                 std::to_string(need) + " (" + std::to_string(kNumJoints) + " joints, " +
                 std::to_string(kNumTrackingFeatures) + " cues)");
   const uint32_t joints = p.U32();
   const uint32_t cues = p.U32();
   if (joints != uint32_t(kNumJoints) || cues != uint32_t(kNumTrackingFeatures))
-    return loss(where + "JTRK holds " + std::to_string(joints) + " joints and " + std::to_string(cues) +
+    return loss(where + tag + " holds " + std::to_string(joints) + " joints and " + std::to_string(cues) +
                 " cues, expected " + std::to_string(kNumJoints) + " and " +
                 std::to_string(kNumTrackingFeatures));
+  if (samples) *samples = p.U32();
+  for (float& v : weights.intercept) v = p.F32();
+  for (float& v : weights.slope) v = p.F32();
+  for (float& v : weights.shared) v = p.F32();
+  return Status::Ok();
+}
+
+Status ParseTracking(Reader& p, const std::string& where, ParseState& st) {
+  if (st.have_tracking) return st.loss(where + "second JTRK section");
   TrackingModel model;
-  model.samples = p.U32();
-  for (float& v : model.intercept) v = p.F32();
-  for (float& v : model.slope) v = p.F32();
-  for (float& v : model.shared) v = p.F32();
-  forest.tracking_model = model;
-  have_tracking = true;
+  POSEFOREST_RETURN_IF_ERROR(ParseWeights(p, where, st.loss, "JTRK", model, &model.samples));
+  st.forest.tracking_model = model;
+  st.have_tracking = true;
+  return Status::Ok();
+}
+
+/// JSEE (1.8): the seen decision of the JTRK model.
+Status ParseTrackingSeen(Reader& p, const std::string& where, ParseState& st) {
+  if (st.tracking_seen) return st.loss(where + "second JSEE section");
+  TrackingWeights seen;
+  POSEFOREST_RETURN_IF_ERROR(ParseWeights(p, where, st.loss, "JSEE", seen, nullptr));
+  st.tracking_seen = seen;
   return Status::Ok();
 }
 
@@ -404,6 +419,8 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       POSEFOREST_RETURN_IF_ERROR(ParseTracking(p, where, st));
     } else if (tag == kTagTrackingFit) {
       POSEFOREST_RETURN_IF_ERROR(ParseTrackingFit(p, where, st));
+    } else if (tag == kTagTrackingSeen) {
+      POSEFOREST_RETURN_IF_ERROR(ParseTrackingSeen(p, where, st));
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");
@@ -415,6 +432,10 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
   if (st.tracking_fit) {
     if (!forest.tracking_model) return loss("a JTFT section without the JTRK section it describes");
     forest.tracking_model->fit = *st.tracking_fit;
+  }
+  if (st.tracking_seen) {
+    if (!forest.tracking_model) return loss("a JSEE section without the JTRK section it belongs to");
+    forest.tracking_model->seen = *st.tracking_seen;
   }
   if (forest.trees.size() != st.tree_count)
     return loss("declares " + std::to_string(st.tree_count) + " trees but holds " + std::to_string(forest.trees.size()));

@@ -22,14 +22,16 @@ float ClampedLogit(float confidence) {
   return std::log(c / (1.0f - c));
 }
 
-float TrackingModel::Probability(int joint, float confidence, const TrackingFeatures& f) const {
+float TrackingWeights::Probability(int joint, float confidence, const TrackingFeatures& f) const {
   if (joint < 0 || joint >= kNumJoints) return 0.0f;
   double z = double(intercept[size_t(joint)]) + double(slope[size_t(joint)]) * ClampedLogit(confidence);
   for (int k = 0; k < kNumTrackingFeatures; ++k) z += double(shared[size_t(k)]) * double(f[size_t(k)]);
   return float(1.0 / (1.0 + std::exp(-z)));
 }
 
-Status ValidateTrackingModel(const TrackingModel& model, const std::string& where) {
+namespace {
+
+Status ValidateWeights(const TrackingWeights& model, const std::string& where) {
   auto ok = [](float v) { return std::isfinite(v) && std::abs(v) <= 1e3f; };
   for (int j = 0; j < kNumJoints; ++j)
     if (!ok(model.intercept[size_t(j)]) || !ok(model.slope[size_t(j)]))
@@ -39,6 +41,14 @@ Status ValidateTrackingModel(const TrackingModel& model, const std::string& wher
     if (!ok(model.shared[size_t(k)]))
       return Status(ErrorCode::kDataLoss, where + ": cue '" + TrackingFeatureName(k) +
                                               "' has a weight that is not finite or beyond 1e3");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status ValidateTrackingModel(const TrackingModel& model, const std::string& where) {
+  POSEFOREST_RETURN_IF_ERROR(ValidateWeights(model, where));
+  if (model.seen) POSEFOREST_RETURN_IF_ERROR(ValidateWeights(*model.seen, where + ", its seen decision (JSEE)"));
   return Status::Ok();
 }
 

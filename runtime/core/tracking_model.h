@@ -13,6 +13,7 @@
 // (0.5: more likely right than wrong) and it lies at the surface's depth.
 
 #include <array>
+#include <optional>
 #include <string>
 
 #include "runtime/core/body_parts.h"
@@ -55,22 +56,36 @@ enum class TrackingFit : uint8_t { kGreedy = 0, kKinematic = 1 };
 /// "greedy" or "kinematic".
 const char* TrackingFitName(TrackingFit fit);
 
-struct TrackingModel {
+/// One logistic model over a joint's confidence and cues: sigmoid(a_j + b_j logit(c) + w . f).
+struct TrackingWeights {
   std::array<float, kNumJoints> intercept{};  ///< a_j
   std::array<float, kNumJoints> slope{};      ///< b_j, on logit(calibrated confidence)
   std::array<float, kNumTrackingFeatures> shared{};  ///< w
+  bool operator==(const TrackingWeights&) const = default;
+
+  /// The model's probability for joint j with calibrated confidence `confidence` and cues `f`.
+  float Probability(int joint, float confidence, const TrackingFeatures& f) const;
+};
+
+/// The tracking decision: its own weights give P(within 0.1 m), the joint's confidence.
+struct TrackingModel : TrackingWeights {
   uint32_t samples = 0;  ///< validation joints behind the fit (informative)
   TrackingFit fit = TrackingFit::kGreedy;  ///< the skeleton fit whose choices it was fitted on
+  /// The seen decision (format 1.8, optional section JSEE), fitted on the same samples:
+  /// P(the camera sees the joint: it projects into the picture and lies at most 0.1 m (the head
+  /// 0.15 m) behind the surface there), the renders' `visible`. With it a skeleton tracks a joint
+  /// when it is likely *seen*, as Kinect's and Azure Kinect's trackers mean "tracked", and a
+  /// found joint that is likely hidden is inferred; the confidence stays P(within 0.1 m). Absent
+  /// (files before 1.8): tracked means P(within 0.1 m) reached the threshold.
+  std::optional<TrackingWeights> seen;
   bool operator==(const TrackingModel&) const = default;
-
-  /// P(within 0.1 m) of joint j with calibrated confidence `confidence` and cues `f`.
-  float Probability(int joint, float confidence, const TrackingFeatures& f) const;
 };
 
 /// logit(c) with c clamped to [0.01, 0.99] (the model's first input).
 float ClampedLogit(float confidence);
 
-/// Finite weights of magnitude at most 1e3; `where` names the table in errors.
+/// Finite weights of magnitude at most 1e3, the seen decision's too; `where` names the table in
+/// errors.
 Status ValidateTrackingModel(const TrackingModel& model, const std::string& where);
 
 }  // namespace poseforest::core

@@ -127,8 +127,16 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
   CHECK(trep.samples > 6 * 8);  // most of 16 joints found per frame
   CHECK(int(m1->samples) == trep.samples);
   CHECK(trep.iterations > 1);
-  CHECK(trep.model_within > 0);
+  CHECK(trep.model.visible_within > 0);
   CHECK(core::ValidateTrackingModel(*m1, "model").ok());
+  // The seen decision: fitted on the same samples with the renders' `visible` as labels, so
+  // weights of its own. On its fitting frames the joints it leaves untracked are hidden more
+  // often than those P(within 0.1 m) leaves untracked: what it is fitted for.
+  REQUIRE(m1->seen.has_value());
+  CHECK(m1->seen->shared != m1->shared);
+  INFO("untracked and hidden: seen " << trep.seen.untracked_hidden << ", within " << trep.model.untracked_hidden);
+  CHECK(trep.seen.visible_within > 0);
+  CHECK(trep.seen.untracked_hidden > trep.model.untracked_hidden);
   CHECK(m1->fit == core::TrackingFit::kKinematic);  // unset: the run-time default, recorded
   to.threads = 2;
   auto m2 = engine::LearnTrackingModel(with, to);
@@ -141,6 +149,13 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
   CHECK(mg->fit == core::TrackingFit::kGreedy);
   CHECK(mg->shared != m1->shared);
   to.skeleton.fit.reset();
+  // Without the seen decision: the same P(within 0.1 m) weights, no seen model (a 1.7 decision).
+  to.seen_model = false;
+  auto plain = engine::LearnTrackingModel(with, to);
+  REQUIRE(plain.ok());
+  CHECK_FALSE(plain->seen.has_value());
+  CHECK(core::TrackingWeights(*plain) == core::TrackingWeights(*m1));
+  to.seen_model = true;
   // A procedural source has no joints.
   to.validation = engine::SourceSpec{};
   to.validation.kind = engine::SourceKind::kProcedural;

@@ -310,7 +310,7 @@ TEST_CASE("inspect shows the offset votes (format 1.5, JVOT), or says there are 
   auto run = RunPoseforest("inspect " + votes);
   INFO(run.output);
   CHECK(run.exit_code == 0);
-  CHECK_THAT(run.output, Catch::Contains("format 1.7") &&
+  CHECK_THAT(run.output, Catch::Contains("format 1.8") &&
                              Catch::Contains("offset votes (JVOT): " + std::to_string(total) +
                                              " votes over 2 trees " + per_leaf +
                                              ", max offset 0.60 m, bandwidths 0.05..0.08 m, "

@@ -595,7 +595,7 @@ TEST_CASE(
   REQUIRE(core::ValidateForest(forest, "mem").ok());
   const auto bytes = core::SerializeForest(forest);
   CHECK(bytes[10] == core::kFormatMinor);
-  CHECK(core::kFormatMinor == 7);
+  CHECK(core::kFormatMinor == 8);
   // Head (16 + 16 x 4 bytes), calibration (3 x 8), per tree (8 + (L + 1) x 4 + V x 8), padding.
   size_t payload = 16 + 16 * 4 + 3 * 4 * 17;
   for (size_t t = 0; t < forest.trees.size(); ++t)
@@ -1009,6 +1009,104 @@ TEST_CASE("corrupt JTFT sections, or one without JTRK, give errors naming the fi
   auto zero = core::ParseForest(WithSection(with_model, "JTFT", 0, payload(0, 0)), "zero.pff");
   REQUIRE(zero.ok());
   CHECK(zero->tracking_model->fit == core::TrackingFit::kGreedy);
+}
+
+namespace {
+
+// A JSEE payload: joints, cues, then intercepts, slopes and shared weights.
+std::vector<uint8_t> SeenPayload(const core::TrackingWeights& m, uint32_t joints = core::kNumJoints,
+                                 uint32_t cues = core::kNumTrackingFeatures) {
+  PayloadBytes b;
+  b.U32(joints);
+  b.U32(cues);
+  for (float v : m.intercept) b.F32(v);
+  for (float v : m.slope) b.F32(v);
+  for (float v : m.shared) b.F32(v);
+  return b.out;
+}
+
+core::TrackingWeights SomeSeenWeights() {
+  core::TrackingWeights w;
+  for (int j = 0; j < core::kNumJoints; ++j) w.intercept[size_t(j)] = 0.5f - 0.05f * float(j), w.slope[size_t(j)] = 0.3f;
+  for (int k = 0; k < core::kNumTrackingFeatures; ++k) w.shared[size_t(k)] = 0.5f - 0.125f * float(k % 7);
+  return w;
+}
+
+}  // namespace
+
+TEST_CASE("the seen decision (format 1.8, JSEE) round trips beside JTRK; files without it have none",
+          "[format][tracking]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(45));
+  forest.tracking_model = SomeTrackingModel();
+  const auto without = core::SerializeForest(forest);
+  auto plain = core::ParseForest(without, "plain.pff");
+  REQUIRE(plain.ok());
+  REQUIRE(plain->tracking_model.has_value());
+  CHECK_FALSE(plain->tracking_model->seen.has_value());  // a 1.7 decision: tracked by P(within)
+  forest.tracking_model->seen = SomeSeenWeights();
+  const auto bytes = core::SerializeForest(forest);
+  // The section after JTRK: 16-byte header, 8 + 4 x (16 + 16 + cues) bytes, padded to 8.
+  const size_t payload = 8 + 4 * (2 * core::kNumJoints + core::kNumTrackingFeatures);
+  CHECK(bytes.size() == without.size() + 16 + (payload + 7) / 8 * 8);
+  CHECK(WithSection(without, "JSEE", 0, SeenPayload(*forest.tracking_model->seen)) == bytes);
+  auto parsed = core::ParseForest(bytes, "seen.pff");
+  REQUIRE(parsed.ok());
+  REQUIRE(parsed->tracking_model.has_value());
+  CHECK(*parsed->tracking_model == *forest.tracking_model);
+  CHECK(core::SerializeForest(*parsed) == bytes);
+  // With a kinematic model too (JTRK, JTFT, JSEE), through a file.
+  forest.tracking_model->fit = core::TrackingFit::kKinematic;
+  const auto dir = testing::ScratchDir("format-seen");
+  const std::string path = (dir / "seen.pff").string();
+  REQUIRE(core::SaveForest(forest, path).ok());
+  auto loaded = core::LoadForest(path);
+  REQUIRE(loaded.ok());
+  CHECK(loaded->tracking_model == forest.tracking_model);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("corrupt or truncated JSEE sections, or one without JTRK, give errors naming the file and the section",
+          "[format][tracking][hostile]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(46));
+  const auto plain = core::SerializeForest(forest);
+  forest.tracking_model = SomeTrackingModel();
+  const auto with_model = core::SerializeForest(forest);
+  const core::TrackingWeights seen = SomeSeenWeights();
+  const auto payload = SeenPayload(seen);
+  auto expect = [](const std::vector<uint8_t>& bytes, const std::string& text) {
+    auto r = core::ParseForest(bytes, "bad.pff");
+    REQUIRE_FALSE(r.ok());
+    INFO(r.status().ToString());
+    CHECK(r.status().code() == ErrorCode::kDataLoss);
+    CHECK_THAT(r.status().message(), Catch::StartsWith("bad.pff: ") && Catch::Contains("JSEE") &&
+                                         Catch::Contains(text));
+  };
+  for (size_t n = 0; n < payload.size(); n += 3)
+    expect(WithSection(with_model, "JSEE", 0, {payload.begin(), payload.begin() + std::ptrdiff_t(n)}),
+           "JSEE holds " + std::to_string(n) + " bytes, expected " + std::to_string(payload.size()));
+  auto longer = payload;
+  longer.resize(longer.size() + 4);
+  expect(WithSection(with_model, "JSEE", 0, longer), "bytes, expected");
+  auto more_cues = SeenPayload(seen, core::kNumJoints, core::kNumTrackingFeatures + 1);
+  more_cues.resize(payload.size());
+  expect(WithSection(with_model, "JSEE", 0, more_cues), "cues, expected");
+  expect(WithSection(with_model, "JSEE", 0, SeenPayload(seen, 15)), "holds 15 joints");
+  for (const float bad : {std::numeric_limits<float>::quiet_NaN(), -std::numeric_limits<float>::infinity(), 5e3f}) {
+    core::TrackingWeights w = seen;
+    w.shared[5] = bad;
+    expect(WithSection(with_model, "JSEE", 0, SeenPayload(w)), "cue 'near cut edge'");
+    w = seen;
+    w.intercept[11] = bad;
+    expect(WithSection(with_model, "JSEE", 0, SeenPayload(w)), "joint 11");
+  }
+  const auto once = WithSection(with_model, "JSEE", 0, payload);
+  expect(WithSection(once, "JSEE", 0, payload), "second JSEE section");
+  // A seen decision for a tracking decision the file does not hold.
+  expect(WithSection(plain, "JSEE", 0, payload), "a JSEE section without the JTRK section it belongs to");
+  auto ok = core::ParseForest(once, "ok.pff");
+  REQUIRE(ok.ok());
+  REQUIRE(ok->tracking_model.has_value());
+  CHECK(ok->tracking_model->seen == seen);
 }
 
 TEST_CASE("the tracking model's probability: sigmoid of intercept, slope on the confidence's logit, and cues",

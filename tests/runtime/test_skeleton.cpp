@@ -69,6 +69,25 @@ runtime::FitCandidates NeckAndLeftShoulder() {
   return c;
 }
 
+// The tracking-decision tests' person: an upper body at 1.5 m, cut by the bottom edge, with
+// confident proposals for the neck, head, shoulders and left elbow at its surface.
+struct UpperBody {
+  core::CameraIntrinsics cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  runtime::FrameProposals proposals{};
+  UpperBody() {
+    scene.Person(1, 200, 100, 440, 479, 1500);
+    Put(core::Joint::kNeck, 320, 180);
+    Put(core::Joint::kHead, 320, 120);
+    Put(core::Joint::kLShoulder, 380, 200);
+    Put(core::Joint::kRShoulder, 260, 200);
+    Put(core::Joint::kLElbow, 420, 300);
+  }
+  void Put(core::Joint j, int x, int y, float z = 1.54f) {
+    proposals[size_t(j)] = {At(cam, x, y, z, 0.01f * float(cam.fx * cam.fy))};
+  }
+};
+
 // The vote tests' options: the given fit, no bone or parent rule in the way.
 runtime::SkeletonOptions VoteTestOptions(runtime::SkeletonFit fit) {
   runtime::SkeletonOptions opt;
@@ -286,21 +305,14 @@ TEST_CASE("skeletons: no knees at the border that cuts an upper body, bone lengt
 
 TEST_CASE("skeletons with a learned tracking decision: the cues, P as confidence, tracked at P >= 0.5",
           "[skeleton][tracking]") {
-  const auto cam = core::CameraIntrinsics::KinectV1();
-  Scene scene;
-  scene.Person(1, 200, 100, 440, 479, 1500);  // an upper body at 1.5 m, cut by the bottom edge
-  runtime::FrameProposals proposals{};
-  const float big = 0.01f * float(cam.fx * cam.fy);
+  UpperBody body;
+  const auto& cam = body.cam;
+  const auto& scene = body.scene;
+  const auto& proposals = body.proposals;
   using J = core::Joint;
-  auto put = [&](J j, int x, int y, float z = 1.54f) { proposals[size_t(j)] = {At(cam, x, y, z, big)}; };
-  put(J::kNeck, 320, 180);
-  put(J::kHead, 320, 120);
-  put(J::kLShoulder, 380, 200);
-  put(J::kRShoulder, 260, 200);
-  put(J::kLElbow, 420, 300);
-  put(J::kRElbow, 262, 205);        // 1.3 cm from its shoulder: an impossible bone
-  put(J::kLKnee, 380, 460);         // at the bottom edge that cuts the person
-  put(J::kRKnee, 262, 400, 2.0f);   // 0.5 m behind the surface
+  body.Put(J::kRElbow, 262, 205);        // 1.3 cm from its shoulder: an impossible bone
+  body.Put(J::kLKnee, 380, 460);         // at the bottom edge that cuts the person
+  body.Put(J::kRKnee, 262, 400, 2.0f);   // 0.5 m behind the surface
   const auto cal = RampCalibration();
   runtime::SkeletonOptions opt;
   // Without a model: the rules, and the cues filled all the same.
@@ -365,6 +377,62 @@ TEST_CASE("skeletons with a learned tracking decision: the cues, P as confidence
     CHECK(learned[0].joints[size_t(j)].tracked == r[size_t(j)].tracked);
     CHECK(learned[0].joints[size_t(j)].confidence == r[size_t(j)].confidence);
   }
+}
+
+TEST_CASE("skeletons with a seen decision (format 1.8): tracked when likely seen, P(within) the confidence",
+          "[skeleton][tracking]") {
+  UpperBody body;
+  const auto& cam = body.cam;
+  const auto& scene = body.scene;
+  const auto& proposals = body.proposals;
+  using J = core::Joint;
+  body.Put(J::kRKnee, 262, 400, 2.0f);  // 0.5 m behind the surface
+  const auto cal = RampCalibration();
+  const float c = cal.Confidence(int(J::kNeck), 0.01f);
+  runtime::SkeletonOptions opt;
+  // P(within 0.1 m) high for every joint; P(seen) high but for the left elbow, which the seen
+  // model calls hidden, and the right knee, which lies behind the surface.
+  core::TrackingModel model;
+  model.intercept.fill(2.0f);
+  core::TrackingWeights seen;
+  seen.intercept.fill(3.0f);
+  seen.intercept[size_t(J::kLElbow)] = -3.0f;
+  model.seen = seen;
+  auto sk = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  REQUIRE(sk.size() == 1);
+  const auto& m = sk[0].joints;
+  for (J j : {J::kNeck, J::kHead, J::kLShoulder, J::kRShoulder}) {
+    INFO(core::JointName(int(j)));
+    CHECK(m[size_t(j)].tracked);
+    CHECK(runtime::StateOf(m[size_t(j)]) == runtime::JointState::kTracked);
+  }
+  for (J j : {J::kNeck, J::kHead, J::kLShoulder, J::kRShoulder, J::kLElbow, J::kRKnee}) {
+    INFO(core::JointName(int(j)));
+    CHECK(m[size_t(j)].found);
+    // The confidence a user reads is the position's P(within 0.1 m), not P(seen).
+    CHECK(m[size_t(j)].confidence == Approx(model.Probability(int(j), c, m[size_t(j)].cues)));
+  }
+  // Likely hidden, its candidate confident: placed and inferred, not tracked.
+  CHECK_FALSE(m[size_t(J::kLElbow)].tracked);
+  CHECK(runtime::StateOf(m[size_t(J::kLElbow)]) == runtime::JointState::kInferred);
+  // Seen by the model but behind the surface: never tracked.
+  CHECK_FALSE(m[size_t(J::kRKnee)].tracked);
+  // use_seen_model = false: tracked by P(within 0.1 m) as before 1.8, the elbow included.
+  opt.use_seen_model = false;
+  sk = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  CHECK(sk[0].joints[size_t(J::kLElbow)].tracked);
+  CHECK(sk[0].joints[size_t(J::kLElbow)].confidence == Approx(m[size_t(J::kLElbow)].confidence));
+  // The threshold applies to P(seen): a seen model unsure of every joint (P = 0.27) tracks
+  // none at 0.5 and all at the surface at 0.2.
+  opt.use_seen_model = true;
+  model.seen->intercept.fill(-1.0f);
+  sk = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  for (const auto& joint : sk[0].joints) CHECK_FALSE(joint.tracked);
+  opt.track_probability = 0.2f;
+  sk = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  CHECK(sk[0].joints[size_t(J::kLElbow)].tracked);
+  CHECK(sk[0].joints[size_t(J::kHead)].tracked);
+  CHECK_FALSE(sk[0].joints[size_t(J::kRKnee)].tracked);
 }
 
 TEST_CASE("person ids stay with the nearest centroid over a sequence", "[skeleton]") {
