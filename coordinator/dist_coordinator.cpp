@@ -268,6 +268,10 @@ struct DistCoordinator::Impl {
     forest.trees = std::move(trees);
     POSEFOREST_RETURN_IF_ERROR(core::ValidateForest(forest, "trained forest"));
     s.PublishStatus(v1::STATUS_KIND_JOB_DONE, "job done", "", 0, 1.0);
+    // A worker lost during the job may be coming back (a new DDS participant): it waits for
+    // JOB_DONE, which we say again when it is back.
+    (void)registry.AwaitLostWorkers(s.opt.done_grace,
+                                    [&] { s.PublishStatus(v1::STATUS_KIND_JOB_DONE, "job done", "", 0, 1.0); });
     (void)s.node->WaitForAcknowledgments(Topic::kStatus, std::chrono::milliseconds(2000));
     return forest;
   }

@@ -105,6 +105,11 @@ struct CoordinatorOptions {
   std::chrono::milliseconds worker_wait{60000};       ///< without any live worker this long: error
   std::chrono::milliseconds lease{1500};              ///< liveliness lease (presence, job)
   std::chrono::milliseconds heartbeat_timeout{4000};  ///< no heartbeat this long: worker lost
+  /// After JOB_DONE, how long to wait for workers lost during the job to come back and hear it
+  /// (WorkerRegistry::AwaitLostWorkers): a worker that replaces its DDS participant (it does on
+  /// joining a restarted coordinator) is lost for a moment, and only a live coordinator can tell
+  /// it the job is done. 0: leave at once.
+  std::chrono::milliseconds done_grace{10000};
   /// An assigned worker that has not answered a round this long is evicted (alive but stuck).
   std::chrono::milliseconds reply_timeout{300000};
   /// Histogram bytes per request batch (also bounded by the job's histogram_memory_bytes): keeps

@@ -1,6 +1,7 @@
 #include "coordinator/worker_registry.h"
 
 #include <algorithm>
+#include <cstdio>
 
 #include "proto/dds/node_config.h"
 
@@ -71,6 +72,11 @@ void WorkerRegistry::MarkLost(const std::string& id, const std::string& why) {
   if (it == workers_.end() || !it->second.alive) return;
   WorkerInfo& w = it->second;
   w.alive = false;
+  if (job_done_) {  // it heard JOB_DONE and left
+    s_.Log("worker " + id + " left (job done)");
+    return;
+  }
+  w.evicted = why == "evicted";
   ++lost_count_;
   if (w.assigned)
     for (auto r : w.frames) orphan_frames_.push_back(r);
@@ -107,6 +113,32 @@ Status WorkerRegistry::WaitForWorkers(int n) {
   // Control messages to a worker whose reader has not matched yet would be lost.
   (void)s_.node->WaitForMatch(Topic::kControl, AliveCount(), std::chrono::milliseconds(5000));
   return Status::Ok();
+}
+
+int WorkerRegistry::AwaitLostWorkers(std::chrono::milliseconds grace, const std::function<void()>& on_back) {
+  job_done_ = true;
+  std::set<std::string> waiting;  // lost during the job, not yet seen again
+  for (const auto& [id, w] : workers_)
+    if (!w.alive && !w.evicted && !banned_.count(id)) waiting.insert(id);
+  if (waiting.empty() || grace.count() <= 0) return 0;
+  const size_t lost = waiting.size();
+  std::string names;
+  for (const auto& id : waiting) names += (names.empty() ? "" : ", ") + id;
+  char secs[32];
+  std::snprintf(secs, sizeof secs, "%.1f", double(grace.count()) / 1000.0);
+  s_.Log("job done; waiting up to " + std::string(secs) + " s for " + std::to_string(lost) +
+         " lost worker(s) to come back and hear it: " + names);
+  const double deadline = proto::dds::NowSeconds() + std::chrono::duration<double>(grace).count();
+  while (!waiting.empty() && proto::dds::NowSeconds() < deadline) {
+    pump(std::chrono::milliseconds(50));
+    // Back once seen alive (a worker that then leaves on JOB_DONE is lost again: still back).
+    const size_t before = waiting.size();
+    std::erase_if(waiting, [&](const std::string& id) { return workers_.at(id).alive; });
+    if (waiting.size() < before && on_back) on_back();
+  }
+  const int back = int(lost - waiting.size());
+  s_.Log(std::to_string(back) + " of " + std::to_string(lost) + " lost worker(s) came back");
+  return back;
 }
 
 Status WorkerRegistry::SendAssignment(WorkerInfo& w, uint32_t index, uint32_t count, bool again) {

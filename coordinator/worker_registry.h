@@ -25,6 +25,7 @@ struct WorkerInfo {
   std::string presence_writer, participant;
   double last_seen = 0;
   bool alive = true;
+  bool evicted = false;  ///< lost for misbehaving: not waited for (AwaitLostWorkers)
   bool assigned = false;
   std::vector<std::pair<uint32_t, uint32_t>> frames;  ///< tree-local [begin, end) ranges
   uint64_t seen_epoch = 0;                            ///< newest shard epoch its heartbeats report
@@ -70,6 +71,13 @@ class WorkerRegistry {
   /// Waits (announcing the job again every 2 s) until `n` workers are alive.
   core::Status WaitForWorkers(int n);
 
+  /// After JOB_DONE: waits up to `grace` for the workers lost during the job (not evicted or
+  /// banned) to come back. A worker replacing its DDS participant is lost for a moment and
+  /// waits for JOB_DONE, which the status topic (transient-local) gives it once it matches a
+  /// live coordinator; `on_back` runs each time some came back (the caller says JOB_DONE again:
+  /// a worker that joined after the replay missed it). Returns how many came back.
+  int AwaitLostWorkers(std::chrono::milliseconds grace, const std::function<void()>& on_back);
+
   /// Sends `w` its ShardAssignment, then the tree's decisions so far (the worker replays them).
   /// `again`: the same frames once more (the worker's heartbeats do not show it got them).
   core::Status SendAssignment(WorkerInfo& w, uint32_t index, uint32_t count, bool again = false);
@@ -92,6 +100,8 @@ class WorkerRegistry {
   FrameRanges orphan_frames_;  ///< of lost workers, current tree
   std::set<std::string> banned_;  ///< senders of hostile SubtreeResults: never rejoin
   int lost_count_ = 0;
+  /// Set by AwaitLostWorkers: workers leave on JOB_DONE now; leaving is not being lost.
+  bool job_done_ = false;
 };
 
 }  // namespace poseforest::coordinator

@@ -215,10 +215,25 @@ TEST_CASE("SIGKILL of one of 3 worker processes mid-job: same forest", "[distrib
       INFO(coord.output());
       REQUIRE(line.has_value());
       w[1].Kill(SIGKILL);
+      // Done without it, the coordinator waits a while for lost workers to come back (one that
+      // replaces its DDS participant is lost for a moment). A new pw-1 started then hears
+      // JOB_DONE (the status topic replays it, or the coordinator says it again when pw-1 joins)
+      // and leaves; without the wait nobody would tell it and it would wait for ever.
+      auto waiting = coord.WaitForLine("lost worker(s) to come back and hear it: pw-1", 120s);
+      INFO(coord.OutputNow());
+      REQUIRE(waiting.has_value());
+      Child again;
+      StartWorker(again, domain, job_id, "pw-1");
       auto rc = coord.Wait(120s);
       INFO(coord.output());
       REQUIRE(rc.has_value());
       REQUIRE(*rc == 0);
+      CHECK(coord.output().find("of 1 lost worker(s) came back") != std::string::npos);
+      auto again_rc = again.Wait(20s);
+      INFO("the new pw-1:\n" << again.OutputNow());
+      REQUIRE(again_rc.has_value());
+      CHECK(*again_rc == 0);
+      CHECK(again.OutputNow().find("done") != std::string::npos);
       // The killed worker was noticed. (On a loaded CI machine a live worker's heartbeats can
       // also run late and it is counted lost and joins again - "2 workers lost" - with the
       // same forest; seen once in a fresh-clone CI.)
