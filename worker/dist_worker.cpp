@@ -56,6 +56,9 @@ struct DistWorker::Impl {
   std::string coordinator_participant;  ///< the job's coordinator's DDS participant (GUID prefix)
   /// Our participant was replaced since we last joined a coordinator (OnDdsEvent, OnJob).
   bool participant_fresh = false;
+  /// When the job's coordinator's participant was lost (0: not waiting for a new one), and when
+  /// our participant was last replaced since (RetryParticipant).
+  double coordinator_lost_s = 0, replaced_s = 0;
 
   /// Messages taken off DDS while collecting a batch of SubtreeTasks, handled next (in order).
   struct Pending {
@@ -170,6 +173,7 @@ struct DistWorker::Impl {
     control_writer.clear();
     ctx.has_job = true;
     participant_fresh = false;
+    coordinator_lost_s = 0;  // a coordinator heard
     Log("joined job " + ctx.job_id + " of " + ctx.coordinator_id + ": " + engine::DescribeParams(ctx.params));
     if (replace) {
       Log("the job's coordinator was restarted: starting a new DDS participant (fresh shared-memory ports)");
@@ -267,6 +271,26 @@ struct DistWorker::Impl {
     coordinator_participant.clear();
     Log("the coordinator's DDS participant is gone: starting a new participant (fresh shared-memory ports)");
     ReplaceParticipant();
+    coordinator_lost_s = replaced_s = proto::dds::NowSeconds();
+  }
+
+  /// Still no coordinator kRetryS after the replacement above: another new participant, every
+  /// kRetryS until a coordinator's job arrives. A participant made while the dead coordinator's
+  /// ports were still on the host opens those stale segments; a coordinator restarted on this
+  /// host then replaces them under the same names and never hears us (CI, 28 Nov 2026: "0 of 2
+  /// workers after 60000 ms" with the coordinator restarted after both workers had replaced
+  /// their participants). The next participant opens the restarted coordinator's segments.
+  void RetryParticipant() {
+    static constexpr double kRetryS = 15.0;
+    if (coordinator_lost_s == 0 || ctx.node_restart || !SharedMemory()) return;
+    const double now = proto::dds::NowSeconds();
+    if (now - replaced_s < kRetryS) return;
+    char waited[32];
+    std::snprintf(waited, sizeof waited, "%.0f", now - coordinator_lost_s);
+    Log(std::string("no coordinator heard ") + waited +
+        " s after its participant was lost: starting a new DDS participant again");
+    ReplaceParticipant();
+    replaced_s = now;
   }
 
   void OnSample(const proto::dds::ReceivedSample& s) {
@@ -287,7 +311,10 @@ struct DistWorker::Impl {
     ctx.CountDropped(out);
     if (out.verdict != proto::dds::MessageGate::Verdict::kAccepted) return;
     if (s.topic == Topic::kControl && out.sender == ctx.coordinator_id) control_writer = s.writer_guid;
-    if (out.sender == ctx.coordinator_id) coordinator_participant = s.writer_participant;
+    if (out.sender == ctx.coordinator_id) {
+      coordinator_participant = s.writer_participant;
+      coordinator_lost_s = 0;  // it is back (a partition that healed)
+    }
     ctx.dispatch_received_s = s.received_s;
     Dispatch(out.envelope, out.sender);
   }
@@ -468,6 +495,7 @@ Status DistWorker::Run() {
   std::thread intake([&] { impl.intake.Loop(); });
   while (!stop_) {
     while (auto e = impl.ctx.node->NextEvent(std::chrono::milliseconds(0))) impl.OnDdsEvent(*e);
+    impl.RetryParticipant();
     if (impl.ctx.node_restart) {  // between messages: no phase is running on this thread
       heartbeat.join();
       intake.join();
