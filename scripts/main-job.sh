@@ -39,11 +39,11 @@ scripts/build.sh
 echo "== 1. pose library from $data/mocap"
 "$bin/poseforest-poselib" build --out "$out/mocap.pfposes" "$data/mocap"
 
-# The embedded default job (proto/poseforest/v1/job.proto). Sized to train in about 13 minutes
-# on two cores; the paper used 300k images per tree. For 11 % more training time, 4,000 images
-# per tree with 250 candidate features per node track more joints right than 1,000 images with
-# 1,000 candidates, on validation renders and on the real frames (docs/training/realism.md,
-# "Fewer candidates, more images").
+# The embedded default job (proto/poseforest/v1/job.proto). Sized to train in about 14 minutes
+# on two cores; the paper used 300k images per tree. 4,000 images per tree with 250 candidate
+# features per node track more joints right than 1,000 images with 1,000 candidates, on
+# validation renders and on the real frames, for 11 % more training time in one process (34 %
+# through the service) (docs/training/realism.md, "Fewer candidates, more images").
 main_images=4000
 candidate_features=250
 write_default_job "$out/job.textproto" "$main_images" 200 "$out/mocap.pfposes" "$data"
