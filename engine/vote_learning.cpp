@@ -115,7 +115,7 @@ Status CheckInputs(const core::Forest& forest, const TrainParams& job, const Vot
     return Status(ErrorCode::kInvalidArgument, "the forest has " + std::to_string(forest.trees.size()) +
                                                    " trees, the job " + std::to_string(job.num_trees) +
                                                    ": not the forest of this job");
-  if (!(options.max_offset_m > 0) || !(options.leaf_bandwidth_m > 0) || !(options.vote_bandwidth_m > 0) ||
+  if (!(options.max_offset_m > 0) || !(options.limb_max_offset_m >= 0) || !(options.leaf_bandwidth_m > 0) || !(options.vote_bandwidth_m > 0) ||
       options.max_pixels_per_leaf < 1 || !(options.min_weight > 0 && options.min_weight <= 1))
     return Status(ErrorCode::kInvalidArgument, "vote learning options out of range");
   return Status();
@@ -231,7 +231,9 @@ std::optional<core::JointVote> LeafJointVote(const std::vector<const Pixel*>& by
                                              uint32_t keep, int j, const TreePixels& tp,
                                              const VoteLearningOptions& options,
                                              std::vector<Eigen::Vector3f>& offsets) {
-  const float max2 = options.max_offset_m * options.max_offset_m;
+  const float reach = j >= int(core::Joint::kLElbow) && options.limb_max_offset_m > 0 ? options.limb_max_offset_m
+                                                                                    : options.max_offset_m;
+  const float max2 = reach * reach;
   offsets.clear();
   for (uint32_t k = 0; k < keep; ++k) {
     const Pixel& p = *by_leaf[b + uint32_t(uint64_t(k) * n / keep)];
@@ -459,7 +461,7 @@ Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const Tra
       options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
   if (Status s = CheckTrainingFrames(job); !s.ok()) return s;
   core::OffsetVotes table;
-  table.max_offset_m = options.max_offset_m;
+  table.max_offset_m = std::max(options.max_offset_m, options.limb_max_offset_m);
   table.bandwidth_m.fill(options.vote_bandwidth_m);
   for (int t = 0; t < job.num_trees; ++t) {
     const core::Tree& tree = forest.trees[size_t(t)];

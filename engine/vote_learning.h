@@ -25,6 +25,9 @@ namespace poseforest::engine {
 
 struct VoteLearningOptions {
   float max_offset_m = 0.3f;       ///< longer training offsets are not kept (docs/runtime/votes.md)
+  /// The same for the limbs' joints (elbows to hands, knees to feet), which a turned or crossed
+  /// body hides farthest from its seen pixels; 0: max_offset_m.
+  float limb_max_offset_m = 0.0f;
   float leaf_bandwidth_m = 0.05f;  ///< mean shift over a leaf's offsets to one joint
   float vote_bandwidth_m = 0.06f;  ///< run-time mean shift over the votes, without a search (below)
   /// Run-time bandwidths tried per joint on the validation frames (the best placed candidate

@@ -3,7 +3,14 @@
 # more training images per tree, then the proposal parameters learned on validation renders of
 # the train clips, then `poseforest eval` on 200 held-out test-clip frames (section 4 of the paper).
 #
-#   scripts/accuracy-recipe.sh [IMAGES_PER_TREE]      (default 4000: 12,000 images, 3 trees)
+#   scripts/accuracy-recipe.sh [IMAGES_PER_TREE [CANDIDATE_FEATURES]]
+#
+# Default: 8,000 images per tree (24,000 images, 3 trees) and 500 candidate features per node.
+# Without CANDIDATE_FEATURES the recipe keeps its cost, images x candidates = 4 million, at most
+# 1,000 candidates: 4,000 images take 1,000 (the recipe until 29 Nov 2026), 8,000 take 500.
+# Training costs one feature response per (candidate, training pixel), and at equal cost more
+# images are worth more than more candidates (docs/training/realism.md, "Fewer candidates, more
+# images": 8,000 x 500 against 4,000 x 1,000, +0.01 to +0.02 mAP on every validation set).
 #
 # Needs a build (scripts/build.sh) and the shared data (POSEFOREST_DATA_DIR, default
 # ../shared/data). Outputs go to $POSEFOREST_OUT/accuracy-N (default ./out/accuracy-N): job, forest,
@@ -12,15 +19,18 @@
 # POSEFOREST_TRAIN_ARGS; through the service the recipe checkpoints every level into
 # OUT/checkpoint and a second run resumes from it.
 #
-# Time and memory on two cores (quiet machine, engine): 667 images per tree ~6 min and 5.6 GiB;
-# 2000 per tree 7.2 GiB; 4000 per tree 34 min (lightly loaded) and 9.1 GiB (docs/runtime/joints.md).
+# Time and memory on two cores (engine): 8,000 x 500 52 min (beside light work) and 1.8 GiB;
+# 4,000 x 1,000 34-50 min; 667 per tree ~6 min (docs/runtime/joints.md, docs/training/realism.md).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 # shellcheck source=scripts/default-job.sh
 source "$root/scripts/default-job.sh"
-per_tree=${1:-4000}
+per_tree=${1:-8000}
 [[ "$per_tree" =~ ^[1-9][0-9]*$ ]] || { echo "accuracy-recipe: IMAGES_PER_TREE must be a positive integer, got '$per_tree'" >&2; exit 2; }
+candidate_features=${2:-$(( 4000000 / per_tree < 1000 ? (4000000 / per_tree > 0 ? 4000000 / per_tree : 1) : 1000 ))}
+[[ "$candidate_features" =~ ^[1-9][0-9]*$ ]] ||
+  { echo "accuracy-recipe: CANDIDATE_FEATURES must be a positive integer, got '$candidate_features'" >&2; exit 2; }
 data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
   { echo "accuracy-recipe: no shared data at ${POSEFOREST_DATA_DIR:-$root/../shared/data} (set POSEFOREST_DATA_DIR)" >&2; exit 1; }
 bin=$root/build/bin
@@ -36,7 +46,7 @@ echo "== pose library from $data/mocap"
 # The main job's job (scripts/main-job.sh) with images_per_tree raised.
 write_default_job "$out/job.textproto" "$per_tree" 30 "$out/mocap.pfposes" "$data"
 
-echo "== training: 3 trees x $per_tree images ($out/job.textproto)"
+echo "== training: 3 trees x $per_tree images, $candidate_features candidate features per node ($out/job.textproto)"
 # Through the distributed service (--local-workers, --domain, --min-workers in POSEFOREST_TRAIN_ARGS):
 # a checkpoint after every level, and a run of the recipe that finds one resumes from it, so a
 # crash or a kill costs the level in progress, not the run.

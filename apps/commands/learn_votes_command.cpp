@@ -108,6 +108,11 @@ class LearnVotesCommand final : public Command {
     app_.add_option("--max-offset-m", max_offset_m_, "longest offset kept, metres")
         ->type_name("M")
         ->check(NumberIn(0.05, 3.0));
+    app_.add_option("--limb-max-offset-m", limb_max_offset_m_,
+                    "longest offset kept for elbows, wrists, hands, knees, ankles and feet (default:\n"
+                    "--max-offset-m)")
+        ->type_name("M")
+        ->check(NumberIn(0.05, 3.0));
     app_.add_option("--leaf-bandwidth-m", leaf_bandwidth_m_, "mean shift over a leaf's offsets")
         ->type_name("B")
         ->check(NumberIn(0.005, 0.5));
@@ -147,7 +152,7 @@ class LearnVotesCommand final : public Command {
   std::string forest_, job_, out_, fit_ = "kinematic";
   // The defaults are engine::VoteLearningOptions'.
   std::optional<double> vote_bandwidth_m_;
-  double max_offset_m_ = kDefaults.max_offset_m, leaf_bandwidth_m_ = kDefaults.leaf_bandwidth_m,
+  double max_offset_m_ = kDefaults.max_offset_m, limb_max_offset_m_ = kDefaults.limb_max_offset_m, leaf_bandwidth_m_ = kDefaults.leaf_bandwidth_m,
          min_weight_ = kDefaults.min_weight;
   int validation_frames_ = kDefaults.validation_frames, tracking_frames_ = 200, threads_ = 0;
   std::optional<int64_t> seed_;
@@ -174,6 +179,7 @@ int LearnVotesCommand::Run() {
   }
   const bool quiet = quiet_;
   opt.max_offset_m = float(max_offset_m_);
+  opt.limb_max_offset_m = float(limb_max_offset_m_);
   opt.leaf_bandwidth_m = float(leaf_bandwidth_m_);
   if (vote_bandwidth_m_) {
     opt.vote_bandwidth_m = float(*vote_bandwidth_m_);

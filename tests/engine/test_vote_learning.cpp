@@ -91,6 +91,28 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
   REQUIRE(two.ok());
   CHECK(*two == *one);
 
+  // A longer reach for the limbs' joints (elbows to feet) only: their votes may be longer than
+  // max_offset_m, the head's, neck's and shoulders' never; the table records the longest reach.
+  {
+    engine::VoteLearningOptions limbs = opt;
+    limbs.limb_max_offset_m = 2 * opt.max_offset_m;
+    auto reach = engine::LearnOffsetVotes(forest, job, limbs);
+    REQUIRE(reach.ok());
+    CHECK(reach->max_offset_m == limbs.limb_max_offset_m);
+    CHECK(reach->total_votes() > one->total_votes());
+    int longer = 0;
+    for (const auto& tree : reach->trees)
+      for (const core::JointVote& v : tree.votes) {
+        const double mm = std::sqrt(double(v.dx_mm) * v.dx_mm + double(v.dy_mm) * v.dy_mm + double(v.dz_mm) * v.dz_mm);
+        const bool limb = v.joint >= uint8_t(core::Joint::kLElbow);
+        CHECK(mm <= 1000.0 * (limb ? limbs.limb_max_offset_m : opt.max_offset_m) + 1);
+        longer += limb && mm > 1000.0 * opt.max_offset_m + 1;
+      }
+    CHECK(longer > 0);
+    limbs.limb_max_offset_m = -0.1f;
+    CHECK_FALSE(engine::LearnOffsetVotes(forest, job, limbs).ok());
+  }
+
   // The candidates of a training frame: the head's most confident one is near the head.
   auto src = engine::MakeEvalFrameSource(job.source);
   REQUIRE(src.ok());
