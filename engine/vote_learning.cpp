@@ -115,8 +115,9 @@ Status CheckInputs(const core::Forest& forest, const TrainParams& job, const Vot
     return Status(ErrorCode::kInvalidArgument, "the forest has " + std::to_string(forest.trees.size()) +
                                                    " trees, the job " + std::to_string(job.num_trees) +
                                                    ": not the forest of this job");
-  if (!(options.max_offset_m > 0) || !(options.limb_max_offset_m >= 0) || !(options.leaf_bandwidth_m > 0) || !(options.vote_bandwidth_m > 0) ||
-      options.max_pixels_per_leaf < 1 || !(options.min_weight > 0 && options.min_weight <= 1))
+  if (!(options.max_offset_m > 0) || !(options.limb_max_offset_m >= 0) || !(options.leaf_bandwidth_m > 0) ||
+      !(options.vote_bandwidth_m > 0) || options.max_pixels_per_leaf < 1 ||
+      !(options.min_weight > 0 && options.min_weight <= 1))
     return Status(ErrorCode::kInvalidArgument, "vote learning options out of range");
   return Status();
 }
@@ -231,8 +232,9 @@ std::optional<core::JointVote> LeafJointVote(const std::vector<const Pixel*>& by
                                              uint32_t keep, int j, const TreePixels& tp,
                                              const VoteLearningOptions& options,
                                              std::vector<Eigen::Vector3f>& offsets) {
-  const float reach = j >= int(core::Joint::kLElbow) && options.limb_max_offset_m > 0 ? options.limb_max_offset_m
-                                                                                    : options.max_offset_m;
+  const float reach = j >= int(core::Joint::kLElbow) && options.limb_max_offset_m > 0
+                          ? options.limb_max_offset_m
+                          : options.max_offset_m;
   const float max2 = reach * reach;
   offsets.clear();
   for (uint32_t k = 0; k < keep; ++k) {

@@ -152,8 +152,8 @@ class LearnVotesCommand final : public Command {
   std::string forest_, job_, out_, fit_ = "kinematic";
   // The defaults are engine::VoteLearningOptions'.
   std::optional<double> vote_bandwidth_m_;
-  double max_offset_m_ = kDefaults.max_offset_m, limb_max_offset_m_ = kDefaults.limb_max_offset_m, leaf_bandwidth_m_ = kDefaults.leaf_bandwidth_m,
-         min_weight_ = kDefaults.min_weight;
+  double max_offset_m_ = kDefaults.max_offset_m, limb_max_offset_m_ = kDefaults.limb_max_offset_m,
+         leaf_bandwidth_m_ = kDefaults.leaf_bandwidth_m, min_weight_ = kDefaults.min_weight;
   int validation_frames_ = kDefaults.validation_frames, tracking_frames_ = 200, threads_ = 0;
   std::optional<int64_t> seed_;
   bool tracking_only_ = false, quiet_ = false;

@@ -103,7 +103,8 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
     int longer = 0;
     for (const auto& tree : reach->trees)
       for (const core::JointVote& v : tree.votes) {
-        const double mm = std::sqrt(double(v.dx_mm) * v.dx_mm + double(v.dy_mm) * v.dy_mm + double(v.dz_mm) * v.dz_mm);
+        const double mm =
+            std::sqrt(double(v.dx_mm) * v.dx_mm + double(v.dy_mm) * v.dy_mm + double(v.dz_mm) * v.dz_mm);
         const bool limb = v.joint >= uint8_t(core::Joint::kLElbow);
         CHECK(mm <= 1000.0 * (limb ? limbs.limb_max_offset_m : opt.max_offset_m) + 1);
         longer += limb && mm > 1000.0 * opt.max_offset_m + 1;
