@@ -317,6 +317,13 @@ core::Result<std::unique_ptr<DdsNode>> DdsNode::Create(const NodeConfig& config)
   fdds::StatusMask mask = fdds::StatusMask::none();
   impl->participant =
       fdds::DomainParticipantFactory::get_instance()->create_participant(config.domain_id, qos, impl.get(), mask);
+  if (!impl->participant && config.participant_id < 0 && qos.wire_protocol().participant_id >= 0) {
+    // The id BuildParticipantQos chose is one an automatic participant of this process holds
+    // (one made from an XML profile, say): Fast DDS's own choice then.
+    qos.wire_protocol().participant_id = -1;
+    impl->participant =
+        fdds::DomainParticipantFactory::get_instance()->create_participant(config.domain_id, qos, impl.get(), mask);
+  }
   if (!impl->participant) {
     return Status(ErrorCode::kInvalidArgument,
                   "cannot create DDS participant '" + config.participant_name + "' on domain " +

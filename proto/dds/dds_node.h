@@ -63,6 +63,10 @@ struct NodeConfig {
   /// RTPS participant id (selects the well-known ports), -1 = automatic. Automatic ids count
   /// up per process and host, so a peer list without ports only reaches ids 0..3: pin the id
   /// when several participants run in one process or host and peers are given without ports.
+  /// With shared memory (kDefault, kSharedMemoryOnly, an XML profile of shared memory only that
+  /// gives no id) automatic is the lowest id whose ports left no file on this host
+  /// (FreshSharedMemoryParticipantId, dds_node_qos.h): a process restarted after a SIGKILL does
+  /// not take the dead one's ports.
   int participant_id = -1;
   /// kDiscoveryClient: the servers, "[ID@]a.b.c.d[:port],..." (ParseDiscoveryServers; addresses,
   /// not host names: Create refuses a name); the participant is a client of every one. An entry

@@ -2,7 +2,9 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
@@ -131,7 +133,49 @@ Status AddSecurity(const SecurityFiles& s, fdds::DomainParticipantQos& qos) {
   return Status::Ok();
 }
 
+/// Ids this process gave its shared-memory participants: never given twice. A participant that
+/// replaces an earlier one of this process (a worker after a lost coordinator) must not take the
+/// earlier one's ports either: its peers still hold the old segments.
+std::mutex fresh_ids_mu;
+std::set<int> fresh_ids_given;
+
+/// An XML profile's transports: shared memory only (deploy/'s poseforest_shm).
+bool SharedMemoryOnly(const fdds::DomainParticipantQos& qos) {
+  const auto& t = qos.transport();
+  if (t.use_builtin_transports || t.user_transports.empty()) return false;
+  for (const auto& d : t.user_transports)
+    if (!std::dynamic_pointer_cast<eprosima::fastdds::rtps::SharedMemTransportDescriptor>(d)) return false;
+  return true;
+}
+
 }  // namespace
+
+int FreshSharedMemoryParticipantId(uint32_t domain, const std::string& shm_dir, const std::set<int>& skip) {
+  namespace fs = std::filesystem;
+  const uint32_t base = 7400 + 250 * domain;  // RTPS: PB + DG * domain
+  auto leaves_file = [&](uint32_t port) {
+    const std::string name = "fastrtps_port" + std::to_string(port);
+    std::error_code ec;
+    for (const char* suffix : {"", "_el", "_sl"})
+      if (fs::exists(fs::path(shm_dir) / (name + suffix), ec)) return true;
+    return false;
+  };
+  // Ids up to 119 (Fast DDS's ports stay below 65536 for every domain it accepts up to there).
+  for (int id = 0; id < 120; ++id) {
+    const uint32_t meta = base + 10 + 2 * uint32_t(id), user = base + 11 + 2 * uint32_t(id);
+    if (user > 65535) break;
+    if (skip.count(id)) continue;
+    if (!leaves_file(meta) && !leaves_file(user)) return id;
+  }
+  return -1;
+}
+
+int TakeFreshSharedMemoryParticipantId(uint32_t domain) {
+  std::lock_guard<std::mutex> lock(fresh_ids_mu);
+  const int id = FreshSharedMemoryParticipantId(domain, "/dev/shm", fresh_ids_given);
+  if (id >= 0) fresh_ids_given.insert(id);
+  return id;
+}
 
 Status BuildParticipantQos(const NodeConfig& config, fdds::DomainParticipantQos& qos) {
   auto* factory = fdds::DomainParticipantFactory::get_instance();
@@ -144,7 +188,15 @@ Status BuildParticipantQos(const NodeConfig& config, fdds::DomainParticipantQos&
                     "no participant profile '" + config.xml_profile + "' in " + config.xml_file);
   }
   qos.name(config.participant_name);
-  if (config.participant_id >= 0) qos.wire_protocol().participant_id = config.participant_id;
+  if (config.participant_id >= 0) {
+    qos.wire_protocol().participant_id = config.participant_id;
+  } else if (config.transport == TransportKind::kDefault || config.transport == TransportKind::kSharedMemoryOnly ||
+             (config.transport == TransportKind::kXmlProfile && qos.wire_protocol().participant_id < 0 &&
+              SharedMemoryOnly(qos))) {
+    // Ports no dead process left behind (FreshSharedMemoryParticipantId); automatic when none is.
+    // Not for an XML profile with UDP: its peers may list ports of ids 0..3 only.
+    qos.wire_protocol().participant_id = TakeFreshSharedMemoryParticipantId(config.domain_id);
+  }
   auto& builtin = qos.wire_protocol().builtin;
   if (config.transport != TransportKind::kXmlProfile) {
     builtin.discovery_config.leaseDuration = ToDuration(config.participant_lease);

@@ -1,8 +1,11 @@
 // Real processes: 1 MiB reliable samples from the poseforest_dds_peer helper to this process
 // (shared memory and UDP only), and worker presence: SIGKILL the helper and see the
-// lost-liveliness event within the lease.
+// lost-liveliness event within the lease. A helper restarted after a SIGKILL takes fresh
+// shared-memory ports and is heard.
 #include <catch2/catch.hpp>
+#include <filesystem>
 #include <map>
+#include <set>
 
 #include <atomic>
 #include <csignal>
@@ -258,4 +261,89 @@ TEST_CASE("a keep-all writer waits for a stopped reader process and goes on when
       // lease; a writer still waiting would have given up at write_give_up (60 s) and failed.
     }
   }
+}
+
+namespace {
+/// The files of `domain`'s participant unicast ports in /dev/shm (segments and their locks).
+std::set<std::string> UnicastPortFiles(uint32_t domain) {
+  std::set<std::string> out;
+  const uint32_t first = 7400 + 250 * domain + 10, last = 7400 + 250 * domain + 249;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator("/dev/shm", ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("fastrtps_port", 0) != 0) continue;
+    const unsigned long port = std::strtoul(name.c_str() + 13, nullptr, 10);
+    if (port >= first && port <= last) out.insert(name);
+  }
+  return out;
+}
+}  // namespace
+
+TEST_CASE("a worker restarted after a SIGKILL takes fresh shared-memory ports and is heard",
+          "[dds][integration][slow]") {
+  // Fast DDS 2.9 takes over the ports of a participant killed with SIGKILL (its "_el" lock is
+  // free) and makes new segments under their names, without marking the old ones bad: a peer
+  // that wrote to the dead participant writes into the removed segment for ever, and never
+  // matches the new one (CI: "0 of 1 lost worker(s) came back" after a worker was restarted).
+  // Participants with shared memory now take ports that left no file behind.
+  const uint32_t domain = pd::testing::TestDomain(17);
+  pd::NodeConfig cfg;
+  cfg.domain_id = domain;
+  cfg.transport = pd::TransportKind::kSharedMemoryOnly;
+  cfg.participant_name = "coordinator";
+  cfg.read_topics = {pd::Topic::kPresence};
+  auto node = pd::DdsNode::Create(cfg);
+  REQUIRE(node.ok());
+  pd::GateConfig gc;
+  gc.self_id = "coordinator";
+  gc.job_id = "job-RS";
+  auto start_worker = [&](pd::testing::Child& c) {
+    std::string error;
+    REQUIRE(c.Start({pd::testing::PeerBinary(), "--mode=alive", "--transport=shm", "--domain=" + std::to_string(domain),
+                     "--period-ms=50", "--seconds=60", "--job=job-RS", "--id=worker-9"},
+                    &error));
+    REQUIRE(c.WaitForLine("STARTED", 20s).has_value());
+  };
+  // Heartbeats of worker-9 from a participant other than `not_from`; returns its participant.
+  auto hear = [&](const std::string& not_from) -> std::string {
+    pd::MessageGate gate(gc);  // a gate of its own: the restarted worker counts its sequence from 0 again
+    int heard = 0;
+    std::string from;
+    const auto t0 = Clock::now();
+    while (heard < 5 && Clock::now() - t0 < 30s) {
+      auto s = (*node)->Receive(500ms);
+      if (!s) continue;
+      auto out = gate.Check(s->topic, s->bytes, s->writer_guid);
+      if (out.verdict != pd::MessageGate::Verdict::kAccepted || s->writer_participant == not_from) continue;
+      from = s->writer_participant;
+      ++heard;
+    }
+    return heard >= 5 ? from : std::string();
+  };
+  pd::testing::Child first;
+  start_worker(first);
+  const std::string first_participant = hear("");
+  INFO("first worker:\n" << first.output());
+  REQUIRE(!first_participant.empty());
+  const std::set<std::string> before = UnicastPortFiles(domain);
+  first.Kill(SIGKILL);
+  // What a SIGKILL leaves: its ports' files stay.
+  CHECK(UnicastPortFiles(domain) == before);
+  // The coordinator keeps writing to the dead one a while (its reliable writers' heartbeats).
+  std::this_thread::sleep_for(3s);
+  pd::testing::Child again;
+  start_worker(again);
+  std::set<std::string> added;
+  for (const std::string& f : UnicastPortFiles(domain))
+    if (!before.count(f)) added.insert(f);
+  std::string listed;
+  for (const std::string& f : before) listed += f + " ";
+  INFO("port files before the restart: " << listed);
+  // Its own ports, new ones: an exclusive lock file for each of its two unicast ports.
+  int locks = 0;
+  for (const std::string& f : added) locks += f.size() > 3 && f.compare(f.size() - 3, 3, "_el") == 0;
+  CHECK(locks == 2);
+  const std::string second_participant = hear(first_participant);
+  INFO("restarted worker:\n" << again.OutputNow());
+  CHECK(!second_participant.empty());
 }

@@ -1,14 +1,18 @@
 // Real Fast DDS participants in one process: shared memory, UDP only, default (SHM + UDP),
 // discovery-server clients (with Debian's fast-discovery-server as a child process), the
-// deploy/ XML profiles, transient-local job announcements for late joiners, and a writer of
-// bad messages whose samples the gate drops, counts and attributes.
+// deploy/ XML profiles, transient-local job announcements for late joiners, a writer of
+// bad messages whose samples the gate drops, counts and attributes, and the choice of
+// shared-memory participant ids whose ports no dead process left behind.
 #include <catch2/catch.hpp>
 
 #include <filesystem>
+#include <fstream>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include "proto/dds/dds_node.h"
+#include "proto/dds/dds_node_qos.h"
 #include "proto/dds/message_gate.h"
 #include "tests/proto/dds_test_util.h"
 
@@ -356,4 +360,89 @@ TEST_CASE("a reader that takes nothing for a while never stalls a keep-all write
     REQUIRE(out.verdict == pd::MessageGate::Verdict::kAccepted);
     CHECK(out.envelope.level_request().epoch() == uint64_t(i));
   }
+}
+
+TEST_CASE("shared-memory participants take ids whose ports left no file on the host", "[dds][unit]") {
+  // FreshSharedMemoryParticipantId on a directory of its own: the files Fast DDS 2.9 leaves in
+  // /dev/shm for a port (segment, exclusive and shared lock) each make the id taken.
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("pf-fresh-ids-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const uint32_t domain = 3;
+  const uint32_t base = 7400 + 250 * domain;
+  auto touch = [&](const std::string& name) { std::ofstream(dir / name) << ""; };
+  CHECK(pd::FreshSharedMemoryParticipantId(domain, dir.string(), {}) == 0);
+  touch("fastrtps_port" + std::to_string(base + 10));  // id 0's metatraffic segment (a live or dead peer)
+  CHECK(pd::FreshSharedMemoryParticipantId(domain, dir.string(), {}) == 1);
+  touch("fastrtps_port" + std::to_string(base + 13) + "_el");  // id 1's user port, locked or left by a SIGKILL
+  CHECK(pd::FreshSharedMemoryParticipantId(domain, dir.string(), {}) == 2);
+  touch("fastrtps_port" + std::to_string(base + 14) + "_sl");
+  CHECK(pd::FreshSharedMemoryParticipantId(domain, dir.string(), {}) == 3);
+  // Ids this process gave before are skipped; another domain's files do not count.
+  CHECK(pd::FreshSharedMemoryParticipantId(domain, dir.string(), {3, 4}) == 5);
+  CHECK(pd::FreshSharedMemoryParticipantId(domain + 1, dir.string(), {}) == 0);
+  // Files of other names (the mutex, data segments) do not count.
+  touch("sem.fastrtps_port" + std::to_string(base + 16) + "_mutex");
+  touch("fastrtps_0123456789abcdef");
+  CHECK(pd::FreshSharedMemoryParticipantId(domain, dir.string(), {}) == 3);
+  // The last domain Fast DDS accepts has fewer ids below port 65536; all taken: -1 (automatic).
+  const uint32_t last = 232, last_base = 7400 + 250 * last;
+  std::set<int> all;
+  for (int id = 0; id < 120; ++id) all.insert(id);
+  CHECK(pd::FreshSharedMemoryParticipantId(last, dir.string(), all) == -1);
+  int top = -1;
+  for (int id = 0; id < 120; ++id)
+    if (last_base + 11 + 2 * uint32_t(id) <= 65535) top = id;
+  std::set<int> below(all.begin(), all.find(top));
+  CHECK(pd::FreshSharedMemoryParticipantId(last, dir.string(), below) == top);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("two shared-memory participants of one process get distinct fresh ids", "[dds][integration]") {
+  // TakeFreshSharedMemoryParticipantId never gives an id twice in a process, so a participant
+  // that replaces an earlier one does not take the earlier one's ports (peers hold its segments).
+  pd::NodeConfig cfg;
+  cfg.domain_id = TestDomain(6);
+  cfg.transport = pd::TransportKind::kSharedMemoryOnly;
+  cfg.write_topics = {pd::Topic::kPresence};
+  std::string first_guid;
+  {
+    auto a = MakeNode(cfg);
+    first_guid = a->participant_guid();
+  }
+  auto b = MakeNode(cfg);
+  // The GUID prefix ends with the participant id (little endian): different ones.
+  INFO(first_guid << " then " << b->participant_guid());
+  CHECK(first_guid.substr(0, 35) != b->participant_guid().substr(0, 35));
+}
+
+TEST_CASE("which participants take a fresh shared-memory id: shm, default and a shm-only XML profile",
+          "[dds][integration]") {
+  const std::filesystem::path xml = std::filesystem::path(POSEFOREST_SOURCE_DIR) / "deploy/fastdds/profiles.xml";
+  auto id_of = [&](pd::TransportKind kind, const std::string& profile, int pinned) {
+    pd::NodeConfig cfg;
+    cfg.domain_id = TestDomain(7);
+    cfg.transport = kind;
+    cfg.participant_id = pinned;
+    cfg.xml_file = xml.string();
+    cfg.xml_profile = profile;
+    if (kind == pd::TransportKind::kUdpOnly) cfg.initial_peers = {"127.0.0.1"};
+    eprosima::fastdds::dds::DomainParticipantQos qos;
+    auto st = pd::BuildParticipantQos(cfg, qos);
+    INFO(st.ToString());
+    REQUIRE(st.ok());
+    return qos.wire_protocol().participant_id;
+  };
+  CHECK(id_of(pd::TransportKind::kSharedMemoryOnly, "", -1) >= 0);
+  CHECK(id_of(pd::TransportKind::kDefault, "", -1) >= 0);
+  CHECK(id_of(pd::TransportKind::kXmlProfile, "poseforest_shm", -1) >= 0);
+  // UDP: automatic as before (peers without ports reach ids 0..3); a pinned id is kept.
+  CHECK(id_of(pd::TransportKind::kUdpOnly, "", -1) == -1);
+  CHECK(id_of(pd::TransportKind::kXmlProfile, "poseforest_udp_loopback", -1) == -1);
+  CHECK(id_of(pd::TransportKind::kSharedMemoryOnly, "", 7) == 7);
+  // Never the same id twice in a process.
+  const int a = id_of(pd::TransportKind::kSharedMemoryOnly, "", -1);
+  const int b = id_of(pd::TransportKind::kSharedMemoryOnly, "", -1);
+  CHECK(a != b);
 }
