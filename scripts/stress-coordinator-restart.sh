@@ -58,7 +58,7 @@ trial() {
   # Line-buffered, so that the level line reaches the log file as soon as it is printed.
   stdbuf -oL -eL "$bin" "${args[@]}" >"$t/c1.log" 2>&1 &
   local c1=$! i
-  for i in $(seq 1 4500); do grep -q "tree 0 level 1:" "$t/c1.log" && break; sleep 0.02; done
+  for i in $(seq 1 4500); do grep -qs "tree 0 level 1:" "$t/c1.log" && break; sleep 0.02; done
   kill -9 "$c1" 2>/dev/null || true
   wait "$c1" 2>/dev/null || true
   stdbuf -oL -eL "$bin" "${args[@]}" --resume --worker-wait-s 45 >"$t/c2.log" 2>&1 &
@@ -66,7 +66,7 @@ trial() {
   # The last levels can take milliseconds: when the first coordinator had finished the job
   # before the kill (the restarted one resumes "at tree 3 level 0", after the last tree), the
   # workers may have left on its JOB_DONE, and there is no restart to test.
-  for i in $(seq 1 100); do grep -q "resuming" "$t/c2.log" && break; sleep 0.1; done
+  for i in $(seq 1 100); do grep -qs "resuming" "$t/c2.log" && break; sleep 0.1; done
   if grep -q "resuming .* at tree 3 level 0" "$t/c2.log"; then
     kill "$c2" "$w0" "$w1" 2>/dev/null || true
     wait 2>/dev/null || true
