@@ -89,43 +89,8 @@ trial() {
   return $rc
 }
 
-chain() {
-  local d=$1 failed=0 done=0 n rc
-  for n in $(seq 1 "$trials"); do
-    rc=0
-    trial "$d" "$n" || rc=$?
-    [ "$rc" = 2 ] && continue
-    done=$((done + 1))
-    [ "$rc" = 0 ] || failed=$((failed + 1))
-  done
-  echo "$failed $done" >"$dir/failed_$d"
-  echo "domain $d: $failed of $done restarts failed ($((trials - done)) jobs ended before the kill)"
-}
-
-loads=()
-for _ in $(seq 1 "$busy"); do
-  (while :; do :; done) &
-  loads+=($!)
-done
-chains=()
-cleanup() {
-  kill "${loads[@]}" "${chains[@]}" 2>/dev/null || true
-  pkill -f "^$bin " 2>/dev/null || true
-}
-trap cleanup EXIT
-trap 'exit 130' INT TERM
-for c in $(seq 0 $((parallel - 1))); do
-  chain $((150 + c)) &
-  chains+=($!)
-done
-wait "${chains[@]}"
-failed=0
-total=0
-for c in $(seq 0 $((parallel - 1))); do
-  read -r f n <"$dir/failed_$((150 + c))"
-  failed=$((failed + f))
-  total=$((total + n))
-done
-forests=$(find "$dir" -maxdepth 1 -name 'forest_*.pff' -exec md5sum {} + | awk '{print $1}' | sort -u | wc -l)
+# shellcheck source=scripts/stress-common.sh
+. "$root/scripts/stress-common.sh"
+stress_chains 150 restarts "jobs ended before the kill"
 echo "distinct forests among the passed restarts: $forests (1 expected)"
 echo "restarts failed: $failed of $total"
