@@ -9,6 +9,7 @@
 #include <cstring>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <sstream>
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
@@ -311,6 +312,11 @@ core::Result<std::unique_ptr<DdsNode>> DdsNode::Create(const NodeConfig& config)
   ConfigureDdsLogging();
   auto impl = std::make_unique<Impl>();
   impl->config = config;
+  // From the id's choice until the participant's ports exist, no other process of this host
+  // chooses (HostLock): they would see the same free ports and take the same id. 10 s at most:
+  // a process stuck while holding it delays the others, it does not stop them.
+  std::optional<HostLock> id_lock;
+  if (MayTakeFreshParticipantId(config)) id_lock.emplace(kParticipantIdLockPath, std::chrono::seconds(10));
   fdds::DomainParticipantQos qos;
   POSEFOREST_RETURN_IF_ERROR(BuildParticipantQos(impl->config, qos));
   // Participant discovery events only; data and match callbacks go to the endpoint listeners.
@@ -333,6 +339,14 @@ core::Result<std::unique_ptr<DdsNode>> DdsNode::Create(const NodeConfig& config)
                              "POSEFOREST_DDS_LOG=warning shows why)"
                            : " (POSEFOREST_DDS_LOG=warning shows why)"));
   }
+  id_lock.reset();
+  if (const char* env = std::getenv("POSEFOREST_DDS_LOG");
+      env && (std::string(env) == "warning" || std::string(env) == "info"))
+    // Which participant id a process took (FreshSharedMemoryParticipantId): with Fast DDS's own
+    // warnings, what tells one shared-memory participant from another in a failing test's output.
+    std::fprintf(stderr, "[dds] participant '%s' on domain %u: id %d asked, guid %s\n",
+                 config.participant_name.c_str(), unsigned(config.domain_id), int(qos.wire_protocol().participant_id),
+                 ToString(impl->participant->guid().guidPrefix).c_str());
   std::unique_ptr<DdsNode> node(new DdsNode(std::move(impl)));
   Status st = node->impl_->CreateEndpoints();
   if (!st.ok()) return st;  // ~DdsNode cleans up

@@ -1,11 +1,18 @@
 #include "proto/dds/dds_node_qos.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -175,6 +182,32 @@ int TakeFreshSharedMemoryParticipantId(uint32_t domain) {
   const int id = FreshSharedMemoryParticipantId(domain, "/dev/shm", fresh_ids_given);
   if (id >= 0) fresh_ids_given.insert(id);
   return id;
+}
+
+HostLock::HostLock(const std::string& path, std::chrono::milliseconds wait) {
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+  if (fd_ < 0) return;
+  ::fchmod(fd_, 0666);  // shared by every user's processes on the host (the umask would narrow it)
+  const auto deadline = std::chrono::steady_clock::now() + wait;
+  for (;;) {
+    if (::flock(fd_, LOCK_EX | LOCK_NB) == 0) {
+      held_ = true;
+      return;
+    }
+    if (errno != EWOULDBLOCK && errno != EINTR) return;
+    if (std::chrono::steady_clock::now() >= deadline) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
+HostLock::~HostLock() {
+  if (fd_ >= 0) ::close(fd_);  // closing the descriptor drops the lock
+}
+
+bool MayTakeFreshParticipantId(const NodeConfig& config) {
+  return config.participant_id < 0 &&
+         (config.transport == TransportKind::kDefault || config.transport == TransportKind::kSharedMemoryOnly ||
+          config.transport == TransportKind::kXmlProfile);
 }
 
 Status BuildParticipantQos(const NodeConfig& config, fdds::DomainParticipantQos& qos) {

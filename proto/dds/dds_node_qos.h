@@ -35,4 +35,34 @@ int FreshSharedMemoryParticipantId(uint32_t domain, const std::string& shm_dir, 
 /// returned is taken. BuildParticipantQos uses it for the transports with shared memory.
 int TakeFreshSharedMemoryParticipantId(uint32_t domain);
 
+/// Holds a host-wide lock on `path` (flock, waiting at most `wait`) from construction until
+/// destruction: DdsNode::Create holds it on kParticipantIdLockPath from choosing a fresh id
+/// (BuildParticipantQos) until the participant has opened its ports. Without it two processes
+/// started together (two workers, a coordinator) saw the same files, took the same id, and one of
+/// them was then heard by nobody, or heard nobody (test_deploy's secure workers under load: 2 of 42
+/// runs, "sw-1 joined (1 alive)", both printing "id 3 asked"). held() is false when the lock could
+/// not be had in time (a process stuck while holding it) or the file not opened: the caller goes
+/// on without it, as before the lock.
+class HostLock {
+ public:
+  HostLock(const std::string& path, std::chrono::milliseconds wait);
+  ~HostLock();
+  HostLock(const HostLock&) = delete;
+  HostLock& operator=(const HostLock&) = delete;
+  bool held() const { return held_; }
+
+ private:
+  int fd_ = -1;
+  bool held_ = false;
+};
+
+/// The lock file of the participant-id choice: in /dev/shm beside the ports it is about, so every
+/// process that sees those ports (network namespaces included) sees it.
+inline constexpr const char* kParticipantIdLockPath = "/dev/shm/poseforest_participant_ids.lock";
+
+/// Whether BuildParticipantQos would choose a fresh shared-memory id for `config` (no pinned id,
+/// a transport with shared memory; an XML profile only when it is shared memory only and pins no
+/// id, which needs the profile: true here, the lock is cheap).
+bool MayTakeFreshParticipantId(const NodeConfig& config);
+
 }  // namespace poseforest::proto::dds

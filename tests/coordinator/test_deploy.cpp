@@ -387,7 +387,13 @@ TEST_CASE("deploy: --security trains; participants without credentials or from a
      // credentials (a worker's grant reads the job and status topics).
     auto paused = coord.WaitForLine("paused (next: tree 0, level 0)", 60s);
     INFO(coord.output());
-    REQUIRE(paused.has_value());
+    // On failure, what the secure workers said too (a CI run once saw sw-2 never join).
+    if (!paused) {
+      INFO("sw-1:\n" << w1.OutputNow());
+      INFO("sw-2:\n" << w2.OutputNow());
+      INFO("intruder:\n" << intruder_worker.OutputNow());
+      FAIL("the job was never held before level 0 with both secure workers");
+    }
     // Asked up to 3 times while the job is held: on a loaded CI machine the secure handshake
     // with a fresh participant once took longer than one 20 s wait (the test_deploy failure seen
     // in a fresh-clone CI); the job stays paused, so every attempt sees the same job.

@@ -4,6 +4,7 @@
 // bad messages whose samples the gate drops, counts and attributes, and the choice of
 // shared-memory participant ids whose ports no dead process left behind.
 #include <catch2/catch.hpp>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -415,6 +416,31 @@ TEST_CASE("two shared-memory participants of one process get distinct fresh ids"
   // The GUID prefix ends with the participant id (little endian): different ones.
   INFO(first_guid << " then " << b->participant_guid());
   CHECK(first_guid.substr(0, 35) != b->participant_guid().substr(0, 35));
+}
+
+TEST_CASE("the participant-id lock is held by one holder at a time and waits a bounded time", "[dds]") {
+  // DdsNode::Create holds it from the id's choice until the participant's ports exist
+  // (test_dds_multiprocess: processes started together take distinct ids).
+  const std::string path = (std::filesystem::temp_directory_path() /
+                            ("pf-hostlock-" + std::to_string(::getpid()) + ".lock")).string();
+  {
+    pd::HostLock first(path, std::chrono::milliseconds(100));
+    REQUIRE(first.held());
+    const auto t0 = std::chrono::steady_clock::now();
+    pd::HostLock second(path, std::chrono::milliseconds(200));  // another open file: flock excludes it
+    const auto waited = std::chrono::steady_clock::now() - t0;
+    CHECK_FALSE(second.held());
+    CHECK(waited >= std::chrono::milliseconds(200));
+    CHECK(waited < std::chrono::seconds(5));
+  }
+  pd::HostLock again(path, std::chrono::milliseconds(100));  // the first one's close dropped it
+  CHECK(again.held());
+  CHECK((std::filesystem::status(path).permissions() & std::filesystem::perms::others_write) !=
+        std::filesystem::perms::none);  // any user's processes can take it
+  // A folder that cannot hold the file: not held, no wait, and no error to the caller.
+  pd::HostLock nowhere("/nonexistent-dir/pf.lock", std::chrono::seconds(10));
+  CHECK_FALSE(nowhere.held());
+  std::filesystem::remove(path);
 }
 
 TEST_CASE("which participants take a fresh shared-memory id: shm, default and a shm-only XML profile",
