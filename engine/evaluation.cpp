@@ -175,6 +175,8 @@ void ScoreSkeleton(const runtime::Classifier& classifier, const runtime::Classif
   const auto& model = classifier.forest().tracking_model;
   skeleton->fit = runtime::ResolveSkeletonFit(so, so.use_tracking_model && model ? &*model : nullptr);
   so.agree_radius_m = options.agree_radius_m;
+  so.track_probability = options.track_probability;
+  so.seen_probability = options.seen_probability;
   // The forest's offset votes (format 1.5), when it has them and they are not turned off.
   std::vector<runtime::PersonVotes> votes;
   if (options.votes && classifier.forest().offset_votes)

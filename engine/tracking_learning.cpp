@@ -170,7 +170,9 @@ core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
     vis[size_t(j)] += visible[i];
     count(rules, i, j, rules_tracked[i]);
     count(within, i, j, at_surface && model.Probability(j, confidences[i], cues[i]) >= p);
-    if (model.seen) count(seen, i, j, at_surface && model.seen->Probability(j, confidences[i], cues[i]) >= p);
+    if (model.seen)
+      count(seen, i, j,
+            at_surface && model.seen->Probability(j, confidences[i], cues[i]) >= options.skeleton.seen_probability);
   }
   auto figures = [&](const Tally& t, TrackingLearningReport::Figures& f) {
     int scored = 0;

@@ -474,12 +474,13 @@ struct PersonFit {
       if (!joint.found) continue;
       joint.confidence = tracking.Probability(j, joint.base_confidence, joint.cues);
       const float decide = seen ? seen->Probability(j, joint.base_confidence, joint.cues) : joint.confidence;
+      const float threshold = seen ? options.seen_probability : options.track_probability;
       const int d = MaskDepthPx(joint.pixel);
       const bool at_surface = d && std::abs(joint.position_m.z() - float(d) * 1e-3f) <= options.max_depth_gap_m;
-      joint.tracked = at_surface && decide >= options.track_probability;
+      joint.tracked = at_surface && decide >= threshold;
       if (joint.tracked) joint.inferred = false;
       // Likely hidden, and its candidate confident: placed, not seen (Azure Kinect's "LOW").
-      else if (seen && decide < options.track_probability && joint.base_confidence >= options.min_confidence)
+      else if (seen && decide < threshold && joint.base_confidence >= options.min_confidence)
         joint.inferred = true;
     }
   }

@@ -39,7 +39,7 @@ class EvalCommand final : public Command {
   std::optional<int> images_, people_, pixel_stride_;  ///< pixel stride default: 1, live's 2 with --real-labels
   int64_t first_ = 0;
   int threads_ = 0;
-  std::optional<double> agree_radius_;
+  std::optional<double> agree_radius_, track_probability_, seen_probability_;
   bool quiet_ = false, per_person_ = false, no_rescale_ = false, no_votes_ = false, no_tracking_model_ = false,
        no_seen_model_ = false;
 };
@@ -139,6 +139,16 @@ EvalCommand::EvalCommand()
                   "SkeletonOptions::agree_radius_m)")
       ->type_name("M")
       ->check(NumberIn(0.0, 1.0, "metres"));
+  app_.add_option("--seen-probability", seen_probability_,
+                  "as `live --seen-probability`: with the seen model, a joint is tracked when P(seen)\n"
+                  "reaches P (default 0.2: not seen only when P(hidden) >= 0.8)")
+      ->type_name("P")
+      ->check(NumberIn(0.0, 1.0, "a probability"));
+  app_.add_option("--track-probability", track_probability_,
+                  "as `live --track-probability`: without the seen model (--no-seen-model, forests\n"
+                  "before 1.8), a joint is tracked when P(within 0.1 m) reaches P (default 0.5)")
+      ->type_name("P")
+      ->check(NumberIn(0.0, 1.0, "a probability"));
   app_.add_option("--real-labels", real_labels_, "score skeletons on hand-labelled real frames (above) instead of --test-set")
       ->type_name("F");
   app_.add_option("--png-dir", png_dir_, "with --real-labels: a picture per frame, DIR/<frame file>.png")
@@ -190,6 +200,8 @@ int EvalCommand::RunRealLabels() {
   options.pixel_stride = pixel_stride_.value_or(2);  // live's default
   if (!fit_.empty()) options.skeleton.fit = *runtime::SkeletonFitFromName(fit_);
   if (agree_radius_) options.skeleton.agree_radius_m = float(*agree_radius_);
+  if (track_probability_) options.skeleton.track_probability = float(*track_probability_);
+  if (seen_probability_) options.skeleton.seen_probability = float(*seen_probability_);
   options.votes = !no_votes_;
   options.skeleton.use_tracking_model = !no_tracking_model_;
   options.skeleton.use_seen_model = !no_seen_model_;
@@ -275,6 +287,8 @@ int EvalCommand::RunTestSet() {
   eo.pixel_stride = pixel_stride_.value_or(1);
   if (!fit_.empty()) eo.skeleton_fit = *runtime::SkeletonFitFromName(fit_);
   if (agree_radius_) eo.agree_radius_m = float(*agree_radius_);
+  if (track_probability_) eo.track_probability = float(*track_probability_);
+  if (seen_probability_) eo.seen_probability = float(*seen_probability_);
   eo.votes = !no_votes_;
   eo.tracking_model = !no_tracking_model_;
   eo.seen_model = !no_seen_model_;

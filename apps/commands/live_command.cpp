@@ -63,7 +63,7 @@ struct LiveFlags {
   int pixel_stride = 2, threads = 0;
   std::optional<int> dds_domain, dds_wait;
   std::optional<int64_t> max_frames;
-  std::optional<double> min_confidence, track_probability, min_support, max_match;  ///< default: SkeletonOptions'
+  std::optional<double> min_confidence, track_probability, seen_probability, min_support, max_match;  ///< default: SkeletonOptions'
   std::optional<double> smooth_min_cutoff, smooth_beta, smooth_d_cutoff;
   bool smooth = false, loop = false, quiet = false, dds = false, no_votes = false, no_tracking_model = false,
        no_seen_model = false;
@@ -143,7 +143,7 @@ void DeclareLiveOptions(CLI::App& app, LiveFlags* f) {
       ->group(sk);
   app.add_flag("--no-seen-model", f->no_seen_model,
                "with the learned decision: track a joint when its P(within 0.1 m) >= --track-probability\n"
-               "instead of when the decision's seen model (format 1.8) gives P(seen) >= --track-probability\n"
+               "instead of when the decision's seen model (format 1.8) gives P(seen) >= --seen-probability\n"
                "(a found joint likely hidden is inferred)")
       ->group(sk);
   app.add_option("--min-confidence", f->min_confidence,
@@ -151,7 +151,15 @@ void DeclareLiveOptions(CLI::App& app, LiveFlags* f) {
       ->type_name("C")
       ->check(NumberIn(0.0, 1.0))
       ->group(sk);
-  app.add_option("--track-probability", f->track_probability, "the learned tracking decision's threshold (default 0.5)")
+  app.add_option("--track-probability", f->track_probability,
+                 "the learned tracking decision's threshold on P(within 0.1 m) without the seen model\n"
+                 "(--no-seen-model, forests before 1.8) (default 0.5)")
+      ->type_name("P")
+      ->check(NumberIn(0.0, 1.0))
+      ->group(sk);
+  app.add_option("--seen-probability", f->seen_probability,
+                 "with the seen model: tracked when P(seen) >= P (default 0.2: a joint is reported not\n"
+                 "seen only when P(hidden) >= 0.8)")
       ->type_name("P")
       ->check(NumberIn(0.0, 1.0))
       ->group(sk);
@@ -226,6 +234,7 @@ std::optional<int> ParseLiveOptions(const LiveFlags& f, LiveOptions* out) {
   if (f.min_confidence) sk.min_confidence = float(*f.min_confidence);
   if (f.min_support) sk.min_support_m2 = float(*f.min_support);
   if (f.track_probability) sk.track_probability = float(*f.track_probability);
+  if (f.seen_probability) sk.seen_probability = float(*f.seen_probability);
   if (f.max_match) sk.max_match_distance_m = float(*f.max_match);
   sk.smooth = f.smooth;
   if (f.smooth_min_cutoff) sk.min_cutoff_hz = *f.smooth_min_cutoff;

@@ -422,17 +422,21 @@ TEST_CASE("skeletons with a seen decision (format 1.8): tracked when likely seen
   sk = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
   CHECK(sk[0].joints[size_t(J::kLElbow)].tracked);
   CHECK(sk[0].joints[size_t(J::kLElbow)].confidence == Approx(m[size_t(J::kLElbow)].confidence));
-  // The threshold applies to P(seen): a seen model unsure of every joint (P = 0.27) tracks
-  // none at 0.5 and all at the surface at 0.2.
+  // seen_probability applies to P(seen): a seen model unsure of every joint (P = 0.27) tracks
+  // all at the surface at the default 0.2 (not seen only when P(hidden) >= 0.8), none at 0.5;
+  // track_probability does not move the seen decision.
   opt.use_seen_model = true;
   model.seen->intercept.fill(-1.0f);
-  sk = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
-  for (const auto& joint : sk[0].joints) CHECK_FALSE(joint.tracked);
-  opt.track_probability = 0.2f;
+  REQUIRE(opt.seen_probability == 0.2f);
   sk = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
   CHECK(sk[0].joints[size_t(J::kLElbow)].tracked);
   CHECK(sk[0].joints[size_t(J::kHead)].tracked);
   CHECK_FALSE(sk[0].joints[size_t(J::kRKnee)].tracked);
+  opt.seen_probability = 0.5f;
+  opt.track_probability = 0.2f;
+  sk = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt, nullptr, &model);
+  for (const auto& joint : sk[0].joints) CHECK_FALSE(joint.tracked);
+  CHECK(runtime::StateOf(sk[0].joints[size_t(J::kLElbow)]) == runtime::JointState::kInferred);
 }
 
 TEST_CASE("person ids stay with the nearest centroid over a sequence", "[skeleton]") {
