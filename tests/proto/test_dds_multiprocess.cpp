@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <set>
 
 #include <atomic>
@@ -277,6 +278,18 @@ std::set<std::string> UnicastPortFiles(uint32_t domain) {
   }
   return out;
 }
+
+/// This process as a coordinator on shared memory only, reading the presence topic.
+std::unique_ptr<pd::DdsNode> PresenceReader(uint32_t domain) {
+  pd::NodeConfig cfg;
+  cfg.domain_id = domain;
+  cfg.transport = pd::TransportKind::kSharedMemoryOnly;
+  cfg.participant_name = "coordinator";
+  cfg.read_topics = {pd::Topic::kPresence};
+  auto node = pd::DdsNode::Create(cfg);
+  REQUIRE(node.ok());
+  return std::move(*node);
+}
 }  // namespace
 
 TEST_CASE("a worker restarted after a SIGKILL takes fresh shared-memory ports and is heard",
@@ -287,13 +300,7 @@ TEST_CASE("a worker restarted after a SIGKILL takes fresh shared-memory ports an
   // matches the new one (CI: "0 of 1 lost worker(s) came back" after a worker was restarted).
   // Participants with shared memory now take ports that left no file behind.
   const uint32_t domain = pd::testing::TestDomain(17);
-  pd::NodeConfig cfg;
-  cfg.domain_id = domain;
-  cfg.transport = pd::TransportKind::kSharedMemoryOnly;
-  cfg.participant_name = "coordinator";
-  cfg.read_topics = {pd::Topic::kPresence};
-  auto node = pd::DdsNode::Create(cfg);
-  REQUIRE(node.ok());
+  auto node = PresenceReader(domain);
   pd::GateConfig gc;
   gc.self_id = "coordinator";
   gc.job_id = "job-RS";
@@ -311,7 +318,7 @@ TEST_CASE("a worker restarted after a SIGKILL takes fresh shared-memory ports an
     std::string from;
     const auto t0 = Clock::now();
     while (heard < 5 && Clock::now() - t0 < 30s) {
-      auto s = (*node)->Receive(500ms);
+      auto s = node->Receive(500ms);
       if (!s) continue;
       auto out = gate.Check(s->topic, s->bytes, s->writer_guid);
       if (out.verdict != pd::MessageGate::Verdict::kAccepted || s->writer_participant == not_from) continue;
@@ -355,13 +362,7 @@ TEST_CASE("processes started together take distinct shared-memory participant id
   // heard (test_deploy's secure workers under load: "sw-1 joined (1 alive)", both "id 3 asked").
   // The choice and the participant's creation now hold a host-wide lock (HostLock).
   const uint32_t domain = pd::testing::TestDomain(18);
-  pd::NodeConfig cfg;
-  cfg.domain_id = domain;
-  cfg.transport = pd::TransportKind::kSharedMemoryOnly;
-  cfg.participant_name = "coordinator";
-  cfg.read_topics = {pd::Topic::kPresence};
-  auto node = pd::DdsNode::Create(cfg);
-  REQUIRE(node.ok());
+  auto node = PresenceReader(domain);
   constexpr int kPeers = 4;
   std::vector<std::unique_ptr<pd::testing::Child>> peers;
   for (int i = 0; i < kPeers; ++i) {  // no wait between the starts
@@ -393,7 +394,7 @@ TEST_CASE("processes started together take distinct shared-memory participant id
   std::map<std::string, int> heard;
   const auto t0 = Clock::now();
   while (heard.size() < size_t(kPeers) && Clock::now() - t0 < 30s) {
-    auto s = (*node)->Receive(500ms);
+    auto s = node->Receive(500ms);
     if (!s || gate.Check(s->topic, s->bytes, s->writer_guid).verdict != pd::MessageGate::Verdict::kAccepted) continue;
     ++heard[s->writer_participant];
   }
