@@ -15,7 +15,8 @@
 // upper-body frame whose legs are out of view gets no invented knees. A forest with a learned
 // tracking decision (core::TrackingModel, format 1.6) replaces those rules: its P(within 0.1 m)
 // of the joint, from the confidence and the same cues, is the confidence, and P >= 0.5 tracks;
-// with its seen model (format 1.8) P(the camera sees the joint) >= 0.5 tracks instead.
+// with its seen model (format 1.8) P(the camera sees the joint) >= 0.2 tracks instead
+// (SkeletonOptions::seen_probability: reported not seen only when P(hidden) >= 0.8).
 
 #include <Eigen/Core>
 #include <array>
