@@ -107,8 +107,8 @@ struct JointEvalOptions {
   /// unset: as `live` does by default (runtime::ResolveSkeletonFit).
   std::optional<runtime::SkeletonFit> skeleton_fit;
   float agree_radius_m = runtime::SkeletonOptions{}.agree_radius_m;  ///< SkeletonOptions::agree_radius_m
-  float track_probability = runtime::SkeletonOptions{}.track_probability;  ///< SkeletonOptions::track_probability
-  float seen_probability = runtime::SkeletonOptions{}.seen_probability;  ///< SkeletonOptions::seen_probability
+  float track_probability = runtime::SkeletonOptions{}.track_probability;  ///< SkeletonOptions'
+  float seen_probability = runtime::SkeletonOptions{}.seen_probability;    ///< SkeletonOptions'
   bool fast = true;         ///< also the fast clustering
   bool upper_bound = true;  ///< also mean shift on the ground-truth parts
   /// Proposal parameters of mean shift (and the upper bound) and of the fast clustering; unset =

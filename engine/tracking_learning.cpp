@@ -172,7 +172,8 @@ core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
     count(within, i, j, at_surface && model.Probability(j, confidences[i], cues[i]) >= p);
     if (model.seen)
       count(seen, i, j,
-            at_surface && model.seen->Probability(j, confidences[i], cues[i]) >= options.skeleton.seen_probability);
+            at_surface &&
+                model.seen->Probability(j, confidences[i], cues[i]) >= options.skeleton.seen_probability);
   }
   auto figures = [&](const Tally& t, TrackingLearningReport::Figures& f) {
     int scored = 0;

@@ -63,7 +63,8 @@ struct LiveFlags {
   int pixel_stride = 2, threads = 0;
   std::optional<int> dds_domain, dds_wait;
   std::optional<int64_t> max_frames;
-  std::optional<double> min_confidence, track_probability, seen_probability, min_support, max_match;  ///< default: SkeletonOptions'
+  std::optional<double> min_confidence, track_probability, seen_probability, min_support,
+      max_match;  ///< default: SkeletonOptions'
   std::optional<double> smooth_min_cutoff, smooth_beta, smooth_d_cutoff;
   bool smooth = false, loop = false, quiet = false, dds = false, no_votes = false, no_tracking_model = false,
        no_seen_model = false;

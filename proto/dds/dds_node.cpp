@@ -345,7 +345,8 @@ core::Result<std::unique_ptr<DdsNode>> DdsNode::Create(const NodeConfig& config)
     // Which participant id a process took (FreshSharedMemoryParticipantId): with Fast DDS's own
     // warnings, what tells one shared-memory participant from another in a failing test's output.
     std::fprintf(stderr, "[dds] participant '%s' on domain %u: id %d asked, guid %s\n",
-                 config.participant_name.c_str(), unsigned(config.domain_id), int(qos.wire_protocol().participant_id),
+                 config.participant_name.c_str(), unsigned(config.domain_id),
+                 int(qos.wire_protocol().participant_id),
                  ToString(impl->participant->guid().guidPrefix).c_str());
   std::unique_ptr<DdsNode> node(new DdsNode(std::move(impl)));
   Status st = node->impl_->CreateEndpoints();

@@ -205,9 +205,9 @@ HostLock::~HostLock() {
 }
 
 bool MayTakeFreshParticipantId(const NodeConfig& config) {
-  return config.participant_id < 0 &&
-         (config.transport == TransportKind::kDefault || config.transport == TransportKind::kSharedMemoryOnly ||
-          config.transport == TransportKind::kXmlProfile);
+  return config.participant_id < 0 && (config.transport == TransportKind::kDefault ||
+                                       config.transport == TransportKind::kSharedMemoryOnly ||
+                                       config.transport == TransportKind::kXmlProfile);
 }
 
 Status BuildParticipantQos(const NodeConfig& config, fdds::DomainParticipantQos& qos) {

@@ -368,10 +368,10 @@ TEST_CASE("processes started together take distinct shared-memory participant id
   for (int i = 0; i < kPeers; ++i) {  // no wait between the starts
     peers.push_back(std::make_unique<pd::testing::Child>());
     std::string error;
-    REQUIRE(peers.back()->Start({pd::testing::PeerBinary(), "--mode=alive", "--transport=shm",
-                                 "--domain=" + std::to_string(domain), "--period-ms=50", "--seconds=60",
-                                 "--job=job-TG", "--id=worker-" + std::to_string(i)},
-                                &error));
+    REQUIRE(peers.back()->Start(
+        {pd::testing::PeerBinary(), "--mode=alive", "--transport=shm", "--domain=" + std::to_string(domain),
+         "--period-ms=50", "--seconds=60", "--job=job-TG", "--id=worker-" + std::to_string(i)},
+        &error));
   }
   // The participant id is the GUID prefix's bytes 8..11, little endian (no DDS-Security here).
   std::set<std::string> ids;
@@ -395,7 +395,8 @@ TEST_CASE("processes started together take distinct shared-memory participant id
   const auto t0 = Clock::now();
   while (heard.size() < size_t(kPeers) && Clock::now() - t0 < 30s) {
     auto s = node->Receive(500ms);
-    if (!s || gate.Check(s->topic, s->bytes, s->writer_guid).verdict != pd::MessageGate::Verdict::kAccepted) continue;
+    if (!s || gate.Check(s->topic, s->bytes, s->writer_guid).verdict != pd::MessageGate::Verdict::kAccepted)
+      continue;
     ++heard[s->writer_participant];
   }
   CHECK(heard.size() == size_t(kPeers));

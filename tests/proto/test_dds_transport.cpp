@@ -3,9 +3,9 @@
 // deploy/ XML profiles, transient-local job announcements for late joiners, a writer of
 // bad messages whose samples the gate drops, counts and attributes, and the choice of
 // shared-memory participant ids whose ports no dead process left behind.
-#include <catch2/catch.hpp>
 #include <unistd.h>
 
+#include <catch2/catch.hpp>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -421,8 +421,9 @@ TEST_CASE("two shared-memory participants of one process get distinct fresh ids"
 TEST_CASE("the participant-id lock is held by one holder at a time and waits a bounded time", "[dds]") {
   // DdsNode::Create holds it from the id's choice until the participant's ports exist
   // (test_dds_multiprocess: processes started together take distinct ids).
-  const std::string path = (std::filesystem::temp_directory_path() /
-                            ("pf-hostlock-" + std::to_string(::getpid()) + ".lock")).string();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("pf-hostlock-" + std::to_string(::getpid()) + ".lock"))
+          .string();
   {
     pd::HostLock first(path, std::chrono::milliseconds(100));
     REQUIRE(first.held());
