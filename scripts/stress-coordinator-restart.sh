@@ -21,15 +21,9 @@ trials=${1:-40}
 parallel=${2:-3}
 busy=${3:-2}
 profile=${4:-shm}
-case "$profile" in shm | udp | default) ;; *) echo "stress: PROFILE must be shm, udp or default" >&2; exit 2 ;; esac
-bin=${POSEFOREST_BIN:-$root/build/bin/poseforest}
-[ -x "$bin" ] || { echo "stress: no $bin (build first: README command one)" >&2; exit 1; }
-dir=${POSEFOREST_STRESS_DIR:-$root/out/stress-restart}
-rm -rf "$dir"
-mkdir -p "$dir"
-# A copy, so a rebuild while this runs does not change the program under test.
-cp "$bin" "$dir/poseforest"
-bin="$dir/poseforest"
+# shellcheck source=scripts/stress-common.sh
+. "$root/scripts/stress-common.sh"
+stress_setup stress-restart
 cat >"$dir/job.textproto" <<'EOF'
 seed: 5
 num_trees: 3
@@ -89,8 +83,6 @@ trial() {
   return $rc
 }
 
-# shellcheck source=scripts/stress-common.sh
-. "$root/scripts/stress-common.sh"
 stress_chains 150 restarts "jobs ended before the kill"
 echo "distinct forests among the passed restarts: $forests (1 expected)"
 echo "restarts failed: $failed of $total"

@@ -23,18 +23,9 @@ trials=${1:-40}
 parallel=${2:-3}
 busy=${3:-2}
 profile=${4:-shm}
-case "$profile" in shm | udp | default) ;; *) echo "stress: PROFILE must be shm, udp or default" >&2; exit 2 ;; esac
-for n in "$trials" "$parallel" "$busy"; do
-  [[ "$n" =~ ^[0-9]+$ ]] || { echo "stress: TRIALS, PARALLEL and BUSY are whole numbers, not '$n'" >&2; exit 2; }
-done
-bin=${POSEFOREST_BIN:-$root/build/bin/poseforest}
-[ -x "$bin" ] || { echo "stress: no $bin (build first: README command one)" >&2; exit 1; }
-dir=${POSEFOREST_STRESS_DIR:-$root/out/stress-worker}
-rm -rf "$dir"
-mkdir -p "$dir"
-# A copy, so a rebuild while this runs does not change the program under test.
-cp "$bin" "$dir/poseforest"
-bin="$dir/poseforest"
+# shellcheck source=scripts/stress-common.sh
+. "$root/scripts/stress-common.sh"
+stress_setup stress-worker
 cat >"$dir/job.textproto" <<'JOB'
 seed: 5
 num_trees: 2
@@ -110,8 +101,6 @@ trial() {
   return $rc
 }
 
-# shellcheck source=scripts/stress-common.sh
-. "$root/scripts/stress-common.sh"
 stress_chains 160 "worker restarts" "trials not counted: no worker was lost"
 echo "distinct forests among the passed trials: $forests (1 expected)"
 seen=$(cat "$dir"/seen_back_* 2>/dev/null | wc -l)
