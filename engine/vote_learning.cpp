@@ -115,8 +115,8 @@ Status CheckInputs(const core::Forest& forest, const TrainParams& job, const Vot
     return Status(ErrorCode::kInvalidArgument, "the forest has " + std::to_string(forest.trees.size()) +
                                                    " trees, the job " + std::to_string(job.num_trees) +
                                                    ": not the forest of this job");
-  if (!(options.max_offset_m > 0) || !(options.limb_max_offset_m >= 0) || !(options.leaf_bandwidth_m > 0) ||
-      !(options.vote_bandwidth_m > 0) || options.max_pixels_per_leaf < 1 ||
+  if (!(options.max_offset_m > 0) || !(options.limb_max_offset_m >= 0) || !(options.hand_max_offset_m >= 0) ||
+      !(options.leaf_bandwidth_m > 0) || !(options.vote_bandwidth_m > 0) || options.max_pixels_per_leaf < 1 ||
       !(options.min_weight > 0 && options.min_weight <= 1))
     return Status(ErrorCode::kInvalidArgument, "vote learning options out of range");
   return Status();
@@ -232,9 +232,7 @@ std::optional<core::JointVote> LeafJointVote(const std::vector<const Pixel*>& by
                                              uint32_t keep, int j, const TreePixels& tp,
                                              const VoteLearningOptions& options,
                                              std::vector<Eigen::Vector3f>& offsets) {
-  const float reach = j >= int(core::Joint::kLElbow) && options.limb_max_offset_m > 0
-                          ? options.limb_max_offset_m
-                          : options.max_offset_m;
+  const float reach = VoteReach(j, options);
   const float max2 = reach * reach;
   offsets.clear();
   for (uint32_t k = 0; k < keep; ++k) {
@@ -454,6 +452,13 @@ Status Calibrate(const core::Forest& forest, const VoteLearningOptions& options,
 
 }  // namespace
 
+float VoteReach(int j, const VoteLearningOptions& options) {
+  if (j < int(core::Joint::kLElbow)) return options.max_offset_m;
+  const float limb = options.limb_max_offset_m > 0 ? options.limb_max_offset_m : options.max_offset_m;
+  const bool hand = j >= int(core::Joint::kLWrist) && j <= int(core::Joint::kRHand);
+  return hand && options.hand_max_offset_m > 0 ? options.hand_max_offset_m : limb;
+}
+
 Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const TrainParams& job,
                                            const VoteLearningOptions& options, VoteLearningReport* report) {
   const double t0 = Now();
@@ -463,7 +468,9 @@ Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const Tra
       options.threads > 0 ? options.threads : std::max(1u, std::thread::hardware_concurrency());
   if (Status s = CheckTrainingFrames(job); !s.ok()) return s;
   core::OffsetVotes table;
-  table.max_offset_m = std::max(options.max_offset_m, options.limb_max_offset_m);
+  table.max_offset_m = 0;
+  for (int j = 0; j < core::kNumJoints; ++j)
+    table.max_offset_m = std::max(table.max_offset_m, VoteReach(j, options));
   table.bandwidth_m.fill(options.vote_bandwidth_m);
   for (int t = 0; t < job.num_trees; ++t) {
     const core::Tree& tree = forest.trees[size_t(t)];

@@ -105,14 +105,18 @@ class LearnVotesCommand final : public Command {
     app_.add_option("--out", out_, "where to write the forest with votes (may equal --forest)")
         ->type_name("PATH")
         ->required();
-    app_.add_option("--max-offset-m", max_offset_m_, "longest offset kept, metres")
+    app_.add_option("--max-offset-m", max_offset_m_,
+                    "longest offset kept to the head, neck and shoulders, metres")
         ->type_name("M")
         ->check(NumberIn(0.05, 3.0));
     app_.add_option("--limb-max-offset-m", limb_max_offset_m_,
-                    "longest offset kept for elbows, wrists, hands, knees, ankles and feet (default:\n"
-                    "--max-offset-m)")
+                    "longest offset kept for elbows, knees, ankles and feet (0: --max-offset-m)")
         ->type_name("M")
-        ->check(NumberIn(0.05, 3.0));
+        ->check(NumberIn(0.0, 3.0));
+    app_.add_option("--hand-max-offset-m", hand_max_offset_m_,
+                    "longest offset kept for wrists and hands (0: as --limb-max-offset-m)")
+        ->type_name("M")
+        ->check(NumberIn(0.0, 3.0));
     app_.add_option("--leaf-bandwidth-m", leaf_bandwidth_m_, "mean shift over a leaf's offsets")
         ->type_name("B")
         ->check(NumberIn(0.005, 0.5));
@@ -153,7 +157,8 @@ class LearnVotesCommand final : public Command {
   // The defaults are engine::VoteLearningOptions'.
   std::optional<double> vote_bandwidth_m_;
   double max_offset_m_ = kDefaults.max_offset_m, limb_max_offset_m_ = kDefaults.limb_max_offset_m,
-         leaf_bandwidth_m_ = kDefaults.leaf_bandwidth_m, min_weight_ = kDefaults.min_weight;
+         hand_max_offset_m_ = kDefaults.hand_max_offset_m, leaf_bandwidth_m_ = kDefaults.leaf_bandwidth_m,
+         min_weight_ = kDefaults.min_weight;
   int validation_frames_ = kDefaults.validation_frames, tracking_frames_ = 200, threads_ = 0;
   std::optional<int64_t> seed_;
   bool tracking_only_ = false, quiet_ = false;
@@ -180,6 +185,7 @@ int LearnVotesCommand::Run() {
   const bool quiet = quiet_;
   opt.max_offset_m = float(max_offset_m_);
   opt.limb_max_offset_m = float(limb_max_offset_m_);
+  opt.hand_max_offset_m = float(hand_max_offset_m_);
   opt.leaf_bandwidth_m = float(leaf_bandwidth_m_);
   if (vote_bandwidth_m_) {
     opt.vote_bandwidth_m = float(*vote_bandwidth_m_);

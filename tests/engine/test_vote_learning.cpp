@@ -63,11 +63,21 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
   CHECK(rep.votes == one->total_votes());
   CHECK(rep.leaves_with_votes > rep.leaves / 2);
   CHECK(core::ValidateOffsetVotes(*one, {forest.trees[0].num_leaves, forest.trees[1].num_leaves}, "votes").ok());
+  // The default reaches: 0.3 m to the head, neck, shoulders, wrists and hands, 0.9 m to the
+  // elbows, knees, ankles and feet; the table records the longest.
+  CHECK(engine::VoteReach(int(core::Joint::kHead), opt) == opt.max_offset_m);
+  CHECK(engine::VoteReach(int(core::Joint::kRShoulder), opt) == opt.max_offset_m);
+  CHECK(engine::VoteReach(int(core::Joint::kLElbow), opt) == opt.limb_max_offset_m);
+  CHECK(engine::VoteReach(int(core::Joint::kRFoot), opt) == opt.limb_max_offset_m);
+  CHECK(engine::VoteReach(int(core::Joint::kLWrist), opt) == opt.hand_max_offset_m);
+  CHECK(engine::VoteReach(int(core::Joint::kRHand), opt) == opt.hand_max_offset_m);
+  CHECK(opt.limb_max_offset_m > opt.max_offset_m);
+  CHECK(one->max_offset_m == opt.limb_max_offset_m);
   for (const core::JointVote& v : one->trees[0].votes) {
     CHECK(v.weight >= 1);
-    // Stored offsets are the modes of offsets shorter than max_offset_m.
+    // Stored offsets are the modes of offsets shorter than the joint's reach.
     CHECK(std::sqrt(double(v.dx_mm) * v.dx_mm + double(v.dy_mm) * v.dy_mm + double(v.dz_mm) * v.dz_mm) <=
-          1000.0 * opt.max_offset_m + 1);
+          1000.0 * engine::VoteReach(v.joint, opt) + 1);
   }
   // On frames the tree was grown from, the votes know where the joints are (a sign or frame
   // error in the offsets puts them nowhere near).
@@ -91,27 +101,49 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
   REQUIRE(two.ok());
   CHECK(*two == *one);
 
-  // A longer reach for the limbs' joints (elbows to feet) only: their votes may be longer than
-  // max_offset_m, the head's, neck's and shoulders' never; the table records the longest reach.
+  // One reach for every joint (the limbs' and the hands' 0: as max_offset_m) against a longer
+  // one for the limbs: their votes may be longer than max_offset_m, the head's, neck's and
+  // shoulders' never; with the hands' reach 0 the wrists and hands take the limbs', else their own.
   {
-    engine::VoteLearningOptions limbs = opt;
-    limbs.limb_max_offset_m = 2 * opt.max_offset_m;
-    auto reach = engine::LearnOffsetVotes(forest, job, limbs);
-    REQUIRE(reach.ok());
-    CHECK(reach->max_offset_m == limbs.limb_max_offset_m);
-    CHECK(reach->total_votes() > one->total_votes());
-    int longer = 0;
-    for (const auto& tree : reach->trees)
-      for (const core::JointVote& v : tree.votes) {
-        const double mm =
-            std::sqrt(double(v.dx_mm) * v.dx_mm + double(v.dy_mm) * v.dy_mm + double(v.dz_mm) * v.dz_mm);
-        const bool limb = v.joint >= uint8_t(core::Joint::kLElbow);
-        CHECK(mm <= 1000.0 * (limb ? limbs.limb_max_offset_m : opt.max_offset_m) + 1);
-        longer += limb && mm > 1000.0 * opt.max_offset_m + 1;
-      }
-    CHECK(longer > 0);
-    limbs.limb_max_offset_m = -0.1f;
-    CHECK_FALSE(engine::LearnOffsetVotes(forest, job, limbs).ok());
+    engine::VoteLearningOptions flat = opt;
+    flat.limb_max_offset_m = 0;
+    flat.hand_max_offset_m = 0;
+    for (int j = 0; j < core::kNumJoints; ++j) CHECK(engine::VoteReach(j, flat) == flat.max_offset_m);
+    auto short_votes = engine::LearnOffsetVotes(forest, job, flat);
+    REQUIRE(short_votes.ok());
+    CHECK(short_votes->max_offset_m == flat.max_offset_m);
+    CHECK(one->total_votes() > short_votes->total_votes());
+    for (const float hand : {0.0f, flat.max_offset_m}) {
+      engine::VoteLearningOptions limbs = flat;
+      limbs.limb_max_offset_m = 2 * opt.max_offset_m;
+      limbs.hand_max_offset_m = hand;
+      auto reach = engine::LearnOffsetVotes(forest, job, limbs);
+      REQUIRE(reach.ok());
+      CHECK(reach->max_offset_m == limbs.limb_max_offset_m);
+      CHECK(reach->total_votes() > short_votes->total_votes());
+      int longer = 0, longer_hands = 0;
+      for (const auto& tree : reach->trees)
+        for (const core::JointVote& v : tree.votes) {
+          const double mm =
+              std::sqrt(double(v.dx_mm) * v.dx_mm + double(v.dy_mm) * v.dy_mm + double(v.dz_mm) * v.dz_mm);
+          const bool limb = v.joint >= uint8_t(core::Joint::kLElbow);
+          const bool hands =
+              v.joint >= uint8_t(core::Joint::kLWrist) && v.joint <= uint8_t(core::Joint::kRHand);
+          const float reach_j = !limb ? opt.max_offset_m : hands && hand > 0 ? hand : limbs.limb_max_offset_m;
+          CHECK(engine::VoteReach(v.joint, limbs) == reach_j);
+          CHECK(mm <= 1000.0 * reach_j + 1);
+          longer += limb && mm > 1000.0 * opt.max_offset_m + 1;
+          longer_hands += hands && mm > 1000.0 * opt.max_offset_m + 1;
+        }
+      CHECK(longer > 0);
+      CHECK((longer_hands > 0) == (hand == 0));
+    }
+    engine::VoteLearningOptions bad = opt;
+    bad.limb_max_offset_m = -0.1f;
+    CHECK_FALSE(engine::LearnOffsetVotes(forest, job, bad).ok());
+    bad = opt;
+    bad.hand_max_offset_m = -0.1f;
+    CHECK_FALSE(engine::LearnOffsetVotes(forest, job, bad).ok());
   }
 
   // The candidates of a training frame: the head's most confident one is near the head.
