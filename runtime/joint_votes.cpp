@@ -1,10 +1,12 @@
 #include "runtime/joint_votes.h"
 
-#include <algorithm>
-#include <cmath>
-#include <numeric>
-
 #include <omp.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <functional>
+#include <numeric>
 
 #include "runtime/core/feature.h"
 #include "runtime/mean_shift.h"
@@ -29,13 +31,18 @@ namespace {
 
 struct Vote {
   Eigen::Vector3f p;
-  float w;
-  uint32_t order;  ///< cast order within the joint: ties in weight keep it
+  float w;  ///< > 0
 };
 
-// Heavier first, ties in cast order: a strict total order, so sorting by it is stable_sort by
-// weight.
-bool Heavier(const Vote& a, const Vote& b) { return a.w > b.w || (a.w == b.w && a.order < b.order); }
+// A joint's votes are ranked heaviest first, ties in cast order: a strict total order, so sorting
+// by it is stable_sort by weight. Ranked as one integer per vote: the weight's bits (for floats
+// >= 0 their order as unsigned integers is the floats' order) above the complement of the cast
+// order, larger first. Integer comparisons are branch-free where the floats' (a.w > b.w ||
+// (a.w == b.w && ...)) were not; the order is the same.
+uint64_t RankKey(float w, uint32_t order) {
+  return uint64_t(std::bit_cast<uint32_t>(w)) << 32 | uint32_t(~order);
+}
+uint32_t OrderOf(uint64_t key) { return ~uint32_t(key); }
 
 // Weighted mean shift (Gaussian kernel, cut at 3 bandwidths) over the votes, whose positions and
 // weights are (x, y, z, w), from the first `seeds` (the heaviest); modes merged within half a
@@ -96,11 +103,9 @@ PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& tabl
   const int num_threads = std::max(1, options.threads > 0 ? options.threads : omp_get_max_threads());
   // Reused across calls on this thread. The loops below run on other threads too, which must
   // use this thread's buffers: through these references, not the thread_locals' names.
-  // parts[c][j]: chunk c's votes for joint j in cast order; votes[j]: the chunks' in order.
+  // parts[c][j]: chunk c's votes for joint j in cast order (the chunks in order: the joint's).
   thread_local std::vector<std::array<std::vector<Vote>, core::kNumJoints>> this_threads_parts;
-  thread_local std::array<std::vector<Vote>, core::kNumJoints> this_threads_votes;
   std::vector<std::array<std::vector<Vote>, core::kNumJoints>>& parts = this_threads_parts;
-  std::array<std::vector<Vote>, core::kNumJoints>& votes = this_threads_votes;
   parts.resize(size_t(num_threads));
   // Casts the votes of pixels [begin, end) into `into`, in cast order (pixel, then tree).
   auto cast = [&](size_t begin, size_t end, std::array<std::vector<Vote>, core::kNumJoints>& into) {
@@ -136,8 +141,9 @@ PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& tabl
         const core::TreeVotes& tv = table.trees[t];
         for (uint32_t k = runs[r][0]; k < runs[r][1]; ++k) {
           const core::JointVote& v = tv.votes[k];
-          into[v.joint].push_back({point + Eigen::Vector3f(float(v.dx_mm), float(v.dy_mm), float(v.dz_mm)) * 1e-3f,
-                                   float(v.weight) * (1.0f / 255.0f) * area, 0u});
+          into[v.joint].push_back(
+              {point + Eigen::Vector3f(float(v.dx_mm), float(v.dy_mm), float(v.dz_mm)) * 1e-3f,
+               float(v.weight) * (1.0f / 255.0f) * area});
         }
       }
     }
@@ -151,21 +157,26 @@ PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& tabl
     for (int c = 0; c < num_threads; ++c) cast(n * size_t(c) / chunks, n * size_t(c + 1) / chunks, parts[size_t(c)]);
 #pragma omp for schedule(dynamic, 1)
     for (int j = 0; j < core::kNumJoints; ++j) {
-      std::vector<Vote>& vj = votes[size_t(j)];
+      // The joint's votes in cast order (by pointer) and their rank keys; the total weight in
+      // that order. Scratch of the thread running this joint, reused across joints and frames.
+      thread_local std::vector<const Vote*> vj;
+      thread_local std::vector<uint64_t> keys;
       vj.clear();
-      for (const auto& part : parts) vj.insert(vj.end(), part[size_t(j)].begin(), part[size_t(j)].end());
-      if (vj.empty()) continue;
-      for (size_t k = 0; k < vj.size(); ++k) vj[k].order = uint32_t(k);
+      keys.clear();
       float total = 0;
-      for (const Vote& v : vj) total += v.w;
+      for (const auto& part : parts)
+        for (const Vote& v : part[size_t(j)]) {
+          keys.push_back(RankKey(v.w, uint32_t(vj.size())));
+          vj.push_back(&v);
+          total += v.w;
+        }
+      if (vj.empty()) continue;
       // Heaviest first (ties: cast order), the lightest dropped past the cap: only the kept ones
       // are sorted.
       const size_t keep = std::min(vj.size(), size_t(std::max(1, options.max_votes_per_joint)));
-      if (keep < vj.size()) {
-        std::nth_element(vj.begin(), vj.begin() + std::ptrdiff_t(keep), vj.end(), Heavier);
-        vj.resize(keep);
-      }
-      std::sort(vj.begin(), vj.end(), Heavier);
+      if (keep < keys.size())
+        std::nth_element(keys.begin(), keys.begin() + std::ptrdiff_t(keep), keys.end(), std::greater<>());
+      std::sort(keys.begin(), keys.begin() + std::ptrdiff_t(keep), std::greater<>());
       // As structure of arrays for the vector kernel (thread_local: reused across joints and frames).
       thread_local std::vector<float> x, y, z, w;
       x.resize(keep);
@@ -173,10 +184,11 @@ PersonVotes Candidates(const core::Forest& forest, const core::OffsetVotes& tabl
       z.resize(keep);
       w.resize(keep);
       for (size_t k = 0; k < keep; ++k) {
-        x[k] = vj[k].p.x();
-        y[k] = vj[k].p.y();
-        z[k] = vj[k].p.z();
-        w[k] = vj[k].w;
+        const Vote& v = *vj[OrderOf(keys[k])];
+        x[k] = v.p.x();
+        y[k] = v.p.y();
+        z[k] = v.p.z();
+        w[k] = v.w;
       }
       const float bandwidth = table.bandwidth_m[size_t(j)] * options.bandwidth_scale;
       for (const auto& [m, score] : Modes(x, y, z, w, bandwidth, options.seeds, options.iterations)) {
