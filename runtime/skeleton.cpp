@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <nlohmann/json.hpp>
 #include <numbers>
 
@@ -525,16 +526,32 @@ std::vector<Skeleton> BuildSkeletons(const FrameProposals& proposals, const core
     int64_t d = 0, xd = 0, yd = 0;
     int count = 0;
   };
+  // Run by run of one label: the sums of a run stay in registers and vectorize, where a
+  // read-modify-write of sums[l] per pixel made one chain through memory (a quarter of a
+  // millisecond a frame, with the other thread idle).
   std::vector<Sums> sums(size_t(num_people) + 1);
+  const int w = masks.width;
   for (int y = 0; y < masks.height; ++y) {
-    const uint8_t* mask_row = masks.pixels.data() + size_t(y) * size_t(masks.width);
+    const uint8_t* mask_row = masks.pixels.data() + size_t(y) * size_t(w);
     const uint16_t* depth_row = depth.pixels.data() + size_t(y) * size_t(depth.width);
-    for (int x = 0; x < masks.width; ++x) {
+    int x = 0;
+    while (x < w) {
       const int l = mask_row[x];
-      const int64_t d = depth_row[x];
-      if (l <= 0 || l > num_people || d == 0) continue;
-      Sums& sl = sums[size_t(l)];
-      sl.d += d, sl.xd += x * d, sl.yd += int64_t(y) * d, ++sl.count;
+      int end = x + 1;
+      if (l == 0)  // the background, most of a frame: 8 labels at a time
+        for (uint64_t word; end + 8 <= w && (std::memcpy(&word, mask_row + end, 8), word == 0);) end += 8;
+      while (end < w && mask_row[end] == l) ++end;
+      if (l > 0 && l <= num_people) {
+        int64_t d = 0, xd = 0;
+        int count = 0;
+        for (int i = x; i < end; ++i) {
+          const int64_t di = depth_row[i];
+          d += di, xd += int64_t(i) * di, count += di != 0;
+        }
+        Sums& sl = sums[size_t(l)];
+        sl.d += d, sl.xd += xd, sl.yd += int64_t(y) * d, sl.count += count;
+      }
+      x = end;
     }
   }
   const double area = camera.fx * camera.fy;

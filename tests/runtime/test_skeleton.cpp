@@ -1,6 +1,7 @@
 // Skeletons: the confidence calibration and its forest section (format 1.4, JCAL),
 // per-person joints from masks with the tracked / not-tracked rules, person ids over a
 // sequence, One Euro smoothing and the JSON Lines record.
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <functional>
@@ -201,6 +202,54 @@ TEST_CASE("CalibrateConfidence: big supports on the joint are precise, small one
   CHECK(cal.Confidence(kHead, 3e-4f) == Approx(0.0f));
   // A joint never proposed keeps the fallback's shape.
   CHECK(cal.Confidence(kLKnee, 1e-3f) == Approx(core::FallbackConfidence(1e-3f)).epsilon(0.5));
+}
+
+TEST_CASE("each person's pixel count and centroid equal a sum over every pixel", "[skeleton]") {
+  // BuildSkeletons sums the mask run by run and skips the background eight labels at a time;
+  // this compares it with the plain sum over every pixel, on masks whose runs start and end at
+  // every offset, with holes in the depth and labels above the number of people (ignored).
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  std::mt19937 rng(7);
+  for (int trial = 0; trial < 20; ++trial) {
+    const int w = 37 + trial * 13, h = 29 + trial * 3, num_people = 1 + trial % 3;
+    core::LabelImage masks(w, h, 0);
+    core::DepthImage depth(w, h, 0);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w;) {
+        const int len = 1 + int(rng() % 23);
+        const int label = rng() % 3 == 0 ? int(rng() % uint32_t(num_people + 2)) : 0;
+        for (int i = x; i < std::min(w, x + len); ++i) {
+          masks.at(i, y) = uint8_t(label);
+          depth.at(i, y) = rng() % 7 == 0 ? 0 : uint16_t(800 + rng() % 3000);
+        }
+        x += len;
+      }
+    auto skeletons =
+        runtime::BuildSkeletons(runtime::FrameProposals{}, masks, num_people, depth, cam, nullptr, {});
+    for (int label = 1; label <= num_people; ++label) {
+      double d = 0, xd = 0, yd = 0;
+      int count = 0;
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          if (masks.at(x, y) == label && depth.at(x, y) != 0) {
+            const double z = depth.at(x, y);
+            d += z, xd += x * z, yd += y * z, ++count;
+          }
+      const auto it = std::find_if(skeletons.begin(), skeletons.end(),
+                                   [&](const runtime::Skeleton& s) { return s.mask_label == label; });
+      if (count == 0) {
+        CHECK(it == skeletons.end());
+        continue;
+      }
+      REQUIRE(it != skeletons.end());
+      CHECK(it->pixels == count);
+      const double z = d * 1e-3 / count;
+      CHECK(it->centroid_m.z() == Approx(z).epsilon(1e-6));
+      CHECK(it->centroid_m.x() == Approx((xd * 1e-3 / count - cam.cx * z) / cam.fx).epsilon(1e-5));
+      CHECK(it->centroid_m.y() == Approx((yd * 1e-3 / count - cam.cy * z) / cam.fy).epsilon(1e-5));
+    }
+    CHECK(skeletons.size() <= size_t(num_people));
+  }
 }
 
 TEST_CASE("skeletons: per person the best proposal on its mask; no invented joints", "[skeleton]") {
