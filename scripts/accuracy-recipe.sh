@@ -19,6 +19,10 @@
 # POSEFOREST_TRAIN_ARGS; through the service the recipe checkpoints every level into
 # OUT/checkpoint and a second run resumes from it.
 #
+# POSEFOREST_HEADINGS=120 trains on people turned up to +-120 degrees (the paper's training set,
+# people seen from the side and from behind too) instead of +-60 (people facing the camera, the
+# default: better on real people in front of a camera); its outputs go to accuracy-N-h120.
+#
 # Time and memory on two cores (engine): 8,000 x 500 52 min (beside light work) and 1.8 GiB;
 # 4,000 x 1,000 34-50 min; 667 per tree ~6 min (docs/runtime/joints.md, docs/training/realism.md).
 set -euo pipefail
@@ -35,7 +39,10 @@ data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
   { echo "accuracy-recipe: no shared data at ${POSEFOREST_DATA_DIR:-$root/../shared/data} (set POSEFOREST_DATA_DIR)" >&2; exit 1; }
 bin=$root/build/bin
 [[ -x "$bin/poseforest" ]] || { echo "accuracy-recipe: $bin/poseforest not built (run scripts/build.sh)" >&2; exit 1; }
-out=${POSEFOREST_OUT:-$root/out}/accuracy-$per_tree
+headings=${POSEFOREST_HEADINGS:-60}
+[[ "$headings" =~ ^[1-9][0-9]*$ && "$headings" -le 180 ]] ||
+  { echo "accuracy-recipe: POSEFOREST_HEADINGS must be a whole number of degrees, 1-180, got '$headings'" >&2; exit 2; }
+out=${POSEFOREST_OUT:-$root/out}/accuracy-$per_tree$([[ "$headings" == 60 ]] || echo "-h$headings")
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
 start=$(date +%s)
@@ -43,8 +50,9 @@ start=$(date +%s)
 echo "== pose library from $data/mocap"
 "$bin/poseforest-poselib" build --out "$out/mocap.pfposes" "$data/mocap"
 
-# The main job's job (scripts/main-job.sh) with images_per_tree raised.
-write_default_job "$out/job.textproto" "$per_tree" 30 "$out/mocap.pfposes" "$data"
+# The main job's job (scripts/main-job.sh) with images_per_tree raised (and the training people's
+# headings from POSEFOREST_HEADINGS).
+write_default_job "$out/job.textproto" "$per_tree" 30 "$out/mocap.pfposes" "$data" "" "$classic_test_fields" 120 "$headings"
 
 echo "== training: 3 trees x $per_tree images, $candidate_features candidate features per node ($out/job.textproto)"
 # Through the distributed service (--local-workers, --domain, --min-workers in POSEFOREST_TRAIN_ARGS):

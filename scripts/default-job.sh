@@ -1,13 +1,14 @@
 # Sourced by scripts/main-job.sh and scripts/accuracy-recipe.sh: the main job's embedded default
 # job (proto/poseforest/v1/job.proto), with the training images per tree and the test-set size as
 # parameters.
-#   write_default_job FILE IMAGES_PER_TREE TEST_IMAGES POSE_LIBRARY DATA_DIR [TRAIN_FIELDS [TEST_FIELDS [TEST_ROTATION]]]
+#   write_default_job FILE IMAGES_PER_TREE TEST_IMAGES POSE_LIBRARY DATA_DIR [TRAIN_FIELDS [TEST_FIELDS [TEST_ROTATION [TRAIN_ROTATION]]]]
 # TRAIN_FIELDS: extra fields of the training source's rendered { } (e.g. "upper_body_share: 0"),
 # for ablations (scripts/realism-ablation.sh); the held-out test set is never changed by them.
 # TEST_FIELDS: the test set's realism fields; default: the classic renders (classic_test_fields),
 # so mAP compares with every earlier forest; "" renders the test clips with the realism defaults.
 # TEST_ROTATION: the test people's yaw range, +-degrees (default 120, the paper's test set; 60:
 # people facing the camera, as the training frames).
+# TRAIN_ROTATION: the training people's yaw range, +-degrees (default 60, below).
 # The training people turn at most 60 degrees from facing the camera, as people in front of a
 # depth camera at a TV, a desk or a robot do (the paper's 120 also shows them from behind, whose
 # left and right the forest then confuses): with the recipe (3 x 4,000 images), mAP on held-out
@@ -34,7 +35,7 @@ max_probe_offset_pixel_m: 129
 source {
   rendered {
     seed: 1
-    rotation_range_deg: 60
+    rotation_range_deg: ${9:-60}
     pose_library: "$4"
     clips: CLIP_SET_TRAIN
     test_fraction: 0.2
