@@ -261,11 +261,12 @@ inline void ClassifyChunk(const ChunkWork& w, int c, uint32_t* leaves) {
 #endif
     detail::TraversePortable<detail::kPortableLanes>(tree.nodes.data(), view, count, tree_leaves);
   }
-  if (w.fg_leaves)
-    for (int t = 0; t < num_trees; ++t) {
-      const uint32_t* tree_leaves = leaves + size_t(t) * size_t(kChunk);
-      for (int i = 0; i < count; ++i) w.fg_leaves[size_t(begin + i) * size_t(num_trees) + size_t(t)] = tree_leaves[i];
-    }
+  if (w.fg_leaves) {
+    // Pixel by pixel, so the output is written in order, one cache line after another.
+    uint32_t* out_leaves = w.fg_leaves + size_t(begin) * size_t(num_trees);
+    for (int i = 0; i < count; ++i)
+      for (int t = 0; t < num_trees; ++t) *out_leaves++ = leaves[size_t(t) * size_t(kChunk) + size_t(i)];
+  }
   const uint32_t* pixel = s.pixel.data() + begin;
   uint16_t* fg_sums = w.want_foreground ? out->foreground_sums.data() + size_t(begin) * size_t(w.stride) : nullptr;
 #ifdef POSEFOREST_CLASSIFIER_AVX512
