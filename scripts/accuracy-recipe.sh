@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The forest recipe behind the README's "Joint accuracy (mAP)" figures: the main job's job with
+# The forest recipe behind the README's "Where we stand" figures: the main job's job with
 # more training images per tree, then the proposal parameters learned on validation renders of
 # the train clips, then `poseforest eval` on 200 held-out test-clip frames (as the main job) and on
 # 5,000 (the paper's test size, section 4; about a minute), facing renders and the real frames.
