@@ -95,11 +95,13 @@ Status WorkerRegistry::WaitForWorkers(int n) {
     if (proto::dds::NowSeconds() > deadline)
       return Status(ErrorCode::kNotFound,
                     "job " + s_.job_id + ": " + std::to_string(AliveCount()) + " of " + std::to_string(n) +
-                        " workers after " + std::to_string(s_.opt.worker_wait.count()) + " ms (DDS: " +
-                        std::to_string(s_.node->MatchedReaders(Topic::kJob)) + " readers of the job matched, " +
+                        " workers after " + std::to_string(s_.opt.worker_wait.count()) +
+                        " ms (DDS: " + std::to_string(s_.node->MatchedReaders(Topic::kJob)) +
+                        " readers of the job matched, " +
                         std::to_string(s_.node->MatchedWriters(Topic::kPresence)) +
-                        " presence writers; a worker matched but not joined did not get the job or was "
-                        "not heard)");
+                        " presence writers; a worker matched but not joined did not get the job, was not "
+                        "heard, or refused the job: its own log says why, e.g. a data file of the job "
+                        "missing at the same path on its host)");
     // The announcement again every 2 s while workers are missing: the job topic is transient-
     // local, but a worker whose reader missed it (a CI run saw 3 of 5 workers never join)
     // would otherwise wait for ever. A worker that has the job ignores it.

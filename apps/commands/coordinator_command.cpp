@@ -258,6 +258,22 @@ std::optional<int> CoordinatorCommand::Prepare(coordinator::CoordinatorOptions* 
   opt->checkpoint_dir = checkpoint_;
   opt->resume = resume_;
   opt->pause_file = pause_file_;
+  if (opt->resume && opt->checkpoint_dir.empty()) {
+    std::fprintf(stderr,
+                 "coordinator: --resume needs --checkpoint DIR (the folder the interrupted run wrote)\n");
+    return 2;
+  }
+  // A restart that forgot --resume would start the job over and overwrite the checkpoint after
+  // its first level: the finished trees would be lost without a word.
+  if (!opt->resume && !opt->checkpoint_dir.empty() &&
+      std::filesystem::exists(std::filesystem::path(opt->checkpoint_dir) / "checkpoint.pb")) {
+    std::fprintf(
+        stderr,
+        "coordinator: --checkpoint %s already holds a checkpoint (checkpoint.pb); add --resume to go on "
+        "from it, or move the folder away to start the job over (this run would overwrite it)\n",
+        opt->checkpoint_dir.c_str());
+    return 2;
+  }
   if (opt->resume && !opt->checkpoint_dir.empty()) {
     // Check every field of the checkpoint before the coordinator replays it: a corrupt file is
     // an error naming it, never a crash (the same checks as `poseforest export`).

@@ -1,6 +1,7 @@
 #include "proto/dds/dds_flags.h"
 
 #include <arpa/inet.h>
+#include <fastrtps/config.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -218,6 +219,7 @@ Result<DdsFlags> CheckDdsSettings(const DdsSettings& written) {
   const auto &profile = written.profile, &peers = written.peers, &interfaces = written.interfaces,
              &server = written.discovery_server, &security = written.security;
   auto xml = written.dds_xml, xml_profile = written.dds_profile;
+  bool xml_discovery_client = false;
   const bool xml_from_flags = xml || xml_profile;
   const bool builtin_flags = profile || peers || interfaces || server;
   // "--dds-xml FILE" or "POSEFOREST_DDS_XML=FILE": where a value came from, for messages.
@@ -252,6 +254,7 @@ Result<DdsFlags> CheckDdsSettings(const DdsSettings& written) {
     if (!info.ok())
       return Status(info.status().code(),
                     xml_source + *xml + " " + profile_source + *xml_profile + ": " + info.status().message());
+    xml_discovery_client = info->discovery_client;
     if (info->has_security && security)
       return invalid("--security " + *security + ": profile " + *xml_profile + " of " + *xml +
                      " sets DDS-Security properties itself; use one or the other");
@@ -322,6 +325,20 @@ Result<DdsFlags> CheckDdsSettings(const DdsSettings& written) {
   }
   if (security) {
     if (security->empty()) return invalid("--security: empty folder name");
+#if FASTRTPS_VERSION_MAJOR == 2 && FASTRTPS_VERSION_MINOR < 10
+    // Fast DDS got secure discovery servers in 2.10. With 2.9 the participants find each other
+    // through the (unauthenticated) server, but every endpoint match fails ("Security manager
+    // returns an error ... assignRemoteEndpoints"): the job would wait for workers that never
+    // join. Say so now instead.
+    if (f.transport == TransportKind::kDiscoveryClient || (xml && xml_discovery_client))
+      return invalid("--security " + *security + " with a discovery server (" +
+                     (f.transport == TransportKind::kDiscoveryClient ? "--discovery-server"
+                                                                     : "profile " + *xml_profile) +
+                     "): Fast DDS " + std::to_string(FASTRTPS_VERSION_MAJOR) + "." +
+                     std::to_string(FASTRTPS_VERSION_MINOR) +
+                     " has no secure discovery server (it came in 2.10), so secured participants never match "
+                     "through one; use --profile udp --peers HOST,... with --security across hosts");
+#endif
     auto files = SecurityFilesIn(*security);
     if (!files.ok()) return files.status();
     f.extras.security = std::move(*files);
