@@ -274,7 +274,7 @@ std::optional<int> CoordinatorCommand::Prepare(coordinator::CoordinatorOptions* 
         opt->checkpoint_dir.c_str());
     return 2;
   }
-  if (opt->resume && !opt->checkpoint_dir.empty()) {
+  if (opt->resume) {  // with --checkpoint (checked above)
     // Check every field of the checkpoint before the coordinator replays it: a corrupt file is
     // an error naming it, never a crash (the same checks as `poseforest export`).
     const auto ckpt = std::filesystem::path(opt->checkpoint_dir) / "checkpoint.pb";

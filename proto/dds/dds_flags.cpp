@@ -330,7 +330,7 @@ Result<DdsFlags> CheckDdsSettings(const DdsSettings& written) {
     // through the (unauthenticated) server, but every endpoint match fails ("Security manager
     // returns an error ... assignRemoteEndpoints"): the job would wait for workers that never
     // join. Say so now instead.
-    if (f.transport == TransportKind::kDiscoveryClient || (xml && xml_discovery_client))
+    if (f.transport == TransportKind::kDiscoveryClient || xml_discovery_client)
       return invalid("--security " + *security + " with a discovery server (" +
                      (f.transport == TransportKind::kDiscoveryClient ? "--discovery-server"
                                                                      : "profile " + *xml_profile) +
