@@ -7,10 +7,12 @@
 // Prints frames/s, latency p50 / p99 from frame in to JSON line out, and a per-stage table.
 // Last line: `frames/s: N frames/s`.
 //
-// The forest: --forest F, else scripts/accuracy-recipe.sh's forest (out/accuracy-8000/
-// forest_tuned.pff, then forest.pff, then the same in out/accuracy-4000/); it says which it ran.
+// The forest: --forest F, else scripts/accuracy-recipe.sh's forest (out/accuracy-16000/
+// forest_tuned.pff, then forest.pff, then the same in the earlier recipes' out/accuracy-8000/ and
+// out/accuracy-4000/); it says which it ran.
 //
-//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--no-votes] [--no-tracking-model] [--fit kinematic|greedy]
+//   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--no-votes]
+//   [--no-tracking-model] [--fit kinematic|greedy]
 //                    [--checksum]
 //
 // --pixel-stride N: classify and propose from every N-th pixel in x and y (`live --pixel-stride`;
@@ -115,8 +117,10 @@ int main(int argc, char** argv) {
   }
   std::string which = "given with --forest";
   if (forest_path.empty()) {
-    // The recipe's default (8,000 images per tree since 29 Nov 2026), then its earlier 4,000.
-    for (const char* p : {"out/accuracy-8000/forest_tuned.pff", "out/accuracy-8000/forest.pff",
+    // The recipe's default (16,000 images per tree since 30 Nov 2026), then its earlier 8,000
+    // (+-60 degrees, 29 Nov 2026) and 4,000.
+    for (const char* p : {"out/accuracy-16000/forest_tuned.pff", "out/accuracy-16000/forest.pff",
+                          "out/accuracy-8000/forest_tuned.pff", "out/accuracy-8000/forest.pff",
                           "out/accuracy-4000/forest_tuned.pff", "out/accuracy-4000/forest.pff"})
       if (fs::exists(p)) {
         forest_path = p;
@@ -127,7 +131,7 @@ int main(int argc, char** argv) {
   if (forest_path.empty()) {
     std::fprintf(
         stderr,
-        "bench/live: no forest: run scripts/accuracy-recipe.sh (out/accuracy-8000/forest_tuned.pff) or "
+        "bench/live: no forest: run scripts/accuracy-recipe.sh (out/accuracy-16000/forest_tuned.pff) or "
         "give --forest F (e.g. the main job's)\n");
     return 2;
   }
