@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "coordinator/worker_registry.h"
+#include "proto/dds/build_id.h"
 #include "proto/dds/node_config.h"
 #include "runtime/core/body_parts.h"
 
@@ -70,10 +71,12 @@ Status Session::Announce() {
   job->set_coordinator_id(self_id);
   job->set_num_parts(uint32_t(kParts));
   job->set_thresholds_per_feature(uint32_t(params.thresholds_per_feature + 1));
+  build_id = proto::dds::BuildId();
+  job->set_build_id(build_id);
   job_announcement = job_env;
   POSEFOREST_RETURN_IF_ERROR(Send(Topic::kJob, job_env));
-  Log("announced " + job_id + " as " + self_id + " on domain " + std::to_string(opt.domain) + ": " +
-      engine::DescribeParams(params));
+  Log("announced " + job_id + " as " + self_id + " on domain " + std::to_string(opt.domain) + " (build \"" +
+      build_id + "\"): " + engine::DescribeParams(params));
   PublishStatus(v1::STATUS_KIND_JOB_STARTED, engine::DescribeParams(params));
   return Status::Ok();
 }

@@ -34,6 +34,9 @@ struct Session {
   engine::TrainParams params;
   CoordinatorOptions opt;
   std::string job_id, self_id;
+  /// This build's identity (proto/dds/build_id.h): announced with the job; workers of another
+  /// build are not admitted (WorkerRegistry::OnPresence).
+  std::string build_id;
   std::unique_ptr<proto::dds::DdsNode> node;
   std::unique_ptr<proto::dds::MessageGate> gate;
   proto::dds::EnvelopeStamper stamper{"", "", v1::SENDER_KIND_COORDINATOR};

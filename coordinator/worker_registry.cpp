@@ -29,6 +29,7 @@ int WorkerRegistry::AliveCount() const {
 void WorkerRegistry::OnPresence(const std::string& sender, const v1::Envelope& env, const std::string& writer_guid,
                                 const std::string& participant) {
   if (banned_.count(sender)) return;
+  if (env.has_hello() && !Admissible(sender, env.hello())) return;
   auto [it, fresh] = workers_.try_emplace(sender);
   WorkerInfo& w = it->second;
   if (fresh || !w.alive) {
@@ -48,6 +49,42 @@ void WorkerRegistry::OnPresence(const std::string& sender, const v1::Envelope& e
   }
   w.presence_writer = writer_guid;
   w.participant = participant;
+}
+
+namespace {
+/// `s` with control characters (a hostile peer's terminal escapes) replaced by '?'.
+std::string Printable(std::string s) {
+  for (char& c : s)
+    if ((unsigned char)c < 0x20 || c == 0x7f) c = '?';
+  return s;
+}
+}  // namespace
+
+bool WorkerRegistry::Admissible(const std::string& sender, const v1::WorkerHello& hello) {
+  std::string why;
+  if (!hello.refusal().empty())
+    why = "refused the job: " + Printable(hello.refusal());
+  else if (hello.build_version() != s_.build_id)
+    why = "runs build \"" + Printable(hello.build_version()) + "\", this coordinator \"" + s_.build_id +
+          "\": not admitted (a different build may render and split differently, so the forest would depend "
+          "on which worker took which frames; run the same build on every host, or set POSEFOREST_BUILD_ID "
+          "to the same value on every host to train with builds known to train alike)";
+  if (why.empty()) {
+    refused_.erase(sender);
+    return true;
+  }
+  const std::string entry =
+      Printable(hello.hostname()) + " (pid " + std::to_string(hello.pid()) + "): " + why;
+  auto [it, fresh] = refused_.try_emplace(sender, entry);
+  if (fresh || it->second != entry) {
+    it->second = entry;
+    s_.Log("worker " + sender + " on " + entry);
+    s_.PublishStatus(v1::STATUS_KIND_WORKER_REFUSED, why, sender);
+  }
+  // A member that says so now (a hostile peer, or a bug) leaves.
+  if (auto w = workers_.find(sender); w != workers_.end() && w->second.alive)
+    MarkLost(sender, "not admitted");
+  return false;
 }
 
 void WorkerRegistry::OnDdsEvent(const proto::dds::DdsEvent& e) {
@@ -101,7 +138,8 @@ Status WorkerRegistry::WaitForWorkers(int n) {
                         std::to_string(s_.node->MatchedWriters(Topic::kPresence)) +
                         " presence writers; a worker matched but not joined did not get the job, was not "
                         "heard, or refused the job: its own log says why, e.g. a data file of the job "
-                        "missing at the same path on its host)");
+                        "missing at the same path on its host)" +
+                        RefusedSummary());
     // The announcement again every 2 s while workers are missing: the job topic is transient-
     // local, but a worker whose reader missed it (a CI run saw 3 of 5 workers never join)
     // would otherwise wait for ever. A worker that has the job ignores it.
@@ -115,6 +153,14 @@ Status WorkerRegistry::WaitForWorkers(int n) {
   // Control messages to a worker whose reader has not matched yet would be lost.
   (void)s_.node->WaitForMatch(Topic::kControl, AliveCount(), std::chrono::milliseconds(5000));
   return Status::Ok();
+}
+
+std::string WorkerRegistry::RefusedSummary() const {
+  if (refused_.empty()) return "";
+  std::string out = "; " + std::to_string(refused_.size()) + " worker(s) not admitted:";
+  for (const auto& [id, entry] : refused_) out += " " + id + " on " + entry + ";";
+  out.pop_back();
+  return out;
 }
 
 int WorkerRegistry::AwaitLostWorkers(std::chrono::milliseconds grace, const std::function<void()>& on_back) {

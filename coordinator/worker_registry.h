@@ -58,6 +58,11 @@ class WorkerRegistry {
   /// returning worker joins; a known one is seen.
   void OnPresence(const std::string& sender, const v1::Envelope& env, const std::string& writer_guid,
                   const std::string& participant);
+  /// Whether a worker's hello admits it: false (reported once, as STATUS_KIND_WORKER_REFUSED)
+  /// when it refuses the job or runs another build than the coordinator's.
+  bool Admissible(const std::string& sender, const v1::WorkerHello& hello);
+  /// "; N worker(s) not admitted: ID on HOST (pid P): why; ..." ("" when none).
+  std::string RefusedSummary() const;
   /// Presence liveliness lost, or a participant gone: its workers are lost.
   void OnDdsEvent(const proto::dds::DdsEvent& e);
   /// Workers not heard from for heartbeat_timeout before `now` (NowSeconds) are lost.
@@ -99,6 +104,9 @@ class WorkerRegistry {
   std::map<std::string, WorkerInfo> workers_;
   FrameRanges orphan_frames_;  ///< of lost workers, current tree
   std::set<std::string> banned_;  ///< senders of hostile SubtreeResults: never rejoin
+  /// Workers not admitted (sender -> "host: why"): they refused the job or run another build.
+  /// Reported once each, and in WaitForWorkers' error; a later admissible hello clears it.
+  std::map<std::string, std::string> refused_;
   int lost_count_ = 0;
   /// Set by AwaitLostWorkers: workers leave on JOB_DONE now; leaving is not being lost.
   bool job_done_ = false;

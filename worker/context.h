@@ -83,6 +83,10 @@ struct Context {
 
   std::mutex send_mu;  // guards stamper + job identity used by the heartbeat thread
   proto::dds::EnvelopeStamper stamper;
+  /// Why the last job announced was refused (guarded by send_mu; empty: none): while the worker
+  /// has no job, its heartbeat thread sends hellos carrying it (WorkerHello.refusal), stamped
+  /// with the refused job's id, so that the coordinator reports it.
+  std::string refusal;
   std::atomic<bool> has_job{false}, assigned_any{false};
   std::atomic<bool>& busy;  ///< live.busy: heartbeats and Stats() say how many threads are busy
   /// Marks the worker busy (its heartbeats say so) while a subtree task or batch runs.

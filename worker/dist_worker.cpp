@@ -10,6 +10,7 @@
 
 #include "engine/job_spec.h"
 #include "poseforest/v1/job.pb.h"
+#include "proto/dds/build_id.h"
 #include "proto/dds/message_gate.h"
 #include "proto/dds/node_config.h"
 #include "runtime/core/body_parts.h"
@@ -50,6 +51,9 @@ struct DistWorker::Impl {
 
   proto::dds::MessageGate job_gate;
   std::unique_ptr<proto::dds::MessageGate> gate;
+  /// This build's identity (proto/dds/build_id.h): in hellos, and compared with the job's.
+  const std::string build_id = ctx.opt.build_id.empty() ? proto::dds::BuildId() : ctx.opt.build_id;
+  std::string last_refused;  ///< job id and reason of the last refusal logged (Refuse)
   /// Decisions and level requests below this epoch belong to a skipped assignment (Dispatch).
   uint64_t skip_below_epoch = 0;
   std::string control_writer;  ///< the coordinator's control writer (GUID), once heard
@@ -83,21 +87,45 @@ struct DistWorker::Impl {
     return c;
   }
 
+  v1::WorkerHello* FillHello(v1::WorkerHello* h) {
+    *h->mutable_capacity() = Capacity();
+    char host[256] = {};
+    ::gethostname(host, sizeof host - 1);
+    h->set_hostname(host);
+    h->set_pid(uint32_t(::getpid()));
+    h->set_build_version(build_id);
+    return h;
+  }
+
+  /// Refuses the job of `env` (not for this worker's build or host): logs why and sends it to
+  /// the coordinator in hellos until a job is taken (HeartbeatLoop).
+  void Refuse(const v1::Envelope& env, const std::string& why) {
+    // The coordinator announces a job every 2 s while it waits for workers: said once.
+    if (last_refused != env.job_id() + "\n" + why) Log("job " + env.job_id() + " refused: " + why);
+    last_refused = env.job_id() + "\n" + why;
+    if (ctx.has_job) return;  // busy with another job: its envelopes keep that job's id
+    std::lock_guard<std::mutex> lock(ctx.send_mu);
+    ctx.refusal = why.substr(0, 2000);
+    ctx.stamper.set_job_id(env.job_id());
+  }
+
   void HeartbeatLoop() {
     // (time, evaluations): the rate over the last ~10 s, from the start (work done before the
     // first heartbeat counts).
     std::deque<std::pair<double, uint64_t>> recent{{proto::dds::NowSeconds(), ctx.evaluations.load()}};
     while (!ctx.stop && !ctx.node_restart) {
-      if (ctx.has_job) {
+      if (!ctx.has_job) {
+        // A refused job: hellos that say why, for the coordinator to report.
+        v1::Envelope env;
+        {
+          std::lock_guard<std::mutex> lock(ctx.send_mu);
+          if (!ctx.refusal.empty()) FillHello(env.mutable_hello())->set_refusal(ctx.refusal);
+        }
+        if (env.has_hello()) (void)ctx.Publish(Topic::kPresence, env, /*timed=*/false);
+      } else {
         v1::Envelope env;
         if (!ctx.assigned_any) {
-          auto* h = env.mutable_hello();
-          *h->mutable_capacity() = Capacity();
-          char host[256] = {};
-          ::gethostname(host, sizeof host - 1);
-          h->set_hostname(host);
-          h->set_pid(uint32_t(::getpid()));
-          h->set_build_version("poseforest-dist-1");
+          FillHello(env.mutable_hello());
         } else {
           auto* h = env.mutable_heartbeat();
           *h->mutable_capacity() = Capacity();
@@ -129,14 +157,22 @@ struct DistWorker::Impl {
     const auto& job = env.job();
     if (!opt.job_id.empty() && env.job_id() != opt.job_id) return;
     if (ctx.has_job && env.job_id() == ctx.job_id && job.coordinator_id() == ctx.coordinator_id) return;
+    if (!job.build_id().empty() && job.build_id() != build_id) {
+      Refuse(env, "the coordinator runs build \"" + job.build_id() + "\", this worker \"" + build_id +
+                      "\": run the same build on every host (a different build may render and split "
+                      "differently, so the forest would depend on which worker took which frames), or set "
+                      "POSEFOREST_BUILD_ID to the same value on every host to train with builds known to "
+                      "train alike");
+      return;
+    }
     auto p = engine::ParamsFromConfig(job.config(), "job " + env.job_id());
     if (!p.ok()) {
-      Log("job " + env.job_id() + " refused: " + p.status().ToString());
+      Refuse(env, p.status().ToString());
       return;
     }
     if (job.num_parts() != uint32_t(core::kNumParts)) {
-      Log("job " + env.job_id() + " refused: " + std::to_string(job.num_parts()) + " parts, this build has " +
-          std::to_string(core::kNumParts));
+      Refuse(env,
+             std::to_string(job.num_parts()) + " parts, this build has " + std::to_string(core::kNumParts));
       return;
     }
     // A restarted coordinator: joined, and our participant replaced right after (see
@@ -158,6 +194,7 @@ struct DistWorker::Impl {
     {
       std::lock_guard<std::mutex> lock(ctx.send_mu);
       ctx.stamper.set_job_id(ctx.job_id);
+      ctx.refusal.clear();
     }
     {
       std::lock_guard<std::mutex> lock(ctx.live.mu);

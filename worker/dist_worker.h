@@ -37,6 +37,9 @@ struct WorkerOptions {
   proto::dds::TransportKind transport = proto::dds::TransportKind::kSharedMemoryOnly;
   int threads = 1;             ///< OpenMP threads for frames and histograms
   std::string job_id;          ///< join only this job (empty: any)
+  /// The build identity it reports and compares with the job's (empty: proto::dds::BuildId(),
+  /// this build's, or POSEFOREST_BUILD_ID).
+  std::string build_id;
   bool exit_when_done = true;  ///< return from Run() when the coordinator reports JOB_DONE
   std::chrono::milliseconds heartbeat_period{250};
   std::chrono::milliseconds lease{1500};        ///< presence liveliness lease

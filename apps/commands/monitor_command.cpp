@@ -156,6 +156,8 @@ std::string WorkerStateName(v1::WorkerState s) {
       return "evicted";
     case v1::WORKER_STATE_DONE:
       return "done";
+    case v1::WORKER_STATE_REFUSED:
+      return "refused";
     default:
       return "?";
   }

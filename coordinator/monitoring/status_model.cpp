@@ -110,6 +110,12 @@ void StatusModel::OnStatus(const v1::StatusEvent& e) {
       (e.kind() == v1::STATUS_KIND_WORKER_LOST ? workers_lost_ : workers_evicted_)++;
       break;
     }
+    case v1::STATUS_KIND_WORKER_REFUSED: {  // not admitted: the message says why
+      Worker& w = workers_[e.worker_id()];
+      w = Worker{};
+      w.state = "refused";
+      break;
+    }
     case v1::STATUS_KIND_TREE_DONE:
       trees_done_ = std::max(trees_done_, int(e.tree()) + 1);
       levels_done_in_tree_ = 0;
@@ -289,6 +295,7 @@ void StatusModel::FillStatus(v1::StatusEvent* e) {
                   : w.state == "lost"    ? v1::WORKER_STATE_LOST
                   : w.state == "evicted" ? v1::WORKER_STATE_EVICTED
                   : w.state == "done"    ? v1::WORKER_STATE_DONE
+                  : w.state == "refused" ? v1::WORKER_STATE_REFUSED
                                          : v1::WORKER_STATE_JOINED);
     ws->set_frames(w.frames);
     ws->set_replies(w.replies);
@@ -489,7 +496,7 @@ std::string StatusModel::Prometheus() const {
   metric("poseforest_workers_lost_total", "counter", "Workers lost.", {{"", double(workers_lost_)}});
   metric("poseforest_workers_evicted_total", "counter", "Workers evicted.", {{"", double(workers_evicted_)}});
   std::map<std::string, int> by_state;
-  for (const char* s : {"joined", "training", "lost", "evicted", "done"}) by_state[s] = 0;
+  for (const char* s : {"joined", "training", "lost", "evicted", "refused", "done"}) by_state[s] = 0;
   for (const auto& [id, w] : workers_) ++by_state[w.state];
   std::vector<std::pair<std::string, double>> ws;
   for (const auto& [s, n] : by_state)

@@ -72,7 +72,7 @@ class StatusModel : public CoordinatorObserver {
 
  private:
   struct Worker {
-    std::string state = "joined";  ///< joined | training | lost | evicted | done
+    std::string state = "joined";  ///< joined | training | lost | evicted | refused | done
     double joined = 0;             ///< unix seconds
     double last_seen = 0;          ///< steady seconds
     uint64_t frames = 0;           ///< frames of tree `tree` it holds

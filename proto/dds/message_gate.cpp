@@ -5,6 +5,7 @@
 #include <limits>
 #include <set>
 
+#include "proto/dds/build_id.h"
 #include "runtime/core/crc32.h"
 
 namespace poseforest::proto::dds {
@@ -22,6 +23,8 @@ constexpr uint32_t kMaxCandidates = 4096;
 constexpr uint32_t kMaxBins = 256;
 constexpr uint32_t kMaxParts = 255;
 constexpr uint32_t kMaxDepth = 64;
+constexpr size_t kMaxHostname = 256;  // HOST_NAME_MAX is 64 on Linux
+constexpr size_t kMaxRefusal = 2048;  // WorkerHello.refusal
 
 Status ValidateRanges(const google::protobuf::RepeatedPtrField<v1::ImageRange>& ranges) {
   if (ranges.empty()) return Bad("no image ranges");
@@ -111,6 +114,7 @@ Status ValidateJob(const v1::JobAnnouncement& m) {
   if (!m.has_config()) return Bad("job without config");
   if (m.coordinator_id().empty()) return Bad("job without coordinator id");
   if (m.num_parts() < 2 || m.num_parts() > kMaxParts) return Bad("num_parts " + S(m.num_parts()) + " out of 2..255");
+  if (m.build_id().size() > kMaxBuildIdBytes) return Bad("build id of " + S(m.build_id().size()) + " bytes");
   if (m.thresholds_per_feature() < 1 || m.thresholds_per_feature() > kMaxBins)
     return Bad("thresholds_per_feature " + S(m.thresholds_per_feature()) + " out of 1..256");
   return Status::Ok();
@@ -136,7 +140,14 @@ Status ValidateFigure(const char* name, double v, double max) {
 }
 }  // namespace
 
-Status ValidateHello(const v1::WorkerHello& m) { return ValidateCapacity(m.capacity()); }
+Status ValidateHello(const v1::WorkerHello& m) {
+  POSEFOREST_RETURN_IF_ERROR(ValidateCapacity(m.capacity()));
+  if (m.hostname().size() > kMaxHostname) return Bad("hostname of " + S(m.hostname().size()) + " bytes");
+  if (m.build_version().size() > kMaxBuildIdBytes)
+    return Bad("build version of " + S(m.build_version().size()) + " bytes");
+  if (m.refusal().size() > kMaxRefusal) return Bad("refusal of " + S(m.refusal().size()) + " bytes");
+  return Status::Ok();
+}
 Status ValidateHeartbeat(const v1::Heartbeat& m) {
   POSEFOREST_RETURN_IF_ERROR(ValidateCapacity(m.capacity()));
   if (m.busy_threads() > m.capacity().threads()) return Bad("busy threads above capacity");

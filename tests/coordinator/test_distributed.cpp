@@ -2,12 +2,14 @@
 // participants over shared memory): byte-identical forests with 1, 2, 3 and 5 workers, a worker
 // stopped mid-job, a garbage writer, and a coordinator "crash" + resume from its checkpoint.
 
+#include <algorithm>
 #include <atomic>
 #include <catch2/catch.hpp>
 #include <filesystem>
 #include <random>
 
 #include "engine/wire_codec.h"
+#include "proto/dds/build_id.h"
 #include "proto/dds/dds_node.h"
 #include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
@@ -176,6 +178,120 @@ TEST_CASE("a garbage writer on the replies and presence topics does not break th
   CHECK(core::SerializeForest(*forest) == reference);
   CHECK(sent_matched >= 60);
   CHECK(coordinator.rejected_messages() > 0);
+}
+
+TEST_CASE("workers of another build or refusing the job are not admitted, and the coordinator names them",
+          "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(1, 5));
+  const uint32_t domain = Domain(81);
+  const std::string job_id = "t-admit";
+  std::mutex log_mu;
+  std::vector<std::string> log;
+  auto options = [&](int min_workers, int wait_ms) {
+    CoordinatorOptions o = Options(domain, min_workers);
+    o.job_id = job_id;
+    o.worker_wait = std::chrono::milliseconds(wait_ms);
+    o.log = [&](const std::string& m) {
+      std::lock_guard<std::mutex> lock(log_mu);
+      log.push_back(m);
+    };
+    return o;
+  };
+  auto logged = [&](const std::string& what) {
+    std::lock_guard<std::mutex> lock(log_mu);
+    return std::count_if(log.begin(), log.end(),
+                         [&](const std::string& l) { return l.find(what) != std::string::npos; });
+  };
+
+  SECTION("a real worker of another build refuses the job; the coordinator says why, and whose") {
+    ThreadWorkers workers(0, domain, job_id);
+    worker::WorkerOptions wo;
+    wo.worker_id = "tw-other-build";
+    wo.domain = domain;
+    wo.job_id = job_id;
+    wo.build_id = "poseforest 0.0.1 0123456789ab GNU-1.0 x86_64";
+    workers.Add(wo);
+    DistCoordinator coordinator(job.config, job.params, options(1, 6000));
+    auto forest = coordinator.Train();
+    REQUIRE(!forest.ok());
+    const std::string msg = forest.status().message();
+    INFO(msg);
+    CHECK(forest.status().code() == core::ErrorCode::kNotFound);
+    CHECK(msg.find("0 of 1 workers") != std::string::npos);
+    CHECK(msg.find("1 worker(s) not admitted: tw-other-build on ") != std::string::npos);
+    CHECK(msg.find("refused the job: the coordinator runs build \"" + std::string(CompiledBuildId()) +
+                   "\", this worker \"poseforest 0.0.1 0123456789ab GNU-1.0 x86_64\"") != std::string::npos);
+    // Said once, though the job is announced again every 2 s.
+    CHECK(logged("refused the job") == 1);
+  }
+
+  SECTION("hellos of an older build and of a worker refusing the job: not admitted, the real one trains") {
+    const std::vector<uint8_t> reference = ReferenceBytes(job);
+    // One participant each: the gate binds a participant to the first sender id it speaks as.
+    auto peer = [&](const std::string& name) {
+      proto::dds::NodeConfig pc;
+      pc.domain_id = domain;
+      pc.participant_name = name;
+      pc.transport = proto::dds::TransportKind::kSharedMemoryOnly;
+      pc.liveliness_lease = CoordinatorOptions{}.lease;
+      pc.write_topics = {proto::dds::Topic::kPresence};
+      auto node = proto::dds::DdsNode::Create(pc);
+      REQUIRE(node.ok());
+      return std::move(*node);
+    };
+    auto old_peer = peer("old-build"), refusing_peer = peer("no-data");
+    std::atomic<bool> done{false};
+    std::thread writer([&] {
+      proto::dds::EnvelopeStamper old_build(job_id, "old-build", v1::SENDER_KIND_WORKER);
+      proto::dds::EnvelopeStamper refusing(job_id, "no-data", v1::SENDER_KIND_WORKER);
+      while (!done) {
+        v1::Envelope a;
+        auto* h = a.mutable_hello();
+        h->mutable_capacity()->set_threads(1);
+        h->mutable_capacity()->set_renderer(v1::RENDERER_KIND_PROCEDURAL);
+        h->set_hostname("host-a");
+        h->set_build_version("poseforest-dist-1");  // what workers before the check sent
+        (void)old_peer->Publish(proto::dds::Topic::kPresence,
+                                old_build.Seal(proto::dds::Topic::kPresence, a));
+        v1::Envelope b;
+        h = b.mutable_hello();
+        h->mutable_capacity()->set_threads(1);
+        h->mutable_capacity()->set_renderer(v1::RENDERER_KIND_PROCEDURAL);
+        h->set_hostname("host-b\x1b[31m");
+        h->set_build_version(std::string(CompiledBuildId()));
+        h->set_refusal("job t-admit: mocap file /data/x.bvh: No such file");
+        (void)refusing_peer->Publish(proto::dds::Topic::kPresence,
+                                     refusing.Seal(proto::dds::Topic::kPresence, b));
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
+    });
+    // Both fakes are heard before the real worker starts: the job waits for the one worker.
+    CoordinatorOptions o = options(1, 30000);
+    ThreadWorkers workers(0, domain, job_id);
+    bool started = false;
+    o.progress = [&](const DistLevelStats&) { started = true; };
+    DistCoordinator coordinator(job.config, job.params, o);
+    std::thread late([&] {
+      const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+      while ((logged("worker old-build on host-a") == 0 || logged("worker no-data on host-b") == 0) &&
+             std::chrono::steady_clock::now() < until)
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      workers.Add(domain, job_id, "real-" + std::to_string(::getpid()));
+    });
+    auto forest = coordinator.Train();
+    late.join();
+    done = true;
+    writer.join();
+    REQUIRE(forest.ok());
+    CHECK(started);
+    CHECK(core::SerializeForest(*forest) == reference);
+    CHECK(logged("worker old-build on host-a (pid 0): runs build \"poseforest-dist-1\", this coordinator \"" +
+                 std::string(CompiledBuildId()) + "\": not admitted") == 1);
+    // Control characters of the peer's strings are not passed to the log.
+    CHECK(logged("worker no-data on host-b?[31m (pid 0): refused the job: job t-admit: mocap file "
+                 "/data/x.bvh: No such file") == 1);
+    CHECK(coordinator.rejected_messages() == 0);
+  }
 }
 
 TEST_CASE("coordinator stopped after a few levels resumes from its checkpoint: same forest",

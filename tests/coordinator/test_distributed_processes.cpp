@@ -6,6 +6,7 @@
 // Five worker processes (uneven shards, subtree hand-off) give `poseforest train`'s forest.
 // Bad --peers / --interfaces values are refused with an error naming the flag and the value.
 // A job's dds section gives the coordinator and `worker --job-file` their domain and transport.
+// A worker of another build refuses the job, and the coordinator names it and why.
 
 #include <catch2/catch.hpp>
 #include <filesystem>
@@ -320,6 +321,68 @@ TEST_CASE("SIGKILL of the coordinator, restart with --resume: same forest",
       for (Child& c : w) CHECK(c.Wait(10s).has_value());  // they left on JOB_DONE
     }
   }
+}
+
+TEST_CASE("a worker process of another build is refused and named; POSEFOREST_BUILD_ID on both admits it",
+          "[distributed][integration]") {
+  TempDir dir("pf-dist-build");
+  const std::string job = (dir.path / "job.textproto").string();
+  std::ofstream(job) << TinyJobText(1, 4);
+  const uint32_t domain = Domain(83);
+  const std::string other = "POSEFOREST_BUILD_ID=poseforest 9.9.9 fedcba987654 GNU-99 x86_64";
+  auto coordinator = [&](Child& c, const std::vector<std::string>& env, const std::string& out) {
+    std::vector<std::string> argv = {"/usr/bin/env"};
+    argv.insert(argv.end(), env.begin(), env.end());
+    for (const std::string& a :
+         {Program(), std::string("coordinator"), job, std::string("--out"), out, std::string("--domain"),
+          std::to_string(domain), std::string("--job-id"), std::string("t-build"),
+          std::string("--worker-wait-s"), std::string("8"), std::string("--http"), std::string("off")})
+      argv.push_back(a);
+    std::string error;
+    REQUIRE(c.Start(argv, &error));
+  };
+  auto worker = [&](Child& c, const std::vector<std::string>& env) {
+    std::vector<std::string> argv = {"/usr/bin/env"};
+    argv.insert(argv.end(), env.begin(), env.end());
+    for (const std::string& a :
+         {Program(), std::string("worker"), std::string("--domain"), std::to_string(domain),
+          std::string("--job"), std::string("t-build"), std::string("--id"), std::string("bw-1")})
+      argv.push_back(a);
+    std::string error;
+    REQUIRE(c.Start(argv, &error));
+  };
+  {
+    Child w, coord;
+    worker(w, {other});
+    coordinator(coord, {}, (dir.path / "refused.pff").string());
+    auto rc = coord.Wait(60s);
+    // The worker waits for other jobs: stopped, to read what it said.
+    w.Kill(SIGTERM);
+    (void)w.Wait(10s);
+    INFO("coordinator:\n" << coord.output() << "\nworker:\n" << w.output());
+    REQUIRE(rc.has_value());
+    CHECK(*rc != 0);
+    CHECK(coord.output().find("worker bw-1 on ") != std::string::npos);
+    CHECK(coord.output().find("refused the job: the coordinator runs build \"poseforest ") !=
+          std::string::npos);
+    CHECK(coord.output().find("this worker \"poseforest 9.9.9 fedcba987654 GNU-99 x86_64\"") !=
+          std::string::npos);
+    CHECK(coord.output().find("0 of 1 workers") != std::string::npos);
+    CHECK(coord.output().find("1 worker(s) not admitted: bw-1 on ") != std::string::npos);
+    CHECK(w.output().find("job t-build refused: the coordinator runs build") != std::string::npos);
+    CHECK(!std::filesystem::exists(dir.path / "refused.pff"));
+  }
+  // Builds known to train alike: the same POSEFOREST_BUILD_ID on every host.
+  Child w, coord;
+  worker(w, {other});
+  coordinator(coord, {other}, (dir.path / "forest.pff").string());
+  auto rc = coord.Wait(120s);
+  INFO("coordinator:\n" << coord.output() << "\nworker:\n" << w.output());
+  REQUIRE(rc.has_value());
+  CHECK(*rc == 0);
+  CHECK(coord.output().find("(build \"poseforest 9.9.9 fedcba987654 GNU-99 x86_64\")") != std::string::npos);
+  CHECK(ReadAll(dir.path / "forest.pff") == ReferenceBytes(ParseJob(TinyJobText(1, 4))));
+  CHECK(w.Wait(10s).has_value());
 }
 
 TEST_CASE("coordinator and worker: bad --peers / --interfaces get a clear error",

@@ -979,13 +979,27 @@ TEST_CASE("throughput figures on the wire: hostile values are dropped and counte
     CHECK(e.levels(63).evaluations_per_s() == 0);
     CHECK(e.levels(62).gain() == 0.5);
   }
-  // The job done: workers "done", no rate, ETA 0.
+  // A worker not admitted (another build, or it refused the job): listed as refused.
+  v1::StatusEvent refused;
+  refused.set_kind(v1::STATUS_KIND_WORKER_REFUSED);
+  refused.set_worker_id("w-b");
+  refused.set_message("refused the job: job-1: mocap file missing");
+  model.OnStatus(refused);
+  v1::StatusEvent with_refused;
+  with_refused.set_kind(v1::STATUS_KIND_PROGRESS);
+  model.FillStatus(&with_refused);
+  CHECK(poseforest::proto::dds::ValidateStatus(with_refused).ok());
+  REQUIRE(with_refused.workers_size() == 2);
+  CHECK(with_refused.workers(1).id() == "w-b");
+  CHECK(with_refused.workers(1).state() == v1::WORKER_STATE_REFUSED);
+  // The job done: workers "done" (a refused one stays refused), no rate, ETA 0.
   v1::StatusEvent done;
   done.set_kind(v1::STATUS_KIND_JOB_DONE);
   model.OnStatus(done);
   model.FillStatus(&done);
   CHECK(poseforest::proto::dds::ValidateStatus(done).ok());
   CHECK(done.workers(0).state() == v1::WORKER_STATE_DONE);
+  CHECK(done.workers(1).state() == v1::WORKER_STATE_REFUSED);
   CHECK(done.workers(0).evaluations_per_s() == 0);
   CHECK(done.eta_s() == 0);
   CHECK(done.trees_done() == 2);

@@ -2,11 +2,11 @@
 // drop/count/flag logic on hand-made envelopes (garbage, wrong job, wrong dimensions, stale epoch,
 // replays, impersonation).
 #include <catch2/catch.hpp>
-
 #include <cstdio>
 #include <limits>
 #include <random>
 
+#include "proto/dds/build_id.h"
 #include "proto/dds/cdr_bytes.h"
 #include "proto/dds/histogram_codec.h"
 #include "proto/dds/message_gate.h"
@@ -517,6 +517,28 @@ TEST_CASE("validators of the other bodies", "[dds][unit]") {
   CHECK_FALSE(pd::ValidateHello(hello).ok());
   *hello.mutable_capacity() = pd::testing::Capacity();
   CHECK(pd::ValidateHello(hello).ok());
+  // Its strings are bounded: build identity 256 bytes, refusal 2048, host name 256.
+  hello.set_build_version(std::string(pd::kMaxBuildIdBytes, 'b'));
+  hello.set_refusal(std::string(2048, 'r'));
+  hello.set_hostname(std::string(256, 'h'));
+  CHECK(pd::ValidateHello(hello).ok());
+  hello.set_build_version(std::string(pd::kMaxBuildIdBytes + 1, 'b'));
+  CHECK_FALSE(pd::ValidateHello(hello).ok());
+  hello.set_build_version("poseforest 0.4.0");
+  hello.set_refusal(std::string(2049, 'r'));
+  CHECK_FALSE(pd::ValidateHello(hello).ok());
+  hello.set_refusal("");
+  hello.set_hostname(std::string(257, 'h'));
+  CHECK_FALSE(pd::ValidateHello(hello).ok());
+  v1::JobAnnouncement announced;
+  announced.mutable_config()->set_seed(5);
+  announced.set_coordinator_id("coordinator");
+  announced.set_num_parts(31);
+  announced.set_thresholds_per_feature(10);
+  announced.set_build_id(std::string(pd::kMaxBuildIdBytes, 'b'));
+  CHECK(pd::ValidateJob(announced).ok());
+  announced.set_build_id(std::string(pd::kMaxBuildIdBytes + 1, 'b'));
+  CHECK_FALSE(pd::ValidateJob(announced).ok());
   v1::Heartbeat hb;
   *hb.mutable_capacity() = pd::testing::Capacity(4);
   hb.set_busy_threads(5);
