@@ -389,6 +389,7 @@ TEST_CASE("a registered worker that sends bad replies is evicted; its frames go 
                            : presence.mutable_hello()->mutable_capacity();
       cap->set_threads(1);
       cap->set_renderer(v1::RENDERER_KIND_PROCEDURAL);
+      if (presence.has_hello()) presence.mutable_hello()->set_build_version(std::string(CompiledBuildId()));
       (void)(*liar)->Publish(proto::dds::Topic::kPresence,
                              stamper.Seal(proto::dds::Topic::kPresence, presence));
       for (int i = 0; request_epoch != 0 && i < 20; ++i) {  // answers of the wrong shape

@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "proto/dds/build_id.h"
 #include "proto/dds/dds_node.h"
 #include "proto/dds/message_gate.h"
 #include "tests/proto/dds_test_util.h"
@@ -159,6 +160,7 @@ int main(int argc, char** argv) {
         *h->mutable_capacity() = pd::testing::Capacity();
         h->set_hostname(id);
         h->set_pid(uint32_t(::getpid()));
+        h->set_build_version(pd::BuildId());  // as a worker of this build: a coordinator admits it
       } else {
         *env.mutable_heartbeat()->mutable_capacity() = pd::testing::Capacity();
       }
