@@ -23,13 +23,15 @@ constexpr int kParts = core::kNumParts;
 
 Checkpoint::Checkpoint(std::string dir) : dir_(std::move(dir)) {}
 
-Result<ResumePoint> Checkpoint::Start(const std::string& job_id, const std::string& config_bytes, float training_fx,
-                                      float training_fy, bool resume) {
+Result<ResumePoint> Checkpoint::Start(const std::string& job_id, const std::string& config_bytes,
+                                      const std::string& build_id, float training_fx, float training_fy,
+                                      bool resume) {
   ResumePoint at;
   ckpt_.Clear();
   ckpt_.set_format(kCheckpointFormat);
   ckpt_.set_job_id(job_id);
   ckpt_.set_config(config_bytes);
+  ckpt_.set_build_id(build_id);
   ckpt_.set_training_fx(training_fx);
   ckpt_.set_training_fy(training_fy);
   const std::string ckpt_path = dir_.empty() ? "" : (std::filesystem::path(dir_) / "checkpoint.pb").string();
@@ -45,6 +47,14 @@ Result<ResumePoint> Checkpoint::Start(const std::string& job_id, const std::stri
                                                    ", this coordinator reads " + std::to_string(kCheckpointFormat));
   if (saved.config() != config_bytes || saved.job_id() != job_id)
     return Status(ErrorCode::kInvalidArgument, ckpt_path + ": checkpoint of another job");
+  // The rest of the job must be trained by the build that trained its start, for the forest to
+  // be the one an uninterrupted run gives (checkpoints before 30 Nov 2026 do not say).
+  if (!saved.build_id().empty() && saved.build_id() != build_id)
+    return Status(ErrorCode::kVersionMismatch,
+                  ckpt_path + ": written by build \"" + saved.build_id() + "\", this coordinator is \"" +
+                      build_id +
+                      "\": resume with the build that started the job (or set POSEFOREST_BUILD_ID to \"" +
+                      saved.build_id() + "\" if the builds are known to train alike)");
   for (const v1::LoggedTree& lt : saved.finished()) {
     engine::TreeAssembler a(kParts);
     POSEFOREST_RETURN_IF_ERROR(ReplayLoggedTree(lt, &a));
@@ -60,6 +70,7 @@ Result<ResumePoint> Checkpoint::Start(const std::string& job_id, const std::stri
   at.epoch = saved.epoch();
   at.resumed = true;
   ckpt_ = saved;
+  ckpt_.set_build_id(build_id);
   if (ckpt_.training_fx() == 0) ckpt_.set_training_fx(training_fx), ckpt_.set_training_fy(training_fy);
   return at;
 }

@@ -40,9 +40,11 @@ class Checkpoint {
   /// Starts the record of job `job_id` (`config_bytes`: its serialized config; the forest
   /// header's training focal length, which `poseforest export` writes). With `resume` and a
   /// checkpoint in the directory, continues that one instead: errors if it is not a
-  /// checkpoint, of another format (kVersionMismatch) or of another job.
-  core::Result<ResumePoint> Start(const std::string& job_id, const std::string& config_bytes, float training_fx,
-                                  float training_fy, bool resume);
+  /// checkpoint, of another format or written by another build (`build_id`, proto/dds/build_id.h;
+  /// kVersionMismatch), or of another job.
+  core::Result<ResumePoint> Start(const std::string& job_id, const std::string& config_bytes,
+                                  const std::string& build_id, float training_fx, float training_fy,
+                                  bool resume);
 
   /// The record (the tree in progress: current()).
   const v1::Checkpoint& record() const { return ckpt_; }

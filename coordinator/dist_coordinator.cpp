@@ -232,7 +232,8 @@ struct DistCoordinator::Impl {
     auto shell = engine::EmptyForest(params);
     if (!shell.ok()) return shell.status();
     // Resume.
-    auto at = checkpoint.Start(s.job_id, config_bytes, shell->training_fx, shell->training_fy, s.opt.resume);
+    auto at = checkpoint.Start(s.job_id, config_bytes, s.build_id, shell->training_fx, shell->training_fy,
+                               s.opt.resume);
     if (!at.ok()) return at.status();
     std::vector<core::Tree> trees = std::move(at->trees);
     std::vector<engine::OpenNode> frontier = std::move(at->frontier);

@@ -46,6 +46,7 @@ void Session::PublishStatus(v1::StatusKind kind, const std::string& message, con
 
 void Session::StartSender() {
   if (job_id.empty()) job_id = engine::DefaultJobId(config);
+  build_id = proto::dds::BuildId();
   // A fresh sender id per run: a restarted coordinator is a new sender (sequence numbers
   // restart), and workers take its announcement as "start over".
   char host[128] = {};
@@ -71,7 +72,6 @@ Status Session::Announce() {
   job->set_coordinator_id(self_id);
   job->set_num_parts(uint32_t(kParts));
   job->set_thresholds_per_feature(uint32_t(params.thresholds_per_feature + 1));
-  build_id = proto::dds::BuildId();
   job->set_build_id(build_id);
   job_announcement = job_env;
   POSEFOREST_RETURN_IF_ERROR(Send(Topic::kJob, job_env));

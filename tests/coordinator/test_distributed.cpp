@@ -328,6 +328,45 @@ TEST_CASE("coordinator stopped after a few levels resumes from its checkpoint: s
   std::filesystem::remove_all(dir);
 }
 
+TEST_CASE("a checkpoint is resumed only by the build that wrote it", "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText(1, 5));
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  const uint32_t domain = Domain(85);
+  const std::string job_id = "t-resume-build";
+  TempDir dir("pf-dist-ckpt-build");
+  ThreadWorkers workers(1, domain, job_id);
+  CoordinatorOptions o = Options(domain, 1);
+  o.job_id = job_id;
+  o.checkpoint_dir = dir.path.string();
+  o.stop_after_levels = 2;
+  {
+    DistCoordinator first(job.config, job.params, o);
+    REQUIRE(!first.Train().ok());
+  }
+  const std::vector<uint8_t> saved = ReadAll(dir.path / "checkpoint.pb");
+  o.stop_after_levels = -1;
+  o.resume = true;
+  {
+    // The coordinator reads its build identity when it starts the job.
+    ::setenv("POSEFOREST_BUILD_ID", "poseforest 9.9.9 fedcba987654 GNU-99 x86_64", 1);
+    DistCoordinator other(job.config, job.params, o);
+    auto r = other.Train();
+    ::unsetenv("POSEFOREST_BUILD_ID");
+    REQUIRE(!r.ok());
+    INFO(r.status().ToString());
+    CHECK(r.status().code() == core::ErrorCode::kVersionMismatch);
+    CHECK(r.status().message().find(
+              "written by build \"" + std::string(CompiledBuildId()) +
+              "\", this coordinator is \"poseforest 9.9.9 fedcba987654 GNU-99 x86_64\"") !=
+          std::string::npos);
+  }
+  CHECK(ReadAll(dir.path / "checkpoint.pb") == saved);  // untouched
+  DistCoordinator same(job.config, job.params, o);
+  auto forest = same.Train();
+  REQUIRE(forest.ok());
+  CHECK(core::SerializeForest(*forest) == reference);
+}
+
 TEST_CASE("a worker joining mid-job gets frames at the next tree", "[distributed][integration]") {
   const Job job = ParseJob(TinyJobText(2, 5));
   const std::vector<uint8_t> reference = ReferenceBytes(job);
