@@ -105,7 +105,11 @@ struct DistWorker::Impl {
     last_refused = env.job_id() + "\n" + why;
     if (ctx.has_job) return;  // busy with another job: its envelopes keep that job's id
     std::lock_guard<std::mutex> lock(ctx.send_mu);
-    ctx.refusal = why.substr(0, 2000);
+    // At most 2,000 bytes (the gate takes 2,048), cut on a UTF-8 character boundary: the wire's
+    // string must stay valid UTF-8 (a path may hold any character).
+    size_t end = std::min<size_t>(why.size(), 2000);
+    while (end < why.size() && end > 0 && (static_cast<unsigned char>(why[end]) & 0xC0) == 0x80) --end;
+    ctx.refusal = why.substr(0, end);
     ctx.stamper.set_job_id(env.job_id());
   }
 
