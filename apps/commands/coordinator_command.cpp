@@ -34,6 +34,7 @@
 #include "coordinator/monitoring/coordinator_monitoring.h"
 #include "engine/job_spec.h"
 #include "poseforest/v1/job.pb.h"
+#include "proto/dds/build_id.h"
 #include "proto/dds/node_config.h"
 #include "proto/http/http_server.h"
 #include "runtime/core/forest_format.h"
@@ -323,12 +324,14 @@ int CoordinatorCommand::CheckConfig(const coordinator::CoordinatorOptions& opt) 
       return 2;
     }
   }
-  std::printf("coordinator config ok: job %s (%s), %d trees of depth %d, %d images per tree; DDS domain %u, %s; "
-              "%d local workers%s; writes %s%s%s\n",
-              opt.job_id.c_str(), job_path_.c_str(), params_.num_trees, params_.max_depth, params_.images_per_tree,
-              opt.domain, dds_flags_.Describe().c_str(), local_,
-              worker_security_dir_.empty() ? "" : (" with credentials of " + worker_security_dir_).c_str(),
-              out_.c_str(), opt.checkpoint_dir.empty() ? "" : ", checkpoints in ", opt.checkpoint_dir.c_str());
+  std::printf(
+      "coordinator config ok: job %s (%s), %d trees of depth %d, %d images per tree; DDS domain %u, %s; "
+      "%d local workers%s; writes %s%s%s; build \"%s\"\n",
+      opt.job_id.c_str(), job_path_.c_str(), params_.num_trees, params_.max_depth, params_.images_per_tree,
+      opt.domain, dds_flags_.Describe().c_str(), local_,
+      worker_security_dir_.empty() ? "" : (" with credentials of " + worker_security_dir_).c_str(),
+      out_.c_str(), opt.checkpoint_dir.empty() ? "" : ", checkpoints in ", opt.checkpoint_dir.c_str(),
+      proto::dds::BuildId().c_str());
   return 0;
 }
 

@@ -15,6 +15,7 @@
 #include "apps/commands/dds_options.h"
 #include "apps/commands/job_dds.h"
 #include "engine/job_spec.h"
+#include "proto/dds/build_id.h"
 #include "proto/dds/dds_flags.h"
 #include "proto/dds/node_config.h"
 #include "proto/http/http_server.h"
@@ -165,9 +166,10 @@ int WorkerCommand::Run() {
                            (http_opt.port == 0 ? " (port 0: a free one, printed at start)" : "") +
                            (http_opt.bearer_token.empty() ? "" : " with a bearer token");
   if (check_config_) {
-    std::printf("worker config ok: id %s, job %s, %d threads; DDS domain %ld, %s; %s\n",
-                (id_.empty() ? "(worker-HOST-PID-RANDOM)" : id_).c_str(), job_id.empty() ? "(any)" : job_id.c_str(),
-                threads_, domain, dds_flags->Describe().c_str(), metrics_text.c_str());
+    std::printf("worker config ok: id %s, job %s, %d threads; DDS domain %ld, %s; %s; build \"%s\"\n",
+                (id_.empty() ? "(worker-HOST-PID-RANDOM)" : id_).c_str(),
+                job_id.empty() ? "(any)" : job_id.c_str(), threads_, domain, dds_flags->Describe().c_str(),
+                metrics_text.c_str(), proto::dds::BuildId().c_str());
     return 0;
   }
   if (!dds_flags->resolved.empty())  // resolved once: a name that moves later is not followed

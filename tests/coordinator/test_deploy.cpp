@@ -34,6 +34,7 @@
 #include <nlohmann/json.hpp>
 #include <tuple>
 
+#include "proto/dds/build_id.h"
 #include "proto/dds/dds_flags.h"
 #include "tests/coordinator/dist_test_util.h"
 #include "tests/proto/dds_test_util.h"
@@ -180,12 +181,16 @@ TEST_CASE(
     CHECK(text.find("discovery servers 127.0.0.1:7000 (id 0, GUID prefix 44.53.00.5f") != std::string::npos);
     CHECK(text.find("host names resolved once, at start-up: --discovery-server localhost -> 127.0.0.1") !=
           std::string::npos);
+    // Both name the build they would run as: a host of another build is refused at the job.
+    const std::string build = "build \"" + proto::dds::BuildId() + "\"";
+    CHECK(text.find(build) != std::string::npos);
     auto [rc2, text2] = Run({Program(), "coordinator", job, "--out", (dir.path / "x.pff").string(),
                              "--check-config", "--profile", "udp", "--peers", "localhost:7410,10.0.0.9"});
     INFO(text2);
     CHECK(rc2 == 0);
     CHECK(text2.find("UDP, initial peers 127.0.0.1:7410,10.0.0.9") != std::string::npos);
     CHECK(text2.find("--peers localhost -> 127.0.0.1") != std::string::npos);
+    CHECK(text2.find(build) != std::string::npos);
   }
   {  // A name that does not resolve: exit 2 naming the flag and the name, at --check-config and at
      // start, from the command line and from the job's dds section. Run in a network namespace of
