@@ -4,7 +4,8 @@
 // segmentation + classification + joint proposals + skeletons (ids, not-tracked rules) + the
 // JSON Lines record written to /dev/null + the DDS publish of `live --dds` (builds with Fast DDS),
 // one frame at a time with 2 OpenMP threads (--threads).
-// Prints frames/s, latency p50 / p99 from frame in to JSON line out, and a per-stage table.
+// Prints frames/s, latency p50 / p99 from frame in to JSON line out, a per-stage table, and what
+// else the machine did meanwhile (CPU time stolen by the hypervisor, the load average).
 // Last line: `frames/s: N frames/s`.
 //
 // The forest: --forest F, else scripts/accuracy-recipe.sh's forest (out/accuracy-16000/
@@ -64,6 +65,36 @@ uint64_t Fnv(uint64_t h, const void* data, size_t bytes) {
   const auto* b = static_cast<const unsigned char*>(data);
   for (size_t i = 0; i < bytes; ++i) h = (h ^ b[i]) * 1099511628211ull;
   return h;
+}
+
+/// The machine's CPU ticks from /proc/stat's first line: all of them, and those the hypervisor
+/// stole (time a virtual CPU was ready to run but the host ran something else). Zeros when
+/// /proc/stat cannot be read (not Linux).
+struct CpuTicks {
+  unsigned long long total = 0, steal = 0;
+};
+CpuTicks ReadCpuTicks() {
+  CpuTicks t;
+  FILE* f = std::fopen("/proc/stat", "r");
+  if (!f) return t;
+  unsigned long long v[8] = {};
+  if (std::fscanf(f, "cpu %llu %llu %llu %llu %llu %llu %llu %llu", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5],
+                  &v[6], &v[7]) == 8) {
+    for (unsigned long long x : v) t.total += x;
+    t.steal = v[7];
+  }
+  std::fclose(f);
+  return t;
+}
+
+/// The 1-minute load average, or -1.
+double LoadAverage() {
+  double l = -1;
+  if (FILE* f = std::fopen("/proc/loadavg", "r")) {
+    if (std::fscanf(f, "%lf", &l) != 1) l = -1;
+    std::fclose(f);
+  }
+  return l;
 }
 
 double Percentile(std::vector<double> v, double q) {
@@ -257,6 +288,8 @@ int main(int argc, char** argv) {
   int64_t done = 0, people = 0, tracked = 0;
   const auto start = std::chrono::steady_clock::now();
   const double cpu_start = ProcessCpuSeconds();
+  const CpuTicks ticks_start = ReadCpuTicks();
+  const double load_start = LoadAverage();
   double elapsed = 0;
   while (elapsed < seconds || done < num_frames) {
     // Played forwards then backwards, so the people never jump (ids stay).
@@ -289,6 +322,7 @@ int main(int argc, char** argv) {
     elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
   const double cpu_s = ProcessCpuSeconds() - cpu_start;
+  const CpuTicks ticks_end = ReadCpuTicks();
   std::fclose(sink);
   const double n = double(done);
   std::printf("%lld frames in %.2f s; %.2f people per frame (%d ids), %.1f joints tracked per person\n",
@@ -314,6 +348,17 @@ int main(int argc, char** argv) {
   // CPU time of the whole process over the timed frames (all threads, OpenMP's waiting
   // included): steadier than wall times when other jobs share the machine.
   std::printf("cpu: %.3f ms/frame (all threads)\n", 1000.0 * cpu_s / n);
+  // What else the machine did meanwhile: on a virtual machine the host can take the CPUs away
+  // ("steal"), and other processes show in the load average (this benchmark alone: about the
+  // number of threads). Frame rates of sittings with different figures here do not compare.
+  if (ticks_end.total > ticks_start.total)
+    std::printf(
+        "machine: %.1f%% of the CPUs' time stolen by the hypervisor meanwhile; load average %.2f before, "
+        "%.2f after\n",
+        100.0 * double(ticks_end.steal - ticks_start.steal) / double(ticks_end.total - ticks_start.total),
+        load_start, LoadAverage());
+  else
+    std::printf("machine: /proc/stat not readable (no steal or load figures)\n");
   std::printf("frames/s: %.1f frames/s\n", n / elapsed);
   return 0;
 }
