@@ -5,7 +5,8 @@
 // JSON Lines record written to /dev/null + the DDS publish of `live --dds` (builds with Fast DDS),
 // one frame at a time with 2 OpenMP threads (--threads).
 // Prints frames/s, latency p50 / p99 from frame in to JSON line out, a per-stage table, and what
-// else the machine did meanwhile (CPU time stolen by the hypervisor, the load average).
+// else the machine did meanwhile (CPU time stolen by the hypervisor, the load average) and how
+// fast the host ran two fixed pieces of reference work (the clock, the memory's latency).
 // Last line: `frames/s: N frames/s`.
 //
 // The forest: --forest F, else scripts/accuracy-recipe.sh's forest (out/accuracy-16000/
@@ -95,6 +96,31 @@ double LoadAverage() {
     std::fclose(f);
   }
   return l;
+}
+
+/// The host's speed in this sitting, on two fixed pieces of work that do not depend on the
+/// forest or the build: a chain of dependent integer multiply-adds (the cores' clock) and a chain
+/// of dependent loads over 64 MiB (the memory's latency, which other tenants' traffic raises).
+/// Nanoseconds per step of each. A sitting whose frame rate is low while these are high ran on
+/// a slower host, not a slower build.
+std::pair<double, double> ReferenceWork() {
+  using clock = std::chrono::steady_clock;
+  volatile uint32_t seed = 1;
+  uint32_t x = seed;
+  const int64_t steps = 100'000'000;
+  auto t0 = clock::now();
+  for (int64_t i = 0; i < steps; ++i) x = x * 1664525u + 1013904223u;
+  const double alu_ns = std::chrono::duration<double, std::nano>(clock::now() - t0).count() / double(steps);
+  const size_t n = size_t(16) << 20;  // 16 Mi entries of 4 bytes
+  std::vector<uint32_t> next(n);
+  for (size_t i = 0; i < n; ++i) next[i] = uint32_t((uint64_t(i) * 2654435761u + x) % n);
+  uint32_t k = 0;
+  const int64_t loads = 2'000'000;
+  t0 = clock::now();
+  for (int64_t i = 0; i < loads; ++i) k = next[k];
+  const double mem_ns = std::chrono::duration<double, std::nano>(clock::now() - t0).count() / double(loads);
+  seed = x + k;  // keeps both chains
+  return {alu_ns, mem_ns};
 }
 
 double Percentile(std::vector<double> v, double q) {
@@ -280,6 +306,7 @@ int main(int argc, char** argv) {
                 static_cast<unsigned long long>(h_json));
     return 0;
   }
+  const auto [alu_ns, mem_ns] = ReferenceWork();
   // Warm-up: one pass over the sequence.
   for (const auto& f : frames) (*pipeline)->Process(f, &out);
   std::vector<double> latency;
@@ -359,6 +386,10 @@ int main(int argc, char** argv) {
         load_start, LoadAverage());
   else
     std::printf("machine: /proc/stat not readable (no steal or load figures)\n");
+  std::printf(
+      "machine: reference work before the frames: %.3f ns per dependent multiply-add, %.1f ns per "
+      "dependent load over 64 MiB\n",
+      alu_ns, mem_ns);
   std::printf("frames/s: %.1f frames/s\n", n / elapsed);
   return 0;
 }
