@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Every bench/ program runs on a tiny workload and ends with its headline figure, as the house
+# rule says: the last line is `<metric>: <value> <unit>` (a finite number), so that anyone can
+# compare runs by that line. The figures themselves are not checked: speed targets are met in
+# bench/ programs that print figures, not in timed tests. bench/distributed has its own test
+# (test_bench_distributed_commands_only).
+# Usage: bench_headlines.sh BENCH_DIR POSEFOREST_BINARY
+set -uo pipefail
+bench_dir=$1
+poseforest=$2
+failed=0
+
+# The headline's form. Checked on known lines first, so that the checker itself can fail.
+headline_re='^[A-Za-z][A-Za-z0-9 /_.()-]*: -?[0-9]+(\.[0-9]+)?(e[+-]?[0-9]+)? [^ ].*$'
+for good in "frames/s: 155.9 frames/s" "evaluations/s/core: 1.259e+08 evaluations/s/core" \
+            "accuracy cost: 0.000 percentage points" "images/s/core: 184.5 images/s/core"; do
+  [[ $good =~ $headline_re ]] || { echo "FAIL: the checker rejects a good headline: $good"; exit 1; }
+done
+for bad in "frames/s: nan frames/s" "frames/s: 12.5" "done" "frames/s: inf frames/s" ": 3 s" \
+            "frames/s 12 frames/s"; do
+  [[ $bad =~ $headline_re ]] && { echo "FAIL: the checker accepts a bad headline: $bad"; exit 1; }
+done
+
+work=$(mktemp -d /tmp/pf-bench-headlines.XXXXXX)
+trap 'rm -rf "$work"' EXIT
+cd "$work" || exit 1
+# A tiny forest of the paper's 31 parts (rendered people), for the benches that need one.
+cat > job.textproto <<'JOB'
+seed: 3 num_trees: 1 max_depth: 6 images_per_tree: 4 pixels_per_image: 200
+candidate_features: 20 thresholds_per_feature: 5
+source { rendered { seed: 1 } }
+test_set { source { rendered { seed: 99 } } num_images: 2 }
+JOB
+"$poseforest" train job.textproto --out forest.pff --quiet > train.log 2>&1 ||
+  { cat train.log; echo "FAIL: training the tiny forest"; exit 1; }
+
+run() {  # NAME ARGS...: runs bench/NAME, checks its exit status and its last line
+  local name=$1
+  shift
+  local out rc last
+  out=$(timeout 300 "$bench_dir/$name" "$@" 2>&1)
+  rc=$?
+  last=$(tail -n 1 <<< "$out")
+  if [ $rc -ne 0 ]; then
+    echo "$out" | tail -n 20
+    echo "FAIL: bench/$name $*: exit status $rc"
+    failed=1
+  elif [[ ! $last =~ $headline_re ]]; then
+    echo "$out" | tail -n 5
+    echo "FAIL: bench/$name $*: the last line is not '<metric>: <value> <unit>': $last"
+    failed=1
+  else
+    echo "ok   bench/$name: $last"
+  fi
+  REPLY=$out
+}
+
+run classify 0.05
+run segment --frames 3 --seconds 0.2
+run live --forest forest.pff --frames 3 --seconds 0.3
+# bench/live also says what else the machine did, beside the frame rate.
+grep -q "^machine: .*% of the CPUs' time stolen by the hypervisor meanwhile; load average" <<< "$REPLY" ||
+  { echo "FAIL: bench/live: no steal / load line"; failed=1; }
+grep -q "^machine: reference work before the frames: [0-9.]* ns per dependent multiply-add, [0-9.]* ns" <<< "$REPLY" ||
+  { echo "FAIL: bench/live: no reference work line"; failed=1; }
+run pipeline --forest forest.pff --frames 2
+run render --frames 2
+run train --images 4 --pixels 200 --candidates 20 --depth 6 --compare none
+run leaf_encoding job.textproto
+
+[ $failed -eq 0 ] && echo "PASS" || exit 1
