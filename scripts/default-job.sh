@@ -63,3 +63,17 @@ test_set {
 }
 JOB
 }
+
+# The validation sets (scripts/validate.sh): a job whose training source is the main job's and
+# whose test_set renders the main job's *training* clips with another seed (5005), never the test
+# clips, so that choices between variations are not made on the test set.
+#   write_validation_job FILE IMAGES POSE_LIBRARY DATA_DIR ROTATION FIELDS
+# ROTATION: the people's yaw range, +-degrees; FIELDS: the renders' realism fields ("": the
+# realism defaults, as the training renders; "$classic_test_fields": as the test set).
+write_validation_job() {
+  write_default_job "$1" 4000 "$2" "$3" "$4" "" "$6" "$5"
+  # The test set's seed and clips (each appears once, in test_set) become the validation set's.
+  sed -i -e 's/^      seed: 99$/      seed: 5005/' -e 's/^      clips: CLIP_SET_TEST$/      clips: CLIP_SET_TRAIN/' "$1"
+  grep -q '^      seed: 5005$' "$1" && grep -q '^      clips: CLIP_SET_TRAIN$' "$1" ||
+    { echo "write_validation_job: the default job's test set changed shape; update this function" >&2; return 1; }
+}
