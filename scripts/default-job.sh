@@ -1,4 +1,4 @@
-# Sourced by scripts/main-job.sh and scripts/accuracy-recipe.sh: the main job's embedded default
+# Sourced by scripts/main-job.sh, accuracy-recipe.sh and validate.sh: the main job's embedded default
 # job (proto/poseforest/v1/job.proto), with the training images per tree and the test-set size as
 # parameters.
 #   write_default_job FILE IMAGES_PER_TREE TEST_IMAGES POSE_LIBRARY DATA_DIR [TRAIN_FIELDS [TEST_FIELDS [TEST_ROTATION [TRAIN_ROTATION]]]]

@@ -70,7 +70,8 @@ if [[ ! -s "$poses" ]]; then
 fi
 for s in "${set_list[@]}"; do
   style=${s%-*} rotation=${s#*-}
-  fields=$([[ $style == classic ]] && echo "$classic_test_fields" || true)
+  fields=""
+  [[ $style == classic ]] && fields=$classic_test_fields
   write_validation_job "$out/$s.textproto" "$images" "$poses" "$data" "$rotation" "$fields"
 done
 
@@ -95,7 +96,9 @@ score() {  # FOREST SET_OR_real -> the path of its eval output (scored now unles
 cell() {  # EVAL_OUTPUT -> "mAP / visible / not tracked right / hidden"
   local m s
   m=$(sed -nE 's/^eval: mAP ([0-9.]+) .*/\1/p' "$1")
-  s=$(sed -nE 's/^mean over joints: tracked within 0.10 m when visible ([0-9.]+),.* not tracked right ([0-9.]+|-),.* hidden placed within 0.15 m ([0-9.]+|-).*/\1 \/ \2 \/ \3/p' "$1")
+  local re='^mean over joints: tracked within 0.10 m when visible ([0-9.]+),.* not tracked right ([0-9.]+),'
+  re+='.* hidden placed within 0.15 m ([0-9.]+).*'
+  s=$(sed -nE "s/$re/\\1 \\/ \\2 \\/ \\3/p" "$1")
   [[ -n "$m" && -n "$s" ]] || die "no mAP or skeleton line in $1" 1
   echo "$m / $s"
 }
