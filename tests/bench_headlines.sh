@@ -6,6 +6,7 @@
 # (test_bench_distributed_commands_only).
 # Usage: bench_headlines.sh BENCH_DIR POSEFOREST_BINARY
 set -uo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
 bench_dir=$1
 poseforest=$2
 failed=0
@@ -25,14 +26,9 @@ work=$(mktemp -d /tmp/pf-bench-headlines.XXXXXX)
 trap 'rm -rf "$work"' EXIT
 cd "$work" || exit 1
 # A tiny forest of the paper's 31 parts (rendered people), for the benches that need one.
-cat > job.textproto <<'JOB'
-seed: 3 num_trees: 1 max_depth: 6 images_per_tree: 4 pixels_per_image: 200
-candidate_features: 20 thresholds_per_feature: 5
-source { rendered { seed: 1 } }
-test_set { source { rendered { seed: 99 } } num_images: 2 }
-JOB
-"$poseforest" train job.textproto --out forest.pff --quiet > train.log 2>&1 ||
-  { cat train.log; echo "FAIL: training the tiny forest"; exit 1; }
+# shellcheck source=tests/support/tiny_forest.sh
+source "$here/support/tiny_forest.sh"
+train_tiny_forest "$poseforest" forest.pff || { echo "FAIL: training the tiny forest"; exit 1; }
 
 run() {  # NAME ARGS...: runs bench/NAME, checks its exit status and its last line
   local name=$1

@@ -33,14 +33,9 @@ expect_error 2 "unknown option '--frames'" --frames 3 missing.pff
 [[ ! -e "$work/out" ]] || fail "bad input wrote $work/out"
 
 # A tiny forest of the paper's 31 parts.
-cat > job.textproto <<'JOB'
-seed: 3 num_trees: 1 max_depth: 8 images_per_tree: 6 pixels_per_image: 300
-candidate_features: 20 thresholds_per_feature: 5
-source { rendered { seed: 1 } }
-test_set { source { rendered { seed: 99 } } num_images: 2 }
-JOB
-"$bin/poseforest" train job.textproto --out tiny.pff --quiet > train.log 2>&1 ||
-  { cat train.log; fail "training the tiny forest"; }
+# shellcheck source=tests/support/tiny_forest.sh
+source "$root/tests/support/tiny_forest.sh"
+train_tiny_forest "$bin/poseforest" tiny.pff || fail "training the tiny forest"
 
 out=$(bash "$script" --images 2 tiny.pff 2>err.log) || { cat err.log; echo "$out"; fail "validate.sh --images 2 tiny.pff"; }
 echo "$out"
