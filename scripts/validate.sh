@@ -18,9 +18,10 @@
 # wrists and hands of 54). Needs a build (scripts/build.sh) and the shared data
 # (POSEFOREST_DATA_DIR, default ../shared/data). Writes the four job files and every eval's full
 # output into $POSEFOREST_OUT/validation (default ./out/validation); an output is reused while the
-# forest file, the poseforest binary and the number of frames are the same (--rescore: score
-# again). POSEFOREST_BIN_DIR: the programs (default ./build/bin). About a minute per set and
-# forest at 200 frames on two cores.
+# forest file, the poseforest binary, the set's job file and the shared data's files (names,
+# sizes, times) are the same (--rescore: score again); the pose library is built again when the
+# mocap clips change. POSEFOREST_BIN_DIR: the programs (default ./build/bin). About a minute per
+# set and forest at 200 frames on two cores.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 # shellcheck source=scripts/default-job.sh
@@ -31,7 +32,7 @@ die() { echo "validate: $1" >&2; exit "${2:-2}"; }
 images=200 sets=realism-60,realism-120,classic-120,classic-60 real=1 rescore=0 forests=()
 while (( $# )); do
   case $1 in
-    -h|--help) sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     --images) (( $# >= 2 )) || usage; images=$2; shift 2 ;;
     --sets) (( $# >= 2 )) || usage; sets=$2; shift 2 ;;
     --no-real) real=0; shift ;;
@@ -59,14 +60,22 @@ out=${POSEFOREST_OUT:-$root/out}/validation
 mkdir -p "$out/evals"
 out=$(cd "$out" && pwd)
 
+# A fingerprint of the files under a folder (names, sizes, modification times; links followed):
+# cheap, and it changes when a file is added, removed or rewritten.
+fingerprint() { find -L "$@" -type f -printf '%P %s %T@\n' | LC_ALL=C sort | cksum | cut -d' ' -f1; }
+data_sum=$(fingerprint "$data")
+mocap_sum=$(fingerprint "$data/mocap")
+
 # The pose library the main job trains on (scripts/main-job.sh step 1); its own copy here, so that
-# the sets do not move when another script rebuilds out/mocap.pfposes.
+# the sets do not move when another script rebuilds out/mocap.pfposes. Built again when the clips
+# it came from changed ($poses.clips holds their fingerprint).
 poses=$out/mocap.pfposes
-if [[ ! -s "$poses" ]]; then
+if [[ ! -s "$poses" || "$(cat "$poses.clips" 2>/dev/null)" != "$mocap_sum" ]]; then
   echo "validate: pose library from $data/mocap -> $poses" >&2
   "$bin/poseforest-poselib" build --out "$poses.tmp" "$data/mocap" > "$out/poselib.log" 2>&1 ||
     { tail -n 5 "$out/poselib.log" >&2; die "building the pose library failed ($out/poselib.log)" 1; }
   mv "$poses.tmp" "$poses"
+  echo "$mocap_sum" > "$poses.clips"
 fi
 for s in "${set_list[@]}"; do
   style=${s%-*} rotation=${s#*-}
@@ -78,7 +87,10 @@ done
 binary_sum=$(cksum < "$bin/poseforest" | cut -d' ' -f1)
 score() {  # FOREST SET_OR_real -> the path of its eval output (scored now unless reusable)
   local forest=$1 set=$2 key file
-  key=$(cksum < "$forest" | cut -d' ' -f1)-$binary_sum-$images
+  # What the eval's output depends on: the forest, the program, the frames (the set's job file,
+  # which holds the frame count) and the data they are rendered from or read.
+  key=$(cksum < "$forest" | cut -d' ' -f1)-$binary_sum-$images-$data_sum
+  [[ $set == real ]] || key+=-$(cksum < "$out/$set.textproto" | cut -d' ' -f1)
   file=$out/evals/$(basename "$forest" .pff)-$key-$set.txt
   [[ $set == real ]] && file=$out/evals/$(basename "$forest" .pff)-$key-real.txt
   if (( rescore )) || [[ ! -s "$file" ]]; then

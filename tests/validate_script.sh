@@ -2,7 +2,7 @@
 # scripts/validate.sh, the four validation sets the docs' comparisons are chosen on: its job files
 # render the main job's training clips at seed 5005 (never the test clips), it prints one row per
 # forest with a cell per set and the real frames, reuses an eval only while the forest is the
-# same, and refuses bad input with a clear message. A tiny forest and 2 frames per set keep it
+# same (and the shared data unchanged), and refuses bad input with a clear message. A tiny forest and 2 frames per set keep it
 # short; the figures themselves are not checked.
 # Usage: validate_script.sh REPO_ROOT BIN_DIR
 set -uo pipefail
@@ -14,6 +14,13 @@ trap 'rm -rf "$work"' EXIT
 cd "$work" || exit 1
 export POSEFOREST_OUT=$work/out POSEFOREST_BIN_DIR=$bin
 fail() { echo "FAIL: $*"; exit 1; }
+# The shared data as links in a folder of the test's own (the mocap clips one by one), so that
+# the test can add a file to it without touching the shared data.
+shared=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" && pwd) || fail "no shared data"
+mkdir -p "$work/data/mocap"
+for f in "$shared"/*; do [[ $(basename "$f") == mocap ]] || ln -s "$f" "$work/data/"; done
+for f in "$shared"/mocap/*; do ln -s "$f" "$work/data/mocap/"; done
+export POSEFOREST_DATA_DIR=$work/data
 
 # Bad input: exit status and message, before any work.
 expect_error() {  # STATUS PATTERN ARGS...: validate.sh ARGS must exit STATUS and say PATTERN
@@ -72,11 +79,21 @@ grep -q '^validate: tiny.pff on ' err2.log && fail "the second run scored again 
 bash "$script" --images 2 --sets classic-60 --no-real --rescore tiny.pff > rescore.txt 2>err3.log || fail "--rescore"
 [[ $(grep -c '^validate: tiny.pff on classic-60' err3.log) == 1 ]] || fail "--rescore did not score again"
 grep -q 'real frames' rescore.txt && fail "--no-real still scored the real frames"
+# Another data file: every eval is scored again; another clip: the pose library is built again.
+echo "a note" > "$work/data/NOTE.txt"
+bash "$script" --images 2 --sets classic-60 --no-real tiny.pff > /dev/null 2>err4.log || fail "after a data change"
+[[ $(grep -c '^validate: tiny.pff on classic-60' err4.log) == 1 ]] || { cat err4.log; fail "a changed data set reused an eval"; }
+grep -q 'pose library' err4.log && fail "the pose library was built again although the clips did not change"
+clip=$(find -L "$shared/mocap" -name '*.bvh' -print -quit)
+[[ -n $clip ]] || fail "no .bvh clip under $shared/mocap"
+ln -s "$clip" "$work/data/mocap/zz_again.bvh"
+bash "$script" --images 2 --sets classic-60 --no-real tiny.pff > /dev/null 2>err5.log || fail "after a clip change"
+grep -q '^validate: pose library from ' err5.log || { cat err5.log; fail "a new clip did not rebuild the pose library"; }
 cp tiny.pff other.pff
 printf 'x' >> other.pff  # another file: its evals are its own; a corrupt forest is a clear error
 out2=$(bash "$script" --images 2 --sets realism-60 --no-real other.pff 2>&1)
 rc=$?
 [[ $rc == 1 ]] || { echo "$out2"; fail "a corrupt forest: exit status $rc, expected 1"; }
 grep -q 'poseforest eval failed on other.pff, realism-60' <<< "$out2" || { echo "$out2"; fail "a corrupt forest: no clear error"; }
-echo "ok   reuse, --rescore, --no-real, a corrupt forest"
+echo "ok   reuse, --rescore, --no-real, a changed data set, a new clip, a corrupt forest"
 echo "all validate.sh checks passed"

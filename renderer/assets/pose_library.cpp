@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <set>
 
 #include "runtime/core/crc32.h"
 #include "runtime/core/rng.h"
@@ -133,15 +134,28 @@ Result<std::vector<std::filesystem::path>> CollectBvhFiles(const std::vector<std
     std::error_code ec;
     if (std::filesystem::is_directory(in, ec)) {
       std::vector<std::filesystem::path> found;
-      for (auto it = std::filesystem::recursive_directory_iterator(in, ec);
+      // Linked folders are followed (a data set assembled from links is common), each real
+      // folder once, so that a link back up the tree cannot loop.
+      std::set<std::filesystem::path> visited{std::filesystem::canonical(in, ec)};
+      if (ec) return Status(ErrorCode::kIo, in.string() + ": cannot list folder: " + ec.message());
+      for (auto it = std::filesystem::recursive_directory_iterator(
+               in, std::filesystem::directory_options::follow_directory_symlink, ec);
            !ec && it != std::filesystem::recursive_directory_iterator(); it.increment(ec)) {
-        if (!it->is_regular_file()) continue;
+        std::error_code entry_ec;
+        if (it->is_directory(entry_ec)) {
+          const std::filesystem::path real = std::filesystem::canonical(it->path(), entry_ec);
+          if (entry_ec || !visited.insert(real).second) it.disable_recursion_pending();
+          continue;
+        }
+        if (!it->is_regular_file(entry_ec)) continue;
         std::string ext = it->path().extension().string();
         std::transform(ext.begin(), ext.end(), ext.begin(),
                        [](unsigned char c) { return char(std::tolower(c)); });
         if (ext == ".bvh") found.push_back(it->path());
       }
       if (ec) return Status(ErrorCode::kIo, in.string() + ": cannot list folder: " + ec.message());
+      if (found.empty())
+        return Status(ErrorCode::kNotFound, in.string() + ": no .bvh clips in this folder or below");
       std::sort(found.begin(), found.end());
       files.insert(files.end(), found.begin(), found.end());
     } else if (std::filesystem::exists(in, ec)) {

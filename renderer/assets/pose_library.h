@@ -66,8 +66,9 @@ std::vector<size_t> SubsamplePoses(const std::vector<std::array<float, 3 * kNumS
 /// Same, on poses (signatures on ReferenceRestJoints()).
 std::vector<size_t> SubsamplePoses(const std::vector<Pose>& poses, double min_distance_m);
 
-/// The BVH files named by `inputs`: files as given, folders searched recursively for *.bvh
-/// (sorted by path so the order is deterministic). Errors: a missing input (kNotFound).
+/// The BVH files named by `inputs`: files as given, folders searched recursively for *.bvh,
+/// following linked folders, each real folder once (sorted by path so the order is
+/// deterministic). Errors: a missing input, or a folder without any .bvh file (kNotFound).
 core::Result<std::vector<std::filesystem::path>> CollectBvhFiles(
     const std::vector<std::filesystem::path>& inputs);
 

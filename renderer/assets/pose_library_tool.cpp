@@ -27,7 +27,8 @@ int Usage() {
       "  poseforest-poselib build --out LIB.pfposes [--min-distance M] [--test-fraction F] [--seed S]\n"
       "                           [--max-frames N] FILES/DIRS...\n"
       "      retarget every BVH clip, keep poses >= M metres apart (default 0.05);\n"
-      "      with --test-fraction, only the training clips of the clip-level split are used\n"
+      "      with --test-fraction, only the training clips of the clip-level split are used;\n"
+      "      folders are searched below, linked folders included\n"
       "  poseforest-poselib info LIB.pfposes\n"
       "  poseforest-poselib bvh FILES/DIRS...\n");
   return 2;
@@ -82,6 +83,13 @@ int Build(int argc, char** argv) {
     std::printf("clip split (seed %llu, test fraction %.3f): %zu train, %zu test clips\n",
                 (unsigned long long)seed, test_fraction, split.train.size(), split.test.size());
     use = split.train;
+  }
+  if (use.empty()) {
+    std::fprintf(
+        stderr,
+        "poseforest-poselib: no clips left to build from: all %zu are test clips at test fraction %.3f\n",
+        files->size(), test_fraction);
+    return 1;
   }
   std::printf("building from %zu BVH clips, min distance %.3f m\n", use.size(), min_distance);
   const auto t0 = std::chrono::steady_clock::now();

@@ -102,5 +102,25 @@ TEST_CASE("poseforest-poselib builds and describes a library", "[integration][da
   CHECK(std::system((tool.string() + " build --out " + (dir / "x.pfposes").string() + " " +
                      (dir / "none").string() + " > /dev/null 2>&1")
                         .c_str()) != 0);
+  // A folder without clips, and a split that leaves no training clip: an error that says so,
+  // and no library written.
+  auto run_build = [&](const std::string& args, const fs::path& log_file) {
+    const std::string cmd = tool.string() + " build --out " + (dir / "y.pfposes").string() + " " + args +
+                            " > " + log_file.string() + " 2>&1";
+    const int rc = std::system(cmd.c_str());
+    std::ifstream f(log_file);
+    std::stringstream text;
+    text << f.rdbuf();
+    return std::make_pair(rc, text.str());
+  };
+  fs::create_directories(dir / "empty");
+  const auto [empty_rc, empty_log] = run_build((dir / "empty").string(), dir / "empty.txt");
+  CHECK(empty_rc != 0);
+  CHECK_THAT(empty_log, Catch::Contains("no .bvh clips in this folder or below"));
+  const auto [split_rc, split_log] =
+      run_build("--test-fraction 1 " + Mocap("cmu_iclone_cc3/002_01.bvh").string(), dir / "split.txt");
+  CHECK(split_rc != 0);
+  CHECK_THAT(split_log, Catch::Contains("no clips left to build from: all 1 are test clips"));
+  CHECK_FALSE(fs::exists(dir / "y.pfposes"));
   fs::remove_all(dir);
 }

@@ -179,6 +179,27 @@ TEST_CASE("collecting BVH files from folders is sorted; missing inputs error", "
   CHECK(bad.status().code() == ErrorCode::kNotFound);
 }
 
+TEST_CASE("collecting BVH files follows linked folders once; a folder without clips errors",
+          "[pose_library][data]") {
+  const fs::path dir = poseforest::testing::ScratchDir("bvh-links");
+  fs::create_directories(dir / "set");
+  // A data set made of links: a linked clip folder, the same folder linked twice, and a link
+  // back up the tree (a loop unless each real folder is listed once).
+  fs::create_directory_symlink(fs::absolute(Mocap("cmu_cgspeed_assimp")), dir / "set" / "cmu");
+  fs::create_directory_symlink(fs::absolute(Mocap("cmu_cgspeed_assimp")), dir / "set" / "cmu_again");
+  fs::create_directory_symlink(dir, dir / "set" / "up");
+  auto files = CollectBvhFiles({dir / "set"});
+  REQUIRE(files.ok());
+  CHECK(files->size() == 3);  // the folder's three clips, once
+  CHECK(std::is_sorted(files->begin(), files->end()));
+  for (const auto& f : *files) CHECK(f.extension() == ".bvh");
+  fs::create_directories(dir / "empty" / "sub");
+  auto none = CollectBvhFiles({dir / "empty"});
+  REQUIRE_FALSE(none.ok());
+  CHECK(none.status().code() == ErrorCode::kNotFound);
+  CHECK_THAT(none.status().message(), Catch::Contains("no .bvh clips"));
+}
+
 TEST_CASE("building a library from clips records sources and thins frames", "[pose_library][data]") {
   BuildOptions opt;
   opt.max_frames_per_clip = 200;
