@@ -7,8 +7,11 @@
 # Usage: bench_headlines.sh BENCH_DIR POSEFOREST_BINARY
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
-bench_dir=$1
-poseforest=$2
+(( $# == 2 )) || { echo "usage: bench_headlines.sh BENCH_DIR POSEFOREST_BINARY" >&2; exit 2; }
+# Absolute, since the checks run in a temporary folder.
+bench_dir=$(cd "$1" && pwd) || { echo "FAIL: no folder $1" >&2; exit 2; }
+poseforest=$(cd "$(dirname "$2")" && pwd)/$(basename "$2") || { echo "FAIL: no folder for $2" >&2; exit 2; }
+[[ -x $poseforest ]] || { echo "FAIL: $poseforest is not a program" >&2; exit 2; }
 failed=0
 
 # The headline's form. Checked on known lines first, so that the checker itself can fail.
