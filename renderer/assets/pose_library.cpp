@@ -134,17 +134,22 @@ Result<std::vector<std::filesystem::path>> CollectBvhFiles(const std::vector<std
     std::error_code ec;
     if (std::filesystem::is_directory(in, ec)) {
       std::vector<std::filesystem::path> found;
-      // Linked folders are followed (a data set assembled from links is common), each real
-      // folder once, so that a link back up the tree cannot loop.
-      std::set<std::filesystem::path> visited{std::filesystem::canonical(in, ec)};
+      // Linked folders are followed (a data set assembled from links is common); a folder
+      // that is its own ancestor (a link back up the tree) is not entered again, so nothing
+      // loops. Folders on the current path, real (canonical) paths: ancestors[d] holds depth d.
+      std::vector<std::filesystem::path> ancestors{std::filesystem::canonical(in, ec)};
       if (ec) return Status(ErrorCode::kIo, in.string() + ": cannot list folder: " + ec.message());
       for (auto it = std::filesystem::recursive_directory_iterator(
                in, std::filesystem::directory_options::follow_directory_symlink, ec);
            !ec && it != std::filesystem::recursive_directory_iterator(); it.increment(ec)) {
         std::error_code entry_ec;
         if (it->is_directory(entry_ec)) {
-          const std::filesystem::path real = std::filesystem::canonical(it->path(), entry_ec);
-          if (entry_ec || !visited.insert(real).second) it.disable_recursion_pending();
+          ancestors.resize(size_t(it.depth()) + 1);
+          std::filesystem::path real = std::filesystem::canonical(it->path(), entry_ec);
+          if (entry_ec || std::find(ancestors.begin(), ancestors.end(), real) != ancestors.end())
+            it.disable_recursion_pending();
+          else
+            ancestors.push_back(std::move(real));
           continue;
         }
         if (!it->is_regular_file(entry_ec)) continue;
@@ -156,7 +161,15 @@ Result<std::vector<std::filesystem::path>> CollectBvhFiles(const std::vector<std
       if (ec) return Status(ErrorCode::kIo, in.string() + ": cannot list folder: " + ec.message());
       if (found.empty())
         return Status(ErrorCode::kNotFound, in.string() + ": no .bvh clips in this folder or below");
+      // A clip reached by two paths (a folder linked twice) counts once, under its first path in
+      // sorted order, whatever order the folders were listed in.
       std::sort(found.begin(), found.end());
+      std::set<std::filesystem::path> seen;
+      std::erase_if(found, [&](const std::filesystem::path& f) {
+        std::error_code real_ec;
+        const std::filesystem::path real = std::filesystem::canonical(f, real_ec);
+        return !real_ec && !seen.insert(real).second;
+      });
       files.insert(files.end(), found.begin(), found.end());
     } else if (std::filesystem::exists(in, ec)) {
       files.push_back(in);

@@ -67,8 +67,9 @@ std::vector<size_t> SubsamplePoses(const std::vector<std::array<float, 3 * kNumS
 std::vector<size_t> SubsamplePoses(const std::vector<Pose>& poses, double min_distance_m);
 
 /// The BVH files named by `inputs`: files as given, folders searched recursively for *.bvh,
-/// following linked folders, each real folder once (sorted by path so the order is
-/// deterministic). Errors: a missing input, or a folder without any .bvh file (kNotFound).
+/// following linked folders but never into an ancestor (sorted by path so the order is
+/// deterministic; a file reached by two paths once, under the first). Errors: a missing input,
+/// or a folder without any .bvh file (kNotFound).
 core::Result<std::vector<std::filesystem::path>> CollectBvhFiles(
     const std::vector<std::filesystem::path>& inputs);
 

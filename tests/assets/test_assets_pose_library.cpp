@@ -190,7 +190,8 @@ TEST_CASE("collecting BVH files follows linked folders once; a folder without cl
   fs::create_directory_symlink(dir, dir / "set" / "up");
   auto files = CollectBvhFiles({dir / "set"});
   REQUIRE(files.ok());
-  CHECK(files->size() == 3);  // the folder's three clips, once
+  CHECK(files->size() == 3);  // the folder's three clips, once, under the first path
+  for (const auto& f : *files) CHECK(f.parent_path().filename() == "cmu");
   CHECK(std::is_sorted(files->begin(), files->end()));
   for (const auto& f : *files) CHECK(f.extension() == ".bvh");
   fs::create_directories(dir / "empty" / "sub");
