@@ -88,8 +88,9 @@ binary_sum=$(cksum < "$bin/poseforest" | cut -d' ' -f1)
 score() {  # FOREST SET_OR_real -> the path of its eval output (scored now unless reusable)
   local forest=$1 set=$2 key file
   # What the eval's output depends on: the forest, the program, the frames (the set's job file,
-  # which holds the frame count) and the data they are rendered from or read.
-  key=$(cksum < "$forest" | cut -d' ' -f1)-$binary_sum-$images-$data_sum
+  # which holds the frame count; the real frames do not depend on it) and the data they are
+  # rendered from or read.
+  key=$(cksum < "$forest" | cut -d' ' -f1)-$binary_sum-$data_sum
   [[ $set == real ]] || key+=-$(cksum < "$out/$set.textproto" | cut -d' ' -f1)
   file=$out/evals/$(basename "$forest" .pff)-$key-$set.txt
   [[ $set == real ]] && file=$out/evals/$(basename "$forest" .pff)-$key-real.txt
