@@ -1,10 +1,14 @@
 #!/usr/bin/env bash
 # The ablation behind the rendering realism defaults (job.proto RenderedSource fields 14-19,
 # docs/training/realism.md): the main job's job, one variant per line of VARIANTS below, each
-# trained at the same images per tree, tuned on validation renders of its own training source,
-# then scored on the held-out classic renders (mAP, average per-class accuracy), on the same
-# test clips rendered with the realism defaults (mAP), and on the hand-labelled real Kinect frames
-# (eval --real-labels). Prints one table row per variant.
+# trained at the same images per tree and tuned on validation renders of its own training source.
+# Prints two tables:
+#   1. to choose on: every variant on the four validation sets of scripts/validate.sh (the main
+#      job's training clips at another seed, never the test clips; --no-real);
+#   2. for the record, after the choice: the held-out classic renders (mAP, average per-class
+#      accuracy), the same test clips rendered with the realism defaults (mAP), and the
+#      hand-labelled real Kinect frames (eval --real-labels).
+# Choosing on table 2 would tune the defaults to the test set and to the 9 real frames.
 #
 #   scripts/realism-ablation.sh [IMAGES_PER_TREE [TEST_IMAGES]]   (default 300 and 200)
 #
@@ -12,7 +16,8 @@
 # ../shared/data). Outputs in $POSEFOREST_OUT/ablation-N (default ./out/ablation-N), one folder per
 # variant; a variant already trained (tune.log) is not trained again, and a score file that exists
 # is kept (delete it to score again; delete the folder to train again).
-# ~7 minutes per variant at 300 images per tree on two cores.
+# ~7 minutes per variant at 300 images per tree on two cores, and ~4 more for its validation sets
+# (scores already made are reused, as scripts/validate.sh reuses them).
 # POSEFOREST_ABLATION_ONLY='A|B' trains and scores only the variants whose name contains A or B.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -51,7 +56,7 @@ VARIANTS=(
 [[ -n "${POSEFOREST_ABLATION_ONLY:-}" ]] && echo "(only variants matching '$POSEFOREST_ABLATION_ONLY')"
 
 [[ -f "$out/mocap.pfposes" ]] || "$bin/poseforest-poselib" build --out "$out/mocap.pfposes" "$data/mocap"
-rows=()
+rows=() forests=()
 for v in "${VARIANTS[@]}"; do
   name=${v%%|*}
   fields=${v#*|}
@@ -89,9 +94,17 @@ for v in "${VARIANTS[@]}"; do
   map_r=$(grep '^eval: mAP' "$dir/eval_realistic.txt" | sed -E 's/.*mAP ([0-9.]+).*/\1/')
   real=$(grep '^eval: real frames' "$dir/real.txt" | sed -E 's/.*\(([0-9.]+)\), found within ([0-9.]+), any within 0.10 m ([0-9.]+)/\1 \2 \3/')
   arms=$(grep '^elbows, wrists, hands' "$dir/real.txt" | sed -E 's/.* [0-9]+ +[0-9]+ +[0-9]+ \(([0-9.]+)\).*/\1/')
+  forests+=("$dir/forest.pff")
+  # shellcheck disable=SC2086  # map and real hold two and three words, one cell each
   rows+=("$(printf '| %-36s | %s | %s | %s | %s | %s | %s | %s |' "$name" ${map:-- -} "${map_r:--}" ${real:-- - -} "${arms:--}")")
 done
+(( ${#forests[@]} )) || { echo "realism-ablation: no variant matches '${POSEFOREST_ABLATION_ONLY:-}'" >&2; exit 2; }
 echo
+echo "== 1. choose on these: the validation sets (scripts/validate.sh --images $test_images --no-real)"
+POSEFOREST_OUT=${POSEFOREST_OUT:-$root/out} POSEFOREST_DATA_DIR=$data POSEFOREST_BIN_DIR=$bin \
+  bash "$root/scripts/validate.sh" --images "$test_images" --no-real "${forests[@]}"
+echo
+echo "== 2. for the record, after the choice: the held-out test clips and the real frames"
 echo "images per tree: $per_tree; mAP and accuracy on $test_images held-out classic renders; real: 9 frames, 90 joints"
 echo "| variant | mAP, classic renders | per-class accuracy %, classic | mAP, realistic renders | real: tracked within 0.10 m | real: found within | real: any within 0.10 m | real: elbows, wrists, hands tracked within |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|"
