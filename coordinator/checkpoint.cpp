@@ -5,6 +5,7 @@
 #include <sstream>
 #include <utility>
 
+#include "coordinator/checkpoint_export.h"
 #include "coordinator/level_records.h"
 #include "engine/candidates.h"
 #include "engine/tree_assembler.h"
@@ -36,15 +37,20 @@ Result<ResumePoint> Checkpoint::Start(const std::string& job_id, const std::stri
   ckpt_.set_training_fy(training_fy);
   const std::string ckpt_path = dir_.empty() ? "" : (std::filesystem::path(dir_) / "checkpoint.pb").string();
   if (!(resume && !ckpt_path.empty() && std::filesystem::exists(ckpt_path))) return at;
-  std::ifstream in(ckpt_path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
+  auto file_bytes = core::ReadFileText(ckpt_path);
+  if (!file_bytes.ok()) return file_bytes.status();
+  bool sealed = false;
+  auto bytes = UnsealCheckpoint(*file_bytes, ckpt_path, &sealed);
+  if (!bytes.ok()) return bytes.status();
   v1::Checkpoint saved;
-  if (!saved.ParseFromString(ss.str()) || saved.format() == 0)
+  if (!saved.ParseFromString(*bytes) || saved.format() == 0)
     return Status(ErrorCode::kDataLoss, ckpt_path + ": not a checkpoint");
-  if (saved.format() != kCheckpointFormat)
-    return Status(ErrorCode::kVersionMismatch, ckpt_path + ": checkpoint format " + std::to_string(saved.format()) +
-                                                   ", this coordinator reads " + std::to_string(kCheckpointFormat));
+  if (saved.format() != 2 && saved.format() != kCheckpointFormat)
+    return Status(ErrorCode::kVersionMismatch,
+                  ckpt_path + ": checkpoint format " + std::to_string(saved.format()) +
+                      ", this coordinator reads 2 and " + std::to_string(kCheckpointFormat));
+  if (saved.format() >= 3 && !sealed)
+    return Status(ErrorCode::kDataLoss, ckpt_path + ": no checksum at its end: the checkpoint is cut short");
   if (saved.config() != config_bytes || saved.job_id() != job_id)
     return Status(ErrorCode::kInvalidArgument, ckpt_path + ": checkpoint of another job");
   // The rest of the job must be trained by the build that trained its start, for the forest to
@@ -78,7 +84,8 @@ Result<ResumePoint> Checkpoint::Start(const std::string& job_id, const std::stri
 Status Checkpoint::Save(uint64_t epoch) {
   if (dir_.empty()) return Status::Ok();
   ckpt_.set_epoch(epoch);
-  const std::string bytes = ckpt_.SerializeAsString();
+  ckpt_.set_format(kCheckpointFormat);
+  const std::string bytes = SealCheckpoint(ckpt_.SerializeAsString());
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
   return core::WriteFileAtomic(

@@ -21,7 +21,9 @@ namespace poseforest::coordinator {
 
 /// 2: frontier entries, logged decisions and subtree nodes carry heap positions (the random
 /// draws are keyed by them since subtree hand-off); format 1 checkpoints cannot resume.
-inline constexpr uint32_t kCheckpointFormat = 2;
+/// 3 (30 Nov 2026): format 2 with the file's checksum trailer (SealCheckpoint), which a format-3
+/// file must have: a file cut short loses it. Format 2 files (no trailer) still resume.
+inline constexpr uint32_t kCheckpointFormat = 3;
 
 /// Where a resumed job goes on (Checkpoint::Start); nothing for a fresh one.
 struct ResumePoint {

@@ -10,6 +10,7 @@
 #include "poseforest/v1/checkpoint.pb.h"
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/body_parts.h"
+#include "runtime/core/crc32.h"
 #include "runtime/core/forest_format.h"
 
 namespace poseforest::coordinator {
@@ -96,28 +97,59 @@ class SafeReplay {
 };
 }  // namespace
 
+namespace {
+constexpr char kSealMagic[4] = {'P', 'F', 'C', 'K'};
+constexpr size_t kSealSize = 8;
+}  // namespace
+
+std::string SealCheckpoint(const std::string& message) {
+  const uint32_t crc = core::Crc32(reinterpret_cast<const uint8_t*>(message.data()), message.size());
+  std::string out = message;
+  out.append(kSealMagic, sizeof kSealMagic);
+  for (int i = 0; i < 4; ++i) out.push_back(char(uint8_t(crc >> (8 * i))));
+  return out;
+}
+
+Result<std::string> UnsealCheckpoint(const std::string& bytes, const std::string& file, bool* sealed) {
+  if (sealed) *sealed = false;
+  if (bytes.size() < kSealSize || bytes.compare(bytes.size() - kSealSize, 4, kSealMagic, 4) != 0)
+    return bytes;  // before the trailer, or cut short (the caller checks the format)
+  const size_t n = bytes.size() - kSealSize;
+  uint32_t stored = 0;
+  for (int i = 0; i < 4; ++i) stored |= uint32_t(uint8_t(bytes[n + 4 + size_t(i)])) << (8 * i);
+  if (core::Crc32(reinterpret_cast<const uint8_t*>(bytes.data()), n) != stored)
+    return Status(ErrorCode::kDataLoss, file + ": checksum mismatch: the checkpoint is corrupt");
+  if (sealed) *sealed = true;
+  return bytes.substr(0, n);
+}
+
 Result<CheckpointForest> ForestFromCheckpoint(const std::string& path, PartialTree partial) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const std::string file = fs::is_directory(path, ec) ? (fs::path(path) / "checkpoint.pb").string() : path;
   if (!fs::exists(file, ec))
     return Status(ErrorCode::kNotFound, file + ": no checkpoint (run the coordinator with --checkpoint DIR)");
-  std::ifstream in(file, std::ios::binary);
-  if (!in) return Status(ErrorCode::kIo, file + ": cannot open");
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) return Status(ErrorCode::kIo, file + ": read failed");
-  return ForestFromCheckpointBytes(bytes, file, partial);
+  auto bytes = core::ReadFileText(file);
+  if (!bytes.ok()) return bytes.status();
+  return ForestFromCheckpointBytes(*bytes, file, partial);
 }
 
-Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& bytes, const std::string& file,
+Result<CheckpointForest> ForestFromCheckpointBytes(const std::string& file_bytes, const std::string& file,
                                                    PartialTree partial) {
+  bool sealed = false;
+  auto message = UnsealCheckpoint(file_bytes, file, &sealed);
+  if (!message.ok()) return message.status();
+  const std::string& bytes = *message;
   v1::Checkpoint ck;
   if (bytes.empty() || !ck.ParseFromString(bytes))
     return Status(ErrorCode::kDataLoss, file + ": not a coordinator checkpoint (does not parse)");
-  // 2 adds heap positions and pending subtree nodes, which export does not need.
-  if (ck.format() != 1 && ck.format() != 2)
+  // 2 adds heap positions and pending subtree nodes, which export does not need; 3 the file's
+  // checksum, which a format-3 file cut short has lost.
+  if (ck.format() < 1 || ck.format() > 3)
     return Status(ErrorCode::kDataLoss,
-                  file + ": checkpoint format " + std::to_string(ck.format()) + ", expected 1 or 2");
+                  file + ": checkpoint format " + std::to_string(ck.format()) + ", expected 1 to 3");
+  if (ck.format() >= 3 && !sealed)
+    return Status(ErrorCode::kDataLoss, file + ": no checksum at its end: the checkpoint is cut short");
   v1::TrainerConfig config;
   if (!config.ParseFromString(ck.config()))
     return Status(ErrorCode::kDataLoss, file + ": the job config inside does not parse");

@@ -30,6 +30,16 @@ struct CheckpointForest {
   bool partial_included = false;
 };
 
+/// A checkpoint file's bytes: the serialized v1::Checkpoint, then 8 bytes "PFCK" + the CRC-32 of
+/// the message (little-endian), since 30 Nov 2026. Protobuf has no checksum of its own: a byte
+/// changed on disk could parse as another valid job state and export another forest.
+std::string SealCheckpoint(const std::string& message);
+/// The message of a checkpoint file: kDataLoss (naming `file`) when its checksum does not match.
+/// A file without the trailer is returned whole, unchecked, and `*sealed` (if given) says which:
+/// files of format 3 must have it (one cut short loses it), files before 30 Nov 2026 lack it.
+core::Result<std::string> UnsealCheckpoint(const std::string& bytes, const std::string& file,
+                                           bool* sealed = nullptr);
+
 /// Reads `path` (a checkpoint directory holding checkpoint.pb, or the file itself). Errors:
 /// kNotFound (no checkpoint), kDataLoss (not a checkpoint, inconsistent decisions, naming the
 /// tree and node), kInvalidArgument (nothing to export: no finished tree and no decided level).

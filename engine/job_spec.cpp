@@ -13,6 +13,7 @@
 #include "poseforest/v1/job.pb.h"
 #include "runtime/core/body_parts.h"
 #include "runtime/core/crc32.h"
+#include "runtime/core/forest_format.h"
 
 namespace poseforest::engine {
 
@@ -463,12 +464,9 @@ void ResolveJobPaths(const std::string& job_path, v1::TrainerConfig* config) {
 }
 
 Result<TrainParams> LoadJob(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status(ErrorCode::kIo, path + ": cannot open job config");
-  std::stringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return Status(ErrorCode::kIo, path + ": read failed");
-  auto config = ParseJobText(text.str(), path);
+  auto text = core::ReadFileText(path);
+  if (!text.ok()) return Status(text.status().code(), text.status().message() + " (the job config)");
+  auto config = ParseJobText(*text, path);
   if (!config.ok()) return config.status();
   ResolveJobPaths(path, &*config);
   return ParamsFromConfig(*config, path);

@@ -8,6 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "runtime/core/forest_format.h"
+
 namespace poseforest::engine {
 namespace {
 
@@ -47,11 +49,11 @@ Eigen::Vector3d RealJointLabel::Target() const {
 }
 
 core::Result<RealLabelSet> ReadRealLabels(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Status(ErrorCode::kIo, path + ": cannot read");
+  auto text = core::ReadFileText(path);
+  if (!text.ok()) return text.status();
   json doc;
   try {
-    doc = json::parse(in);
+    doc = json::parse(*text);
   } catch (const json::exception& e) {
     return Bad(path, std::string("not JSON: ") + e.what());
   }

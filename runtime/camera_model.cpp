@@ -7,6 +7,8 @@
 #include <numbers>
 #include <sstream>
 
+#include "runtime/core/forest_format.h"
+
 namespace poseforest::runtime {
 namespace {
 
@@ -117,8 +119,9 @@ core::Status WriteCameraModelFile(const std::string& path, const CameraModel& ca
 }
 
 core::Result<CameraModel> ReadCameraModelFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return core::Status(core::ErrorCode::kIo, path + ": cannot open");
+  auto text = core::ReadFileText(path);
+  if (!text.ok()) return text.status();
+  std::istringstream in(*text);
   std::string line;
   while (std::getline(in, line)) {
     if (line.empty() || line[0] == '#') continue;

@@ -1,8 +1,11 @@
 #include "apps/commands/cli.h"
 
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <limits>
 #include <sstream>
 
@@ -77,6 +80,22 @@ Command::Command(const std::string& name, const std::string& description)
   app_.set_help_flag("-h,--help", "this text");
   // A repeated option keeps its last value (scripts append overrides); defaults show in --help.
   app_.option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)->always_capture_default();
+}
+
+std::string CheckOutputFile(const std::string& option, const std::string& path,
+                            const std::vector<std::string>& inputs) {
+  namespace fs = std::filesystem;
+  const std::string what = option + " " + path + ": ";
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return what + "is a folder; give a file name";
+  const fs::path folder = fs::absolute(path, ec).parent_path();
+  if (!fs::is_directory(folder, ec)) return what + "folder " + folder.string() + " does not exist";
+  if (::access(folder.c_str(), W_OK) != 0) return what + "cannot write in folder " + folder.string();
+  if (fs::exists(path, ec))
+    for (const std::string& input : inputs)
+      if (fs::exists(input, ec) && fs::equivalent(path, input, ec))
+        return what + "the same file as the input " + input + " (writing it would destroy that input)";
+  return "";
 }
 
 int Command::UsageError(const std::string& message) const {

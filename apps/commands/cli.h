@@ -46,6 +46,13 @@ int RunCommand(Command& command, int argc, char** argv);
 /// The option names of `app` as written on a command line (--name, positionals by name).
 std::vector<std::string> OptionNames(const CLI::App& app);
 
+/// Checked before any work: `path` can be written as an output file. Its folder exists and is
+/// writable, it is not a folder, and it is not the same file as any of `inputs` (by another name
+/// too), which writing it would destroy. The message starts with `option` and the path:
+/// "--out job.textproto: the same file as the input job.textproto". Empty when it can.
+std::string CheckOutputFile(const std::string& option, const std::string& path,
+                            const std::vector<std::string>& inputs = {});
+
 // Checks for option values. Each error message starts "must be" and is printed after the
 // option's name: "--threads must be an integer in [1, 1024], got 'four'".
 

@@ -157,6 +157,9 @@ EvalCommand::EvalCommand()
 }
 
 int EvalCommand::Run() {
+  if (Given("png"))
+    if (const std::string bad = CheckOutputFile("--png", png_, {forest_, test_set_}); !bad.empty())
+      return UsageError(bad);
   if (Given("real-labels")) return RunRealLabels();
   if (Given("png-dir")) return UsageError("--png-dir needs --real-labels");
   if (!Given("forest") || !Given("test-set")) return UsageError("need --forest and --test-set (or --real-labels)");

@@ -2,6 +2,7 @@
 // distributed job (coordinator/checkpoint_export.h).
 
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 #include "apps/commands/cli.h"
@@ -38,6 +39,10 @@ class ExportCommand final : public Command {
 
 int ExportCommand::Run() {
   const std::string &dir = dir_, &out = out_, &partial = partial_;
+  if (const std::string bad =
+          CheckOutputFile("--out", out, {dir, (std::filesystem::path(dir) / "checkpoint.pb").string()});
+      !bad.empty())
+    return UsageError(bad);
   auto r = coordinator::ForestFromCheckpoint(
       dir, partial == "leaves" ? coordinator::PartialTree::kFinishAsLeaves : coordinator::PartialTree::kDrop);
   if (!r.ok()) {

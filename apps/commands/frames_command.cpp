@@ -29,7 +29,9 @@ class FramesCommand final : public Command {
                 "any). `poseforest frames --list-devices`: the device back ends built in and the devices they\n"
                 "see.") {
     app_.add_option("SOURCE", sources_, "depth frames (required unless --list-devices)");
-    app_.add_option("--out-dir", out_dir_, "write each frame as a 16-bit PNG in millimetres (DIR/<name>.png)")
+    app_.add_option("--out-dir", out_dir_,
+                    "write each frame as a 16-bit PNG in millimetres (DIR/frame-NNNNNN.png, numbered from 0\n"
+                    "in the order written, over all sources)")
         ->type_name("DIR");
     app_.add_option("--npy", npy_, "write all frames as one uint16 .npy [N, H, W] (mm)")->type_name("FILE");
     app_.add_option("--fakenect", fakenect_,
@@ -114,7 +116,8 @@ int FramesCommand::Run() {
                   f.camera.Describe().c_str());
     if (out_dir) {
       char stem[32];
-      std::snprintf(stem, sizeof stem, "frame-%06lld.png", static_cast<long long>(f.index));
+      // Numbered by this run, not by the frame's index in its source: two sources both start at 0.
+      std::snprintf(stem, sizeof stem, "frame-%06d.png", good - 1);
       const auto st = runtime::WriteDepthPng((fs::path(*out_dir) / stem).string(), f.depth);
       if (!st.ok()) std::fprintf(stderr, "poseforest frames: %s\n", st.ToString().c_str()), ++write_errors;
     }

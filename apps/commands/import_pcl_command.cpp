@@ -31,6 +31,7 @@ class ImportPclCommand final : public Command {
 };
 
 int ImportPclCommand::Run() {
+  if (const std::string bad = CheckOutputFile("--out", out_, trees_); !bad.empty()) return UsageError(bad);
   std::fprintf(stderr, "importing %zu PCL tree(s)...\n", trees_.size());
   auto forest = runtime::ImportPclTrees(trees_);
   if (!forest.ok()) {

@@ -11,12 +11,9 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
-
-#include <cctype>
-#include <cmath>
-#include <optional>
 
 #include "apps/commands/cli.h"
 #include "apps/commands/commands.h"
@@ -121,12 +118,13 @@ std::string FrameStem(const runtime::Frame& f) {
   return base + idx;
 }
 
-// Where an output of `frame` goes: DIR/<stem><suffix> with --out-dir DIR, else beside the file
-// it came from (the working folder for other sources).
+// Where an output of `frame` goes: DIR/<stem><suffix> with --out-dir DIR, else beside --out FILE
+// when given, else beside the file it came from (the working folder for other sources).
 std::string OutputPath(const runtime::Frame& frame, const std::optional<std::string>& out_dir,
-                       const std::string& suffix) {
+                       const std::string& suffix, const std::optional<std::string>& out = std::nullopt) {
   const std::string stem = FrameStem(frame);
   if (out_dir) return (fs::path(*out_dir) / (stem + suffix)).string();
+  if (out) return (fs::path(*out).parent_path() / (stem + suffix)).string();
   const bool file = frame.source.find(':') == std::string::npos && frame.source != "stdin";
   fs::path parent = file ? fs::path(frame.source.substr(0, frame.source.find('['))).parent_path() : fs::path(".");
   return (parent / (stem + suffix)).string();
@@ -196,7 +194,10 @@ InferCommand::InferCommand()
   app_.add_option("SOURCE", sources_, "depth frames (above)");
   app_.add_option("--source", source_, "one more SOURCE, read first")->type_name("SOURCE");
   app_.add_option("--forest", forest_, "forest file (.pff)")->type_name("FILE")->required();
-  app_.add_option("--out", out_, "colour part picture (one input only; default: <DEPTH>.parts.png)")->type_name("FILE");
+  app_.add_option("--out", out_,
+                  "colour part picture (one input only; default: <DEPTH>.parts.png); the other outputs\n"
+                  "(--labels, --joints, ...) go into its folder")
+      ->type_name("FILE");
   app_.add_option("--out-dir", out_dir_, "write <name>.parts.png (and other outputs) for each input into DIR")
       ->type_name("DIR");
   app_.add_flag("--labels", labels_, "also write the raw part ids as an 8-bit PNG (<name>.labels.png, 255 = background)");
@@ -233,6 +234,12 @@ std::optional<int> InferCommand::Prepare(Run_* run) {
   if (sources_.empty() && !source_) return UsageError("no depth image given");
   if (out_ && sources_.size() + (source_ ? 1 : 0) != 1)
     return UsageError("--out takes one input; use --out-dir for several");
+  if (out_) {
+    std::vector<std::string> inputs = sources_;
+    inputs.push_back(forest_);
+    if (source_) inputs.push_back(*source_);
+    if (const std::string bad = CheckOutputFile("--out", *out_, inputs); !bad.empty()) return UsageError(bad);
+  }
   auto source_options = FrameSourceFromFlags(frames_);
   if (!source_options.ok()) return UsageError(source_options.status().message());
   run->source_options = *source_options;
@@ -300,6 +307,7 @@ int InferCommand::Run() {
   if (!source.ok()) return Fail(source.status());
 
   int failures = 0, bad_frames = 0, frames_done = 0, segmented_frames = 0, bad_in_a_row = 0;
+  std::set<std::string> written;  // the part pictures written by this run (their canonical paths)
   runtime::Frame frame;
   while (true) {
     auto next = (*source)->Next(&frame);
@@ -339,6 +347,16 @@ int InferCommand::Run() {
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     ++frames_done;
     const std::string parts_png = out_ ? *out_ : OutputPath(frame, out_dir_, ".parts.png");
+    // Two inputs of one name (A/x.png and B/x.png into one --out-dir) would write the same
+    // outputs: the second is refused, not written over the first.
+    if (!written.insert(fs::weakly_canonical(parts_png).string()).second) {
+      std::fprintf(stderr,
+                   "poseforest infer: %s: its outputs (%s) would overwrite those of an earlier input of the "
+                   "same name; skipped (give the inputs other names or other --out-dir runs)\n",
+                   frame.source.c_str(), parts_png.c_str());
+      ++failures;
+      continue;
+    }
     runtime::FrameProposals proposals;
     double proposal_ms = 0;
     if (core::Status st = WriteOutputs(run, frame, *depth, parts_png, &proposals, &proposal_ms); !st.ok()) {
@@ -357,7 +375,7 @@ int InferCommand::Run() {
 core::Status InferCommand::WriteOutputs(Run_& run, const runtime::Frame& frame, const core::DepthImage& depth,
                                         const std::string& parts_png, runtime::FrameProposals* proposals,
                                         double* proposal_ms) {
-  auto out_path = [&](const std::string& suffix) { return OutputPath(frame, out_dir_, suffix); };
+  auto out_path = [&](const std::string& suffix) { return OutputPath(frame, out_dir_, suffix, out_); };
   const runtime::Classification& result = run.result;
   core::Status st = runtime::WriteLabelColourPng(parts_png, result.labels);
   if (st.ok() && labels_) st = runtime::WriteLabelPng(out_path(".labels.png"), result.labels);

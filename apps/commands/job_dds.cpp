@@ -6,6 +6,7 @@
 
 #include "engine/job_spec.h"
 #include "proto/dds/dds_flags.h"
+#include "runtime/core/forest_format.h"
 
 namespace poseforest::apps::commands {
 
@@ -15,11 +16,9 @@ using core::Status;
 /// resolved against the file's folder, as `poseforest train` does: kIo when the file cannot be
 /// read, the parser's error (naming the file) when it does not parse.
 core::Result<v1::TrainerConfig> ReadJobConfig(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Status(core::ErrorCode::kIo, "cannot read " + path);
-  std::stringstream text;
-  text << in.rdbuf();
-  auto config = engine::ParseJobText(text.str(), path);
+  auto text = core::ReadFileText(path);
+  if (!text.ok()) return text.status();
+  auto config = engine::ParseJobText(*text, path);
   if (!config.ok()) return config.status();
   engine::ResolveJobPaths(path, &*config);
   return config;

@@ -166,6 +166,8 @@ class LearnVotesCommand final : public Command {
 };
 
 int LearnVotesCommand::Run() {
+  // --out may equal --forest (votes added in place), never the job.
+  if (const std::string bad = CheckOutputFile("--out", out_, {job_}); !bad.empty()) return UsageError(bad);
   engine::VoteLearningOptions opt;
   auto job = engine::LoadJob(job_);
   if (!job.ok()) {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -355,6 +356,7 @@ struct LiveStats {
   runtime::StageTimes stage_sum;
   double output_ms_sum = 0;
   int64_t frames = 0, bad = 0, write_errors = 0, people_frames = 0;
+  int64_t jsonl_errors = 0;  ///< of write_errors, the JSON Lines output's
   int loops = 0;
   bool stopped_by_signal = false;
 };
@@ -363,9 +365,16 @@ struct LiveStats {
 void WriteFrame(const runtime::Frame& frame, const runtime::SkeletonFrame& result, const std::string& line,
                 LiveOutputs* out, LiveStats* stats) {
   if (out->jsonl) {
-    std::fputs(line.c_str(), out->jsonl);
-    std::fputc('\n', out->jsonl);
-    std::fflush(out->jsonl);
+    const bool ok = std::fputs(line.c_str(), out->jsonl) >= 0 && std::fputc('\n', out->jsonl) != EOF &&
+                    std::fflush(out->jsonl) == 0;
+    if (!ok) {
+      // A full disk, a closed pipe: said once (the summary counts every frame it cost).
+      if (stats->jsonl_errors++ == 0)
+        std::fprintf(stderr, "poseforest live: --jsonl: a write failed at frame %lld: %s\n",
+                     static_cast<long long>(frame.index), std::strerror(errno));
+      ++stats->write_errors;
+      std::clearerr(out->jsonl);
+    }
   }
 #ifdef POSEFOREST_HAS_SKELETON_DDS
   if (out->dds && !out->dds->Publish(frame.index, frame.timestamp_s, frame.source, result.skeletons)) {

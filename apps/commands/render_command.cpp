@@ -1,5 +1,6 @@
 // `poseforest render`: renders a synthetic labelled depth dataset (16-bit depth PNGs in mm, label
 // PNGs, joint JSON) and a preview montage like Fig. 2 of the paper (depth as grey + part colours).
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -8,8 +9,9 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <regex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -90,6 +92,23 @@ class RenderCommand final : public Command {
   CameraFlags camera_;
 };
 
+/// Frame files in `dir` (depth_, labels_, joints_, mask_ NNNNNN) that a render of `count` frames
+/// would not write over: "depth_000004.png and 3 more", or empty.
+std::string StaleFrameFiles(const std::string& dir, long count, bool writes_masks) {
+  static const std::regex kFrameFile(R"((depth|labels|joints|mask)_([0-9]{6,})\.(png|json))");
+  std::vector<std::string> stale;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    std::smatch m;
+    if (!std::regex_match(name, m, kFrameFile)) continue;
+    if (std::stol(m[2].str()) >= count || (m[1] == "mask" && !writes_masks)) stale.push_back(name);
+  }
+  if (stale.empty()) return "";
+  std::sort(stale.begin(), stale.end());
+  return stale.front() + (stale.size() > 1 ? " and " + std::to_string(stale.size() - 1) + " more" : "");
+}
+
 RenderCommand::RenderCommand()
     : Command("render",
               "Renders synthetic depth frames of people with ground-truth body parts and joints\n"
@@ -100,7 +119,9 @@ RenderCommand::RenderCommand()
               "  joints_%06d.json 16 joints per person, camera frame (metres) + pixel + visibility\n"
               "  mask_%06d.png    8-bit person id (0 = none, k = person k of the joints file), with\n"
               "                   --clutter, --occluders or --masks\n"
-              "  camera.txt       the camera model (name, size, fx fy cx cy in pixels)") {
+              "  camera.txt       the camera model (name, size, fx fy cx cy in pixels)\n"
+              "A folder that holds frames of an earlier render which this one would not replace (more\n"
+              "frames, or masks) is refused: they would mix with the new ones.") {
   app_.add_option("--out", out_, "output folder (created)")->type_name("DIR")->required();
   app_.add_option("--count", count_, "frames to render")->type_name("N")->check(IntIn(0, 100000000));
   app_.add_option("--seed", seed_, "stream seed; frame i is a pure function of (S, i)")
@@ -306,6 +327,12 @@ int RenderCommand::Run() {
     std::fprintf(stderr, "poseforest render: cannot create %s: %s\n", out_.c_str(), ec.message().c_str());
     return 1;
   }
+  // Files of an earlier render that this one would not write over (frames past --count, masks
+  // when it writes none) would mix with it: `eval` reads every frame of the folder.
+  if (const std::string stale = StaleFrameFiles(out_, count_, config.clutter.enabled() || masks_);
+      !stale.empty())
+    return UsageError(out_ + " holds files of an earlier render that this one would not replace (" + stale +
+                      "); they would mix with its frames: remove them or give another folder");
   config.rotation_range_deg = rotation_ == "360" ? 180.0 : 120.0;
   config.min_people = config.max_people = people_;
   config.noise.enabled = !no_noise_;

@@ -61,6 +61,7 @@ class TrainCommand final : public Command {
 };
 
 int TrainCommand::Run() {
+  if (const std::string bad = CheckOutputFile("--out", out_, {job_}); !bad.empty()) return UsageError(bad);
   auto params = engine::LoadJob(job_);
   if (!params.ok()) {
     std::fprintf(stderr, "poseforest train: %s\n", params.status().ToString().c_str());

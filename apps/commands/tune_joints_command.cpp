@@ -88,6 +88,9 @@ class TuneJointsCommand final : public Command {
 };
 
 int TuneJointsCommand::Run() {
+  // --out may equal --forest (tuned in place), never the validation job.
+  if (const std::string bad = CheckOutputFile("--out", out_, {validation_}); !bad.empty())
+    return UsageError(bad);
   const std::string &from = from_, &method = method_;
   const bool tune_ms = method != "fast", tune_fast = method != "meanshift";
   const std::string& set = validation_;

@@ -6,6 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "runtime/core/forest_format.h"
+
 namespace poseforest::renderer::assets {
 namespace {
 
@@ -521,16 +523,9 @@ Result<BvhClip> ParseBvh(std::string_view text, const std::string& source, const
 }
 
 Result<BvhClip> LoadBvh(const std::filesystem::path& path, const BvhOptions& options) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec))
-    return Status(ErrorCode::kNotFound, path.string() + ": no such file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status(ErrorCode::kIo, path.string() + ": cannot open for reading");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) return Status(ErrorCode::kIo, path.string() + ": read error");
-  const std::string text = ss.str();
-  return ParseBvh(text, path.string(), options);
+  auto text = core::ReadFileText(path.string());
+  if (!text.ok()) return text.status();
+  return ParseBvh(*text, path.string(), options);
 }
 
 }  // namespace poseforest::renderer::assets

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "runtime/core/crc32.h"
+#include "runtime/core/forest_format.h"
 #include "runtime/core/rng.h"
 
 namespace poseforest::renderer::assets {
@@ -344,14 +345,9 @@ core::Status SavePoseLibrary(const PoseLibrary& library, const std::filesystem::
 }
 
 Result<PoseLibrary> LoadPoseLibrary(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec))
-    return Status(ErrorCode::kNotFound, path.string() + ": no such file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status(ErrorCode::kIo, path.string() + ": cannot open for reading");
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) return Status(ErrorCode::kIo, path.string() + ": read error");
-  return ParsePoseLibrary(bytes, path.string());
+  auto bytes = core::ReadFileBytes(path.string());
+  if (!bytes.ok()) return bytes.status();
+  return ParsePoseLibrary(*bytes, path.string());
 }
 
 }  // namespace poseforest::renderer::assets

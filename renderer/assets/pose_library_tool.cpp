@@ -4,10 +4,13 @@
 //                            [--max-frames N] FILES/DIRS...
 //   poseforest-poselib info FILE
 //   poseforest-poselib bvh FILES/DIRS...      (per clip: family, frames, units, height)
+//   poseforest-poselib [SUBCOMMAND] --help
 
+#include <CLI/CLI.hpp>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
-#include <cstdlib>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -20,58 +23,19 @@ namespace {
 using namespace poseforest::renderer;
 using namespace poseforest::renderer::assets;
 
-int Usage() {
-  std::fprintf(
-      stderr,
-      "usage:\n"
-      "  poseforest-poselib build --out LIB.pfposes [--min-distance M] [--test-fraction F] [--seed S]\n"
-      "                           [--max-frames N] FILES/DIRS...\n"
-      "      retarget every BVH clip, keep poses >= M metres apart (default 0.05);\n"
-      "      with --test-fraction, only the training clips of the clip-level split are used;\n"
-      "      folders are searched below, linked folders included\n"
-      "  poseforest-poselib info LIB.pfposes\n"
-      "  poseforest-poselib bvh FILES/DIRS...\n");
-  return 2;
-}
-
-bool ParseNumber(const char* s, double* out) {
-  char* end = nullptr;
-  *out = std::strtod(s, &end);
-  return end && *end == '\0' && end != s;
-}
-
-int Build(int argc, char** argv) {
+struct BuildArgs {
   std::string out;
-  double min_distance = 0.05, test_fraction = 0, seed = 0, max_frames = -1;
+  double min_distance = 0.05, test_fraction = 0;
+  uint64_t seed = 0;
+  int max_frames = -1;  // -1: every frame
   std::vector<std::filesystem::path> inputs;
-  for (int i = 0; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&](double* v) {
-      if (i + 1 >= argc || !ParseNumber(argv[i + 1], v)) {
-        std::fprintf(stderr, "poseforest-poselib: %s needs a number\n", a.c_str());
-        return false;
-      }
-      ++i;
-      return true;
-    };
-    if (a == "--out" && i + 1 < argc) {
-      out = argv[++i];
-    } else if (a == "--min-distance") {
-      if (!value(&min_distance)) return 2;
-    } else if (a == "--test-fraction") {
-      if (!value(&test_fraction)) return 2;
-    } else if (a == "--seed") {
-      if (!value(&seed)) return 2;
-    } else if (a == "--max-frames") {
-      if (!value(&max_frames)) return 2;
-    } else if (a.rfind("--", 0) == 0) {
-      std::fprintf(stderr, "poseforest-poselib: unknown option %s\n", a.c_str());
-      return 2;
-    } else {
-      inputs.emplace_back(a);
-    }
-  }
-  if (out.empty() || inputs.empty()) return Usage();
+};
+
+int Build(const BuildArgs& args) {
+  const std::string& out = args.out;
+  const double min_distance = args.min_distance, test_fraction = args.test_fraction;
+  const uint64_t seed = args.seed;
+  const auto& inputs = args.inputs;
   auto files = CollectBvhFiles(inputs);
   if (!files.ok()) {
     std::fprintf(stderr, "poseforest-poselib: %s\n", files.status().ToString().c_str());
@@ -79,7 +43,7 @@ int Build(int argc, char** argv) {
   }
   std::vector<std::filesystem::path> use = *files;
   if (test_fraction > 0) {
-    const ClipSplit split = SplitClips(*files, test_fraction, uint64_t(seed));
+    const ClipSplit split = SplitClips(*files, test_fraction, seed);
     std::printf("clip split (seed %llu, test fraction %.3f): %zu train, %zu test clips\n",
                 (unsigned long long)seed, test_fraction, split.train.size(), split.test.size());
     use = split.train;
@@ -95,7 +59,7 @@ int Build(int argc, char** argv) {
   const auto t0 = std::chrono::steady_clock::now();
   BuildOptions opt;
   opt.min_distance_m = min_distance;
-  opt.max_frames_per_clip = int(max_frames);
+  opt.max_frames_per_clip = args.max_frames;
   opt.progress = [&](size_t c, size_t n, const std::filesystem::path& f, size_t frames, size_t total) {
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("[%3zu/%zu] %6.1fs %-50s %6zu frames (%zu total)\n", c + 1, n, s,
@@ -117,15 +81,15 @@ int Build(int argc, char** argv) {
   return 0;
 }
 
-int Info(int argc, char** argv) {
-  if (argc != 1) return Usage();
-  auto lib = LoadPoseLibrary(argv[0]);
+int Info(const std::string& file) {
+  auto lib = LoadPoseLibrary(file);
   if (!lib.ok()) {
     std::fprintf(stderr, "poseforest-poselib: %s\n", lib.status().ToString().c_str());
     return 1;
   }
-  std::printf("%s: format %u.%u, %zu poses from %zu clips, min distance %.3f m\n", argv[0], kPoseLibraryMajor,
-              kPoseLibraryMinor, lib->poses.size(), lib->clips.size(), lib->min_distance_m);
+  std::printf("%s: format %u.%u, %zu poses from %zu clips, min distance %.3f m\n", file.c_str(),
+              kPoseLibraryMajor, kPoseLibraryMinor, lib->poses.size(), lib->clips.size(),
+              lib->min_distance_m);
   std::vector<size_t> per_clip(lib->clips.size(), 0);
   for (const auto& s : lib->sources) ++per_clip[s.clip];
   for (size_t c = 0; c < lib->clips.size(); ++c)
@@ -133,9 +97,7 @@ int Info(int argc, char** argv) {
   return 0;
 }
 
-int Bvh(int argc, char** argv) {
-  std::vector<std::filesystem::path> inputs(argv, argv + argc);
-  if (inputs.empty()) return Usage();
+int Bvh(const std::vector<std::filesystem::path>& inputs) {
   auto files = CollectBvhFiles(inputs);
   if (!files.ok()) {
     std::fprintf(stderr, "poseforest-poselib: %s\n", files.status().ToString().c_str());
@@ -174,10 +136,53 @@ int Bvh(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) return Usage();
-  const std::string cmd = argv[1];
-  if (cmd == "build") return Build(argc - 2, argv + 2);
-  if (cmd == "info") return Info(argc - 2, argv + 2);
-  if (cmd == "bvh") return Bvh(argc - 2, argv + 2);
-  return Usage();
+  CLI::App app(
+      "poseforest-poselib: builds and inspects pose libraries (.pfposes: retargeted mocap poses that\n"
+      "`render --poses` and jobs' pose_library draw from)",
+      "poseforest-poselib");
+  app.require_subcommand(1);
+  app.set_help_all_flag("--help-all", "every subcommand's options");
+
+  BuildArgs build;
+  CLI::App* b = app.add_subcommand("build",
+                                   "retarget every BVH clip and keep poses at least --min-distance apart;\n"
+                                   "folders are searched below, linked folders included");
+  b->add_option("--out", build.out, "the library to write")->type_name("LIB.pfposes")->required();
+  b->add_option("--min-distance", build.min_distance, "keep poses at least this far apart, metres")
+      ->type_name("M")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10.0));
+  b->add_option("--test-fraction", build.test_fraction,
+                "split the clips (not frames) into train and test, this share of them test, and build from\n"
+                "the training clips only (0: every clip)")
+      ->type_name("F")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  b->add_option("--seed", build.seed, "seed of the clip split")->type_name("S")->capture_default_str();
+  b->add_option("--max-frames", build.max_frames, "frames read per clip (default: all)")
+      ->type_name("N")
+      ->check(CLI::Range(1, 100000000));
+  b->add_option("FILES/DIRS", build.inputs, "BVH clips, or folders of them")->required();
+
+  std::string info_file;
+  CLI::App* i = app.add_subcommand("info", "the library's format, poses and clips");
+  i->add_option("LIB.pfposes", info_file, "a pose library")->required();
+
+  std::vector<std::filesystem::path> bvh_inputs;
+  CLI::App* v = app.add_subcommand("bvh", "per clip: skeleton family, frames, units, height");
+  v->add_option("FILES/DIRS", bvh_inputs, "BVH clips, or folders of them")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "poseforest-poselib: %s (see --help)\n", e.what());
+    return 2;
+  }
+  if (b->parsed()) return Build(build);
+  if (i->parsed()) return Info(info_file);
+  return Bvh(bvh_inputs);
 }

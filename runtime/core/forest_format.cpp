@@ -1,5 +1,9 @@
 #include "runtime/core/forest_format.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <cerrno>
 #include <cmath>
@@ -7,9 +11,6 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
-
-#include <fcntl.h>
-#include <unistd.h>
 
 #include "runtime/core/crc32.h"
 #include "runtime/core/forest_layout.h"
@@ -229,6 +230,10 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
 }
 
 Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path) {
+  // A folder opens as a stream on Linux, and its size reads as huge: refuse it first.
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+    return Status(ErrorCode::kInvalidArgument, path + ": is a folder, not a file");
   std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) {
     const int err = errno;
@@ -242,6 +247,12 @@ Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path) {
   if (size > 0 && !in.read(reinterpret_cast<char*>(bytes.data()), size))
     return Status(ErrorCode::kIo, path + ": read failed");
   return bytes;
+}
+
+Result<std::string> ReadFileText(const std::string& path) {
+  auto bytes = ReadFileBytes(path);
+  if (!bytes.ok()) return bytes.status();
+  return std::string(bytes->begin(), bytes->end());
 }
 
 Status WriteFileAtomic(const std::string& path, std::span<const uint8_t> bytes) {

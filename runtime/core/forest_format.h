@@ -42,8 +42,11 @@ Result<Forest> LoadForest(const std::string& path);
 /// half-written forest under `path`.
 Status SaveForest(const Forest& forest, const std::string& path);
 
-/// Reads a whole file into memory (error names the path).
+/// Reads a whole file into memory (error names the path): kNotFound when it does not exist,
+/// kInvalidArgument when it is a folder, kIo when it cannot be read.
 Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path);
+/// ReadFileBytes as text.
+Result<std::string> ReadFileText(const std::string& path);
 /// Writes bytes to `path` atomically (temporary file in the same folder + rename).
 Status WriteFileAtomic(const std::string& path, std::span<const uint8_t> bytes);
 

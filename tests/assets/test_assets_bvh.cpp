@@ -157,6 +157,13 @@ TEST_CASE("missing file is NotFound", "[bvh]") {
   REQUIRE_FALSE(r.ok());
   CHECK(r.status().code() == ErrorCode::kNotFound);
   CHECK_THAT(r.status().message(), Catch::Contains("none.bvh"));
+  const auto dir = poseforest::testing::ScratchDir("bvh-folder");
+  std::filesystem::create_directories(dir / "clip.bvh");
+  auto folder = LoadBvh(dir / "clip.bvh");
+  REQUIRE_FALSE(folder.ok());
+  CHECK(folder.status().code() == ErrorCode::kInvalidArgument);
+  CHECK_THAT(folder.status().message(), Catch::Contains("clip.bvh: is a folder, not a file"));
+  std::filesystem::remove_all(dir);
 }
 
 TEST_CASE("a truncated copy of a real file errors with its name and the line", "[bvh][data]") {

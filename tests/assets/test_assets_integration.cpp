@@ -122,5 +122,22 @@ TEST_CASE("poseforest-poselib builds and describes a library", "[integration][da
   CHECK(split_rc != 0);
   CHECK_THAT(split_log, Catch::Contains("no clips left to build from: all 1 are test clips"));
   CHECK_FALSE(fs::exists(dir / "y.pfposes"));
+  // --help on the tool and a subcommand; values out of range: exit 2, naming the option.
+  for (const char* help : {"--help", "build --help", "info --help", "bvh --help"}) {
+    INFO(help);
+    CHECK(std::system((tool.string() + " " + help + " > /dev/null").c_str()) == 0);
+  }
+  for (const auto& [args, says] : std::vector<std::pair<std::string, std::string>>{
+           {"--min-distance -1", "--min-distance: Value -1 not in range"},
+           {"--max-frames 0", "--max-frames: Value 0 not in range"},
+           {"--test-fraction 2", "--test-fraction: Value 2 not in range"},
+           {"--bogus 3", "--bogus"}}) {
+    const auto [rc, log] =
+        run_build(args + " " + Mocap("cmu_iclone_cc3/002_01.bvh").string(), dir / "bad.txt");
+    INFO(args << ": " << log);
+    CHECK(WEXITSTATUS(rc) == 2);
+    CHECK_THAT(log, Catch::StartsWith("poseforest-poselib: ") && Catch::Contains(says));
+  }
+  CHECK_FALSE(fs::exists(dir / "y.pfposes"));
   fs::remove_all(dir);
 }

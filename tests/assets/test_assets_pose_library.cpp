@@ -122,6 +122,11 @@ TEST_CASE("pose library round trip through memory and file", "[pose_library]") {
   auto missing = LoadPoseLibrary(dir / "none.pfposes");
   REQUIRE_FALSE(missing.ok());
   CHECK(missing.status().code() == ErrorCode::kNotFound);
+  fs::create_directories(dir / "folder.pfposes");
+  auto folder = LoadPoseLibrary(dir / "folder.pfposes");
+  REQUIRE_FALSE(folder.ok());
+  CHECK(folder.status().code() == ErrorCode::kInvalidArgument);
+  CHECK_THAT(folder.status().message(), Catch::Contains("folder.pfposes: is a folder, not a file"));
   fs::remove_all(dir);
 }
 

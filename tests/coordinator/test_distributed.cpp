@@ -347,6 +347,22 @@ TEST_CASE("a checkpoint is resumed only by the build that wrote it", "[distribut
   o.stop_after_levels = -1;
   o.resume = true;
   {
+    // One byte changed on disk: refused by its checksum (it could parse as another job state),
+    // the file left as it is.
+    std::vector<uint8_t> corrupt = saved;
+    corrupt[corrupt.size() / 2] ^= 0x01;
+    REQUIRE(core::WriteFileAtomic((dir.path / "checkpoint.pb").string(), corrupt).ok());
+    DistCoordinator resumed(job.config, job.params, o);
+    auto r = resumed.Train();
+    REQUIRE(!r.ok());
+    INFO(r.status().ToString());
+    CHECK(r.status().code() == core::ErrorCode::kDataLoss);
+    CHECK(r.status().message().find("checkpoint.pb: checksum mismatch: the checkpoint is corrupt") !=
+          std::string::npos);
+    CHECK(ReadAll(dir.path / "checkpoint.pb") == corrupt);
+    REQUIRE(core::WriteFileAtomic((dir.path / "checkpoint.pb").string(), saved).ok());
+  }
+  {
     // The coordinator reads its build identity when it starts the job.
     ::setenv("POSEFOREST_BUILD_ID", "poseforest 9.9.9 fedcba987654 GNU-99 x86_64", 1);
     DistCoordinator other(job.config, job.params, o);

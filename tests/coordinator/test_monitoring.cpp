@@ -30,6 +30,7 @@
 #include "coordinator/monitoring/dashboard.h"
 #include "coordinator/monitoring/event_log.h"
 #include "coordinator/monitoring/status_model.h"
+#include "poseforest/v1/checkpoint.pb.h"
 #include "poseforest/v1/status.pb.h"
 #include "proto/http/http_server.h"
 #include "tests/coordinator/dist_test_util.h"
@@ -641,8 +642,29 @@ TEST_CASE("export: missing and corrupt checkpoints give errors, never a crash",
   auto usage = poseforest::testing::RunPoseforest("export --checkpoint " + (dir.path / "ckpt").string());
   CHECK(usage.exit_code == 2);
 
-  // Every truncation and a byte flip at every offset: an error or a valid forest, never a crash.
+  // Every truncation and a byte flip at every offset: an error, never a crash, and never another
+  // forest (format 3: the file's CRC-32 trailer). Before the trailer a flip could parse as
+  // another job state, and a cut at a field's end as a shorter one.
   const std::string file = "mutated.pb";
+  REQUIRE(good.size() > 8);
+  REQUIRE(good.compare(good.size() - 8, 4, "PFCK") == 0);
+  const std::string message = good.substr(0, good.size() - 8);
+  REQUIRE(poseforest::coordinator::SealCheckpoint(message) == good);
+  {
+    poseforest::v1::Checkpoint ck;
+    REQUIRE(ck.ParseFromString(message));
+    CHECK(ck.format() == 3);
+    ck.set_format(2);  // a checkpoint written before the trailer: read unchecked, the same forest
+    auto legacy = ForestFromCheckpointBytes(ck.SerializeAsString(), file, PartialTree::kFinishAsLeaves);
+    REQUIRE(legacy.ok());
+    auto sealed = ForestFromCheckpointBytes(good, file, PartialTree::kFinishAsLeaves);
+    REQUIRE(sealed.ok());
+    CHECK(core::SerializeForest(legacy->forest) == core::SerializeForest(sealed->forest));
+    // A format-3 message without its trailer: cut short.
+    auto cut = ForestFromCheckpointBytes(message, file, PartialTree::kFinishAsLeaves);
+    REQUIRE_FALSE(cut.ok());
+    CHECK(cut.status().message() == file + ": no checksum at its end: the checkpoint is cut short");
+  }
   int errors = 0, valid = 0;
   auto attempt = [&](const std::string& bytes) {
     auto r = ForestFromCheckpointBytes(bytes, file, PartialTree::kFinishAsLeaves);
@@ -656,13 +678,20 @@ TEST_CASE("export: missing and corrupt checkpoints give errors, never a crash",
   };
   google::protobuf::LogSilencer quiet;  // libprotobuf logs invalid UTF-8 in string fields
   for (size_t n = 0; n < good.size(); ++n) attempt(good.substr(0, n));
+  CHECK(valid == 0);
   for (size_t i = 0; i < good.size(); ++i) {
     std::string b = good;
     b[i] = char(b[i] ^ 0x5A);
     attempt(b);
   }
-  CHECK(errors > int(good.size()) / 2);
-  CHECK(valid > 0);  // flips in counts or thresholds still make a (different) forest
+  CHECK(valid == 0);
+  CHECK(errors == int(2 * good.size()));
+  // The checksum's own message names the file.
+  std::string flipped = good;
+  flipped[good.size() / 2] = char(flipped[good.size() / 2] ^ 1);
+  auto bad_crc = ForestFromCheckpointBytes(flipped, file, PartialTree::kFinishAsLeaves);
+  REQUIRE_FALSE(bad_crc.ok());
+  CHECK(bad_crc.status().message() == file + ": checksum mismatch: the checkpoint is corrupt");
 }
 
 TEST_CASE("HTTP server: bad requests, huge heads, slow clients and floods do not block it",

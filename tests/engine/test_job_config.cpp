@@ -107,8 +107,13 @@ TEST_CASE("LoadJob reads a file and names it in errors", "[training][config]") {
   CHECK(p->images_per_tree == 3);
   auto missing = engine::LoadJob((dir / "missing.textproto").string());
   REQUIRE_FALSE(missing.ok());
-  CHECK(missing.status().code() == core::ErrorCode::kIo);
+  CHECK(missing.status().code() == core::ErrorCode::kNotFound);
   CHECK_THAT(missing.status().message(), Catch::Contains("missing.textproto"));
+  // A folder given as the job (it used to read as an empty job: "images_per_tree: is required").
+  std::filesystem::create_directories(dir / "folder.textproto");
+  auto folder = engine::LoadJob((dir / "folder.textproto").string());
+  REQUIRE_FALSE(folder.ok());
+  CHECK_THAT(folder.status().message(), Catch::Contains("folder.textproto: is a folder, not a file"));
   std::ofstream(path) << "images_per_tree: 3\nthresholds_per_feature: 0\nsource { procedural { } }\n";
   auto bad = engine::LoadJob(path);
   REQUIRE_FALSE(bad.ok());

@@ -112,6 +112,13 @@ TEST_CASE("label files: round trip, and bad files refused naming the file", "[re
   for (int q = 0; q < core::kNumJoints; ++q)
     if (q != int(core::Joint::kLWrist)) CHECK_FALSE(back->frames[0].joints[size_t(q)].has_value());
 
+  // A folder given as the label file (it used to abort on an uncaught stream exception).
+  const auto folder = dir / "labels_folder.json";
+  fs::create_directories(folder);
+  auto in_folder = engine::ReadRealLabels(folder.string());
+  REQUIRE_FALSE(in_folder.ok());
+  CHECK_THAT(in_folder.status().message(), Catch::Contains(folder.string() + ": is a folder, not a file"));
+
   auto refused = [&](const std::string& text, const std::string& why) {
     std::ofstream(path) << text;
     auto r = engine::ReadRealLabels(path);
@@ -127,7 +134,8 @@ TEST_CASE("label files: round trip, and bad files refused naming the file", "[re
   refused("{" + cam + R"(, "frames": [{"file": "x", "joints": {"head": {"uv": [700, 10], "xyz_m": [0, 0, 1]}}}]})",
           "outside the 640x480 camera");
   refused("{" + cam + R"(, "frames": [{"file": "x", "joints": {"head": {"uv": [7, 10]}}}]})", "malformed");
-  CHECK(engine::ReadRealLabels((dir / "missing.json").string()).status().code() == core::ErrorCode::kIo);
+  CHECK(engine::ReadRealLabels((dir / "missing.json").string()).status().code() ==
+        core::ErrorCode::kNotFound);
 }
 
 TEST_CASE("the scorer on renders and their own joints: right, wrong, found but not tracked", "[real][egl]") {

@@ -1,13 +1,14 @@
 // `poseforest train` and `poseforest eval` end to end, as a user runs them.
 
+#include <unistd.h>
+
 #include <catch2/catch.hpp>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
-
-#include <unistd.h>
 
 #include "runtime/core/forest_format.h"
 #include "tests/support/dds_domain.h"
@@ -151,6 +152,20 @@ TEST_CASE("train and eval refuse bad input with clear messages", "[cli][training
   auto no_out = RunPoseforest("train " + job);
   CHECK(no_out.exit_code == 2);
   CHECK_THAT(no_out.output, Catch::Contains("--out"));
+  // An output that would destroy the job, or that cannot be written: refused before training.
+  const std::string good_job = (dir / "good.textproto").string();
+  const std::string job_text = "images_per_tree: 2 max_depth: 3 source { procedural { } }\n";
+  std::ofstream(good_job) << job_text;
+  auto over_job = RunPoseforest("train " + good_job + " --out " + good_job);
+  CHECK(over_job.exit_code == 2);
+  CHECK_THAT(over_job.output,
+             Catch::Contains("--out " + good_job + ": the same file as the input " + good_job));
+  std::ifstream kept(good_job);
+  CHECK(std::string(std::istreambuf_iterator<char>(kept), {}) == job_text);
+  auto no_folder = RunPoseforest("train " + good_job + " --out " + (dir / "none" / "f.pff").string());
+  CHECK(no_folder.exit_code == 2);
+  CHECK_THAT(no_folder.output, Catch::Contains("folder " + (dir / "none").string() + " does not exist"));
+  CHECK_THAT(no_folder.output, !Catch::Contains("training tree"));
   auto help = RunPoseforest("train --help");
   CHECK(help.exit_code == 0);
   CHECK_THAT(help.output, Catch::Contains("usage: poseforest train"));

@@ -68,6 +68,15 @@ TEST_CASE("poseforest render writes depth, labels, joints and a montage, indepen
   CHECK(json.find("\"L_shoulder\"") != std::string::npos);
   CHECK(json.find("\"visible\"") != std::string::npos);
   CHECK(fs::file_size(a / "montage.png") > 1000);
+  // Again into `a` with fewer frames: frames 3 and 4 would stay and mix with the new ones (eval
+  // reads every frame of the folder), so it is refused, the folder untouched; the same count
+  // (every file replaced) is not.
+  const std::string before = Slurp(a / "depth_000000.png");
+  CHECK(Run({"render", "--out", a.string(), "--count", "3", "--seed", "7"}) == 2);
+  CHECK(Slurp(a / "depth_000000.png") == before);
+  CHECK(fs::exists(a / "depth_000004.png"));
+  CHECK(Run({"render", "--out", a.string(), "--count", "5", "--seed", "42", "--people", "2"}) == 0);
+  CHECK(Slurp(a / "depth_000000.png") == before);
   fs::remove_all(a);
   fs::remove_all(b);
 }

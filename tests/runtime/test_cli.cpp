@@ -258,6 +258,53 @@ TEST_CASE("infer and inspect give clear errors on bad input and lose nothing", "
   CHECK_THAT(r4.output, Catch::Contains("short.raw"));
   CHECK(fs::exists(dir / "o" / "d.parts.png"));
 
+  // A folder given as the forest: named, exit 1 (it used to abort on std::bad_alloc).
+  fs::create_directories(dir / "folder.pff");
+  const std::string folder = (dir / "folder.pff").string();
+  for (const std::string& cmd : {"inspect " + folder, "infer --forest " + folder + " " + depth_path}) {
+    auto r = RunPoseforest(cmd);
+    INFO(cmd << "\n" << r.output);
+    CHECK(r.exit_code == 1);
+    CHECK_THAT(r.output, Catch::Contains(folder + ": is a folder, not a file"));
+  }
+
+  // --out naming an input (the forest, the depth frame) would destroy it: refused, both kept.
+  const auto forest_bytes = core::ReadFileBytes(good), depth_bytes = core::ReadFileBytes(depth_path);
+  for (const std::string& target : {good, depth_path}) {
+    auto r = RunPoseforest("infer --forest " + good + " --out " + target + " " + depth_path);
+    INFO(r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::Contains("--out " + target + ": the same file as the input " + target));
+  }
+  CHECK(core::ReadFileBytes(good).value() == forest_bytes.value());
+  CHECK(core::ReadFileBytes(depth_path).value() == depth_bytes.value());
+  // With --out, the other outputs go into its folder, not beside the input.
+  fs::create_directories(dir / "side");
+  auto side = RunPoseforest("infer --forest " + good + " --out " + (dir / "side" / "p.png").string() +
+                            " --labels --masks " + depth_path);
+  INFO(side.output);
+  CHECK(side.exit_code == 0);
+  CHECK(fs::exists(dir / "side" / "p.png"));
+  CHECK(fs::exists(dir / "side" / "d.labels.png"));
+  CHECK(fs::exists(dir / "side" / "d.mask.png"));
+  CHECK_FALSE(fs::exists(dir / "d.labels.png"));
+  // Two inputs of one name into one --out-dir: the second is refused, the first's output kept.
+  fs::create_directories(dir / "A");
+  fs::create_directories(dir / "B");
+  fs::copy_file(depth_path, dir / "A" / "x.png");
+  REQUIRE(runtime::WriteDepthPng((dir / "B" / "x.png").string(), testing::MakePersonDepth(2.0)).ok());
+  auto same_name = RunPoseforest("infer --forest " + good + " --out-dir " + (dir / "same").string() + " " +
+                                 (dir / "A" / "x.png").string() + " " + (dir / "B" / "x.png").string());
+  INFO(same_name.output);
+  CHECK(same_name.exit_code == 1);
+  CHECK_THAT(same_name.output, Catch::Contains((dir / "B" / "x.png").string() + ": its outputs") &&
+                                   Catch::Contains("would overwrite those of an earlier input"));
+  auto alone = RunPoseforest("infer --forest " + good + " --out " + (dir / "alone.png").string() + " " +
+                             (dir / "A" / "x.png").string());
+  REQUIRE(alone.exit_code == 0);
+  CHECK(core::ReadFileBytes((dir / "same" / "x.parts.png").string()).value() ==
+        core::ReadFileBytes((dir / "alone.png").string()).value());
+
   auto r5 = RunPoseforest("infer --forest " + good + " --threads many " + depth_path);
   CHECK(r5.exit_code == 2);
   CHECK_THAT(r5.output, Catch::Contains("--threads"));

@@ -89,6 +89,17 @@ TEST_CASE("missing file and unwritable folder give errors naming the path", "[fo
   const auto st = core::SaveForest(forest, "/nonexistent/dir/out.pff");
   CHECK(st.code() == ErrorCode::kIo);
   CHECK_THAT(st.message(), Catch::Contains("/nonexistent/dir/out.pff"));
+  // A folder where a file belongs (it opens as a stream on Linux, with a huge size): refused
+  // before any allocation, by every reader built on ReadFileBytes.
+  const auto dir = testing::ScratchDir("format-folder");
+  const std::string folder = (dir / "forest.pff").string();
+  std::filesystem::create_directories(folder);
+  for (const auto& status : {core::LoadForest(folder).status(), core::ReadFileBytes(folder).status(),
+                             core::ReadFileText(folder).status()}) {
+    CHECK(status.code() == ErrorCode::kInvalidArgument);
+    CHECK_THAT(status.message(), Catch::Equals(folder + ": is a folder, not a file"));
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST_CASE("truncation at every byte offset is an error, never a crash", "[format][hostile]") {

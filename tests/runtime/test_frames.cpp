@@ -342,6 +342,16 @@ TEST_CASE("infer reads raw frames from a pipe, names and counts a truncated one,
   INFO(custom.output);
   CHECK(custom.exit_code == 0);
   CHECK_THAT(custom.output, Catch::Contains("rescaled by 0.868"));
+  // `frames --out-dir` numbers the frames over all its sources: two sources each start at frame 0,
+  // and the second used to write over the first.
+  REQUIRE(runtime::WriteDepthPng((dir / "b.png").string(), testing::MakePersonDepth(3.0)).ok());
+  auto two = testing::RunPoseforest("frames --out-dir " + (dir / "fo").string() + " " +
+                                    (dir / "a.png").string() + " " + (dir / "b.png").string());
+  INFO(two.output);
+  CHECK(two.exit_code == 0);
+  CHECK(ListFiles(dir / "fo") == std::vector<std::string>{"frame-000000.png", "frame-000001.png"});
+  CHECK(*core::ReadFileBytes((dir / "fo" / "frame-000001.png").string()) ==
+        *core::ReadFileBytes((dir / "b.png").string()));
   // A source that does not exist, and a back end not built in.
   auto missing =
       testing::RunPoseforest("infer --forest " + (dir / "f.pff").string() + " " + (dir / "nope").string());

@@ -191,6 +191,15 @@ TEST_CASE(
   CHECK_THAT(CheckJsonl(dir, dir / "pcd.jsonl"), Catch::StartsWith("ok 3 3 "));
   // The same person over the replays keeps id 1.
   CHECK(Slurp(dir / "pcd.jsonl").find("\"id\":2") == std::string::npos);
+  // A JSON Lines output that cannot be written (a full disk): said once, counted, exit 1.
+  auto full = testing::RunPoseforest("live --forest " + forest +
+                                     " --threads 2 --loop --max-frames 3 --jsonl /dev/full " +
+                                     (testing::DataDir() / "real/pcl_person_pcd/person.pcd").string());
+  INFO(full.output);
+  CHECK(full.exit_code == 1);
+  CHECK_THAT(full.output, Catch::Contains("--jsonl: a write failed at frame 0: No space left on device") &&
+                              Catch::Contains("3 write errors"));
+  CHECK(full.output.find("a write failed at frame 1") == std::string::npos);
 }
 
 TEST_CASE("live --pixel-stride 2: valid records, other positions than every pixel, said on stderr",
