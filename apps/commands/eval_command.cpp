@@ -276,7 +276,18 @@ int EvalCommand::RunTestSet() {
     std::fprintf(stderr, "poseforest eval: --test-set %s\n", named.status().ToString().c_str());
     return named.status().code() == core::ErrorCode::kInvalidArgument ? 2 : 1;
   }
-  const int num_images = images_ ? *images_ : named->num_images;
+  int num_images = images_ ? *images_ : named->num_images;
+  if (named->source.kind == engine::SourceKind::kDataset) {
+    // A folder holds named->num_images frames: by default those from --first on; asking for more
+    // is refused here rather than failing on the first missing file.
+    const int64_t held = named->num_images, left = std::max<int64_t>(0, held - first_);
+    if (!images_) num_images = int(left);
+    if (num_images == 0 || num_images > left)
+      return UsageError("--test-set " + set + " holds " + std::to_string(held) + " frames; --first " +
+                        std::to_string(first_) + " --images " + std::to_string(num_images) + " asks for " +
+                        (num_images == 0 ? std::string("none")
+                                         : "frames up to " + std::to_string(first_ + num_images - 1)));
+  }
   auto forest = core::LoadForest(forest_);
   if (!forest.ok()) {
     std::fprintf(stderr, "poseforest eval: %s\n", forest.status().ToString().c_str());

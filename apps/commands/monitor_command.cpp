@@ -445,6 +445,13 @@ int MonitorCommand::MonitorUrl() {
       if (const auto parsed = pb::util::JsonStringToMessage(*body, &status, po); !parsed.ok())
         st = Status(core::ErrorCode::kDataLoss, url + "/status.json: not a JobStatus JSON object (" +
                                                     std::string(parsed.message()) + ")");
+      // Every coordinator's status names its job, its state and its trees: an object without them
+      // (`{}`) is some other server's, which retrying will not change.
+      else if (status.job_id().empty() || status.state().empty() || status.config().num_trees() <= 0)
+        st = Status(core::ErrorCode::kInvalidArgument,
+                    url +
+                        "/status.json: not a poseforest coordinator's status (no job_id, state or "
+                        "config.num_trees)");
     }
     if (!st.ok()) {
       // InvalidArgument: a bad URL, HTTP 401, a certificate not trusted: retrying will not help.

@@ -1,6 +1,7 @@
 // poseforest tune-joints: learns the joint-proposal parameters (b, lambda, zeta per joint) of a
 // forest on rendered validation frames and stores them in the forest, one set per proposal
 // method (format 1.2: JPAR for mean shift, JPFC for the fast clustering).
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <functional>
@@ -109,6 +110,12 @@ int TuneJointsCommand::Run() {
                            : "the job's training source (train clips, frames not trained on)");
   } else if (source.kind == engine::SourceKind::kDataset) {
     what = "folder " + source.folder;
+    // A folder holds named->num_images frames: the default --frames takes at most those, more
+    // asked for is refused here rather than failing on the first missing file.
+    if (!Given("frames")) frames_ = std::min(frames_, named->num_images);
+    if (frames_ > named->num_images || frames_ == 0)
+      return UsageError("--validation " + set + " holds " + std::to_string(named->num_images) +
+                        " frames; --frames " + std::to_string(frames_) + " asks for more");
   } else {
     std::fprintf(stderr, "poseforest tune-joints: --validation %s: procedural frames have no joints\n",
                  set.c_str());

@@ -473,3 +473,21 @@ TEST_CASE("the dashboard with a token in headless Chromium: loads its data; a wr
     CHECK(ElementText(dom, "error").find("HTTP 401") != std::string::npos);
   }
 }
+
+TEST_CASE("monitor refuses a server whose /status.json is not a coordinator's, at once",
+          "[distributed][monitoring]") {
+  // `{}` parses as an empty JobStatus: it used to print "tree 1/0 level 0/0" and, without --once,
+  // poll forever.
+  auto other = HttpServer::Start(HttpServerOptions{}, [](const HttpRequest&) -> HttpResponse {
+    return {200, "application/json", "{}"};
+  });
+  REQUIRE(other.ok());
+  const std::string bin = (poseforest::testing::BinDir() / "poseforest").string();
+  for (const std::string once : {" --once", ""}) {
+    auto r =
+        poseforest::testing::RunCommand("timeout 60 " + bin + " monitor --url " + (*other)->url() + once);
+    INFO(r.output);
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("/status.json: not a poseforest coordinator's status") != std::string::npos);
+  }
+}

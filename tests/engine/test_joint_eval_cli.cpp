@@ -199,6 +199,23 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
   INFO(folder.output);
   CHECK(folder.exit_code == 0);
   CHECK_THAT(folder.output, Catch::Contains("1 frames, 1 people"));
+  // More frames than the folder holds, asked of eval or tune-joints: refused at once, naming the
+  // count (it used to fail on the first missing file); tune-joints' default takes what there is.
+  const std::string frames = (dir / "frames").string();
+  for (const std::string& args : {"eval --forest " + tuned + " --test-set " + frames + " --images 5",
+                                  "eval --forest " + tuned + " --test-set " + frames + " --first 1",
+                                  "tune-joints --forest " + tuned + " --validation " + frames +
+                                      " --frames 5 --out " + (dir / "t.pff").string()}) {
+    auto more = RunPoseforest(args);
+    INFO(args << "\n" << more.output);
+    CHECK(more.exit_code == 2);
+    CHECK_THAT(more.output, Catch::Contains(frames + " holds 1 frames"));
+  }
+  auto all = RunPoseforest("tune-joints --forest " + tuned + " --validation " + frames +
+                           " --method meanshift --out " + (dir / "t.pff").string());
+  INFO(all.output);
+  CHECK(all.exit_code == 0);
+  CHECK_THAT(all.output, Catch::Contains("validation: 1 frames, folder " + frames));
 }
 
 TEST_CASE("tune-joints and eval refuse bad input with clear messages", "[cli][joints]") {
