@@ -14,10 +14,9 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
 
 core::Result<std::unique_ptr<SkeletonPipeline>> SkeletonPipeline::Create(
     const core::Forest& forest, const SkeletonPipelineOptions& options) {
-  if (forest.num_parts != core::kNumParts || forest.part_names != core::Forest::DefaultPartNames())
+  if (const std::string differs = forest.TaxonomyDifference(); !differs.empty())
     return core::Status(core::ErrorCode::kInvalidArgument,
-                        "skeletons need a forest with the paper's 31-part taxonomy (this one has " +
-                            std::to_string(forest.num_parts) + " parts)");
+                        "skeletons need a forest with the paper's 31-part taxonomy (" + differs + ")");
   return std::unique_ptr<SkeletonPipeline>(new SkeletonPipeline(forest, options));
 }
 

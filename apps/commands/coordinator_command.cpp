@@ -112,6 +112,7 @@ class CoordinatorCommand final : public Command {
   std::optional<int> Prepare(coordinator::CoordinatorOptions* opt);
   /// --check-config: everything a start would read, without joining DDS or opening the HTTP port.
   int CheckConfig(const coordinator::CoordinatorOptions& opt) const;
+  int CheckStatePaths() const;
   /// The token of --http-token-file, and that the HTTP files go with an HTTP server; 0 to go on.
   int CheckHttpFiles(std::string* token) const;
   /// The level's lines on stdout and the --status-file.
@@ -395,9 +396,31 @@ int CoordinatorCommand::CheckHttpFiles(std::string* token) const {
   return 0;
 }
 
+// The checkpoint folder and the status file's folder, checked before the job starts (and by
+// --check-config): found wrong after the first level they would stop the job.
+int CoordinatorCommand::CheckStatePaths() const {
+  if (!checkpoint_.empty()) {
+    if (std::error_code ec;
+        std::filesystem::exists(checkpoint_, ec) && !std::filesystem::is_directory(checkpoint_, ec)) {
+      std::fprintf(stderr, "coordinator: --checkpoint %s: a file, not a folder\n", checkpoint_.c_str());
+      return 2;
+    }
+  }
+  if (!status_file_.empty()) {
+    const auto status_dir = std::filesystem::absolute(status_file_).parent_path();
+    if (std::error_code ec; !std::filesystem::is_directory(status_dir, ec)) {
+      std::fprintf(stderr, "coordinator: --status-file %s: folder %s does not exist\n", status_file_.c_str(),
+                   status_dir.c_str());
+      return 2;
+    }
+  }
+  return 0;
+}
+
 int CoordinatorCommand::Run() {
   coordinator::CoordinatorOptions opt;
   if (auto rc = Prepare(&opt)) return *rc;
+  if (int rc = CheckStatePaths(); rc != 0) return rc;
   if (check_config_) return CheckConfig(opt);
   if (!dds_flags_.resolved.empty()) {  // resolved once: a name that moves later is not followed
     std::printf("DDS host names resolved at start-up: %s\n", dds_flags_.ResolvedText().c_str());

@@ -258,10 +258,9 @@ std::optional<int> InferCommand::Prepare(Run_* run) {
   if (!quiet_)
     std::printf("forest %s: %zu trees, depth %u, %zu nodes, %d parts\n", forest_.c_str(), f.trees.size(),
                 f.max_depth(), f.total_nodes(), f.num_parts);
-  if (joints_ && (f.num_parts != core::kNumParts || f.part_names != core::Forest::DefaultPartNames()))
+  if (const std::string differs = f.TaxonomyDifference(); joints_ && !differs.empty())
     return Fail({core::ErrorCode::kInvalidArgument,
-                 forest_ + ": --joints needs a forest with the paper's 31-part taxonomy (this one has " +
-                     std::to_string(f.num_parts) + " parts)"});
+                 forest_ + ": --joints needs a forest with the paper's 31-part taxonomy (" + differs + ")"});
   // The calibration applies to the method it was measured with.
   run->calibration =
       f.confidence_calibration &&

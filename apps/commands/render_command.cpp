@@ -123,7 +123,7 @@ RenderCommand::RenderCommand()
               "A folder that holds frames of an earlier render which this one would not replace (more\n"
               "frames, or masks) is refused: they would mix with the new ones.") {
   app_.add_option("--out", out_, "output folder (created)")->type_name("DIR")->required();
-  app_.add_option("--count", count_, "frames to render")->type_name("N")->check(IntIn(0, 100000000));
+  app_.add_option("--count", count_, "frames to render")->type_name("N")->check(IntIn(1, 100000000));
   app_.add_option("--seed", seed_, "stream seed; frame i is a pure function of (S, i)")
       ->type_name("S")
       ->check(NonNegativeInt());

@@ -264,11 +264,10 @@ pf_status pf_propose_joints(const pf_forest* forest, const uint16_t* depth_mm, i
     if (labels && labels_len < pixels)
       return TooSmall("pf_propose_joints", "labels", labels_len, pixels, "bytes");
     if (!forest->has_joints)
-      return Fail(
-          Status(core::ErrorCode::kInvalidArgument,
-                 forest->source +
-                     ": joint proposals need a forest with the paper's 31-part taxonomy (this one has " +
-                     std::to_string(forest->forest.num_parts) + " parts)"));
+      return Fail(Status(core::ErrorCode::kInvalidArgument,
+                         forest->source +
+                             ": joint proposals need a forest with the paper's 31-part taxonomy (" +
+                             forest->forest.TaxonomyDifference() + ")"));
 
     // As `poseforest infer --joints` (infer_command.cpp): the forest's parameters for the method.
     rt::ProposalOptions options;
@@ -312,9 +311,8 @@ pf_status pf_skeleton_stream_create(const pf_forest* forest, int num_threads, pf
     if (num_threads < 0) return Fail(PF_INVALID_ARGUMENT, "pf_skeleton_stream_create: num_threads < 0");
     if (!forest->has_joints)
       return Fail(Status(ErrorCode::kInvalidArgument,
-                         forest->source +
-                             ": skeletons need a forest with the paper's 31-part taxonomy (this one has " +
-                             std::to_string(forest->forest.num_parts) + " parts)"));
+                         forest->source + ": skeletons need a forest with the paper's 31-part taxonomy (" +
+                             forest->forest.TaxonomyDifference() + ")"));
     rt::SkeletonPipelineOptions options;  // `poseforest live`'s defaults
     options.num_threads = num_threads;
     auto pipeline = rt::SkeletonPipeline::Create(forest->forest, options);

@@ -24,6 +24,16 @@ std::vector<std::string> Forest::DefaultPartNames() {
   return names;
 }
 
+std::string Forest::TaxonomyDifference() const {
+  if (num_parts != kNumParts) return "this one has " + std::to_string(num_parts) + " parts";
+  const std::vector<std::string> paper = DefaultPartNames();
+  for (size_t i = 0; i < paper.size(); ++i)
+    if (i >= part_names.size() || part_names[i] != paper[i])
+      return "its part " + std::to_string(i) + " is '" + (i < part_names.size() ? part_names[i] : "") +
+             "', the paper's '" + paper[i] + "'";
+  return "";
+}
+
 void QuantizeDistribution(const float* p, int n, uint8_t* out) {
   double sum = 0;
   for (int i = 0; i < n; ++i) sum += (std::isfinite(p[i]) && p[i] > 0) ? double(p[i]) : 0.0;

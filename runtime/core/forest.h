@@ -138,6 +138,9 @@ struct Forest {
   }
   /// Part names of the paper's 31-part taxonomy.
   static std::vector<std::string> DefaultPartNames();
+  /// How this forest's parts differ from the paper's 31-part taxonomy, which joints need: empty
+  /// when they do not; "this one has 5 parts"; "its part 3 is 'X', the paper's 'RU_head'".
+  std::string TaxonomyDifference() const;
 };
 
 /// Quantizes a probability vector (non-negative, any positive sum) to uint8 numerators summing

@@ -628,6 +628,17 @@ TEST_CASE("deploy: DDS flag errors name the file, the profile, the credential or
   INFO(text4);
   CHECK(rc4 == 2);
   CHECK(text4.find("folder /nonexistent-dir does not exist") != std::string::npos);
+  // A checkpoint "folder" that is a file, and a status file in no folder: found before the job
+  // starts (they used to pass --check-config, then stop the job after its first level).
+  auto [rc6, text6] = coordinator({"--checkpoint", job});
+  INFO(text6);
+  CHECK(rc6 == 2);
+  CHECK(text6.find("--checkpoint " + job + ": a file, not a folder") != std::string::npos);
+  auto [rc7, text7] = coordinator({"--status-file", "/nonexistent-dir/s.json"});
+  INFO(text7);
+  CHECK(rc7 == 2);
+  CHECK(text7.find("--status-file /nonexistent-dir/s.json: folder /nonexistent-dir does not exist") !=
+        std::string::npos);
   // monitor --domain takes the same flags (and the same checks).
   auto [rc5, text5] =
       Run({Program(), "monitor", "--domain", "3", "--dds-xml", xml, "--dds-profile", "poseforest_nope"});

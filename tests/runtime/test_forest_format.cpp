@@ -102,6 +102,18 @@ TEST_CASE("missing file and unwritable folder give errors naming the path", "[fo
   std::filesystem::remove_all(dir);
 }
 
+TEST_CASE("TaxonomyDifference says how a forest's parts differ from the paper's 31", "[format]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(1));
+  forest.num_parts = core::kNumParts;
+  forest.part_names = core::Forest::DefaultPartNames();
+  CHECK(forest.TaxonomyDifference().empty());
+  forest.part_names[3] = "X";  // 31 parts, one renamed: the count alone would not tell
+  CHECK(forest.TaxonomyDifference() ==
+        "its part 3 is 'X', the paper's '" + core::Forest::DefaultPartNames()[3] + "'");
+  forest.num_parts = 5;
+  CHECK(forest.TaxonomyDifference() == "this one has 5 parts");
+}
+
 TEST_CASE("truncation at every byte offset is an error, never a crash", "[format][hostile]") {
   const auto bytes = core::SerializeForest(testing::MakeRandomForest(SmallSpec(11)));
   for (size_t len = 0; len < bytes.size(); ++len) {
