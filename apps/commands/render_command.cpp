@@ -95,7 +95,7 @@ class RenderCommand final : public Command {
 /// Frame files in `dir` (depth_, labels_, joints_, mask_ NNNNNN) that a render of `count` frames
 /// would not write over: "depth_000004.png and 3 more", or empty.
 std::string StaleFrameFiles(const std::string& dir, long count, bool writes_masks) {
-  static const std::regex kFrameFile(R"((depth|labels|joints|mask)_([0-9]{6,})\.(png|json))");
+  static const std::regex kFrameFile(R"((depth|labels|joints|mask)_([0-9]{6,9})\.(png|json))");
   std::vector<std::string> stale;
   std::error_code ec;
   for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
