@@ -293,9 +293,8 @@ std::optional<int> CoordinatorCommand::Prepare(coordinator::CoordinatorOptions* 
 }
 
 int CoordinatorCommand::CheckConfig(const coordinator::CoordinatorOptions& opt) const {
-  const std::filesystem::path out_dir = std::filesystem::absolute(out_).parent_path();
-  if (std::error_code ec; !std::filesystem::is_directory(out_dir, ec)) {
-    std::fprintf(stderr, "coordinator: --out %s: folder %s does not exist\n", out_.c_str(), out_dir.c_str());
+  if (const std::string bad = CheckOutputFile("--out", out_, {job_path_}); !bad.empty()) {
+    std::fprintf(stderr, "coordinator: %s\n", bad.c_str());
     return 2;
   }
   if (http_ != "off") {
@@ -318,10 +317,8 @@ int CoordinatorCommand::CheckConfig(const coordinator::CoordinatorOptions& opt) 
     }
   }
   if (Given("event-log")) {
-    const auto log_dir = std::filesystem::absolute(event_log_).parent_path();
-    if (std::error_code ec; !std::filesystem::is_directory(log_dir, ec)) {
-      std::fprintf(stderr, "coordinator: --event-log %s: folder %s does not exist\n", event_log_.c_str(),
-                   log_dir.c_str());
+    if (const std::string bad = CheckOutputFile("--event-log", event_log_); !bad.empty()) {
+      std::fprintf(stderr, "coordinator: %s\n", bad.c_str());
       return 2;
     }
   }
@@ -406,14 +403,11 @@ int CoordinatorCommand::CheckStatePaths() const {
       return 2;
     }
   }
-  if (!status_file_.empty()) {
-    const auto status_dir = std::filesystem::absolute(status_file_).parent_path();
-    if (std::error_code ec; !std::filesystem::is_directory(status_dir, ec)) {
-      std::fprintf(stderr, "coordinator: --status-file %s: folder %s does not exist\n", status_file_.c_str(),
-                   status_dir.c_str());
+  if (!status_file_.empty())
+    if (const std::string bad = CheckOutputFile("--status-file", status_file_); !bad.empty()) {
+      std::fprintf(stderr, "coordinator: %s\n", bad.c_str());
       return 2;
     }
-  }
   return 0;
 }
 
