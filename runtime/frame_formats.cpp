@@ -331,9 +331,34 @@ uint16_t PcdMetresToMm(float z) {
   return (std::isfinite(z) && z > 0 && z < 65.535f) ? uint16_t(std::lround(double(z) * 1000.0)) : 0;
 }
 
-/// DATA ascii: the zi-th field of every point.
-Status ReadPcdAscii(std::span<const uint8_t> b, const PcdHeader& hd, int zi, const std::string& path,
-                    core::DepthImage& depth) {
+/// Where a point's x, y and z are: field numbers (x, y: -1 when absent or not float32) and byte
+/// offsets within a point (binary).
+struct PcdFieldIndex {
+  int x = -1, y = -1, z = -1;
+  int x_offset = 0, y_offset = 0, z_offset = 0;
+};
+
+/// Sums for fitting the cloud's pinhole projection, u = fx x/z + cx and v = fy y/z + cy, by least
+/// squares over the points with finite x, y and z > 0 (an organized cloud's point i is pixel
+/// (i % width, i / width)).
+struct PcdXy {
+  int width = 1;
+  // Per axis: n, sum a, sum a^2, sum p, sum p^2, sum a p (a = x/z or y/z; p = u or v).
+  double n = 0, sa[2] = {0, 0}, saa[2] = {0, 0}, sp[2] = {0, 0}, spp[2] = {0, 0}, sap[2] = {0, 0};
+  void Set(size_t i, float x, float y, float z) {
+    if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z) && z > 0)) return;
+    const double a[2] = {double(x) / double(z), double(y) / double(z)};
+    const double p[2] = {double(i % size_t(width)), double(i / size_t(width))};
+    n += 1;
+    for (int k = 0; k < 2; ++k) {
+      sa[k] += a[k], saa[k] += a[k] * a[k], sp[k] += p[k], spp[k] += p[k] * p[k], sap[k] += a[k] * p[k];
+    }
+  }
+};
+
+/// DATA ascii: every point's fields in order.
+Status ReadPcdAscii(std::span<const uint8_t> b, const PcdHeader& hd, const PcdFieldIndex& fi,
+                    const std::string& path, core::DepthImage& depth, PcdXy& xy) {
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
   const std::vector<std::string>& fields = hd.fields;
   const std::vector<int>& counts = hd.counts;
@@ -343,7 +368,7 @@ Status ReadPcdAscii(std::span<const uint8_t> b, const PcdHeader& hd, int zi, con
   std::string text(reinterpret_cast<const char*>(b.data() + pos), b.size() - pos);
   size_t p = 0;
   for (size_t i = 0; i < n; ++i) {
-    float z = 0;
+    float z = 0, x = std::nanf(""), y = std::nanf("");
     for (size_t f = 0; f < fields.size(); ++f) {
       for (int c = 0; c < counts[f]; ++c) {
         while (p < text.size() && (text[p] == ' ' || text[p] == '\n' || text[p] == '\r')) ++p;
@@ -356,17 +381,20 @@ Status ReadPcdAscii(std::span<const uint8_t> b, const PcdHeader& hd, int zi, con
           return bad("PCD ascii value at point " + std::to_string(i) + " is not a number");
         }
         p = size_t(e - text.c_str());
-        if (int(f) == zi) z = v;
+        if (int(f) == fi.z) z = v;
+        if (int(f) == fi.x) x = v;
+        if (int(f) == fi.y) y = v;
       }
     }
     depth.pixels[i] = to_mm(z);
+    xy.Set(i, x, y, z);
   }
   return Status::Ok();
 }
 
 /// DATA binary: points of point_size bytes, z at z_offset in each.
-Status ReadPcdBinary(std::span<const uint8_t> b, const PcdHeader& hd, int point_size, int z_offset,
-                     const std::string& path, core::DepthImage& depth) {
+Status ReadPcdBinary(std::span<const uint8_t> b, const PcdHeader& hd, int point_size, const PcdFieldIndex& fi,
+                     const std::string& path, core::DepthImage& depth, PcdXy& xy) {
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
   const size_t pos = hd.pos;
   const size_t n = depth.pixels.size();
@@ -375,16 +403,20 @@ Status ReadPcdBinary(std::span<const uint8_t> b, const PcdHeader& hd, int point_
     return bad("PCD binary data holds " + std::to_string(b.size() - pos) + " bytes, " +
                std::to_string(n * size_t(point_size)) + " expected (truncated)");
   for (size_t i = 0; i < n; ++i) {
-    float z;
-    std::memcpy(&z, b.data() + pos + i * size_t(point_size) + size_t(z_offset), 4);
+    const uint8_t* point = b.data() + pos + i * size_t(point_size);
+    float z, x = std::nanf(""), y = std::nanf("");
+    std::memcpy(&z, point + size_t(fi.z_offset), 4);
+    if (fi.x >= 0) std::memcpy(&x, point + size_t(fi.x_offset), 4);
+    if (fi.y >= 0) std::memcpy(&y, point + size_t(fi.y_offset), 4);
     depth.pixels[i] = to_mm(z);
+    xy.Set(i, x, y, z);
   }
   return Status::Ok();
 }
 
 /// DATA binary_compressed: LZF, fields one after the other.
-Status ReadPcdCompressed(std::span<const uint8_t> b, const PcdHeader& hd, int zi, int point_size,
-                         const std::string& path, core::DepthImage& depth) {
+Status ReadPcdCompressed(std::span<const uint8_t> b, const PcdHeader& hd, const PcdFieldIndex& fi,
+                         int point_size, const std::string& path, core::DepthImage& depth, PcdXy& xy) {
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
   const std::vector<int>& sizes = hd.sizes;
   const std::vector<int>& counts = hd.counts;
@@ -402,19 +434,27 @@ Status ReadPcdCompressed(std::span<const uint8_t> b, const PcdHeader& hd, int zi
   if (!LzfDecompress(b.data() + pos + 8, csize, raw.data(), raw.size()))
     return bad("PCD LZF data is corrupt");
   // binary_compressed stores the fields one after the other (all x, then all y, ...).
-  size_t field_start = 0;
-  for (int f = 0; f < zi; ++f) field_start += size_t(sizes[size_t(f)]) * size_t(counts[size_t(f)]) * n;
+  auto field_start = [&](int field) {
+    size_t start = 0;
+    for (int f = 0; f < field; ++f) start += size_t(sizes[size_t(f)]) * size_t(counts[size_t(f)]) * n;
+    return start;
+  };
+  const size_t z_start = field_start(fi.z);
+  const size_t x_start = fi.x >= 0 ? field_start(fi.x) : 0, y_start = fi.y >= 0 ? field_start(fi.y) : 0;
   for (size_t i = 0; i < n; ++i) {
-    float z;
-    std::memcpy(&z, raw.data() + field_start + i * 4, 4);
+    float z, x = std::nanf(""), y = std::nanf("");
+    std::memcpy(&z, raw.data() + z_start + i * 4, 4);
+    if (fi.x >= 0) std::memcpy(&x, raw.data() + x_start + i * 4, 4);
+    if (fi.y >= 0) std::memcpy(&y, raw.data() + y_start + i * 4, 4);
     depth.pixels[i] = to_mm(z);
+    xy.Set(i, x, y, z);
   }
   return Status::Ok();
 }
 
 }  // namespace
 
-Result<core::DepthImage> ParsePcdDepth(std::span<const uint8_t> b, const std::string& path) {
+Result<PcdFrame> ParsePcdFrame(std::span<const uint8_t> b, const std::string& path) {
   auto bad = [&](const std::string& what) { return Status(ErrorCode::kDataLoss, path + ": " + what); };
   auto header = ReadPcdHeader(b, path);
   if (!header.ok()) return header.status();
@@ -435,30 +475,68 @@ Result<core::DepthImage> ParsePcdDepth(std::span<const uint8_t> b, const std::st
                       "; only organized clouds (HEIGHT > 1, one point per pixel) are depth frames");
   if (points >= 0 && points != width * height)
     return bad("PCD POINTS " + std::to_string(points) + " != WIDTH x HEIGHT");
-  int zi = -1, point_size = 0, z_offset = 0;
+  PcdFieldIndex fi;
+  int point_size = 0;
   for (size_t i = 0; i < fields.size(); ++i) {
-    if (fields[i] == "z") zi = int(i), z_offset = point_size;
+    const bool float32 = sizes[i] == 4 && types[i] == 'F' && counts[i] == 1;
+    if (fields[i] == "z") fi.z = int(i), fi.z_offset = point_size;
+    if (fields[i] == "x" && float32) fi.x = int(i), fi.x_offset = point_size;
+    if (fields[i] == "y" && float32) fi.y = int(i), fi.y_offset = point_size;
     point_size += sizes[i] * counts[i];
   }
+  const int zi = fi.z;
   if (zi < 0 || sizes[size_t(zi)] != 4 || types[size_t(zi)] != 'F' || counts[size_t(zi)] != 1)
     return Status(ErrorCode::kInvalidArgument,
                   path + ": PCD has no float32 'z' field (metres) to read depth from");
-  core::DepthImage depth{int(width), int(height)};
+  PcdFrame frame;
+  frame.depth = core::DepthImage{int(width), int(height)};
+  PcdXy xy;
+  xy.width = int(width);
   if (data == "ascii") {
-    POSEFOREST_RETURN_IF_ERROR(ReadPcdAscii(b, hd, zi, path, depth));
-    return depth;
+    POSEFOREST_RETURN_IF_ERROR(ReadPcdAscii(b, hd, fi, path, frame.depth, xy));
+  } else if (data == "binary") {
+    POSEFOREST_RETURN_IF_ERROR(ReadPcdBinary(b, hd, point_size, fi, path, frame.depth, xy));
+  } else if (data == "binary_compressed") {
+    POSEFOREST_RETURN_IF_ERROR(ReadPcdCompressed(b, hd, fi, point_size, path, frame.depth, xy));
+  } else {
+    return bad("PCD DATA '" + data + "' is not ascii, binary or binary_compressed");
   }
-  if (data == "binary") {
-    POSEFOREST_RETURN_IF_ERROR(ReadPcdBinary(b, hd, point_size, z_offset, path, depth));
-    return depth;
+  // The projection the points were made with, if they fit a pinhole camera (camera frame: x
+  // right, y down, z forward) to within half a pixel; a cloud moved into another frame does not.
+  if (xy.n >= 16) {
+    double f[2], c[2], sse = 0;
+    bool ok = true;
+    for (int k = 0; k < 2; ++k) {
+      const double var_a = xy.saa[k] - xy.sa[k] * xy.sa[k] / xy.n;
+      const double cov = xy.sap[k] - xy.sa[k] * xy.sp[k] / xy.n;
+      const double var_p = xy.spp[k] - xy.sp[k] * xy.sp[k] / xy.n;
+      ok = ok && var_a > 1e-12 && var_p > 0;
+      f[k] = ok ? cov / var_a : 0;
+      c[k] = ok ? (xy.sp[k] - f[k] * xy.sa[k]) / xy.n : 0;
+      sse += ok ? std::max(0.0, var_p - f[k] * cov) : 0;
+    }
+    frame.fit_rms_px = std::sqrt(sse / (2 * xy.n));
+    if (ok && f[0] > 1 && f[1] > 1 && frame.fit_rms_px <= 0.5) {
+      core::CameraIntrinsics in;
+      in.width = int(width), in.height = int(height);
+      in.fx = f[0], in.fy = f[1], in.cx = c[0], in.cy = c[1];
+      frame.intrinsics = in;
+    }
   }
-  if (data == "binary_compressed") {
-    POSEFOREST_RETURN_IF_ERROR(ReadPcdCompressed(b, hd, zi, point_size, path, depth));
-    return depth;
-  }
-  return bad("PCD DATA '" + data + "' is not ascii, binary or binary_compressed");
+  return frame;
 }
 
+Result<core::DepthImage> ParsePcdDepth(std::span<const uint8_t> b, const std::string& path) {
+  auto frame = ParsePcdFrame(b, path);
+  if (!frame.ok()) return frame.status();
+  return std::move(frame->depth);
+}
+
+Result<PcdFrame> ReadPcdFrame(const std::string& path) {
+  auto bytes = ReadAll(path);
+  if (!bytes.ok()) return bytes.status();
+  return ParsePcdFrame(*bytes, path);
+}
 
 Result<core::DepthImage> ReadDepthFile(const std::string& path, const FrameSourceOptions& options) {
   if (fs::path(path).extension() == ".pcd") return ReadPcdDepth(path);

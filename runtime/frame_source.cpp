@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -12,6 +13,7 @@
 #include <deque>
 #include <filesystem>
 #include <mutex>
+#include <string_view>
 #include <thread>
 
 #include "runtime/frame_formats.h"
@@ -61,11 +63,17 @@ class FileListSource : public FrameSource {
     f.timestamp_s = options_.fps > 0 ? double(f.index) / options_.fps
                                      : std::chrono::duration<double>(Clock::now() - opened_).count();
     if (!options_.camera_given && pcd_) {
-      // An organized cloud says its own size; the default model is fitted to it.
-      f.camera.intrinsics.width = f.depth.width;
-      f.camera.intrinsics.height = f.depth.height;
-      f.camera.intrinsics.cx = (f.depth.width - 1) / 2.0;
-      f.camera.intrinsics.cy = (f.depth.height - 1) / 2.0;
+      if (pcd_intrinsics_) {
+        // An organized cloud's points say the projection they were made with (ParsePcdFrame).
+        f.camera.name = "pcd-projection";
+        f.camera.intrinsics = *pcd_intrinsics_;
+      } else {
+        // Only its size: the default model's focal length, centred on it.
+        f.camera.intrinsics.width = f.depth.width;
+        f.camera.intrinsics.height = f.depth.height;
+        f.camera.intrinsics.cx = (f.depth.width - 1) / 2.0;
+        f.camera.intrinsics.cy = (f.depth.height - 1) / 2.0;
+      }
     }
     POSEFOREST_RETURN_IF_ERROR(CheckFrameSize(f.camera, f.depth.width, f.depth.height, f.source));
     return true;
@@ -76,6 +84,7 @@ class FileListSource : public FrameSource {
  private:
   Status Load(const std::string& path) {
     pcd_ = false;
+    pcd_intrinsics_.reset();
     auto bytes = ReadAll(path);
     if (!bytes.ok()) return bytes.status();
     if (StartsWith(*bytes, "\x93NUMPY")) {
@@ -86,11 +95,12 @@ class FileListSource : public FrameSource {
       return Status::Ok();
     }
     if (fs::path(path).extension() == ".pcd") {
-      auto d = ReadPcdDepth(path);
+      auto d = ReadPcdFrame(path);
       if (!d.ok()) return d.status();
       pcd_ = true;
+      pcd_intrinsics_ = d->intrinsics;
       pending_count_ = 1;
-      pending_.push_back(std::move(*d));
+      pending_.push_back(std::move(d->depth));
       return Status::Ok();
     }
     auto d = ReadDepthFile(path, options_);
@@ -111,6 +121,7 @@ class FileListSource : public FrameSource {
   size_t pending_count_ = 0;
   int64_t pending_first_index_ = 0;
   bool pcd_ = false;
+  std::optional<core::CameraIntrinsics> pcd_intrinsics_;
 };
 
 // Raw uint16 little-endian frames back to back on a file descriptor (stdin): read(2) only, so
@@ -272,18 +283,61 @@ std::vector<BackEndInfo> FrameBackEnds() {
   return out;
 }
 
-Result<std::vector<std::string>> ExpandFrameFiles(const std::string& spec) {
+bool IsNotAFrameFile(const std::string& name) {
+  auto ends = [&](std::string_view suffix) { return name.ends_with(suffix); };
+  // poseforest's own outputs beside frames: infer's (<name>.parts.png, ...) and render's.
+  for (std::string_view s : {".parts.png", ".labels.png", ".mask.png", ".pose.png", ".probs.npy"})
+    if (ends(s)) return true;
+  if (name == "camera.txt" || name == "montage.png") return true;
+  for (std::string_view prefix : {"labels_", "joints_"})
+    if (name.starts_with(prefix)) {
+      const size_t dot = name.find('.');
+      const std::string digits = name.substr(prefix.size(), dot - prefix.size());
+      if (!digits.empty() &&
+          std::all_of(digits.begin(), digits.end(), [](unsigned char c) { return std::isdigit(c) != 0; }))
+        return true;
+    }
+  // Text, documents, archives and forests: a depth frame (PNG, .npy, .pcd, raw of any name) never
+  // has these extensions.
+  std::string ext = fs::path(name).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  for (std::string_view e :
+       {".txt",       ".md",  ".json", ".jsonl", ".csv", ".yaml", ".yml", ".xml", ".html", ".pdf",
+        ".textproto", ".pff", ".log",  ".gz",    ".bz2", ".xz",   ".zip", ".tar", ".sh",   ".py"})
+    if (ext == e) return true;
+  // A licence or readme without an extension (COPYING, LICENSE, README, AUTHORS): capitals only.
+  if (ext.empty() && name.size() >= 4 &&
+      std::all_of(name.begin(), name.end(), [](unsigned char c) { return std::isupper(c) != 0 || c == '_'; }))
+    return true;
+  return false;
+}
+
+Result<std::vector<std::string>> ExpandFrameFiles(const std::string& spec,
+                                                  std::vector<std::string>* not_frames) {
   std::vector<std::string> files;
   std::error_code ec;
+  if (not_frames) not_frames->clear();
   if (fs::is_directory(spec, ec)) {
+    std::vector<std::string> skipped;
     for (const auto& e : fs::directory_iterator(spec, ec)) {
       const std::string name = e.path().filename().string();
       if (name.empty() || name[0] == '.') continue;
       if (!e.is_regular_file(ec)) continue;
+      if (IsNotAFrameFile(name)) {
+        skipped.push_back(name);
+        continue;
+      }
       files.push_back(e.path().string());
     }
     if (ec) return Status(ErrorCode::kIo, spec + ": cannot list the folder: " + ec.message());
-    if (files.empty()) return Status(ErrorCode::kNotFound, spec + ": the folder holds no files");
+    std::sort(skipped.begin(), skipped.end());
+    if (files.empty())
+      return Status(ErrorCode::kNotFound,
+                    spec + (skipped.empty() ? ": the folder holds no files"
+                                            : ": the folder holds no frame files (only " +
+                                                  std::to_string(skipped.size()) + " others, such as " +
+                                                  skipped.front() + ")"));
+    if (not_frames) *not_frames = std::move(skipped);
   } else if (HasGlobChars(spec) && !fs::exists(spec, ec)) {
     glob_t g{};
     const int rc = ::glob(spec.c_str(), GLOB_NOSORT, nullptr, &g);
@@ -330,10 +384,18 @@ Result<std::unique_ptr<FrameSource>> OpenFrameSource(const std::string& spec,
     if (!r.ok()) return r.status();
     src = std::move(*r);
   } else {
-    auto files = ExpandFrameFiles(spec);
+    std::vector<std::string> not_frames;
+    auto files = ExpandFrameFiles(spec, &not_frames);
     if (!files.ok()) return files.status();
-    const std::string what =
-        files->size() == 1 ? spec : spec + " (" + std::to_string(files->size()) + " files)";
+    std::string what = files->size() == 1 && not_frames.empty()
+                           ? spec
+                           : spec + " (" + std::to_string(files->size()) + " files";
+    if (!not_frames.empty()) {
+      what += "; " + std::to_string(not_frames.size()) + " not frames, left out: " + not_frames[0];
+      for (size_t i = 1; i < not_frames.size() && i < 3; ++i) what += ", " + not_frames[i];
+      if (not_frames.size() > 3) what += ", ...";
+    }
+    if (what != spec) what += ")";
     src = std::make_unique<FileListSource>(std::move(*files), what, options);
   }
   if (options.fps > 0) src = std::make_unique<PacedSource>(std::move(src), options);

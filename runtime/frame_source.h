@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -61,7 +62,8 @@ struct FrameSourceOptions {
 /// Opens a source from its spec:
 ///   FILE              a depth PNG, a raw frame, a .npy (uint16 mm or float32 m; [H,W] or
 ///                     [N,H,W]), an organized .pcd (x y z float32 metres, NaN = none)
-///   FOLDER            every regular non-hidden file in it, sorted by name
+///   FOLDER            every regular non-hidden frame file in it, sorted by name (files that
+///                     are not frames are left out: ExpandFrameFiles)
 ///   PATTERN           a glob (*, ?, [...]), matches sorted by name
 ///   -                 raw uint16 little-endian frames on stdin, back to back
 ///   freenect:N        Kinect v1 number N through libfreenect (if built in)
@@ -115,7 +117,28 @@ core::Result<core::DepthImage> ReadPcdDepth(const std::string& path);
 /// The same from bytes in memory; `source` names them in errors.
 core::Result<core::DepthImage> ParsePcdDepth(std::span<const uint8_t> bytes, const std::string& source);
 
-/// Expands a folder or glob into sorted file paths (the FOLDER / PATTERN rules above).
-core::Result<std::vector<std::string>> ExpandFrameFiles(const std::string& spec);
+/// An organized PCD cloud as a depth frame, with the projection its points were made with: the
+/// pinhole camera (fx, fy, cx, cy; the cloud's size) fitted by least squares to x/z, y/z against
+/// the pixel, when the points fit one to within 0.5 px rms (a cloud moved out of the camera
+/// frame does not). PCL's person.pcd: fx = fy = 525, cx 319.5, cy 239.5.
+struct PcdFrame {
+  core::DepthImage depth;
+  std::optional<core::CameraIntrinsics> intrinsics;  ///< absent: no x, y, too few points, no fit
+  double fit_rms_px = 0;                             ///< the fit's rms residual, pixels
+};
+core::Result<PcdFrame> ParsePcdFrame(std::span<const uint8_t> bytes, const std::string& source);
+core::Result<PcdFrame> ReadPcdFrame(const std::string& path);
+
+/// Expands a folder or glob into sorted file paths (the FOLDER / PATTERN rules above). A folder
+/// leaves out files that are not frames: poseforest's own outputs (infer's <name>.parts.png,
+/// .labels.png, .mask.png, .pose.png, .probs.npy; render's camera.txt, labels_N.png, joints_N.json,
+/// montage.png), text, document and archive extensions (.txt, .md, .json, ...), and capitals-only
+/// names without an extension (COPYING, README); their names go to `not_frames` (sorted). A glob
+/// keeps every file it matches: the user chose them.
+core::Result<std::vector<std::string>> ExpandFrameFiles(const std::string& spec,
+                                                        std::vector<std::string>* not_frames = nullptr);
+
+/// Whether a file of this name in a FOLDER source is left out as not a frame (above).
+bool IsNotAFrameFile(const std::string& name);
 
 }  // namespace poseforest::runtime

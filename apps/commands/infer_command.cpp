@@ -175,22 +175,27 @@ class InferCommand final : public Command {
 };
 
 InferCommand::InferCommand()
-    : Command("infer",
-              "Classifies every foreground pixel of each depth frame into the forest's body parts (eq. 2 of\n"
-              "Shotton et al.: leaf distributions averaged over trees) and writes the most likely part per\n"
-              "pixel as a colour PNG. Raw frames (a floor, walls, furniture) are segmented into people first;\n"
-              "frames that are already segmented (most pixels 0, no floor) pass unchanged (--segment).\n"
-              "\n"
-              "SOURCE (also --source SOURCE; docs/runtime/frames.md):\n"
-              "  FILE        a 16-bit greyscale PNG in millimetres, a raw little-endian uint16 frame (e.g. the\n"
-              "              640x480 Kinect frames in shared/data/real), a .npy (uint16 mm or float32 metres,\n"
-              "              [H,W] or [N,H,W]), or an organized .pcd point cloud (x y z, metres); 0 = no reading\n"
-              "  FOLDER      every file in it, in name order;  'PATTERN'  a glob (quoted), in name order\n"
-              "  -           raw uint16 frames on stdin, back to back (a pipe works)\n"
-              "  freenect:N  Kinect v1 number N through libfreenect;  openni2:[URI]  an OpenNI2 device or .oni\n"
-              "              (device back ends: those `poseforest --version` lists)\n"
-              "A bad frame (truncated, wrong size) is reported naming the source and frame, skipped and counted.\n"
-              "A forest records the focal length it was trained for; for another one its offsets are rescaled.") {
+    : Command(
+          "infer",
+          "Classifies every foreground pixel of each depth frame into the forest's body parts (eq. 2 of\n"
+          "Shotton et al.: leaf distributions averaged over trees) and writes the most likely part per\n"
+          "pixel as a colour PNG. Raw frames (a floor, walls, furniture) are segmented into people first;\n"
+          "frames that are already segmented (most pixels 0, no floor) pass unchanged (--segment).\n"
+          "\n"
+          "SOURCE (also --source SOURCE; docs/runtime/frames.md):\n"
+          "  FILE        a 16-bit greyscale PNG in millimetres, a raw little-endian uint16 frame (e.g. the\n"
+          "              640x480 Kinect frames in shared/data/real), a .npy (uint16 mm or float32 metres,\n"
+          "              [H,W] or [N,H,W]), or an organized .pcd point cloud (x y z, metres); 0 = no "
+          "reading\n"
+          "  FOLDER      every frame file in it, in name order (left out: infer's and render's own\n"
+          "              outputs, text and documents such as COPYING, .md, .json);  'PATTERN'  a glob\n"
+          "              (quoted), every file it matches, in name order\n"
+          "  -           raw uint16 frames on stdin, back to back (a pipe works)\n"
+          "  freenect:N  Kinect v1 number N through libfreenect;  openni2:[URI]  an OpenNI2 device or .oni\n"
+          "              (device back ends: those `poseforest --version` lists)\n"
+          "A bad frame (truncated, wrong size) is reported naming the source and frame, skipped and "
+          "counted.\n"
+          "A forest records the focal length it was trained for; for another one its offsets are rescaled.") {
   app_.add_option("SOURCE", sources_, "depth frames (above)");
   app_.add_option("--source", source_, "one more SOURCE, read first")->type_name("SOURCE");
   app_.add_option("--forest", forest_, "forest file (.pff)")->type_name("FILE")->required();
@@ -305,7 +310,7 @@ int InferCommand::Run() {
   auto source = runtime::OpenFrameSources(specs, run.source_options);
   if (!source.ok()) return Fail(source.status());
 
-  int failures = 0, bad_frames = 0, frames_done = 0, segmented_frames = 0, bad_in_a_row = 0;
+  int failures = 0, bad_frames = 0, frames_done = 0, frames_seen = 0, segmented_frames = 0, bad_in_a_row = 0;
   std::set<std::string> written;  // the part pictures written by this run (their canonical paths)
   runtime::Frame frame;
   while (true) {
@@ -322,11 +327,23 @@ int InferCommand::Run() {
     }
     bad_in_a_row = 0;
     if (!*next) break;
-    if (out_ && frames_done > 0) {
+    if (out_ && frames_seen > 0) {
       std::fprintf(stderr, "poseforest infer: %s: --out takes one frame but the source holds more; use --out-dir\n",
                    frame.Name().c_str());
       ++failures;
       break;
+    }
+    ++frames_seen;
+    const std::string parts_png = out_ ? *out_ : OutputPath(frame, out_dir_, ".parts.png");
+    // Two inputs of one name (A/x.png and B/x.png into one --out-dir) would write the same
+    // outputs: the second is refused, not written over the first.
+    if (!written.insert(fs::weakly_canonical(parts_png).string()).second) {
+      std::fprintf(stderr,
+                   "poseforest infer: %s: its outputs (%s) would overwrite those of an earlier input of the "
+                   "same name; skipped (give the inputs other names or other --out-dir runs)\n",
+                   frame.source.c_str(), parts_png.c_str());
+      ++failures;
+      continue;
     }
     const core::Forest& run_forest = ForestFor(run, frame);
     const core::DepthImage* depth = &frame.depth;
@@ -343,19 +360,8 @@ int InferCommand::Run() {
     runtime::Classifier classifier(run_forest);
     const auto t0 = std::chrono::steady_clock::now();
     classifier.Classify(*depth, run.options, &run.result);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    ++frames_done;
-    const std::string parts_png = out_ ? *out_ : OutputPath(frame, out_dir_, ".parts.png");
-    // Two inputs of one name (A/x.png and B/x.png into one --out-dir) would write the same
-    // outputs: the second is refused, not written over the first.
-    if (!written.insert(fs::weakly_canonical(parts_png).string()).second) {
-      std::fprintf(stderr,
-                   "poseforest infer: %s: its outputs (%s) would overwrite those of an earlier input of the "
-                   "same name; skipped (give the inputs other names or other --out-dir runs)\n",
-                   frame.source.c_str(), parts_png.c_str());
-      ++failures;
-      continue;
-    }
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     runtime::FrameProposals proposals;
     double proposal_ms = 0;
     if (core::Status st = WriteOutputs(run, frame, *depth, parts_png, &proposals, &proposal_ms); !st.ok()) {
@@ -363,11 +369,16 @@ int InferCommand::Run() {
       ++failures;
       continue;
     }
+    ++frames_done;  // classified and its outputs written
     if (!quiet_) PrintFrame(run, frame, *depth, parts_png, ms, seg_ms, proposals, proposal_ms);
   }
-  if (!quiet_ || bad_frames > 0)
-    std::printf("%s: %d frame(s) classified, %d bad frame(s) skipped, %d segmented\n", (*source)->Describe().c_str(),
-                frames_done, bad_frames, segmented_frames);
+  // A frame whose outputs were refused or failed to write counts as "not written", not classified.
+  const int not_written = frames_seen - frames_done;
+  if (!quiet_ || bad_frames > 0 || not_written > 0)
+    std::printf("%s: %d frame(s) classified, %s%d bad frame(s) skipped, %d segmented\n",
+                (*source)->Describe().c_str(), frames_done,
+                not_written > 0 ? (std::to_string(not_written) + " not written (above), ").c_str() : "",
+                bad_frames, segmented_frames);
   return failures == 0 && bad_frames == 0 ? 0 : 1;
 }
 

@@ -299,6 +299,9 @@ TEST_CASE("infer and inspect give clear errors on bad input and lose nothing", "
   CHECK(same_name.exit_code == 1);
   CHECK_THAT(same_name.output, Catch::Contains((dir / "B" / "x.png").string() + ": its outputs") &&
                                    Catch::Contains("would overwrite those of an earlier input"));
+  // The refused one is counted as not written, not as classified.
+  CHECK_THAT(same_name.output,
+             Catch::Contains("1 frame(s) classified, 1 not written (above), 0 bad frame(s)"));
   auto alone = RunPoseforest("infer --forest " + good + " --out " + (dir / "alone.png").string() + " " +
                              (dir / "A" / "x.png").string());
   REQUIRE(alone.exit_code == 0);

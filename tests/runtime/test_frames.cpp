@@ -202,6 +202,67 @@ TEST_CASE("files, folders and globs in name order; bad frames named, skipped and
   fs::remove_all(dir);
 }
 
+TEST_CASE("a folder leaves out files that are not frames (earlier outputs, text, licences) and names them",
+          "[frames][source]") {
+  for (const char* name :
+       {"x.parts.png", "x.labels.png", "x.mask.png", "x.pose.png", "x.probs.npy", "x.joints.json",
+        "camera.txt", "montage.png", "labels_000003.png", "joints_000003.json", "COPYING", "JOINT_LABELS.md",
+        "notes.TXT", "f.pff", "job.textproto"})
+    CHECK(runtime::IsNotAFrameFile(name));
+  for (const char* name : {"depth_000003.png", "x.png", "x.npy", "a.pcd", "f1.raw", "depth-data-1028894671",
+                           "labels_x.png", "FRAME.png", "ABC"})
+    CHECK_FALSE(runtime::IsNotAFrameFile(name));
+
+  const auto dir = testing::ScratchDir("frames-not-frames");
+  REQUIRE(runtime::WriteDepthPng((dir / "f0.png").string(), testing::MakePersonDepth(2.5)).ok());
+  {
+    std::ofstream raw((dir / "depth-data-1").string(), std::ios::binary);
+    for (uint16_t d : testing::MakePersonDepth(2.0).pixels) raw.put(char(d & 0xFF)).put(char(d >> 8));
+  }
+  // An earlier infer's outputs and a data set's papers: none of them is a frame.
+  REQUIRE(runtime::WriteLabelPng((dir / "f0.parts.png").string(), core::LabelImage(640, 480, 3)).ok());
+  REQUIRE(runtime::WriteDepthNpy((dir / "f0.probs.npy").string(), {testing::MakePersonDepth(2.5)}).ok());
+  for (const char* name : {"COPYING", "README.md", "joint_labels.json"})
+    std::ofstream((dir / name).string()) << "text\n";
+  std::vector<std::string> left_out;
+  auto files = runtime::ExpandFrameFiles(dir.string(), &left_out);
+  REQUIRE(files.ok());
+  REQUIRE(files->size() == 2);
+  CHECK(fs::path((*files)[0]).filename() == "depth-data-1");
+  CHECK(fs::path((*files)[1]).filename() == "f0.png");
+  CHECK(left_out == std::vector<std::string>{"COPYING", "README.md", "f0.parts.png", "f0.probs.npy",
+                                             "joint_labels.json"});
+  runtime::FrameSourceOptions o;
+  auto src = runtime::OpenFrameSource(dir.string(), o);
+  REQUIRE(src.ok());
+  CHECK_THAT((*src)->Describe(), Catch::Contains("(2 files; 5 not frames, left out: COPYING, README.md, "
+                                                 "f0.parts.png, ...)"));
+  runtime::Frame f;
+  int frames = 0, bad = 0;
+  for (int guard = 0; guard < 20; ++guard) {
+    auto r = (*src)->Next(&f);
+    if (!r.ok()) {
+      ++bad;
+      continue;
+    }
+    if (!*r) break;
+    ++frames;
+  }
+  CHECK(frames == 2);
+  CHECK(bad == 0);
+  // A glob keeps what it matches (the user chose those files), and a folder of no frames says so.
+  auto glob = runtime::ExpandFrameFiles((dir / "f0*").string());
+  REQUIRE(glob.ok());
+  CHECK(glob->size() == 3);
+  const auto papers = dir / "papers";
+  fs::create_directories(papers);
+  std::ofstream((papers / "COPYING").string()) << "text\n";
+  auto none = runtime::ExpandFrameFiles(papers.string());
+  REQUIRE_FALSE(none.ok());
+  CHECK_THAT(none.status().message(), Catch::Contains("no frame files (only 1 others, such as COPYING)"));
+  fs::remove_all(dir);
+}
+
 TEST_CASE(".npy: uint16 mm and float32 m, one frame or many; other dtypes refused clearly", "[frames][npy]") {
   const auto dir = testing::ScratchDir("frames-npy");
   const core::DepthImage a = testing::MakePersonDepth(2.5), b = testing::MakePersonDepth(3.0);
@@ -414,8 +475,9 @@ void QuickWrite(const std::string& path, std::span<const uint8_t> bytes) {
 
 // A small organized PCD (x y z float32 metres) in one of PCL's encodings. binary_compressed is
 // written as LZF literal runs (valid LZF, as liblzf decodes it), fields one after the other.
-std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encoding) {
-  const auto cam = core::CameraIntrinsics::KinectV1();
+std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encoding,
+                             const core::CameraIntrinsics& cam = core::CameraIntrinsics::KinectV1(),
+                             float x_shift_m = 0) {
   std::string header =
       "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
       "COUNT 1 1 1\nWIDTH " +
@@ -430,7 +492,8 @@ std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encod
         continue;
       }
       const auto p = cam.PixelToPoint(x, y, mm);
-      xyz.push_back(float(p.x())), xyz.push_back(float(p.y())), xyz.push_back(float(mm) / 1000.0f);
+      xyz.push_back(float(p.x()) + x_shift_m), xyz.push_back(float(p.y())),
+          xyz.push_back(float(mm) / 1000.0f);
     }
   std::vector<uint8_t> out(header.begin(), header.end());
   if (encoding == "ascii") {
@@ -498,6 +561,66 @@ TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors
       (void)runtime::ParsePcdDepth(bad, path);
     }
   }
+  fs::remove_all(dir);
+}
+
+TEST_CASE(".pcd: the cloud's own projection is fitted from its points and used as the frame's camera",
+          "[frames][pcd]") {
+  const auto dir = testing::ScratchDir("frames-pcd-projection");
+  core::DepthImage d(16, 12, 0);
+  for (int y = 2; y < 10; ++y)
+    for (int x = 3; x < 13; ++x) d.at(x, y) = uint16_t(1000 + 37 * x + 11 * y);
+  core::CameraIntrinsics cam;
+  cam.width = 16, cam.height = 12, cam.fx = 525, cam.fy = 530, cam.cx = 7.25, cam.cy = 5.75;
+  for (const std::string enc : {"ascii", "binary", "binary_compressed"}) {
+    INFO(enc);
+    auto frame = runtime::ParsePcdFrame(MakePcd(d, enc, cam), "c.pcd");
+    REQUIRE(frame.ok());
+    CHECK(frame->depth.pixels == d.pixels);
+    REQUIRE(frame->intrinsics.has_value());
+    CHECK(frame->intrinsics->fx == Approx(525).margin(0.05));
+    CHECK(frame->intrinsics->fy == Approx(530).margin(0.05));
+    CHECK(frame->intrinsics->cx == Approx(7.25).margin(0.01));
+    CHECK(frame->intrinsics->cy == Approx(5.75).margin(0.01));
+    CHECK(frame->intrinsics->width == 16);
+    CHECK(frame->fit_rms_px < 0.01);
+    // Points moved 0.5 m sideways are no pinhole projection of their pixels: no camera is made up.
+    auto moved = runtime::ParsePcdFrame(MakePcd(d, enc, cam, 0.5f), "moved.pcd");
+    REQUIRE(moved.ok());
+    CHECK_FALSE(moved->intrinsics.has_value());
+    CHECK(moved->fit_rms_px > 0.5);
+  }
+  // Read as a frame source, without camera flags, the frame carries that projection ...
+  const std::string path = (dir / "c.pcd").string();
+  REQUIRE(core::WriteFileAtomic(path, MakePcd(d, "binary", cam)).ok());
+  runtime::FrameSourceOptions o;
+  auto src = runtime::OpenFrameSource(path, o);
+  REQUIRE(src.ok());
+  runtime::Frame f;
+  auto r = (*src)->Next(&f);
+  REQUIRE(r.ok());
+  REQUIRE(*r);
+  CHECK(f.camera.name == "pcd-projection");
+  CHECK(f.camera.intrinsics.fx == Approx(525).margin(0.05));
+  CHECK(f.camera.intrinsics.cx == Approx(7.25).margin(0.01));
+  // ... and camera flags still win (the size must then match).
+  runtime::FrameSourceOptions given;
+  given.camera_given = true;
+  given.camera.intrinsics.width = 16, given.camera.intrinsics.height = 12;
+  auto src2 = runtime::OpenFrameSource(path, given);
+  REQUIRE(src2.ok());
+  REQUIRE((*src2)->Next(&f).ok());
+  CHECK(f.camera.intrinsics.fx == Approx(575.8));
+  // PCL's real person cloud was made at fx = fy = 525 (not the Kinect v1 model's 575.8).
+  const fs::path person = testing::DataDir() / "real/pcl_person_pcd/person.pcd";
+  REQUIRE(fs::exists(person));
+  auto real = runtime::ReadPcdFrame(person.string());
+  REQUIRE(real.ok());
+  REQUIRE(real->intrinsics.has_value());
+  CHECK(real->intrinsics->fx == Approx(525).margin(0.01));
+  CHECK(real->intrinsics->fy == Approx(525).margin(0.01));
+  CHECK(real->intrinsics->cx == Approx(319.5).margin(0.01));
+  CHECK(real->intrinsics->cy == Approx(239.5).margin(0.01));
   fs::remove_all(dir);
 }
 
