@@ -213,6 +213,15 @@ Status BodyMeshesFromProto(const v1::RenderedSource& r, const std::string& sourc
   if (!spec.makehuman_kit.empty() && !fs::is_directory(spec.makehuman_kit, ec))
     return Bad(source, field + ".rendered.makehuman_kit", "\"" + spec.makehuman_kit + "\"",
                "no such folder (expected the MakeHuman hm08 kit, e.g. <data>/meshes/makehuman_hm08_kit)");
+  // The kit's files that renderer/assets/makehuman.cpp reads: a folder without them is named here,
+  // with the job and field, not later by a bare file name.
+  if (!spec.makehuman_kit.empty())
+    for (const char* file :
+         {"base.obj", "rigs/default.mhskel", "rigs/default_weights.mhw", "targets/macrodetails"})
+      if (!fs::exists(fs::path(spec.makehuman_kit) / file, ec))
+        return Bad(source, field + ".rendered.makehuman_kit", "\"" + spec.makehuman_kit + "\"",
+                   std::string("holds no ") + file +
+                       ": not the MakeHuman hm08 kit (e.g. <data>/meshes/makehuman_hm08_kit)");
   for (int i = 0; i < r.body_bone_map_size(); ++i) {
     const auto& e = r.body_bone_map(i);
     spec.body_bone_map.emplace_back(e.joint(), e.bone());

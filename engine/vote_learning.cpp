@@ -270,6 +270,7 @@ core::TreeVotes TreeVotesOf(const core::Tree& tree, const TreePixels& tp, const 
   }
   rep.pixels += total;
   rep.leaves += tree.num_leaves;
+  for (uint32_t l = 0; l < tree.num_leaves; ++l) rep.leaves_unreached += first[l] == first[l + 1];
   // --- Per leaf and joint, the main mode of the offsets. ---
   std::vector<std::vector<core::JointVote>> leaf_votes(tree.num_leaves);
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads)
@@ -478,13 +479,26 @@ Result<core::OffsetVotes> LearnOffsetVotes(const core::Forest& forest, const Tra
     auto tp = RenderTreePixels(forest, job, options, t, threads, t_tree);
     if (!tp.ok()) return tp.status();
     uint64_t total = 0;
+    const uint64_t unreached_before = rep.leaves_unreached;
     table.trees.push_back(TreeVotesOf(tree, *tp, options, threads, rep, total));
+    const uint64_t unreached = rep.leaves_unreached - unreached_before;
+    // Every leaf of a tree holds some of the training pixels that made it, and learn-votes walks
+    // exactly those pixels: the job's own forest leaves no leaf unreached. A forest of another
+    // job (another seed, source or images per tree) leaves many; 1 % allows for nothing else.
+    if (unreached * 100 > tree.num_leaves)
+      return Status(ErrorCode::kInvalidArgument,
+                    "tree " + std::to_string(t) + ": " + std::to_string(unreached) + " of " +
+                        std::to_string(tree.num_leaves) +
+                        " leaves were reached by none of the job's training pixels (the job that trained "
+                        "the forest leaves none): not the forest of this job (another seed, source or "
+                        "images_per_tree?)");
     if (options.progress) {
-      char line[200];
-      std::snprintf(line, sizeof line,
-                    "tree %d: %llu pixels, %u leaves (%.1f pixels each), %zu votes (%.0f s)", t,
-                    (unsigned long long)total, tree.num_leaves, double(total) / std::max(1u, tree.num_leaves),
-                    table.trees.back().votes.size(), Now() - t_tree);
+      char line[240];
+      std::snprintf(
+          line, sizeof line,
+          "tree %d: %llu pixels, %u leaves (%.1f pixels each, %llu reached by none), %zu votes (%.0f s)", t,
+          (unsigned long long)total, tree.num_leaves, double(total) / std::max(1u, tree.num_leaves),
+          (unsigned long long)unreached, table.trees.back().votes.size(), Now() - t_tree);
       options.progress(line);
     }
   }

@@ -59,6 +59,7 @@ struct VoteLearningReport {
   uint64_t pixels = 0;             ///< training pixels walked, over trees
   uint64_t leaves = 0;             ///< leaves over trees
   uint64_t leaves_with_votes = 0;  ///< leaves that kept at least one vote
+  uint64_t leaves_unreached = 0;   ///< leaves no training pixel reached (none, for the job's own forest)
   uint64_t votes = 0;
   int validation_frames = 0;       ///< one-person validation frames scored
   uint64_t candidates = 0;         ///< vote candidates scored on them

@@ -1,9 +1,13 @@
 #include "runtime/pcl_import.h"
 
+#include <sys/wait.h>
+
 #include <charconv>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
+#include <system_error>
 
 #include "runtime/core/forest_format.h"
 
@@ -80,6 +84,8 @@ core::Result<core::Forest> ImportPclTrees(const std::vector<std::string>& paths)
     if (path.size() > 4 && path.compare(path.size() - 4, 4, ".bz2") == 0) {
       std::ifstream probe(path);
       if (!probe) return core::Status(core::ErrorCode::kIo, path + ": cannot open");
+      if (std::error_code ec; std::filesystem::is_directory(path, ec))
+        return core::Status(core::ErrorCode::kInvalidArgument, path + ": is a folder, not a file");
       // Decompress through the bzip2 program (the runtime links no compression library).
       std::string quoted = "'";
       for (char c : path) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
@@ -90,8 +96,23 @@ core::Result<core::Forest> ImportPclTrees(const std::vector<std::string>& paths)
       char buf[1 << 16];
       size_t n;
       while ((n = std::fread(buf, 1, sizeof buf, pipe.get())) > 0) text.append(buf, n);
-      if (::pclose(pipe.release()) != 0 || text.empty())
-        return core::Status(core::ErrorCode::kDataLoss, path + ": bzip2 could not decompress it (is bzip2 installed?)");
+      const int wait_status = ::pclose(pipe.release());
+      const int exit_code = wait_status != -1 && WIFEXITED(wait_status) ? WEXITSTATUS(wait_status) : -1;
+      // The shell says 127 when it finds no bzip2; bzip2 says 2 for a corrupt or truncated file.
+      if (exit_code == 127)
+        return core::Status(core::ErrorCode::kUnimplemented,
+                            path +
+                                ": decompressing .bz2 needs the bzip2 program, which is not installed "
+                                "(apt-get install bzip2, or give the file decompressed)");
+      if (exit_code == 2)
+        return core::Status(core::ErrorCode::kDataLoss,
+                            path + ": not a whole bzip2 file (corrupt, or cut short: " +
+                                std::to_string(text.size()) + " bytes decompressed before the fault)");
+      if (exit_code != 0 || text.empty())
+        return core::Status(core::ErrorCode::kDataLoss,
+                            path + ": bzip2 could not decompress it (exit status " +
+                                std::to_string(exit_code) +
+                                (text.empty() && exit_code == 0 ? "; it decompresses to nothing" : "") + ")");
       POSEFOREST_RETURN_IF_ERROR(AppendPclTree(text, path, &forest));
     } else {
       auto bytes = core::ReadFileBytes(path);

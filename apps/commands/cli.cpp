@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -98,15 +99,50 @@ std::string CheckOutputFile(const std::string& option, const std::string& path,
   return "";
 }
 
+std::string FolderFrameCount(const std::string& set_option, const std::string& set, int64_t held,
+                             int64_t first, const std::string& count_option, std::optional<int64_t> asked,
+                             int64_t* count) {
+  const int64_t left = std::max<int64_t>(0, held - first);
+  *count = asked.value_or(left);
+  if (*count > 0 && *count <= left) return "";
+  return set_option + " " + set + " holds " + std::to_string(held) + " frames; " +
+         (first > 0 ? "--first " + std::to_string(first) + " " : std::string()) + count_option + " " +
+         std::to_string(*count) + " asks for " +
+         (*count <= 0 ? std::string("none") : "frames up to " + std::to_string(first + *count - 1));
+}
+
+std::string Command::Caller() const {
+  // `train JOB --local-workers N` runs this program's coordinator command (poseforest.cpp): say
+  // what the user typed, and whose options these are.
+  return invoked_as_.empty() || invoked_as_ == name_ ? name_ : invoked_as_ + " (as " + name_ + ")";
+}
+
 int Command::UsageError(const std::string& message) const {
-  std::fprintf(stderr, "poseforest %s: %s\n", name_.c_str(), message.c_str());
+  std::fprintf(stderr, "poseforest %s: %s\n", Caller().c_str(), message.c_str());
   return 2;
 }
 
 int RunCommand(Command& command, int argc, char** argv) {
   CLI::App& app = command.app();
+  if (argc > 0) command.set_invoked_as(argv[0]);
+  // "--name=" (an empty value after '='): CLI11 2.x would take the next argument as the value
+  // ("--id= --check-config" set the id to "--check-config"); it is passed on as "--name" "".
+  std::vector<std::string> args;
+  bool options_end = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    options_end = options_end || a == "--";
+    if (!options_end && a.size() > 3 && a.starts_with("--") && a.back() == '=' &&
+        a.find('=') == a.size() - 1) {
+      args.push_back(a.substr(0, a.size() - 1));
+      args.emplace_back();
+    } else {
+      args.push_back(a);
+    }
+  }
+  std::reverse(args.begin(), args.end());  // CLI11 takes them last first
   try {
-    app.parse(argc, argv);
+    app.parse(args);
   } catch (const CLI::CallForHelp&) {
     std::fputs(app.help().c_str(), stdout);
     return 0;
@@ -120,7 +156,7 @@ int RunCommand(Command& command, int argc, char** argv) {
       message.erase(at, 1);  // "--threads: must be ..." -> "--threads must be ..."
     }
     std::fprintf(stderr, "poseforest %s: %s\n(poseforest %s --help lists the options)\n",
-                 command.name().c_str(), message.c_str(), command.name().c_str());
+                 command.Caller().c_str(), message.c_str(), command.name().c_str());
     return 2;
   }
   return command.Run();
@@ -184,6 +220,17 @@ CLI::Validator SkeletonFitValidator() {
   return CLI::Validator(
       [](std::string& v) -> std::string {
         return runtime::SkeletonFitFromName(v) ? "" : "must be kinematic or greedy (got '" + v + "')";
+      },
+      "");
+}
+
+CLI::Validator NonEmptyName() {
+  return CLI::Validator(
+      [](std::string& v) -> std::string {
+        if (v.empty()) return "must be a non-empty name (leave the option out for its default)";
+        for (unsigned char c : v)
+          if (c < 0x20 || c == 0x7f) return "must be printable (no control characters)";
+        return "";
       },
       "");
 }

@@ -7,7 +7,9 @@
 // ends the options, -h is --help.
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,6 +28,10 @@ class Command {
 
   CLI::App& app() { return app_; }
   const std::string& name() const { return name_; }
+  /// The command the user typed, where another one runs this one (`train --local-workers N`).
+  void set_invoked_as(const std::string& command) { invoked_as_ = command; }
+  /// How messages name the command: "coordinator", or "train (as coordinator)".
+  std::string Caller() const;
   /// The work after a successful parse: the process exit code (0 ok, 1 failure, 2 usage error).
   virtual int Run() = 0;
 
@@ -37,6 +43,7 @@ class Command {
 
   CLI::App app_;
   std::string name_;
+  std::string invoked_as_;
 };
 
 /// Parses argv[1..argc) (argv[0] is the command's name) and runs the command: 0 after --help
@@ -53,6 +60,15 @@ std::vector<std::string> OptionNames(const CLI::App& app);
 std::string CheckOutputFile(const std::string& option, const std::string& path,
                             const std::vector<std::string>& inputs = {});
 
+/// The frames to take from a folder of `held` frames (`set`, given as `set_option`), from frame
+/// `first` on: `asked` (given as `count_option`) if given, else every frame left. Asking for none
+/// or for more than the folder holds is refused here, before any work, rather than failing on the
+/// first missing file. Empty on success (`*count` set), else the usage error:
+/// "--test-set D holds 4 frames; --first 2 --images 5 asks for frames up to 6".
+std::string FolderFrameCount(const std::string& set_option, const std::string& set, int64_t held,
+                             int64_t first, const std::string& count_option, std::optional<int64_t> asked,
+                             int64_t* count);
+
 // Checks for option values. Each error message starts "must be" and is printed after the
 // option's name: "--threads must be an integer in [1, 1024], got 'four'".
 
@@ -62,6 +78,8 @@ CLI::Validator IntIn(long long lo, long long hi);
 CLI::Validator NonNegativeInt();
 /// A number in [lo, hi]; `what` names it in the message ("a number", "metres").
 CLI::Validator NumberIn(double lo, double hi, const std::string& what = "a number");
+/// A name or id that is not empty and holds no control characters (--job-id, --id, --job).
+CLI::Validator NonEmptyName();
 /// One of `names`.
 CLI::Validator OneOf(std::vector<std::string> names);
 /// A skeleton fit's name (runtime::SkeletonFitFromName): "kinematic" or "greedy" (`--fit`).

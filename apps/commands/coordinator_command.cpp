@@ -154,7 +154,9 @@ CoordinatorCommand::CoordinatorCommand() : Command("coordinator", "") {
   app_.add_option("--min-workers", min_workers_, "workers to wait for before the first level (default: --local-workers, at least 1)")
       ->type_name("N")
       ->check(IntIn(1, 4096));
-  app_.add_option("--job-id", job_id_, "the job's id (default: from the job config)")->type_name("ID");
+  app_.add_option("--job-id", job_id_, "the job's id (default: from the job config)")
+      ->type_name("ID")
+      ->check(NonEmptyName());
   app_.add_option("--worker-threads", worker_threads_, "threads of each local worker")
       ->type_name("N")
       ->check(IntIn(1, 1024));

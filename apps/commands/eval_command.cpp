@@ -278,15 +278,14 @@ int EvalCommand::RunTestSet() {
   }
   int num_images = images_ ? *images_ : named->num_images;
   if (named->source.kind == engine::SourceKind::kDataset) {
-    // A folder holds named->num_images frames: by default those from --first on; asking for more
-    // is refused here rather than failing on the first missing file.
-    const int64_t held = named->num_images, left = std::max<int64_t>(0, held - first_);
-    if (!images_) num_images = int(left);
-    if (num_images == 0 || num_images > left)
-      return UsageError("--test-set " + set + " holds " + std::to_string(held) + " frames; --first " +
-                        std::to_string(first_) + " --images " + std::to_string(num_images) + " asks for " +
-                        (num_images == 0 ? std::string("none")
-                                         : "frames up to " + std::to_string(first_ + num_images - 1)));
+    // A folder: by default every frame from --first on.
+    int64_t count = 0;
+    if (const std::string bad =
+            FolderFrameCount("--test-set", set, named->num_images, first_, "--images",
+                             images_ ? std::optional<int64_t>(*images_) : std::nullopt, &count);
+        !bad.empty())
+      return UsageError(bad);
+    num_images = int(count);
   }
   auto forest = core::LoadForest(forest_);
   if (!forest.ok()) {

@@ -385,12 +385,16 @@ MonitorCommand::MonitorCommand()
                   "reads the job and status topics)")
       ->type_name("D")
       ->check(IntIn(0, 232));
-  app_.add_option("--job", job_, "--domain: the job to show, of the domain's jobs")->type_name("ID");
+  app_.add_option("--job", job_, "--domain: the job to show, of the domain's jobs")
+      ->type_name("ID")
+      ->check(NonEmptyName());
   AddDdsOptions(app_, &dds_);
 }
 
 int MonitorCommand::Run() {
   if (Given("url") == Given("domain")) return UsageError("give --url or --domain (one of them)");
+  if (Given("job") && Given("url"))
+    return UsageError("--job is for --domain (a coordinator's --url serves its own job only)");
   if ((Given("http-token-file") || Given("http-ca-file")) && Given("domain")) {
     std::fprintf(
         stderr,
@@ -420,6 +424,10 @@ int MonitorCommand::MonitorUrl() {
   }
   std::string url = url_;
   while (!url.empty() && url.back() == '/') url.pop_back();
+  if (Status form = proto::http::CheckHttpUrl(url); !form.ok()) {
+    std::fprintf(stderr, "monitor: --url %s\n", form.message().c_str());
+    return 2;
+  }
   const std::string& ca_file = ca_file_;
   if (!ca_file.empty()) {
     if (url.rfind("https://", 0) != 0) {

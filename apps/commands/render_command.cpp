@@ -276,7 +276,8 @@ std::optional<int> RenderCommand::LoadPosesAndBodies(renderer::SceneConfig* conf
       return 1;
     }
     config->shared_poses = *lib;  // one copy shared by every thread's renderer
-    std::printf("poses: %zu from the %s clips of %s\n", (*lib)->size(), clips_.c_str(), poses_->c_str());
+    std::printf("poses: %zu from %s clips of %s\n", (*lib)->size(),
+                clips_ == "all" ? "all the" : ("the " + clips_).c_str(), poses_->c_str());
   }
   config->use_procedural_bodies = bodies_ != "makehuman";
   if (bodies_ == "procedural") return std::nullopt;

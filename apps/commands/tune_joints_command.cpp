@@ -110,12 +110,16 @@ int TuneJointsCommand::Run() {
                            : "the job's training source (train clips, frames not trained on)");
   } else if (source.kind == engine::SourceKind::kDataset) {
     what = "folder " + source.folder;
-    // A folder holds named->num_images frames: the default --frames takes at most those, more
-    // asked for is refused here rather than failing on the first missing file.
-    if (!Given("frames")) frames_ = std::min(frames_, named->num_images);
-    if (frames_ > named->num_images || frames_ == 0)
-      return UsageError("--validation " + set + " holds " + std::to_string(named->num_images) +
-                        " frames; --frames " + std::to_string(frames_) + " asks for more");
+    // A folder: the default --frames takes at most what it holds.
+    int64_t count = 0;
+    if (const std::string bad = FolderFrameCount(
+            "--validation", set, named->num_images, 0, "--frames",
+            Given("frames") ? std::optional<int64_t>(frames_)
+                            : std::optional<int64_t>(std::min<int64_t>(frames_, named->num_images)),
+            &count);
+        !bad.empty())
+      return UsageError(bad);
+    frames_ = decltype(frames_)(count);
   } else {
     std::fprintf(stderr, "poseforest tune-joints: --validation %s: procedural frames have no joints\n",
                  set.c_str());

@@ -57,13 +57,15 @@ WorkerCommand::WorkerCommand() : Command("worker", "") {
       ->type_name("D")
       ->check(IntIn(0, 232));
   app_.add_option("--threads", threads_, "threads")->type_name("N")->check(IntIn(1, 1024));
-  app_.add_option("--job", job_, "serve only the job with this id")->type_name("ID");
+  app_.add_option("--job", job_, "serve only the job with this id")->type_name("ID")->check(NonEmptyName());
   app_.add_option("--job-file", job_file_,
                   "the job's id (unless --job) and its dds section: domain and transport, used where\n"
                   "the command line gives none; the coordinator's job file, at the same path when the\n"
                   "job names relative files")
       ->type_name("JOB.textproto");
-  app_.add_option("--id", id_, "the sender id, unique per job (default worker-HOST-PID-RANDOM)")->type_name("NAME");
+  app_.add_option("--id", id_, "the sender id, unique per job (default worker-HOST-PID-RANDOM)")
+      ->type_name("NAME")
+      ->check(NonEmptyName());
   app_.add_flag("--stay", stay_, "keep serving jobs after one is done");
   app_.add_flag("--exit-with-parent", exit_with_parent_,
                 "exit when the process that started this one exits (`coordinator --local-workers`\n"

@@ -21,7 +21,8 @@ void Usage(FILE* out) {
   std::fprintf(out,
                "poseforest %s - human pose recognition in parts from single depth images\n"
                "(Shotton et al. 2011)\n\n"
-               "usage: poseforest <command> [options]     poseforest <command> --help\n\ncommands:\n",
+               "usage: poseforest <command> [options]     poseforest <command> --help\n"
+               "       poseforest help <command>           poseforest --version\n\ncommands:\n",
                POSEFOREST_VERSION);
   for (const commands::CommandInfo& c : commands::AllCommands())
     if (c.make) std::fprintf(out, "  %-11s %s\n", c.name, c.summary);
@@ -51,6 +52,18 @@ int main(int argc, char** argv) {
     if (argc > 2 && std::string_view(argv[2]) == "--markdown") {
       std::fputs(commands::CommandTableMarkdown().c_str(), stdout);
       return 0;
+    }
+    // `help CMD` is `CMD --help` (the command's own options), not this list again.
+    if (argc > 2) {
+      const commands::CommandInfo* c = commands::FindCommand(argv[2]);
+      if (c == nullptr) {
+        std::fprintf(stderr, "poseforest help: unknown command '%s'\n\n", argv[2]);
+        Usage(stderr);
+        return 2;
+      }
+      char help_flag[] = "--help";
+      char* sub_argv[] = {argv[2], help_flag, nullptr};
+      return commands::RunCommandMain(2, sub_argv);  // "this build has no command" where it lacks it
     }
     Usage(stdout);
     return 0;

@@ -1,5 +1,7 @@
 #include "proto/dds/dds_node.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -8,10 +10,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <deque>
-#include <mutex>
-#include <optional>
-#include <sstream>
-
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/DomainParticipantListener.hpp>
@@ -27,6 +25,9 @@
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
+#include <mutex>
+#include <optional>
+#include <sstream>
 
 #include "proto/dds/dds_node_qos.h"
 #include "proto/dds/proto_bytes_type.h"
@@ -52,9 +53,30 @@ const char* EventKindName(DdsEvent::Kind kind) {
   return "?";
 }
 
+namespace {
+/// Fast DDS's log entries on stderr, one line each, prefixed "Fast DDS: ". Its own consumers
+/// colour every line with terminal escapes even into a file or pipe; these colour only a terminal.
+class StderrLogConsumer final : public fdds::LogConsumer {
+ public:
+  void Consume(const fdds::Log::Entry& entry) override {
+    const bool color = ::isatty(STDERR_FILENO) != 0;
+    std::ostringstream line;
+    line << "Fast DDS: ";
+    print_header(line, entry, color);
+    print_message(line, entry, color);
+    print_context(line, entry, color);
+    print_new_line(line, color);
+    const std::string text = line.str();
+    std::fwrite(text.data(), 1, text.size(), stderr);
+  }
+};
+}  // namespace
+
 void ConfigureDdsLogging() {
   static std::once_flag once;
   std::call_once(once, [] {
+    fdds::Log::ClearConsumers();
+    fdds::Log::RegisterConsumer(std::make_unique<StderrLogConsumer>());
     const char* env = std::getenv("POSEFOREST_DDS_LOG");
     std::string level = env ? env : "error";
     if (level == "warning")

@@ -3,9 +3,12 @@
 #include <cstdio>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
+#include <fastdds/dds/log/Log.hpp>
 #include <fstream>
 #include <regex>
 #include <sstream>
+
+#include "proto/dds/dds_node.h"
 
 namespace poseforest::proto::dds {
 
@@ -31,10 +34,13 @@ core::Result<XmlProfileInfo> CheckXmlParticipantProfile(const std::string& xml_f
   if (!in) return Status(ErrorCode::kIo, "cannot read Fast DDS XML profiles file " + xml_file);
   std::stringstream text;
   text << in.rdbuf();
+  ConfigureDdsLogging();  // Fast DDS's parser errors: plain lines on stderr, before ours
   auto* factory = fdds::DomainParticipantFactory::get_instance();
-  if (factory->load_XML_profiles_file(xml_file) != ReturnCode_t::RETCODE_OK)
-    return Status(ErrorCode::kInvalidArgument, "Fast DDS cannot parse the XML profiles in " + xml_file +
-                                                   " (POSEFOREST_DDS_LOG=warning shows why)");
+  if (factory->load_XML_profiles_file(xml_file) != ReturnCode_t::RETCODE_OK) {
+    fdds::Log::Flush();
+    return Status(ErrorCode::kInvalidArgument,
+                  "Fast DDS cannot parse the XML profiles in " + xml_file + " (its errors above say where)");
+  }
   fdds::DomainParticipantQos qos;
   if (factory->get_participant_qos_from_profile(profile, qos) != ReturnCode_t::RETCODE_OK) {
     std::string known;

@@ -211,6 +211,8 @@ Status ReplyFailure(int code, const std::string& body, const std::string& url, c
 
 }  // namespace
 
+Status CheckHttpUrl(const std::string& url) { return ParseUrl(url).status(); }
+
 Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout,
                             const std::string& bearer_token, const std::string& ca_file) {
   auto parsed = ParseUrl(url);

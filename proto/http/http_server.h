@@ -163,4 +163,7 @@ class HttpServer {
 core::Result<std::string> HttpGet(const std::string& url, std::chrono::milliseconds timeout,
                                   const std::string& bearer_token = "", const std::string& ca_file = "");
 
+/// OK when HttpGet would accept `url`'s form (scheme, host, port); nothing is connected to.
+core::Status CheckHttpUrl(const std::string& url);
+
 }  // namespace poseforest::proto::http

@@ -509,8 +509,24 @@ Result<BvhClip> ParseBvh(std::string_view text, const std::string& source, const
   if (Status st = ParseMotionHeader(reader, source, clip); !st.ok()) return st;
   const int declared = clip.declared_frames;
   if (Status st = ParseFrames(reader, source, declared, channel_count, clip); !st.ok()) return st;
+  int first_trailing_line = 0;
   while (reader.Next(&line))
-    if (line.find_first_not_of(" \t\r\f\v") != std::string_view::npos) ++clip.ignored_trailing_lines;
+    if (line.find_first_not_of(" \t\r\f\v") != std::string_view::npos && clip.ignored_trailing_lines++ == 0)
+      first_trailing_line = reader.line_no();
+  // A stray line after the frames is tolerated (CMU's Boxing_Toes has one); more lines after them
+  // than frames declared is a wrong 'Frames:' count, whose frames would be dropped silently.
+  if (declared == 0)
+    return Malformed(source, first_trailing_line > 0 ? first_trailing_line : reader.line_no(),
+                     clip.ignored_trailing_lines > 0
+                         ? "'Frames: 0', but " + std::to_string(clip.ignored_trailing_lines) +
+                               " frame line(s) follow (a wrong frame count?)"
+                         : std::string("'Frames: 0': the clip has no frames"));
+  if (clip.ignored_trailing_lines > declared)
+    return Malformed(
+        source, first_trailing_line,
+        std::to_string(clip.ignored_trailing_lines) + " non-blank lines after the " +
+            std::to_string(declared) +
+            " frames 'Frames:' declares, more than the frames themselves (a wrong frame count?)");
   clip.num_frames = declared;
 
   clip.family = DetectFamily(clip.joints);

@@ -2,6 +2,7 @@
 // CLI11 declaration and lists every option; usage errors name the option and exit 2; a shared
 // option group (camera and frame source, DDS transport) parses the same in every command.
 #include <catch2/catch.hpp>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -153,6 +154,49 @@ TEST_CASE("the DDS transport group parses the same in coordinator, worker and mo
     CHECK_THAT(bad.output, Catch::Contains("tcp") && Catch::Contains("shm, udp or default"));
   }
 }
+
+TEST_CASE(
+    "the service's commands refuse empty ids, a malformed --url and --job with --url; train names itself",
+    "[cli]") {
+  for (const char* c :
+       {"worker --id= --check-config", "worker --job '' --check-config",
+        "coordinator --job-id '' --out f.pff job.textproto", "monitor --domain 3 --job '' --once"}) {
+    auto r = RunPoseforest(c);
+    INFO(c << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::Contains("must be a non-empty name"));
+  }
+  // A URL the client cannot use is a usage error before any connection (2, not 1 as a refused one).
+  auto bogus = RunPoseforest("monitor --url bogus --once");
+  INFO(bogus.output);
+  CHECK(bogus.exit_code == 2);
+  CHECK_THAT(bogus.output, Catch::Contains("--url bogus: expected http://HOST[:PORT][/PATH]"));
+  auto job_with_url = RunPoseforest("monitor --url http://127.0.0.1:9 --job j --once");
+  CHECK(job_with_url.exit_code == 2);
+  CHECK_THAT(job_with_url.output, Catch::Contains("--job is for --domain"));
+  // `train --local-workers N` runs the coordinator command: its usage errors say so.
+  auto train = RunPoseforest("train job.textproto --out f.pff --local-workers -1");
+  CHECK(train.exit_code == 2);
+  CHECK_THAT(train.output, Catch::Contains("poseforest train (as coordinator): --local-workers must be") &&
+                               Catch::Contains("poseforest coordinator --help lists the options"));
+  // Fast DDS's own errors on a bad XML profile: plain lines into a pipe (no terminal colours),
+  // before the command's message.
+  const auto dir = testing::ScratchDir("commands-dds-xml");
+  std::ofstream((dir / "bad.xml").string())
+      << "<?xml version=\"1.0\"?><dds "
+         "xmlns=\"http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles\"><profiles>"
+         "<participant profile_name=\"x\"><rtps><bogus/></rtps></participant></profiles></dds>";
+  auto xml =
+      RunPoseforest("worker --dds-xml " + (dir / "bad.xml").string() + " --dds-profile x --check-config");
+  INFO(xml.output);
+  CHECK(xml.exit_code == 2);
+  CHECK(xml.output.find('\x1b') == std::string::npos);
+  const size_t fast_dds = xml.output.find("Fast DDS: [XMLPARSER Error] Invalid element");
+  const size_t ours = xml.output.find("Fast DDS cannot parse the XML profiles");
+  CHECK(fast_dds != std::string::npos);
+  CHECK(ours != std::string::npos);
+  CHECK(fast_dds < ours);
+}
 #endif
 
 TEST_CASE("poseforest help lists the commands of this build; --markdown the README's table", "[cli]") {
@@ -166,4 +210,18 @@ TEST_CASE("poseforest help lists the commands of this build; --markdown the READ
                                              info.name + ") | " + info.summary));
     if (info.make) CHECK_THAT(help.output, Catch::Contains(info.summary));
   }
+}
+
+TEST_CASE("poseforest help CMD prints that command's options; an unknown one is a usage error", "[cli]") {
+  auto general = RunPoseforest("help");
+  CHECK_THAT(general.output, Catch::Contains("poseforest help <command>") && Catch::Contains("--version"));
+  auto infer = RunPoseforest("help infer");
+  INFO(infer.output);
+  CHECK(infer.exit_code == 0);
+  // infer's own help, which names its options; the general list does not.
+  CHECK_THAT(infer.output, Catch::Contains("--forest") && Catch::Contains("--out-dir"));
+  CHECK(infer.output == RunPoseforest("infer --help").output);
+  auto bogus = RunPoseforest("help no-such-command");
+  CHECK(bogus.exit_code == 2);
+  CHECK_THAT(bogus.output, Catch::Contains("unknown command 'no-such-command'"));
 }

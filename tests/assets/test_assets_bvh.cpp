@@ -131,6 +131,27 @@ TEST_CASE("malformed BVH text gives DataLoss naming file and line", "[bvh]") {
     REQUIRE_FALSE(r.ok());
     CHECK_THAT(ErrorOf(r), Catch::Contains("few.bvh:") && Catch::Contains("1 of the 3 frames"));
   }
+  SECTION("a wrong frame count: 'Frames: 0' before frames, or more lines after the frames than frames") {
+    const std::string frame = "0 0 0 0 0 0 0 0 0\n";
+    std::string zero = good;
+    zero.replace(zero.find("Frames: 1"), 9, "Frames: 0");
+    auto r0 = ParseBvh(zero, "zero.bvh");
+    REQUIRE_FALSE(r0.ok());
+    CHECK_THAT(ErrorOf(r0),
+               Catch::Contains("zero.bvh:19:") && Catch::Contains("'Frames: 0', but 1 frame line"));
+    auto empty = ParseBvh(zero.substr(0, zero.rfind(frame)), "empty.bvh");
+    REQUIRE_FALSE(empty.ok());
+    CHECK_THAT(ErrorOf(empty), Catch::Contains("empty.bvh:") && Catch::Contains("the clip has no frames"));
+    auto more = ParseBvh(good + frame + frame, "more.bvh");
+    REQUIRE_FALSE(more.ok());
+    CHECK_THAT(ErrorOf(more), Catch::Contains("more.bvh:20:") &&
+                                  Catch::Contains("2 non-blank lines after the 1 frames 'Frames:' declares"));
+    // One stray line, as CMU's Boxing_Toes has, is tolerated and counted.
+    auto stray = ParseBvh(good + frame, "stray.bvh");
+    REQUIRE(stray.ok());
+    CHECK(stray->num_frames == 1);
+    CHECK(stray->ignored_trailing_lines == 1);
+  }
   SECTION("bad OFFSET") {
     std::string t = good;
     t.replace(t.find("OFFSET 10 0 0"), 13, "OFFSET 10 x 0");

@@ -124,7 +124,10 @@ TEST_CASE("mocap pose library and MakeHuman options parse, with paths relative t
           "[training][config][mocap]") {
   const auto dir = testing::ScratchDir("job-config-mocap");
   std::filesystem::create_directories(dir / "poses");
-  std::filesystem::create_directories(dir / "kit");
+  std::filesystem::create_directories(dir / "kit" / "rigs");
+  std::filesystem::create_directories(dir / "kit" / "targets" / "macrodetails");
+  for (const char* file : {"base.obj", "rigs/default.mhskel", "rigs/default_weights.mhw"})
+    std::ofstream(dir / "kit" / file) << "not parsed here";
   std::ofstream(dir / "poses" / "lib.pfposes") << "not parsed here";
   const auto path = (dir / "job.textproto").string();
   std::ofstream(path) << R"(images_per_tree: 3
@@ -168,6 +171,14 @@ TEST_CASE("bad mocap options give errors naming the field and the path", "[train
              Catch::Contains("test_set.source.rendered.pose_library") && Catch::Contains(missing));
   CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { makehuman_kit: \"/nonexistent/kit\" } }"),
              Catch::Contains("source.rendered.makehuman_kit") && Catch::Contains("/nonexistent/kit"));
+  {
+    // A folder that is not the kit is named with the job's field, not later by a bare file name.
+    const auto not_kit = testing::ScratchDir("job-config-not-a-kit");
+    CHECK_THAT(
+        ErrorOf("images_per_tree: 5 source { rendered { makehuman_kit: \"" + not_kit.string() + "\" } }"),
+        Catch::Contains("source.rendered.makehuman_kit") && Catch::Contains(not_kit.string()) &&
+            Catch::Contains("holds no base.obj: not the MakeHuman hm08 kit"));
+  }
   CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { clips: CLIP_SET_TEST } }"),
              Catch::Contains("source.rendered.pose_library") && Catch::Contains("required"));
   CHECK_THAT(ErrorOf("images_per_tree: 5 source { rendered { procedural_bodies: false } }"),

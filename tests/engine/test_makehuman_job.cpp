@@ -1,8 +1,8 @@
 // Bodies: the job fields for sampled and clothed MakeHuman bodies
 // (RenderedSource fields 21-24): defaults, validation, and a rendered source that uses them.
 #include <catch2/catch.hpp>
-
 #include <filesystem>
+#include <fstream>
 
 #include "engine/image_source.h"
 #include "engine/job_spec.h"
@@ -74,7 +74,10 @@ TEST_CASE("MakeHuman body job fields: defaults off, validation, the clothes fold
              Catch::Contains("makehuman_clothes") && Catch::Contains("set makehuman_clothed_share"));
   // A kit whose folder has no makehuman_clothes beside it: the default is named as such.
   const auto dir = testing::ScratchDir("mh-job");
-  fs::create_directories(dir / "kit");
+  fs::create_directories(dir / "kit" / "rigs");
+  fs::create_directories(dir / "kit" / "targets" / "macrodetails");
+  for (const char* file : {"base.obj", "rigs/default.mhskel", "rigs/default_weights.mhw"})
+    std::ofstream(dir / "kit" / file) << "a kit's file, not read here";
   CHECK_THAT(ErrorOf("makehuman_kit: \"" + (dir / "kit").string() + "\" makehuman_clothed_share: 0.5"),
              Catch::Contains("the default, beside makehuman_kit") && Catch::Contains("makehuman_clothes"));
   fs::remove_all(dir);

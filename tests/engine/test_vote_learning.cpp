@@ -281,6 +281,24 @@ TEST_CASE("learn-votes refuses a procedural job and a forest of another job", "[
   REQUIRE_FALSE(wrong.ok());
   CHECK(wrong.status().code() == core::ErrorCode::kInvalidArgument);
   CHECK_THAT(wrong.status().message(), Catch::Contains("not the forest of this job"));
+  // The same tree count, but other training frames: the leaves the forest's own pixels made are
+  // not reached by these, and that is refused after the first tree.
+  engine::TrainParams reseeded = job;
+  reseeded.source.seed += 1;
+  engine::TrainParams fewer = job;
+  fewer.images_per_tree /= 2;
+  for (const engine::TrainParams* other_frames : {&reseeded, &fewer}) {
+    auto r = engine::LearnOffsetVotes(forest, *other_frames, opt);
+    REQUIRE_FALSE(r.ok());
+    CHECK(r.status().code() == core::ErrorCode::kInvalidArgument);
+    CHECK_THAT(r.status().message(), Catch::StartsWith("tree 0: ") &&
+                                         Catch::Contains("reached by none of the job's training pixels") &&
+                                         Catch::Contains("not the forest of this job"));
+  }
+  engine::VoteLearningReport own;
+  REQUIRE(engine::LearnOffsetVotes(forest, job, opt, &own).ok());
+  CHECK(own.leaves_unreached == 0);
+  CHECK(own.leaves > 0);
   engine::TrainParams procedural = job;
   procedural.source = engine::SourceSpec{};
   procedural.source.kind = engine::SourceKind::kProcedural;

@@ -1,9 +1,10 @@
 // PCL's independently trained people trees run through our loader and classifier: a
 // cross-check that our feature (eq. 1) and tree walk mean what a real trained forest expects.
 #include <catch2/catch.hpp>
-
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <vector>
 
 #include "runtime/classifier.h"
 #include "runtime/core/forest_format.h"
@@ -108,6 +109,29 @@ TEST_CASE("malformed PCL tree files give errors naming the file and the place", 
   auto r = runtime::ImportPclTrees({"/nonexistent/tree.txt.bz2"});
   CHECK_FALSE(r.ok());
   CHECK_THAT(r.status().message(), Catch::Contains("/nonexistent/tree.txt.bz2"));
+}
+
+TEST_CASE("a .bz2 tree cut short, or a folder, is refused saying so", "[pcl][data]") {
+  const fs::path tree = testing::DataDir() / "pretrained" / "pcl_people_trees" / "forest1_tree_20.txt.bz2";
+  REQUIRE(fs::exists(tree));
+  const fs::path dir = testing::ScratchDir("pcl-bz2");
+  const fs::path cut = dir / "cut.txt.bz2";
+  {
+    std::ifstream in(tree, std::ios::binary);
+    std::vector<char> head(100000);
+    in.read(head.data(), std::streamsize(head.size()));
+    std::ofstream(cut, std::ios::binary).write(head.data(), in.gcount());
+  }
+  auto r = runtime::ImportPclTrees({cut.string()});
+  REQUIRE_FALSE(r.ok());
+  CHECK(r.status().code() == core::ErrorCode::kDataLoss);
+  CHECK_THAT(r.status().message(),
+             Catch::Contains(cut.string() + ": not a whole bzip2 file (corrupt, or cut short"));
+  fs::create_directories(dir / "folder.bz2");
+  auto folder = runtime::ImportPclTrees({(dir / "folder.bz2").string()});
+  REQUIRE_FALSE(folder.ok());
+  CHECK_THAT(folder.status().message(), Catch::Contains("is a folder, not a file"));
+  fs::remove_all(dir);
 }
 
 TEST_CASE("PCL's trained trees label real Kinect frames as PCL itself would", "[pcl][data]") {
