@@ -475,6 +475,14 @@ void QuickWrite(const std::string& path, std::span<const uint8_t> bytes) {
 
 // A small organized PCD (x y z float32 metres) in one of PCL's encodings. binary_compressed is
 // written as LZF literal runs (valid LZF, as liblzf decodes it), fields one after the other.
+/// A 16x12 frame with a 10x8 patch of depths 1.1-1.6 m (each pixel its own) for the .pcd tests.
+core::DepthImage PcdTestDepth() {
+  core::DepthImage d(16, 12, 0);
+  for (int y = 2; y < 10; ++y)
+    for (int x = 3; x < 13; ++x) d.at(x, y) = uint16_t(1000 + 37 * x + 11 * y);
+  return d;
+}
+
 std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encoding,
                              const core::CameraIntrinsics& cam = core::CameraIntrinsics::KinectV1(),
                              float x_shift_m = 0) {
@@ -533,9 +541,7 @@ std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encod
 TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors, never crash",
           "[frames][pcd][hostile]") {
   const auto dir = testing::ScratchDir("frames-pcd");
-  core::DepthImage d(16, 12, 0);
-  for (int y = 2; y < 10; ++y)
-    for (int x = 3; x < 13; ++x) d.at(x, y) = uint16_t(1000 + 37 * x + 11 * y);
+  const core::DepthImage d = PcdTestDepth();
   for (const std::string enc : {"ascii", "binary", "binary_compressed"}) {
     const auto bytes = MakePcd(d, enc);
     const std::string path = (dir / ("c_" + enc + ".pcd")).string();
@@ -567,9 +573,7 @@ TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors
 TEST_CASE(".pcd: the cloud's own projection is fitted from its points and used as the frame's camera",
           "[frames][pcd]") {
   const auto dir = testing::ScratchDir("frames-pcd-projection");
-  core::DepthImage d(16, 12, 0);
-  for (int y = 2; y < 10; ++y)
-    for (int x = 3; x < 13; ++x) d.at(x, y) = uint16_t(1000 + 37 * x + 11 * y);
+  const core::DepthImage d = PcdTestDepth();
   core::CameraIntrinsics cam;
   cam.width = 16, cam.height = 12, cam.fx = 525, cam.fy = 530, cam.cx = 7.25, cam.cy = 5.75;
   for (const std::string enc : {"ascii", "binary", "binary_compressed"}) {
