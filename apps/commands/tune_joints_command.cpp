@@ -109,6 +109,10 @@ int TuneJointsCommand::Run() {
            (from == "test" ? "the job's test_set source (held-out clips)"
                            : "the job's training source (train clips, frames not trained on)");
   } else if (source.kind == engine::SourceKind::kDataset) {
+    // A folder's frames are what they are: no job source to choose, nothing to render.
+    if (Given("from") || Given("seed"))
+      return UsageError(std::string(Given("from") ? "--from" : "--seed") +
+                        " is for a job's rendered source; --validation " + set + " is a folder of frames");
     what = "folder " + source.folder;
     // A folder: the default --frames takes at most what it holds.
     int64_t count = 0;

@@ -211,6 +211,15 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
     CHECK(more.exit_code == 2);
     CHECK_THAT(more.output, Catch::Contains(frames + " holds 1 frames"));
   }
+  // A folder has no job source to choose and nothing to render: --from and --seed are refused.
+  for (const char* flag : {" --from test", " --seed 5"}) {
+    auto ignored = RunPoseforest("tune-joints --forest " + tuned + " --validation " + frames + flag +
+                                 " --out " + (dir / "t.pff").string());
+    INFO(flag << "\n" << ignored.output);
+    CHECK(ignored.exit_code == 2);
+    CHECK_THAT(ignored.output,
+               Catch::Contains("is for a job's rendered source") && Catch::Contains("a folder of frames"));
+  }
   auto all = RunPoseforest("tune-joints --forest " + tuned + " --validation " + frames +
                            " --method meanshift --out " + (dir / "t.pff").string());
   INFO(all.output);
