@@ -4,10 +4,7 @@
 
 #include <charconv>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
 #include <memory>
-#include <system_error>
 
 #include "runtime/core/forest_format.h"
 
@@ -82,10 +79,7 @@ core::Result<core::Forest> ImportPclTrees(const std::vector<std::string>& paths)
   forest.constants.offset_unit = 1.0f;
   for (const std::string& path : paths) {
     if (path.size() > 4 && path.compare(path.size() - 4, 4, ".bz2") == 0) {
-      std::ifstream probe(path);
-      if (!probe) return core::Status(core::ErrorCode::kIo, path + ": cannot open");
-      if (std::error_code ec; std::filesystem::is_directory(path, ec))
-        return core::Status(core::ErrorCode::kInvalidArgument, path + ": is a folder, not a file");
+      POSEFOREST_RETURN_IF_ERROR(core::CheckReadableFile(path));
       // Decompress through the bzip2 program (the runtime links no compression library).
       std::string quoted = "'";
       for (char c : path) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);

@@ -229,17 +229,23 @@ std::vector<uint8_t> SerializeForest(const Forest& forest) {
   return std::move(w.bytes());
 }
 
-Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path) {
+Status CheckReadableFile(const std::string& path) {
   // A folder opens as a stream on Linux, and its size reads as huge: refuse it first.
   struct stat st {};
   if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
     return Status(ErrorCode::kInvalidArgument, path + ": is a folder, not a file");
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) {
+  if (::access(path.c_str(), R_OK) != 0) {
     const int err = errno;
     return Status(err == ENOENT ? ErrorCode::kNotFound : ErrorCode::kIo,
                   path + (err == ENOENT ? ": no such file" : ": cannot open: " + std::string(std::strerror(err))));
   }
+  return Status::Ok();
+}
+
+Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path) {
+  if (Status readable = CheckReadableFile(path); !readable.ok()) return readable;
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return Status(ErrorCode::kIo, path + ": cannot open: " + std::string(std::strerror(errno)));
   const std::streamoff size = in.tellg();
   if (size < 0) return Status(ErrorCode::kIo, path + ": cannot determine the file size");
   std::vector<uint8_t> bytes(static_cast<size_t>(size));

@@ -42,8 +42,11 @@ Result<Forest> LoadForest(const std::string& path);
 /// half-written forest under `path`.
 Status SaveForest(const Forest& forest, const std::string& path);
 
-/// Reads a whole file into memory (error names the path): kNotFound when it does not exist,
-/// kInvalidArgument when it is a folder, kIo when it cannot be read.
+/// OK when `path` is a file this process may read (error names the path): kNotFound when it does
+/// not exist, kInvalidArgument when it is a folder, kIo when it cannot be read. For readers that
+/// hand the path on (a decompressor); ReadFileBytes checks the same.
+Status CheckReadableFile(const std::string& path);
+/// Reads a whole file into memory (errors as CheckReadableFile's).
 Result<std::vector<uint8_t>> ReadFileBytes(const std::string& path);
 /// ReadFileBytes as text.
 Result<std::string> ReadFileText(const std::string& path);
