@@ -10,7 +10,7 @@
 // CPU-second actually used, so idle waiting costs nothing and a busy coordinator counts.
 // Every run's forest is checked byte for byte against the engine's.
 //
-//   distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S]
+//   distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] (--help: every option)
 // Each worker count runs twice: without subtree hand-off (subtree_max_samples 0: every level
 // by histogram rounds) and with it (nodes of at most S samples trained whole by one worker; S
 // defaults to the job's subtree_max_samples, 4096 unless set; 0 skips the second run). The
@@ -101,6 +101,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -110,6 +111,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -120,6 +122,7 @@
 #include <tuple>
 #include <vector>
 
+#include "bench/bench_cli.h"
 #include "coordinator/dist_coordinator.h"
 #include "engine/job_spec.h"
 #include "engine/local_trainer.h"
@@ -383,7 +386,9 @@ std::vector<std::pair<std::string, double>> CpuFields(const worker::WorkerCpu& c
   return out;
 }
 
-/// A worker process: this program with --worker-process.
+/// A worker process: this program with --worker-process. Its arguments are written by this
+/// program when it starts the process, never by a user, so they are read as they are (main's
+/// command line, the user's, goes through CLI11).
 int WorkerProcess(int argc, char** argv) {
   // Go when the bench goes (killed or interrupted), as `worker --exit-with-parent` does.
   ::prctl(PR_SET_PDEATHSIG, SIGTERM);
@@ -1460,64 +1465,65 @@ int main(int argc, char** argv) {
   std::string cli_path;  // the poseforest program (default: ../bin/poseforest next to this bench)
   bool commands_only = false;
   std::string job_path, keep_logs;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--workers") && i + 1 < argc) {
-      worker_counts.clear();
-      for (std::stringstream ss(argv[++i]); ss.good();) {
-        std::string item;
-        std::getline(ss, item, ',');
-        const int n = std::atoi(item.c_str());
-        if (n < 1 || n > 16) return std::fprintf(stderr, "distributed: --workers wants counts 1..16\n"), 2;
-        worker_counts.push_back(n);
-      }
-    } else if (!std::strcmp(argv[i], "--scale") && i + 1 < argc) {
-      for (std::stringstream ss(argv[++i]); ss.good();) {
-        std::string item;
-        std::getline(ss, item, ',');
-        const int n = std::atoi(item.c_str());
-        if (n < 1 || n > 64) return std::fprintf(stderr, "distributed: --scale wants counts 1..64\n"), 2;
-        scale_counts.push_back(n);
-      }
-    } else if (!std::strcmp(argv[i], "--commands-only")) {
-      commands_only = true;
-    } else if (!std::strcmp(argv[i], "--keep-logs") && i + 1 < argc) {
-      keep_logs = argv[++i];
-    } else if (!std::strcmp(argv[i], "--skip-off")) {
-      skip_off = true;
-    } else if (!std::strcmp(argv[i], "--engine-only")) {
-      engine_only = true;
-    } else if (!std::strcmp(argv[i], "--neighbour-test") && i + 1 < argc) {
-      neighbour_test = std::atoi(argv[++i]);
-      if (neighbour_test < 1 || neighbour_test > 50)
-        return std::fprintf(stderr, "distributed: --neighbour-test wants 1..50\n"), 2;
-    } else if (!std::strcmp(argv[i], "--poseforest") && i + 1 < argc) {
-      cli_path = argv[++i];
-    } else if (!std::strcmp(argv[i], "--no-sample-lists")) {
-      sample_lists = false;
-    } else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) {
-      repeat = std::atoi(argv[++i]);
-      if (repeat < 1 || repeat > 50) return std::fprintf(stderr, "distributed: --repeat wants 1..50\n"), 2;
-    } else if (!std::strcmp(argv[i], "--domain") && i + 1 < argc) {
-      domain = uint32_t(std::atoi(argv[++i]));
-    } else if (!std::strcmp(argv[i], "--csv") && i + 1 < argc) {
-      csv_path = argv[++i];
-    } else if (!std::strcmp(argv[i], "--subtree-max") && i + 1 < argc) {
-      subtree_max = std::atoll(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--help") || argv[i][0] == '-') {
-      std::fprintf(stderr,
-                   "usage: distributed [JOB.textproto] [--csv FILE] [--domain D] [--subtree-max S] "
-                   "[--workers N,N] [--skip-off] [--repeat R] [--engine-only] [--no-sample-lists] "
-                   "[--neighbour-test R] [--poseforest PATH] [--commands-only [--keep-logs DIR]] "
-                   "[--scale N,N,...]\n");
-      return std::strcmp(argv[i], "--help") ? 2 : 0;
-    } else {
-      std::ifstream in(argv[i]);
-      if (!in) return std::fprintf(stderr, "distributed: cannot read %s\n", argv[i]), 1;
-      job_path = std::filesystem::absolute(argv[i]).string();
-      std::stringstream ss;
-      ss << in.rdbuf();
-      text = ss.str();
-    }
+  std::string job_arg;
+  CLI::App app(
+      "The distributed service against the engine on one job: time per level with N workers over DDS "
+      "(and --scale, --neighbour-test, --commands-only); its last line is the headline",
+      "bench/distributed");
+  app.add_option("JOB.textproto", job_arg, "the job (default: the embedded bench job)")
+      ->check(bench::kNonEmptyPath);
+  app.add_option("--workers", worker_counts, "worker counts to time, comma-separated")
+      ->type_name("N,N")
+      ->delimiter(',')
+      ->allow_extra_args(false)
+      ->capture_default_str()
+      ->check(CLI::Range(1, 16));
+  app.add_option("--scale", scale_counts,
+                 "instead of the runs above: one service run per count of worker processes (1..64)")
+      ->type_name("N,N,...")
+      ->delimiter(',')
+      ->allow_extra_args(false)
+      ->check(CLI::Range(1, 64));
+  app.add_flag("--commands-only", commands_only,
+               "only the two commands as users run them (train --threads N and train --local-workers N)");
+  app.add_option("--keep-logs", keep_logs, "with --commands-only: keep the commands' logs in this folder")
+      ->type_name("DIR")
+      ->check(bench::kNonEmptyPath);
+  app.add_flag("--skip-off", skip_off, "only the runs with subtree hand-off");
+  app.add_flag("--engine-only", engine_only, "the engine alone (e.g. under a profiler)");
+  app.add_option("--neighbour-test", neighbour_test,
+                 "instead of the service runs: the 1-thread engine next to a busy loop and next to random "
+                 "reads, R rounds")
+      ->type_name("R")
+      ->check(CLI::Range(1, 50));
+  app.add_option("--poseforest", cli_path,
+                 "the poseforest program (default: ../bin/poseforest beside this bench)")
+      ->type_name("PATH")
+      ->check(bench::kNonEmptyPath);
+  app.add_flag(
+      "--no-sample-lists", [&](int64_t) { sample_lists = false; },
+      "subtree tasks without their sample lists (the service before that change)");
+  app.add_option("--repeat", repeat, "(engine, headline run) pairs; the last line is the median ratio")
+      ->type_name("R")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 50));
+  app.add_option("--domain", domain, "the DDS domain (default: 1 + pid % 200)")
+      ->type_name("D")
+      ->check(CLI::Range(0, 232));
+  app.add_option("--csv", csv_path, "also write the table as CSV")
+      ->type_name("FILE")
+      ->check(bench::kNonEmptyPath);
+  app.add_option("--subtree-max", subtree_max, "the job's subtree_max_samples (the hand-off to one worker)")
+      ->type_name("S")
+      ->check(CLI::Range(0LL, std::numeric_limits<long long>::max()));
+  if (const auto exit_status = bench::ParseBenchCommandLine(app, argc, argv)) return *exit_status;
+  if (!job_arg.empty()) {
+    std::ifstream in(job_arg);
+    if (!in) return std::fprintf(stderr, "bench/distributed: cannot read %s\n", job_arg.c_str()), 1;
+    job_path = std::filesystem::absolute(job_arg).string();
+    std::stringstream ss;
+    ss << in.rdbuf();
+    text = ss.str();
   }
   auto config = engine::ParseJobText(text, "bench job");
   if (!config.ok()) return std::fprintf(stderr, "%s\n", config.status().ToString().c_str()), 1;

@@ -14,8 +14,7 @@
 // out/accuracy-4000/); it says which it ran.
 //
 //   build/bench/live [--forest F] [--threads N] [--frames N] [--seconds S] [--pixel-stride N] [--no-votes]
-//   [--no-tracking-model] [--fit kinematic|greedy]
-//                    [--checksum]
+//                    [--no-tracking-model] [--fit kinematic|greedy] [--checksum] (--help)
 //
 // --pixel-stride N: classify and propose from every N-th pixel in x and y (`live --pixel-stride`;
 // default 2, as `live`'s default; 1: every pixel); the header says which ran.
@@ -23,6 +22,7 @@
 // --checksum: no timing; runs the sequence once through a fresh pipeline and prints checksums of
 // the classification (labels, foreground sums), the proposals and the JSON Lines records, so
 // that a change meant to be exact can be checked bit-identical against an older build.
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_cli.h"
 #include "runtime/core/forest_format.h"
 #include "runtime/core/rng.h"
 #include "runtime/frame_source.h"
@@ -137,41 +138,48 @@ int main(int argc, char** argv) {
   bool checksum = false, votes = true, tracking_model = true;
   std::string forest_path;
   std::optional<runtime::SkeletonFit> fit;  // unset: as `live`, the forest's decision's fit
-  for (int i = 1; i < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--checksum")) {
-      checksum = true;
-      --i;
-      continue;
-    }
-    if (!std::strcmp(argv[i], "--no-votes")) {
-      votes = false;
-      --i;
-      continue;
-    }
-    if (!std::strcmp(argv[i], "--no-tracking-model")) {
-      tracking_model = false;
-      --i;
-      continue;
-    }
-    if (i + 1 >= argc) break;
-    if (!std::strcmp(argv[i], "--threads"))
-      threads = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--pixel-stride"))
-      pixel_stride = std::max(1, std::atoi(argv[i + 1]));
-    else if (!std::strcmp(argv[i], "--frames"))
-      num_frames = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--seconds"))
-      seconds = std::atof(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--forest"))
-      forest_path = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--fit")) {
-      fit = runtime::SkeletonFitFromName(argv[i + 1]);
-      if (!fit) {
-        std::fprintf(stderr, "bench/live: --fit must be kinematic or greedy (got '%s')\n", argv[i + 1]);
-        return 2;
-      }
-    }
-  }
+  std::string fit_name;
+  CLI::App app(
+      "`poseforest live`'s pipeline on a replayed sequence of cluttered 640x480 frames; last line "
+      "`frames/s: N frames/s`",
+      "bench/live");
+  app.add_option("--forest", forest_path,
+                 "the forest (default: scripts/accuracy-recipe.sh's, out/accuracy-16000/forest_tuned.pff, "
+                 "then its earlier recipes')")
+      ->type_name("F")
+      ->check(bench::kNonEmptyPath);
+  app.add_option("--threads", threads, "OpenMP threads")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--frames", num_frames, "frames in the replayed sequence")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--seconds", seconds, "how long to time")
+      ->type_name("S")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 86400.0));
+  app.add_option(
+         "--pixel-stride", pixel_stride,
+         "classify and propose from every N-th pixel in x and y (`live --pixel-stride`; 1: every pixel)")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
+  app.add_flag(
+      "--no-votes", [&](int64_t) { votes = false; }, "without the forest's offset votes");
+  app.add_flag(
+      "--no-tracking-model", [&](int64_t) { tracking_model = false; },
+      "the hand-set tracking rules instead of the forest's learned decision");
+  app.add_option("--fit", fit_name, "the skeleton fit (default: `live`'s for this forest)")
+      ->type_name("kinematic|greedy")
+      ->check(CLI::IsMember({"kinematic", "greedy"}));
+  app.add_flag(
+      "--checksum", checksum,
+      "no timing: one pass through a fresh pipeline, then checksums of the classification, proposals and "
+      "JSON Lines records");
+  if (const auto exit_status = bench::ParseBenchCommandLine(app, argc, argv)) return *exit_status;
+  if (!fit_name.empty()) fit = runtime::SkeletonFitFromName(fit_name);
   std::string which = "given with --forest";
   if (forest_path.empty()) {
     // The recipe's default (16,000 images per tree since 30 Nov 2026), then its earlier 8,000

@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_cli.h"
 #include "renderer/scene_assets.h"
 #include "renderer/synthetic_source.h"
 #include "runtime/classifier.h"
@@ -84,21 +85,24 @@ int main(int argc, char** argv) {
   uint64_t seed = 777, split_seed = 1;
   double test_fraction = 0.2;
   std::optional<float> seed_cell, min_probability, cluster_cell;
-  CLI::App app("The runtime pipeline on 640x480 renders, timed per stage, and its joint AP.", "pipeline");
-  app.add_option("--forest", forest_path, "forest file")->required();
+  CLI::App app("The runtime pipeline on 640x480 renders, timed per stage, and its joint AP.",
+               "bench/pipeline");
+  app.add_option("--forest", forest_path, "forest file")->required()->check(bench::kNonEmptyPath);
   app.add_option("--frames", frames, "frames")->check(CLI::Range(1, 100000));
   app.add_option("--seed", seed, "render seed")->check(CLI::Range(uint64_t(0), uint64_t(1) << 40));
   app.add_option("--poses", poses, "a pose library (.pfposes) instead of the procedural poses");
-  app.add_option("--clips", clips, "clips of --poses: train, test or all");
-  app.add_option("--test-fraction", test_fraction, "share of test clips");
+  app.add_option("--clips", clips, "clips of --poses: train, test or all")
+      ->check(CLI::IsMember({"train", "test", "all"}));
+  app.add_option("--test-fraction", test_fraction, "share of test clips")->check(CLI::Range(0.0, 1.0));
   app.add_option("--split-seed", split_seed, "seed of the clip split");
-  app.add_option("--bodies", bodies, "procedural, makehuman or all");
-  app.add_option("--data", data, "shared data folder");
+  app.add_option("--bodies", bodies, "procedural, makehuman or all")
+      ->check(CLI::IsMember({"procedural", "makehuman", "all"}));
+  app.add_option("--data", data, "shared data folder")->check(bench::kNonEmptyPath);
   app.add_option("--threads", threads, "threads (0: all cores)")->check(CLI::Range(0, 256));
   app.add_option("--seed-cell", seed_cell, "ProposalOptions::seed_cell_fraction");
   app.add_option("--min-probability", min_probability, "ProposalOptions::min_probability");
   app.add_option("--cluster-cell", cluster_cell, "ProposalOptions::cluster_cell_fraction");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto exit_status = bench::ParseBenchCommandLine(app, argc, argv)) return *exit_status;
   auto forest = core::LoadForest(forest_path);
   if (!forest.ok()) {
     std::fprintf(stderr, "pipeline: %s\n", forest.status().ToString().c_str());

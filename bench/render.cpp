@@ -1,17 +1,18 @@
 // Synthetic rendering throughput: images per second per core at 640x480, one thread, including
 // pose sampling + skinning matrices, the draw (vertex-shader skinning, rasterization), readback,
 // and post-processing (label/depth unpacking, joint visibility, Kinect noise).
-//   render [--frames N] [--people N] [--no-noise]
+//   render [--frames N] [--people N] [--no-noise] (--help)
 // The last line is the headline: `images/s/core: <value> images/s/core` (frames per CPU-second
 // of this process, so other load on the machine does not count against it).
 #include <sys/resource.h>
 
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <string>
 
+#include "bench/bench_cli.h"
 #include "renderer/synthetic_source.h"
 
 using namespace poseforest;
@@ -29,18 +30,21 @@ double CpuSeconds() {
 int main(int argc, char** argv) {
   int frames = 400, people = 1;
   bool noise = true;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--frames") && i + 1 < argc) {
-      frames = std::atoi(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--people") && i + 1 < argc) {
-      people = std::atoi(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--no-noise")) {
-      noise = false;
-    } else {
-      std::fprintf(stderr, "usage: render [--frames N] [--people N] [--no-noise]\n");
-      return 2;
-    }
-  }
+  CLI::App app(
+      "Synthetic 640x480 frames rendered (EGL) on one thread, per CPU second; last line "
+      "`images/s/core: N images/s/core`",
+      "bench/render");
+  app.add_option("--frames", frames, "frames rendered")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 10000000));
+  app.add_option("--people", people, "people per frame")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 8));
+  app.add_flag(
+      "--no-noise", [&](int64_t) { noise = false; }, "without the sensor noise model");
+  if (const auto exit_status = bench::ParseBenchCommandLine(app, argc, argv)) return *exit_status;
   // llvmpipe rasterizes on the calling thread (no helper threads): a worker runs one renderer per core.
   setenv("LP_NUM_THREADS", "0", 0);
   SceneConfig config;

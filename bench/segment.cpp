@@ -6,18 +6,19 @@
 // its speed with N threads (default 2), one frame per thread at a time. Last line:
 // `frames/s: N frames/s`.
 //
-//   build/bench/segment [--threads N] [--frames N] [--seconds S]
+//   build/bench/segment [--threads N] [--frames N] [--seconds S] [--dump DIR] [--pictures DIR] (--help)
 #include <omp.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <string>
 #include <vector>
 
+#include "bench/bench_cli.h"
 #include "runtime/core/rng.h"
 #include "runtime/frame_source.h"
 #include "runtime/image_io.h"
@@ -65,18 +66,29 @@ int main(int argc, char** argv) {
   double seconds = 3.0;
   std::string dump;      // --dump DIR: a picture per frame (depth | truth | segmentation)
   std::string pictures;  // --pictures DIR: the pictures of docs/runtime/frames.md
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--threads"))
-      threads = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--frames"))
-      num_frames = std::atoi(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--seconds"))
-      seconds = std::atof(argv[i + 1]);
-    else if (!std::strcmp(argv[i], "--dump"))
-      dump = argv[i + 1];
-    else if (!std::strcmp(argv[i], "--pictures"))
-      pictures = argv[i + 1];
-  }
+  CLI::App app(
+      "People segmentation of cluttered 640x480 frames: IoU per person against the truth, and speed; "
+      "last line `frames/s: N frames/s`",
+      "bench/segment");
+  app.add_option("--threads", threads, "threads, one frame each at a time")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--frames", num_frames, "frames built")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--seconds", seconds, "how long to time")
+      ->type_name("S")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 86400.0));
+  app.add_option("--dump", dump, "a picture per frame (depth | truth | segmentation) into this folder")
+      ->type_name("DIR")
+      ->check(bench::kNonEmptyPath);
+  app.add_option("--pictures", pictures, "the pictures of docs/runtime/frames.md into this folder")
+      ->type_name("DIR")
+      ->check(bench::kNonEmptyPath);
+  if (const auto exit_status = bench::ParseBenchCommandLine(app, argc, argv)) return *exit_status;
   const auto cam = core::CameraIntrinsics::KinectV1();
 
   // People: synthetic standing figures, and the real frames' people if the data is there.

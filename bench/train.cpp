@@ -15,8 +15,9 @@
 // on the same pixels, feature computation included.
 //
 // usage: train [--source procedural|rendered] [--images N] [--pixels N] [--candidates N] [--thresholds N]
-// [--depth D] [--threads N] [--compare sklearn|none] [--compare-depth D] [--sklearn-model extra|forest]
-// [--sklearn-script PATH]
+// [--depth D] [--threads N] [--compare auto|sklearn|none] [--compare-depth D] [--sklearn-model extra|forest]
+// [--sklearn-script PATH] (--help)
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -26,6 +27,7 @@
 #include <fstream>
 #include <string>
 
+#include "bench/bench_cli.h"
 #include "engine/candidates.h"
 #include "engine/histogram_builder.h"
 #include "engine/image_source.h"
@@ -237,60 +239,59 @@ int main(int argc, char** argv) {
   poseforest::core::KeepFreedMemory();  // runtime/core/malloc_tuning.h
   // Defaults: the paper's per-node search (2000 features x 50 thresholds, 2000 pixels/frame).
   int images = 20, pixels = 2000, candidates = 2000, thresholds = 50, depth = 10, threads = 1;
-  bool rendered = false;
   CompareOptions compare;
-  for (int i = 1; i < argc; i += 2) {
-    const std::string a = argv[i];
-    if (a == "--help" || a == "-h") {
-      std::printf(
-          "usage: train [--source procedural|rendered] [--images N] [--pixels N] [--candidates N]\n"
-          "             [--thresholds N] [--depth D] [--threads N] [--compare auto|sklearn|none]\n"
-          "             [--compare-depth D] [--sklearn-model extra|forest] [--sklearn-script PATH]\n"
-          "Histogram-builder throughput (evaluations/s/core, last line), then a side by side with\n"
-          "scikit-learn (default auto: when /usr/bin/python3 imports sklearn; the reason is printed\n"
-          "when it is skipped).\n");
-      return 0;
-    }
-    if (i + 1 >= argc) {
-      std::fprintf(stderr, "option %s needs a value (--help)\n", argv[i]);
-      return 2;
-    }
-    const int v = std::atoi(argv[i + 1]);
-    if (a == "--compare")
-      compare.mode = argv[i + 1];
-    else if (a == "--compare-depth")
-      compare.depth = v;
-    else if (a == "--sklearn-model")
-      compare.model = argv[i + 1];
-    else if (a == "--sklearn-script")
-      compare.script = argv[i + 1];
-    else if (a == "--source")
-      rendered = std::string(argv[i + 1]) == "rendered";
-    else if (a == "--images")
-      images = v;
-    else if (a == "--pixels")
-      pixels = v;
-    else if (a == "--candidates")
-      candidates = v;
-    else if (a == "--thresholds")
-      thresholds = v;
-    else if (a == "--depth")
-      depth = v;
-    else if (a == "--threads")
-      threads = v;
-    else {
-      std::fprintf(stderr, "unknown option %s\n", argv[i]);
-      return 2;
-    }
-  }
-  if (compare.mode != "auto" && compare.mode != "sklearn" && compare.mode != "none") {
-    std::fprintf(stderr, "--compare %s: must be auto, sklearn or none\n", compare.mode.c_str());
-    return 2;
-  }
-  if (compare.model != "extra" && compare.model != "forest") {
-    std::fprintf(stderr, "--sklearn-model %s: must be extra or forest\n", compare.model.c_str());
-    return 2;
-  }
+  std::string source_kind = "procedural";
+  CLI::App app(
+      "Histogram-builder throughput (evaluations/s/core, last line), then a side by side with\n"
+      "scikit-learn (default auto: when /usr/bin/python3 imports sklearn; the reason is printed\n"
+      "when it is skipped)",
+      "bench/train");
+  app.add_option("--source", source_kind, "the frames: procedural figures, or rendered people")
+      ->type_name("procedural|rendered")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"procedural", "rendered"}));
+  app.add_option("--images", images, "frames")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
+  app.add_option("--pixels", pixels, "pixels sampled per frame")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 307200));
+  app.add_option("--candidates", candidates, "candidate features per node")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--thresholds", thresholds, "thresholds per feature")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 10000));
+  app.add_option("--depth", depth, "depth of the deep level timed")
+      ->type_name("D")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 30));
+  app.add_option("--threads", threads, "threads")
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--compare", compare.mode, "the scikit-learn side by side")
+      ->type_name("auto|sklearn|none")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "sklearn", "none"}));
+  app.add_option("--compare-depth", compare.depth, "depth of the side by side's trees")
+      ->type_name("D")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 30));
+  app.add_option("--sklearn-model", compare.model, "ExtraTreesClassifier or RandomForestClassifier")
+      ->type_name("extra|forest")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"extra", "forest"}));
+  app.add_option("--sklearn-script", compare.script, "the side by side's Python script")
+      ->type_name("PATH")
+      ->capture_default_str()
+      ->check(bench::kNonEmptyPath);
+  if (const auto exit_status = bench::ParseBenchCommandLine(app, argc, argv)) return *exit_status;
+  const bool rendered = source_kind == "rendered";
   engine::TrainParams p;
   p.seed = 1;
   p.candidate_features = candidates;

@@ -54,6 +54,40 @@ run() {  # NAME ARGS...: runs bench/NAME, checks its exit status and its last li
   REPLY=$out
 }
 
+# Command lines (bench_cli.h, CLI11): --help, and a bad value or an unknown option is a usage
+# error (exit status 2) that names it, before any work; "--name=" is an empty value.
+usage() {  # NAME EXPECTED_STATUS PATTERN ARGS...: bench/NAME ARGS exits EXPECTED_STATUS, output matches PATTERN
+  local name=$1 want=$2 pattern=$3
+  shift 3
+  local out rc
+  out=$(timeout 60 "$bench_dir/$name" "$@" 2>&1)
+  rc=$?
+  if [ $rc -ne "$want" ] || ! grep -q -- "$pattern" <<< "$out"; then
+    echo "$out" | tail -n 5
+    echo "FAIL: bench/$name $*: exit status $rc (want $want), output should match '$pattern'"
+    failed=1
+  fi
+}
+for name in classify segment live pipeline render train leaf_encoding distributed; do
+  usage "$name" 0 "^Usage: bench/$name" --help
+  # (bench/pipeline's --forest is required: given, so that --bogus is the error)
+  required=()
+  [ "$name" = pipeline ] && required=(--forest forest.pff)
+  usage "$name" 2 "^bench/$name: The following argument was not expected: --bogus" "${required[@]}" --bogus
+done
+usage live 2 "^bench/live: --threads: Value abc not in range 1 to 1024" --threads abc
+usage live 2 "^bench/live: --seconds: 1 required" --forest forest.pff --seconds
+usage live 2 "^bench/live: --forest must be a file or folder name, not empty" --forest= --seconds 1
+usage live 2 "^bench/live: --fit: best not in {kinematic,greedy}" --fit best
+usage segment 2 "^bench/segment: --frames: Value 0 not in range" --frames 0
+usage classify 2 "^bench/classify: SECONDS: Value abc not in range" abc
+usage render 2 "^bench/render: --people: Value 9 not in range 1 to 8" --people 9
+usage train 2 "^bench/train: --compare: maybe not in {auto,sklearn,none}" --compare maybe
+usage distributed 2 "^bench/distributed: --workers: Value 20 not in range 1 to 16" --workers 1,20
+# A comma list is one argument: the job after it is the job, not a third count.
+usage distributed 1 "^bench/distributed: cannot read $work/none.textproto" --workers 1,2 "$work/none.textproto"
+usage pipeline 2 "^bench/pipeline: --bodies: robots not in {procedural,makehuman,all}" --forest forest.pff --bodies robots
+
 run classify 0.05
 run segment --frames 3 --seconds 0.2
 run live --forest forest.pff --frames 3 --seconds 0.3

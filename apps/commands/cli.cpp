@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "apps/commands/commands.h"
+#include "runtime/core/command_line.h"
 #include "runtime/skeleton.h"
 
 namespace poseforest::apps::commands {
@@ -61,6 +62,33 @@ class HelpFormatter : public CLI::Formatter {
     return u + "\n";
   }
 };
+
+/// Whether an option's type name says its value names a file or folder: FILE, PATH, DIR, FILE|-,
+/// or a name with an extension (JOB.textproto, FOREST.pff, KEY.pem, F.jsonl).
+bool NamesAFile(const std::string& type_name) {
+  if (type_name == "FILE" || type_name == "PATH" || type_name == "DIR" || type_name == "FILE|-") return true;
+  const size_t dot = type_name.find('.');
+  if (dot == std::string::npos || dot == 0 || dot + 1 == type_name.size()) return false;
+  for (size_t i = 0; i < type_name.size(); ++i) {
+    const char c = type_name[i];
+    if (i < dot ? !(c >= 'A' && c <= 'Z') : i > dot && !(c >= 'a' && c <= 'z')) return false;
+  }
+  return true;
+}
+
+/// Every option of `app` and its subcommands whose value names a file or folder (NamesAFile) gets
+/// NonEmptyPath(): "--forest ''" is a usage error naming the option, not "NotFound: : no such file".
+void CheckFileOptionsNotEmpty(CLI::App& app) {
+  for (CLI::Option* o : app.get_options()) {
+    if (!NamesAFile(o->get_type_name())) continue;
+    try {
+      o->get_validator("non-empty path");  // given already (RunCommand ran on this app before)
+    } catch (const CLI::OptionNotFound&) {
+      o->check(NonEmptyPath());
+    }
+  }
+  for (CLI::App* sub : app.get_subcommands({})) CheckFileOptionsNotEmpty(*sub);
+}
 
 /// The option a CLI11 message is about, spelt as on the command line ("--out", "-x").
 std::string Unexpected(const std::string& arg) {
@@ -125,22 +153,10 @@ int Command::UsageError(const std::string& message) const {
 int RunCommand(Command& command, int argc, char** argv) {
   CLI::App& app = command.app();
   if (argc > 0) command.set_invoked_as(argv[0]);
-  // "--name=" (an empty value after '='): CLI11 2.x would take the next argument as the value
-  // ("--id= --check-config" set the id to "--check-config"); it is passed on as "--name" "".
-  std::vector<std::string> args;
-  bool options_end = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    options_end = options_end || a == "--";
-    if (!options_end && a.size() > 3 && a.starts_with("--") && a.back() == '=' &&
-        a.find('=') == a.size() - 1) {
-      args.push_back(a.substr(0, a.size() - 1));
-      args.emplace_back();
-    } else {
-      args.push_back(a);
-    }
-  }
-  std::reverse(args.begin(), args.end());  // CLI11 takes them last first
+  // "--name=" reaches the option as an empty value (core::ArgumentsForCli11), which an option
+  // naming a file refuses.
+  std::vector<std::string> args = core::ArgumentsForCli11(argc, argv);
+  CheckFileOptionsNotEmpty(app);
   try {
     app.parse(args);
   } catch (const CLI::CallForHelp&) {
@@ -233,6 +249,14 @@ CLI::Validator NonEmptyName() {
         return "";
       },
       "");
+}
+
+CLI::Validator NonEmptyPath() {
+  return CLI::Validator(
+      [](std::string& v) -> std::string {
+        return v.empty() ? "must be a file or folder name, not empty" : "";
+      },
+      "", "non-empty path");
 }
 
 CLI::Validator OneOf(std::vector<std::string> names) {

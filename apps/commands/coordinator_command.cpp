@@ -149,8 +149,9 @@ CoordinatorCommand::CoordinatorCommand() : Command("coordinator", "") {
   // `train JOB --local-workers N --quiet` runs this command: --quiet means what it means for train.
   app_.add_flag("--quiet", quiet_,
                 "no per-level progress lines (the event log, status and metrics still get every level)");
-  app_.add_option("--status-file", status_file_, "a JSON line with the last level's figures, rewritten each level")
-      ->type_name("F");
+  app_.add_option("--status-file", status_file_,
+                  "a JSON line with the last level's figures, rewritten each level")
+      ->type_name("FILE");
   app_.add_option("--min-workers", min_workers_, "workers to wait for before the first level (default: --local-workers, at least 1)")
       ->type_name("N")
       ->check(IntIn(1, 4096));
@@ -186,7 +187,7 @@ CoordinatorCommand::CoordinatorCommand() : Command("coordinator", "") {
   app_.add_option("--min-workers-per-tree", min_workers_per_tree_, "tests: before tree t, wait for Nt live workers")
       ->type_name("N0,N1,...");
   app_.add_option("--pause-file", pause_file_, "while F exists, hold between levels; remove it to go on")
-      ->type_name("F");
+      ->type_name("FILE");
   AddDdsOptions(app_, &dds_);
 }
 

@@ -149,8 +149,9 @@ EvalCommand::EvalCommand()
                   "before 1.8), a joint is tracked when P(within 0.1 m) reaches P (default 0.5)")
       ->type_name("P")
       ->check(NumberIn(0.0, 1.0, "a probability"));
-  app_.add_option("--real-labels", real_labels_, "score skeletons on hand-labelled real frames (above) instead of --test-set")
-      ->type_name("F");
+  app_.add_option("--real-labels", real_labels_,
+                  "score skeletons on hand-labelled real frames (above) instead of --test-set")
+      ->type_name("FILE");
   app_.add_option("--png-dir", png_dir_, "with --real-labels: a picture per frame, DIR/<frame file>.png")
       ->type_name("DIR");
   app_.add_flag("--quiet", quiet_, "no progress lines");

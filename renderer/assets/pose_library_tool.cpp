@@ -17,9 +17,11 @@
 #include "renderer/assets/bvh.h"
 #include "renderer/assets/pose_library.h"
 #include "renderer/assets/retarget.h"
+#include "runtime/core/command_line.h"
 
 namespace {
 
+using namespace poseforest;
 using namespace poseforest::renderer;
 using namespace poseforest::renderer::assets;
 
@@ -147,7 +149,12 @@ int main(int argc, char** argv) {
   CLI::App* b = app.add_subcommand("build",
                                    "retarget every BVH clip and keep poses at least --min-distance apart;\n"
                                    "folders are searched below, linked folders included");
-  b->add_option("--out", build.out, "the library to write")->type_name("LIB.pfposes")->required();
+  b->add_option("--out", build.out, "the library to write")
+      ->type_name("LIB.pfposes")
+      ->required()
+      ->check(CLI::Validator(
+          [](const std::string& v) { return v.empty() ? std::string("must be a file name") : ""; }, "",
+          "non-empty"));
   b->add_option("--min-distance", build.min_distance, "keep poses at least this far apart, metres")
       ->type_name("M")
       ->capture_default_str()
@@ -173,7 +180,9 @@ int main(int argc, char** argv) {
   v->add_option("FILES/DIRS", bvh_inputs, "BVH clips, or folders of them")->required();
 
   try {
-    app.parse(argc, argv);
+    // "--out=" reaches --out as an empty value, not as the next argument (core::ArgumentsForCli11).
+    std::vector<std::string> args = core::ArgumentsForCli11(argc, argv);
+    app.parse(args);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {

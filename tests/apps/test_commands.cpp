@@ -225,3 +225,41 @@ TEST_CASE("poseforest help CMD prints that command's options; an unknown one is 
   CHECK(bogus.exit_code == 2);
   CHECK_THAT(bogus.output, Catch::Contains("unknown command 'no-such-command'"));
 }
+
+TEST_CASE("an empty file or folder name is a usage error naming the option", "[cli]") {
+  // Every option whose type name says it names a file (FILE, PATH, DIR, NAME.ext), in several
+  // commands, given as '' and as "--name=": exit 2 and the option named, before any work (it was
+  // "NotFound: : no such file", exit 1, or the empty name taken as "not given").
+  for (const auto& [c, option] : std::vector<std::pair<std::string, std::string>>{
+           {"infer --forest '' x.png", "--forest"},
+           {"infer --forest= x.png", "--forest"},
+           {"eval --forest '' --test-set d", "--forest"},
+           {"live --forest= --source x.png", "--forest"},
+           {"infer --forest f.pff --out-dir '' x.png", "--out-dir"},
+           {"eval --forest f.pff --real-labels ''", "--real-labels"},
+           {"coordinator --status-file '' --out f.pff job.textproto", "--status-file"},
+           {"render --out '' --frames 1", "--out"}}) {
+    auto r = RunPoseforest(c);
+    INFO(c << "\n" << r.output);
+    CHECK(r.exit_code == 2);
+    CHECK_THAT(r.output, Catch::Contains(option + " must be a file or folder name, not empty"));
+  }
+  // Parsing one command twice (as the in-process tests do) adds the check once.
+  auto infer = cmd::MakeInferCommand();
+  for (int i = 0; i < 2; ++i) {
+    std::vector<std::string> args = {"infer", "--forest", "", "x.png"};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    CHECK(cmd::RunCommand(*infer, int(argv.size()), argv.data()) == 2);
+  }
+  CLI::Option* forest = infer->app().get_option("--forest");
+  int checks = 0;
+  for (int k = 0;; ++k) {
+    try {
+      checks += forest->get_validator(k)->get_name() == "non-empty path";
+    } catch (const CLI::OptionNotFound&) {
+      break;
+    }
+  }
+  CHECK(checks == 1);
+}

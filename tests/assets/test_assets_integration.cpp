@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "renderer/assets/makehuman.h"
@@ -139,5 +140,16 @@ TEST_CASE("poseforest-poselib builds and describes a library", "[integration][da
     CHECK_THAT(log, Catch::StartsWith("poseforest-poselib: ") && Catch::Contains(says));
   }
   CHECK_FALSE(fs::exists(dir / "y.pfposes"));
+  // "--out=" is an empty --out (refused), not --out taking the next argument (the clip) as the file.
+  const std::string empty_out = tool.string() +
+                                " build --out= " + Mocap("cmu_iclone_cc3/002_01.bvh").string() + " > " +
+                                (dir / "empty_out.txt").string() + " 2>&1";
+  const int empty_out_rc = std::system(empty_out.c_str());
+  std::ifstream empty_out_log(dir / "empty_out.txt");
+  const std::string empty_out_text((std::istreambuf_iterator<char>(empty_out_log)),
+                                   std::istreambuf_iterator<char>());
+  INFO(empty_out_text);
+  CHECK(WEXITSTATUS(empty_out_rc) == 2);
+  CHECK_THAT(empty_out_text, Catch::StartsWith("poseforest-poselib: --out: must be a file name"));
   fs::remove_all(dir);
 }
