@@ -331,12 +331,25 @@ uint16_t PcdMetresToMm(float z) {
   return (std::isfinite(z) && z > 0 && z < 65.535f) ? uint16_t(std::lround(double(z) * 1000.0)) : 0;
 }
 
-/// Where a point's x, y and z are: field numbers (x, y: -1 when absent or not float32) and byte
-/// offsets within a point (binary).
+/// Where a point's x, y and z are: field numbers (x, y: -1 when absent or not a float), byte
+/// offsets within a point (binary) and sizes (4: float32, 8: float64, as PCL writes doubles).
 struct PcdFieldIndex {
   int x = -1, y = -1, z = -1;
   int x_offset = 0, y_offset = 0, z_offset = 0;
+  int x_size = 4, y_size = 4, z_size = 4;
 };
+
+/// A float32 or float64 value (`size` 4 or 8) at `p`, as a float.
+float PcdFloat(const uint8_t* p, int size) {
+  if (size == 8) {
+    double v;
+    std::memcpy(&v, p, 8);
+    return float(v);
+  }
+  float v;
+  std::memcpy(&v, p, 4);
+  return v;
+}
 
 /// Sums for fitting the cloud's pinhole projection, u = fx x/z + cx and v = fy y/z + cy, by least
 /// squares over the points with finite x, y and z > 0 (an organized cloud's point i is pixel
@@ -404,10 +417,9 @@ Status ReadPcdBinary(std::span<const uint8_t> b, const PcdHeader& hd, int point_
                std::to_string(n * size_t(point_size)) + " expected (truncated)");
   for (size_t i = 0; i < n; ++i) {
     const uint8_t* point = b.data() + pos + i * size_t(point_size);
-    float z, x = std::nanf(""), y = std::nanf("");
-    std::memcpy(&z, point + size_t(fi.z_offset), 4);
-    if (fi.x >= 0) std::memcpy(&x, point + size_t(fi.x_offset), 4);
-    if (fi.y >= 0) std::memcpy(&y, point + size_t(fi.y_offset), 4);
+    const float z = PcdFloat(point + size_t(fi.z_offset), fi.z_size);
+    const float x = fi.x >= 0 ? PcdFloat(point + size_t(fi.x_offset), fi.x_size) : std::nanf("");
+    const float y = fi.y >= 0 ? PcdFloat(point + size_t(fi.y_offset), fi.y_size) : std::nanf("");
     depth.pixels[i] = to_mm(z);
     xy.Set(i, x, y, z);
   }
@@ -442,10 +454,11 @@ Status ReadPcdCompressed(std::span<const uint8_t> b, const PcdHeader& hd, const 
   const size_t z_start = field_start(fi.z);
   const size_t x_start = fi.x >= 0 ? field_start(fi.x) : 0, y_start = fi.y >= 0 ? field_start(fi.y) : 0;
   for (size_t i = 0; i < n; ++i) {
-    float z, x = std::nanf(""), y = std::nanf("");
-    std::memcpy(&z, raw.data() + z_start + i * 4, 4);
-    if (fi.x >= 0) std::memcpy(&x, raw.data() + x_start + i * 4, 4);
-    if (fi.y >= 0) std::memcpy(&y, raw.data() + y_start + i * 4, 4);
+    const float z = PcdFloat(raw.data() + z_start + i * size_t(fi.z_size), fi.z_size);
+    const float x =
+        fi.x >= 0 ? PcdFloat(raw.data() + x_start + i * size_t(fi.x_size), fi.x_size) : std::nanf("");
+    const float y =
+        fi.y >= 0 ? PcdFloat(raw.data() + y_start + i * size_t(fi.y_size), fi.y_size) : std::nanf("");
     depth.pixels[i] = to_mm(z);
     xy.Set(i, x, y, z);
   }
@@ -478,16 +491,17 @@ Result<PcdFrame> ParsePcdFrame(std::span<const uint8_t> b, const std::string& pa
   PcdFieldIndex fi;
   int point_size = 0;
   for (size_t i = 0; i < fields.size(); ++i) {
-    const bool float32 = sizes[i] == 4 && types[i] == 'F' && counts[i] == 1;
-    if (fields[i] == "z") fi.z = int(i), fi.z_offset = point_size;
-    if (fields[i] == "x" && float32) fi.x = int(i), fi.x_offset = point_size;
-    if (fields[i] == "y" && float32) fi.y = int(i), fi.y_offset = point_size;
+    const bool is_float = (sizes[i] == 4 || sizes[i] == 8) && types[i] == 'F' && counts[i] == 1;
+    if (fields[i] == "z") fi.z = int(i), fi.z_offset = point_size, fi.z_size = sizes[i];
+    if (fields[i] == "x" && is_float) fi.x = int(i), fi.x_offset = point_size, fi.x_size = sizes[i];
+    if (fields[i] == "y" && is_float) fi.y = int(i), fi.y_offset = point_size, fi.y_size = sizes[i];
     point_size += sizes[i] * counts[i];
   }
   const int zi = fi.z;
-  if (zi < 0 || sizes[size_t(zi)] != 4 || types[size_t(zi)] != 'F' || counts[size_t(zi)] != 1)
+  if (zi < 0 || (sizes[size_t(zi)] != 4 && sizes[size_t(zi)] != 8) || types[size_t(zi)] != 'F' ||
+      counts[size_t(zi)] != 1)
     return Status(ErrorCode::kInvalidArgument,
-                  path + ": PCD has no float32 'z' field (metres) to read depth from");
+                  path + ": PCD has no float32 or float64 'z' field (metres) to read depth from");
   PcdFrame frame;
   frame.depth = core::DepthImage{int(width), int(height)};
   PcdXy xy;

@@ -473,8 +473,9 @@ void QuickWrite(const std::string& path, std::span<const uint8_t> bytes) {
   REQUIRE(out.good());
 }
 
-// A small organized PCD (x y z float32 metres) in one of PCL's encodings. binary_compressed is
-// written as LZF literal runs (valid LZF, as liblzf decodes it), fields one after the other.
+// A small organized PCD (x y z float32 metres, or float64 with `doubles`) in one of PCL's encodings.
+// binary_compressed is written as LZF literal runs (valid LZF, as liblzf decodes it), fields one after the
+// other.
 /// A 16x12 frame with a 10x8 patch of depths 1.1-1.6 m (each pixel its own) for the .pcd tests.
 core::DepthImage PcdTestDepth() {
   core::DepthImage d(16, 12, 0);
@@ -485,12 +486,12 @@ core::DepthImage PcdTestDepth() {
 
 std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encoding,
                              const core::CameraIntrinsics& cam = core::CameraIntrinsics::KinectV1(),
-                             float x_shift_m = 0) {
-  std::string header =
-      "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
-      "COUNT 1 1 1\nWIDTH " +
-      std::to_string(d.width) + "\nHEIGHT " + std::to_string(d.height) +
-      "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(d.width * d.height) + "\nDATA " + encoding + "\n";
+                             float x_shift_m = 0, bool doubles = false) {
+  std::string header = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE " +
+                       std::string(doubles ? "8 8 8" : "4 4 4") + "\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " +
+                       std::to_string(d.width) + "\nHEIGHT " + std::to_string(d.height) +
+                       "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(d.width * d.height) + "\nDATA " +
+                       encoding + "\n";
   std::vector<float> xyz;  // point-major
   for (int y = 0; y < d.height; ++y)
     for (int x = 0; x < d.width; ++x) {
@@ -514,14 +515,18 @@ std::vector<uint8_t> MakePcd(const core::DepthImage& d, const std::string& encod
     }
     out.insert(out.end(), text.begin(), text.end());
   } else if (encoding == "binary") {
-    const auto* b = reinterpret_cast<const uint8_t*>(xyz.data());
-    out.insert(out.end(), b, b + xyz.size() * 4);
+    const std::vector<double> xyz64(xyz.begin(), xyz.end());
+    const auto* b = doubles ? reinterpret_cast<const uint8_t*>(xyz64.data())
+                            : reinterpret_cast<const uint8_t*>(xyz.data());
+    out.insert(out.end(), b, b + xyz.size() * (doubles ? 8 : 4));
   } else {
     std::vector<float> soa;
     for (int f = 0; f < 3; ++f)
       for (size_t i = f; i < xyz.size(); i += 3) soa.push_back(xyz[i]);
-    const auto* raw = reinterpret_cast<const uint8_t*>(soa.data());
-    const size_t n = soa.size() * 4;
+    const std::vector<double> soa64(soa.begin(), soa.end());
+    const auto* raw = doubles ? reinterpret_cast<const uint8_t*>(soa64.data())
+                              : reinterpret_cast<const uint8_t*>(soa.data());
+    const size_t n = soa.size() * (doubles ? 8 : 4);
     std::vector<uint8_t> lzf;
     for (size_t i = 0; i < n; i += 32) {
       const size_t len = std::min<size_t>(32, n - i);
@@ -542,31 +547,32 @@ TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors
           "[frames][pcd][hostile]") {
   const auto dir = testing::ScratchDir("frames-pcd");
   const core::DepthImage d = PcdTestDepth();
-  for (const std::string enc : {"ascii", "binary", "binary_compressed"}) {
-    const auto bytes = MakePcd(d, enc);
-    const std::string path = (dir / ("c_" + enc + ".pcd")).string();
-    REQUIRE(core::WriteFileAtomic(path, bytes).ok());
-    auto read = runtime::ReadPcdDepth(path);
-    INFO(enc);
-    REQUIRE(read.ok());
-    CHECK(read->pixels == d.pixels);
-    // Every truncation and some corruptions: an error or a frame, never a crash (ASan builds
-    // make any overread fatal).
-    int errors = 0;
-    for (size_t len = 0; len < bytes.size(); ++len) {
-      auto r = runtime::ParsePcdDepth(std::span(bytes.data(), len), path);
-      if (!r.ok()) {
-        ++errors;
-        CHECK_THAT(r.status().message(), Catch::Contains(path));
+  for (const bool doubles : {false, true})
+    for (const std::string enc : {"ascii", "binary", "binary_compressed"}) {
+      const auto bytes = MakePcd(d, enc, core::CameraIntrinsics::KinectV1(), 0, doubles);
+      const std::string path = (dir / ("c_" + enc + (doubles ? "_f64" : "") + ".pcd")).string();
+      REQUIRE(core::WriteFileAtomic(path, bytes).ok());
+      auto read = runtime::ReadPcdDepth(path);
+      INFO(enc << (doubles ? " float64" : " float32"));
+      REQUIRE(read.ok());
+      CHECK(read->pixels == d.pixels);
+      // Every truncation and some corruptions: an error or a frame, never a crash (ASan builds
+      // make any overread fatal).
+      int errors = 0;
+      for (size_t len = 0; len < bytes.size(); ++len) {
+        auto r = runtime::ParsePcdDepth(std::span(bytes.data(), len), path);
+        if (!r.ok()) {
+          ++errors;
+          CHECK_THAT(r.status().message(), Catch::Contains(path));
+        }
+      }
+      CHECK(errors > 0);
+      for (size_t i = 0; i < bytes.size(); ++i) {
+        auto bad = bytes;
+        bad[i] ^= 0xA5;
+        (void)runtime::ParsePcdDepth(bad, path);
       }
     }
-    CHECK(errors > 0);
-    for (size_t i = 0; i < bytes.size(); ++i) {
-      auto bad = bytes;
-      bad[i] ^= 0xA5;
-      (void)runtime::ParsePcdDepth(bad, path);
-    }
-  }
   fs::remove_all(dir);
 }
 
@@ -593,6 +599,13 @@ TEST_CASE(".pcd: the cloud's own projection is fitted from its points and used a
     REQUIRE(moved.ok());
     CHECK_FALSE(moved->intrinsics.has_value());
     CHECK(moved->fit_rms_px > 0.5);
+    // x, y and z as float64 (SIZE 8, as PCL writes doubles): the same depth and projection.
+    auto doubles = runtime::ParsePcdFrame(MakePcd(d, enc, cam, 0, true), "doubles.pcd");
+    REQUIRE(doubles.ok());
+    CHECK(doubles->depth.pixels == d.pixels);
+    REQUIRE(doubles->intrinsics.has_value());
+    CHECK(doubles->intrinsics->fx == Approx(525).margin(0.05));
+    CHECK(doubles->intrinsics->cy == Approx(5.75).margin(0.01));
   }
   // Read as a frame source, without camera flags, the frame carries that projection ...
   const std::string path = (dir / "c.pcd").string();
