@@ -19,6 +19,24 @@ inline const CLI::Validator kNonEmptyPath(
     [](const std::string& v) { return v.empty() ? std::string("must be a file or folder name, not empty") : ""; }, "",
     "non-empty");
 
+/// The options of a bench that times a loop over frames: --threads N, --frames N (how many
+/// frames it builds), --seconds S (how long it times), each with its default shown.
+inline void AddFrameLoopOptions(CLI::App& app, int* threads, const std::string& threads_help, int* frames,
+                                const std::string& frames_help, double* seconds) {
+  app.add_option("--threads", *threads, threads_help)
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  app.add_option("--frames", *frames, frames_help)
+      ->type_name("N")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--seconds", *seconds, "how long to time")
+      ->type_name("S")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 86400.0));
+}
+
 /// Parses argv into `app` (named "bench/NAME"). Empty when the program goes on; else the exit
 /// status: 0 after --help (on stdout), 2 after a usage error (on stderr).
 inline std::optional<int> ParseBenchCommandLine(CLI::App& app, int argc, char** argv) {

@@ -148,18 +148,8 @@ int main(int argc, char** argv) {
                  "then its earlier recipes')")
       ->type_name("F")
       ->check(bench::kNonEmptyPath);
-  app.add_option("--threads", threads, "OpenMP threads")
-      ->type_name("N")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 1024));
-  app.add_option("--frames", num_frames, "frames in the replayed sequence")
-      ->type_name("N")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 100000));
-  app.add_option("--seconds", seconds, "how long to time")
-      ->type_name("S")
-      ->capture_default_str()
-      ->check(CLI::Range(0.01, 86400.0));
+  bench::AddFrameLoopOptions(app, &threads, "OpenMP threads", &num_frames, "frames in the replayed sequence",
+                             &seconds);
   app.add_option(
          "--pixel-stride", pixel_stride,
          "classify and propose from every N-th pixel in x and y (`live --pixel-stride`; 1: every pixel)")

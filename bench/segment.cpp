@@ -70,18 +70,8 @@ int main(int argc, char** argv) {
       "People segmentation of cluttered 640x480 frames: IoU per person against the truth, and speed; "
       "last line `frames/s: N frames/s`",
       "bench/segment");
-  app.add_option("--threads", threads, "threads, one frame each at a time")
-      ->type_name("N")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 1024));
-  app.add_option("--frames", num_frames, "frames built")
-      ->type_name("N")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 100000));
-  app.add_option("--seconds", seconds, "how long to time")
-      ->type_name("S")
-      ->capture_default_str()
-      ->check(CLI::Range(0.01, 86400.0));
+  bench::AddFrameLoopOptions(app, &threads, "threads, one frame each at a time", &num_frames, "frames built",
+                             &seconds);
   app.add_option("--dump", dump, "a picture per frame (depth | truth | segmentation) into this folder")
       ->type_name("DIR")
       ->check(bench::kNonEmptyPath);
