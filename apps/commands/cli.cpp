@@ -63,10 +63,12 @@ class HelpFormatter : public CLI::Formatter {
   }
 };
 
-/// Whether an option's type name says its value names a file or folder: FILE, PATH, DIR, FILE|-,
-/// or a name with an extension (JOB.textproto, FOREST.pff, KEY.pem, F.jsonl).
+/// Whether an option's type name (or a positional's name) says its value names a file, folder or
+/// frame source: FILE, PATH, DIR, FILE|-, SET, SOURCE, TREE, or a name with an extension
+/// (JOB.textproto, FOREST.pff, KEY.pem, F.jsonl).
 bool NamesAFile(const std::string& type_name) {
-  if (type_name == "FILE" || type_name == "PATH" || type_name == "DIR" || type_name == "FILE|-") return true;
+  for (const char* name : {"FILE", "PATH", "DIR", "FILE|-", "SET", "SOURCE", "TREE"})
+    if (type_name == name) return true;
   const size_t dot = type_name.find('.');
   if (dot == std::string::npos || dot == 0 || dot + 1 == type_name.size()) return false;
   for (size_t i = 0; i < type_name.size(); ++i) {
@@ -76,11 +78,12 @@ bool NamesAFile(const std::string& type_name) {
   return true;
 }
 
-/// Every option of `app` and its subcommands whose value names a file or folder (NamesAFile) gets
-/// NonEmptyPath(): "--forest ''" is a usage error naming the option, not "NotFound: : no such file".
+/// Every option of `app` and its subcommands whose value names a file, folder or source
+/// (NamesAFile) gets NonEmptyPath(): "--forest ''" is a usage error naming the option, not
+/// "NotFound: : no such file".
 void CheckFileOptionsNotEmpty(CLI::App& app) {
   for (CLI::Option* o : app.get_options()) {
-    if (!NamesAFile(o->get_type_name())) continue;
+    if (!NamesAFile(o->get_type_name()) && !(o->get_positional() && NamesAFile(o->get_name()))) continue;
     try {
       o->get_validator("non-empty path");  // given already (RunCommand ran on this app before)
     } catch (const CLI::OptionNotFound&) {

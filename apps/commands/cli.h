@@ -80,8 +80,9 @@ CLI::Validator NonNegativeInt();
 CLI::Validator NumberIn(double lo, double hi, const std::string& what = "a number");
 /// A name or id that is not empty and holds no control characters (--job-id, --id, --job).
 CLI::Validator NonEmptyName();
-/// A file or folder name: not empty. RunCommand gives it to every option whose type name is
-/// FILE, PATH, DIR, FILE|- or NAME.ext, so a command need not add it.
+/// A file or folder name: not empty. RunCommand gives it to every option whose type name (or,
+/// for a positional, name) is FILE, PATH, DIR, FILE|-, SET, SOURCE, TREE or NAME.ext, so a
+/// command need not add it.
 CLI::Validator NonEmptyPath();
 /// One of `names`.
 CLI::Validator OneOf(std::vector<std::string> names);

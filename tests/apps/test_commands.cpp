@@ -227,9 +227,10 @@ TEST_CASE("poseforest help CMD prints that command's options; an unknown one is 
 }
 
 TEST_CASE("an empty file or folder name is a usage error naming the option", "[cli]") {
-  // Every option whose type name says it names a file (FILE, PATH, DIR, NAME.ext), in several
-  // commands, given as '' and as "--name=": exit 2 and the option named, before any work (it was
-  // "NotFound: : no such file", exit 1, or the empty name taken as "not given").
+  // Every option whose type name (a positional's name) says it names a file, folder or source
+  // (FILE, PATH, DIR, SET, SOURCE, NAME.ext), in several commands, given as '' and as "--name=":
+  // exit 2 and the option named, before any work (it was "NotFound: : no such file", exit 1, or
+  // the empty name taken as "not given").
   for (const auto& [c, option] : std::vector<std::pair<std::string, std::string>>{
            {"infer --forest '' x.png", "--forest"},
            {"infer --forest= x.png", "--forest"},
@@ -238,7 +239,12 @@ TEST_CASE("an empty file or folder name is a usage error naming the option", "[c
            {"infer --forest f.pff --out-dir '' x.png", "--out-dir"},
            {"eval --forest f.pff --real-labels ''", "--real-labels"},
            {"coordinator --status-file '' --out f.pff job.textproto", "--status-file"},
-           {"render --out '' --frames 1", "--out"}}) {
+           {"render --out '' --frames 1", "--out"},
+           {"eval --forest f.pff --test-set ''", "--test-set"},
+           {"live --forest f.pff --source ''", "--source"},
+           {"infer --forest f.pff ''", "SOURCE"},
+           {"train ''", "JOB.textproto"},
+           {"inspect f.pff ''", "FOREST.pff"}}) {
     auto r = RunPoseforest(c);
     INFO(c << "\n" << r.output);
     CHECK(r.exit_code == 2);
