@@ -78,6 +78,23 @@ std::string FormatSkeletonTable(const Evaluation& e) {
       untracked_joints ? untracked / untracked_joints : 0.0, joints ? found / joints : 0.0,
       hidden_joints ? hidden / hidden_joints : 0.0);
   out += buf;
+  // Where the hidden joints are, pooled over joints: outside the picture, or inside it behind
+  // something.
+  int outside = 0, outside_within = 0, inside = 0, inside_within = 0;
+  for (size_t k = 0; k < size_t(core::kNumJoints); ++k) {
+    outside += a.hidden_outside[k], outside_within += a.hidden_outside_within[k];
+    inside += a.hidden[k] - a.hidden_outside[k],
+        inside_within += a.hidden_within[k] - a.hidden_outside_within[k];
+  }
+  if (outside + inside > 0) {
+    std::snprintf(
+        buf, sizeof buf,
+        "hidden joints placed within 0.15 m, pooled: outside the picture %.3f (%d of %d), inside it "
+        "behind something %.3f (%d of %d)\n",
+        ratio(outside_within, outside), outside_within, outside, ratio(inside_within, inside), inside_within,
+        inside);
+    out += buf;
+  }
   return out;
 }
 

@@ -156,6 +156,13 @@ void ScoreSegmentation(const runtime::Classifier& classifier, const runtime::Cla
           .AddFrame(runtime::ProposeJointsFromClassification(m.depth, out, ms), frame.people);
   }
 }
+// Whether a point (camera frame, metres) projects into a width x height picture: behind the
+// camera or beyond an edge it does not.
+bool InPicture(const Eigen::Vector3f& p, const core::CameraIntrinsics& camera, int width, int height) {
+  if (!(p.z() > 0)) return false;
+  return runtime::PixelInImage(camera.Project(p.cast<double>()).cast<float>(), width, height);
+}
+
 // The skeleton of a one-person frame as `live` builds it, scored against the person's joints.
 void ScoreSkeleton(const runtime::Classifier& classifier, const runtime::Classification& out,
                    const runtime::FrameProposals& proposals, const EvalFrame& frame,
@@ -196,8 +203,13 @@ void ScoreSkeleton(const runtime::Classifier& classifier, const runtime::Classif
       acc.tracked_within[size_t(j)] += visible && joint.tracked && near;
       acc.found_within[size_t(j)] += visible && near;
       acc.hidden[size_t(j)] += !visible;
-      acc.hidden_within[size_t(j)] +=
+      const bool hidden_within =
           !visible && joint.found && (joint.position_m - truth.position[size_t(j)]).norm() <= 0.15f;
+      acc.hidden_within[size_t(j)] += hidden_within;
+      if (!visible && !InPicture(truth.position[size_t(j)], camera, frame.depth.width, frame.depth.height)) {
+        ++acc.hidden_outside[size_t(j)];
+        acc.hidden_outside_within[size_t(j)] += hidden_within;
+      }
       acc.tracked[size_t(j)] += joint.tracked;
       acc.tracked_right[size_t(j)] += joint.tracked && near;
       acc.untracked[size_t(j)] += !joint.tracked;

@@ -148,6 +148,11 @@ struct SkeletonAccuracy {
   /// Hidden (not visible: occluded or out of the picture) and the position within 0.15 m: a
   /// joint placed where the camera cannot see it (offset votes).
   std::array<int, core::kNumJoints> hidden{}, hidden_within{};
+  /// Of those, the joints whose true position projects outside the picture (a head above the
+  /// top edge, feet below the bottom one), as against those inside it behind a body part or
+  /// another person: the two are placed by different evidence (votes beyond the frame, votes
+  /// behind the surface), so each has its own figure.
+  std::array<int, core::kNumJoints> hidden_outside{}, hidden_outside_within{};
 };
 
 struct Evaluation {

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include "runtime/core/body_parts.h"
@@ -21,6 +22,21 @@ namespace {
 double NumberAfter(const std::string& text, const std::string& key) {
   const size_t at = text.rfind(key);
   return at == std::string::npos ? -1.0 : std::atof(text.c_str() + at + key.size());
+}
+
+// The skeleton table's hidden joints, summed over its 16 joint rows: each row ends with the
+// "hidden: in 0.15 m" cell, "FRACTION (COUNT)" or "- (0)".
+int HiddenJointsInTable(const std::string& text) {
+  int sum = 0, rows = 0;
+  const size_t table = text.find("skeleton accuracy");
+  std::istringstream in(table == std::string::npos ? std::string() : text.substr(table));
+  for (std::string line; std::getline(in, line);)
+    for (int j = 0; j < core::kNumJoints; ++j)
+      if (line.rfind(std::string(core::JointName(j)) + " ", 0) == 0 && line.back() == ')') {
+        sum += std::atoi(line.c_str() + line.rfind('(') + 1);
+        ++rows;
+      }
+  return rows == core::kNumJoints ? sum : -1;
 }
 
 }  // namespace
@@ -92,6 +108,22 @@ TEST_CASE("tune-joints stores learned parameters; eval prints joint AP, upper bo
                               Catch::Contains("confidence calibrated (JCAL)") &&
                               Catch::Contains("not tracked right") &&
                               Catch::Contains("mean over joints: tracked within"));
+  // The hidden joints split into those outside the picture and those inside it, behind
+  // something: the two counts add up to the table's hidden joints, the placed ones to at most
+  // that.
+  {
+    const std::string pooled = "hidden joints placed within 0.15 m, pooled: outside the picture ";
+    REQUIRE_THAT(eval.output, Catch::Contains(pooled));
+    int outside_within = -1, outside = -1, inside_within = -1, inside = -1;
+    double outside_fraction = -1, inside_fraction = -1;
+    REQUIRE(std::sscanf(eval.output.c_str() + eval.output.find(pooled) + pooled.size(),
+                        "%lf (%d of %d), inside it behind something %lf (%d of %d)", &outside_fraction,
+                        &outside_within, &outside, &inside_fraction, &inside_within, &inside) == 6);
+    CHECK(outside + inside == HiddenJointsInTable(eval.output));
+    CHECK(outside + inside > 0);  // three frames of whole people still hide some joints
+    CHECK(
+        (outside_within >= 0 && outside_within <= outside && inside_within >= 0 && inside_within <= inside));
+  }
   // The ground-truth parts locate visible joints well even on three frames.
   CHECK(NumberAfter(eval.output, "upper bound ") > 0.6);
   for (const char* name : {"pr_joints.png", "pr_mean.png"}) {
