@@ -21,4 +21,6 @@ target_link_libraries(render_docs PRIVATE poseforest::renderer poseforest::warni
 target_compile_definitions(render_docs PRIVATE POSEFOREST_DOCS_WITH_ASSETS=1)
 # docs/renderer/sensor_models.png (run by hand: sensor_docs docs/renderer/sensor_models.png).
 add_executable(sensor_docs ${CMAKE_CURRENT_LIST_DIR}/tools/sensor_docs.cpp)
-target_link_libraries(sensor_docs PRIVATE poseforest::renderer poseforest::warnings)
+# Its command line on CLI11, as poseforest-poselib's (Debian libcli11-dev, header-only).
+find_package(CLI11 CONFIG REQUIRED)
+target_link_libraries(sensor_docs PRIVATE poseforest::renderer CLI11::CLI11 poseforest::warnings)

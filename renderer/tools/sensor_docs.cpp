@@ -5,13 +5,16 @@
 // at their own size and intrinsics). Each: depth (grey, near = bright) | parts, cropped around
 // the person at native resolution.
 //   sensor_docs OUT.png [SEED INDEX]
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "renderer/montage.h"
 #include "renderer/synthetic_source.h"
+#include "runtime/core/command_line.h"
 #include "runtime/image_io.h"
 
 using namespace poseforest;
@@ -64,12 +67,26 @@ int Fail(const core::Status& st) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 2 && argc != 4) {
-    std::fprintf(stderr, "usage: sensor_docs OUT.png [SEED INDEX]\n");
+  // The command line on CLI11, as poseforest-poselib's: a seed or index that is not a number is
+  // refused (exit 2), where strtoull read "abc" as 0.
+  std::string out_png;
+  uint64_t seed = 3, index = 0;
+  CLI::App app("sensor_docs: the sensor models side by side (docs/renderer/sensor_models.png)",
+               "sensor_docs");
+  app.add_option("OUT.png", out_png, "the picture to write")->required()->check([](const std::string& v) {
+    return v.empty() ? std::string("must be a file name, not empty") : std::string();
+  });
+  app.add_option("SEED", seed, "the scene's seed")->capture_default_str();
+  app.add_option("INDEX", index, "the frame of that seed")->capture_default_str()->needs("SEED");
+  try {
+    std::vector<std::string> args = core::ArgumentsForCli11(argc, argv);
+    app.parse(args);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "sensor_docs: %s (see --help)\n", e.what());
     return 2;
   }
-  const uint64_t seed = argc == 4 ? std::strtoull(argv[2], nullptr, 10) : 3;
-  const uint64_t index = argc == 4 ? std::strtoull(argv[3], nullptr, 10) : 0;
   setenv("LP_NUM_THREADS", "0", 0);
   SceneConfig base;
   base.variants_per_shape = 1;
@@ -129,7 +146,7 @@ int main(int argc, char** argv) {
     std::printf("%zu: %dx%d fx %.1f, person %dx%d px\n", k, configs[k].camera.width, configs[k].camera.height,
                 configs[k].camera.fx, x_hi - x_lo + 1, y_hi - y_lo + 1);
   }
-  if (auto st = runtime::WriteRgbPng(argv[1], grid.width, grid.height, grid.rgb); !st.ok()) return Fail(st);
-  std::printf("wrote %s\n", argv[1]);
+  if (auto st = runtime::WriteRgbPng(out_png, grid.width, grid.height, grid.rgb); !st.ok()) return Fail(st);
+  std::printf("wrote %s\n", out_png.c_str());
   return 0;
 }
