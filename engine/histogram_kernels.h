@@ -85,6 +85,7 @@ struct KernelInput {
   const uint8_t* part;
   int width, height;  ///< every frame's size (uniform_size())
   uint16_t background_mm;
+  bool clamp;  ///< probes beyond the edge read the edge (core::ProbeEdge::kClamp)
 };
 
 /// Scalar kernel: counts of candidate f over samples [b, e) (SampleSet::Response, the
@@ -102,8 +103,13 @@ void CountScalar(const KernelInput& in, uint64_t b, uint64_t e, const core::Feat
 /// height in rows()): exactly SampleSet::Probe per lane. A lane off the frame's rows reads
 /// background_mm; else its row (one 64-bit gather per 8 lanes: start | lo << 32 | len << 48),
 /// then the pixel if px lies in the row's span, else background_mm. Lanes outside `valid`
-/// read nothing.
+/// read nothing. With in.clamp, (px, py) are first clamped into the frame.
 inline __m512i Probe16(const KernelInput& in, __mmask16 valid, __m512i row0, __m512i px, __m512i py) {
+  if (in.clamp) {
+    const __m512i zero = _mm512_setzero_si512();
+    px = _mm512_max_epi32(zero, _mm512_min_epi32(px, _mm512_set1_epi32(in.width - 1)));
+    py = _mm512_max_epi32(zero, _mm512_min_epi32(py, _mm512_set1_epi32(in.height - 1)));
+  }
   const __m512i low16 = _mm512_set1_epi32(0xFFFF);
   const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
   const __m512i odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
@@ -483,7 +489,9 @@ bool SampleMajor([[maybe_unused]] bool whole, [[maybe_unused]] uint64_t n,
 }
 
 KernelInput InputOf(const SampleSet& s, uint16_t background_mm) {
-  KernelInput in{&s, s.probe(), s.rows(), s.frame(), s.x(), s.y(), s.scale(), s.part(), 0, 0, background_mm};
+  KernelInput in{&s,    s.probe(), s.rows(),      s.frame(),
+                 s.x(), s.y(),     s.scale(),     s.part(),
+                 0,     0,         background_mm, s.edge() == core::ProbeEdge::kClamp};
   if (!s.frames().empty()) {
     in.width = s.frames()[0].width;
     in.height = s.frames()[0].height;

@@ -422,6 +422,18 @@ Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& c, const std::stri
   if (c.threshold_mode() != v1::THRESHOLD_MODE_UNSPECIFIED &&
       c.threshold_mode() != v1::THRESHOLD_MODE_REFERENCE_RANGE)
     return Bad(source, "threshold_mode", Str(int(c.threshold_mode())), "unknown mode");
+  switch (c.probe_edge()) {
+    case v1::PROBE_EDGE_UNSPECIFIED:
+    case v1::PROBE_EDGE_BACKGROUND:
+      p.constants.edge = core::ProbeEdge::kBackground;
+      break;
+    case v1::PROBE_EDGE_CLAMP:
+      p.constants.edge = core::ProbeEdge::kClamp;
+      break;
+    default:
+      return Bad(source, "probe_edge", Str(int(c.probe_edge())),
+                 "unknown: PROBE_EDGE_BACKGROUND (the paper's) or PROBE_EDGE_CLAMP");
+  }
   p.part_balance = c.has_part_balance() ? c.part_balance() : 1.0;
   if (!std::isfinite(p.part_balance) || p.part_balance < 0 || p.part_balance > 1)
     return Bad(source, "part_balance", Str(p.part_balance), "must be in 0..1");
@@ -503,7 +515,9 @@ std::string DescribeParams(const TrainParams& p) {
   std::ostringstream s;
   s << p.num_trees << " trees, depth " << p.max_depth << ", " << p.images_per_tree << " images/tree x "
     << p.pixels_per_image << " pixels, " << p.candidate_features << " features x " << p.thresholds_per_feature
-    << " thresholds, max offset " << p.max_probe_offset_pixel_m << " pixel*m, seed " << p.seed;
+    << " thresholds, max offset " << p.max_probe_offset_pixel_m << " pixel*m"
+    << (p.constants.edge == core::ProbeEdge::kClamp ? " (probes past the edge read the edge)" : "")
+    << ", seed " << p.seed;
   return s.str();
 }
 

@@ -155,7 +155,7 @@ uint32_t SampleSet::AddFrameOnly(uint64_t frame_index, const core::DepthImage& d
 
 uint32_t SampleSet::AddFrameOnly(uint64_t frame_index, const CompactFrame& frame,
                                  const core::FeatureConstants& c) {
-  POSEFOREST_CHECK(frames_.empty() || background_mm_ == c.background_mm);
+  POSEFOREST_CHECK(frames_.empty() || (background_mm_ == c.background_mm && edge_ == c.edge));
   POSEFOREST_CHECK(frame.width <= 32767 && frame.height <= 32767 &&
                    frame.rows.size() == size_t(frame.height) &&
                    size_t(frame.width) * size_t(frame.height) < (size_t(1) << 24));
@@ -166,6 +166,7 @@ uint32_t SampleSet::AddFrameOnly(uint64_t frame_index, const CompactFrame& frame
                            rows_.size() + frame.rows.size() < (size_t(1) << 28),
                        "shard too large: split the frames over more shards");
   background_mm_ = c.background_mm;
+  edge_ = c.edge;
   if (!frames_.empty() && (frames_[0].width != frame.width || frames_[0].height != frame.height))
     uniform_size_ = false;
   frames_.push_back({frame_index, uint32_t(rows_.size()), frame.width, frame.height});

@@ -4,6 +4,7 @@
 // each frontier node's samples are one contiguous range and, inside it, the samples of one
 // frame are adjacent (their probes then hit the same depth image in cache).
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -48,8 +49,10 @@ struct CompactFrame {
 
   /// Made from `depth` (at most 32767 x 32767 pixels) with background `background_mm`.
   static CompactFrame Of(const core::DepthImage& depth, uint16_t background_mm);
-  /// core::ProbeDepth(depth, ..., x, y, background_mm) of the frame it was made from.
-  int32_t Probe(int x, int y, uint16_t background_mm) const {
+  /// core::ProbeDepth(depth, ..., x, y, background_mm, edge) of the frame it was made from.
+  int32_t Probe(int x, int y, uint16_t background_mm, core::ProbeEdge edge) const {
+    if (edge == core::ProbeEdge::kClamp && width > 0 && height > 0)
+      x = std::clamp(x, 0, width - 1), y = std::clamp(y, 0, height - 1);
     if (unsigned(y) >= unsigned(height)) return background_mm;
     const Row& r = rows[size_t(y)];
     const unsigned rel = unsigned(x) - unsigned(r.lo);
@@ -131,9 +134,12 @@ class SampleSet {
   /// Bytes held (frames + per-sample arrays).
   uint64_t MemoryBytes() const;
 
-  /// Probe value at (x, y) of local frame `local`: core::ProbeDepth on the frame as given.
+  /// Probe value at (x, y) of local frame `local`: core::ProbeDepth on the frame as given, with
+  /// the set's probe edge (edge()).
   int32_t Probe(uint32_t local, int x, int y, uint16_t background_mm) const {
     const FrameInfo& fr = frames_[local];
+    if (edge_ == core::ProbeEdge::kClamp && fr.width > 0 && fr.height > 0)
+      x = std::clamp(x, 0, fr.width - 1), y = std::clamp(y, 0, fr.height - 1);
     if (unsigned(y) >= unsigned(fr.height)) return background_mm;
     const CompactFrame::Row& r = rows_[fr.row_begin + uint32_t(y)];
     const unsigned rel = unsigned(x) - unsigned(r.lo);
@@ -168,6 +174,8 @@ class SampleSet {
   const std::vector<FrameInfo>& frames() const { return frames_; }
   /// True if every frame has the same size (the SIMD kernel's precondition).
   bool uniform_size() const { return uniform_size_; }
+  /// What a probe beyond a frame's edge reads (FeatureConstants::edge of the frames added).
+  core::ProbeEdge edge() const { return edge_; }
   const uint32_t* frame() const { return frame_.data(); }
   const int16_t* x() const { return x_.data(); }
   const int16_t* y() const { return y_.data(); }
@@ -180,6 +188,7 @@ class SampleSet {
   std::vector<FrameInfo> frames_;
   bool uniform_size_ = true;
   uint16_t background_mm_ = 0;
+  core::ProbeEdge edge_ = core::ProbeEdge::kBackground;
   std::vector<uint32_t> frame_;  ///< local frame per sample
   std::vector<int16_t> x_, y_;   ///< pixels
   std::vector<float> scale_;     ///< PixelScale(d(x)) per sample: pixels per offset unit

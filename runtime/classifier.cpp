@@ -236,6 +236,7 @@ inline void ClassifyChunk(const ChunkWork& w, int c, uint32_t* leaves) {
   view.width = w.width;
   view.height = w.height;
   view.background_mm = w.background;
+  view.clamp = w.forest->constants.edge == core::ProbeEdge::kClamp;
   view.probe = s.probe.data();
   view.xb = s.xb.data() + begin;
   view.yb = s.yb.data() + begin;
@@ -249,17 +250,26 @@ inline void ClassifyChunk(const ChunkWork& w, int c, uint32_t* leaves) {
     }
 #ifdef POSEFOREST_CLASSIFIER_AVX512
     if (w.use_avx512) {
-      detail::TraverseAvx512<detail::kAvx512Groups>(tree.nodes.data(), view, count, tree_leaves);
+      if (view.clamp)
+        detail::TraverseAvx512<detail::kAvx512Groups, true>(tree.nodes.data(), view, count, tree_leaves);
+      else
+        detail::TraverseAvx512<detail::kAvx512Groups, false>(tree.nodes.data(), view, count, tree_leaves);
       continue;
     }
 #endif
 #ifdef POSEFOREST_CLASSIFIER_AVX2
     if (w.use_avx2) {
-      detail::TraverseAvx2<detail::kAvx2Groups>(tree.nodes.data(), view, count, tree_leaves);
+      if (view.clamp)
+        detail::TraverseAvx2<detail::kAvx2Groups, true>(tree.nodes.data(), view, count, tree_leaves);
+      else
+        detail::TraverseAvx2<detail::kAvx2Groups, false>(tree.nodes.data(), view, count, tree_leaves);
       continue;
     }
 #endif
-    detail::TraversePortable<detail::kPortableLanes>(tree.nodes.data(), view, count, tree_leaves);
+    if (view.clamp)
+      detail::TraversePortable<detail::kPortableLanes, true>(tree.nodes.data(), view, count, tree_leaves);
+    else
+      detail::TraversePortable<detail::kPortableLanes, false>(tree.nodes.data(), view, count, tree_leaves);
   }
   if (w.fg_leaves) {
     // Pixel by pixel, so the output is written in order, one cache line after another.

@@ -21,7 +21,7 @@ using core::Node;
 /// Lane state is kept as structure of arrays so that the probe arithmetic of all lanes (the
 /// float part of eq. 1) is one loop the compiler vectorizes; the memory part (probe reads,
 /// next node) is a scalar loop with branch-free child selection.
-template <int kLanes>
+template <int kLanes, bool kClamp>
 void TraversePortable(const Node* nodes, const FrameView& f, int end, uint32_t* out) {
   float ux[kLanes], uy[kLanes], vx[kLanes], vy[kLanes], thr[kLanes], scale[kLanes];
   int32_t xb[kLanes], yb[kLanes];
@@ -54,10 +54,14 @@ void TraversePortable(const Node* nodes, const FrameView& f, int end, uint32_t* 
     // holds the background depth, so the loads below need no branch.
     for (int l = 0; l < kLanes; ++l) {
       const float s = scale[l];
-      const unsigned px = unsigned(xb[l] + int(ux[l] * s + 32768.5f));
-      const unsigned py = unsigned(yb[l] + int(uy[l] * s + 32768.5f));
-      const unsigned qx = unsigned(xb[l] + int(vx[l] * s + 32768.5f));
-      const unsigned qy = unsigned(yb[l] + int(vy[l] * s + 32768.5f));
+      unsigned px = unsigned(xb[l] + int(ux[l] * s + 32768.5f));
+      unsigned py = unsigned(yb[l] + int(uy[l] * s + 32768.5f));
+      unsigned qx = unsigned(xb[l] + int(vx[l] * s + 32768.5f));
+      unsigned qy = unsigned(yb[l] + int(vy[l] * s + 32768.5f));
+      if constexpr (kClamp) {  // onto the edge: then every probe lies in the image
+        px = unsigned(std::clamp(int(px), 0, int(w) - 1)), py = unsigned(std::clamp(int(py), 0, int(h) - 1));
+        qx = unsigned(std::clamp(int(qx), 0, int(w) - 1)), qy = unsigned(std::clamp(int(qy), 0, int(h) - 1));
+      }
       iu[l] = (px < w && py < h) ? py * w + px : off_image;
       iv[l] = (qx < w && qy < h) ? qy * w + qx : off_image;
     }
@@ -126,7 +130,7 @@ void CombinePortable(const core::Forest& forest, const uint32_t* leaves, size_t 
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 
 /// TraversePortable (end <= kChunk) with kGroups vectors of 16 lanes interleaved.
-template <int kGroups>
+template <int kGroups, bool kClamp>
 void TraverseAvx512(const Node* nodes, const FrameView& f, int end, uint32_t* out) {
   const auto* nb = reinterpret_cast<const char*>(nodes);
   const auto* pb = reinterpret_cast<const char*>(f.probe);
@@ -192,14 +196,22 @@ void TraverseAvx512(const Node* nodes, const FrameView& f, int end, uint32_t* ou
       const __m512i vx = _mm512_srai_epi32(_mm512_slli_epi32(w1[g], 16), 16);
       const __m512i vy = _mm512_srai_epi32(w1[g], 16);
       const __m512 s = scale[g];
-      const __m512i pux = _mm512_add_epi32(
+      __m512i pux = _mm512_add_epi32(
           xb[g], _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(_mm512_cvtepi32_ps(ux), s), bias)));
-      const __m512i puy = _mm512_add_epi32(
+      __m512i puy = _mm512_add_epi32(
           yb[g], _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(_mm512_cvtepi32_ps(uy), s), bias)));
-      const __m512i pvx = _mm512_add_epi32(
+      __m512i pvx = _mm512_add_epi32(
           xb[g], _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(_mm512_cvtepi32_ps(vx), s), bias)));
-      const __m512i pvy = _mm512_add_epi32(
+      __m512i pvy = _mm512_add_epi32(
           yb[g], _mm512_cvttps_epi32(_mm512_add_ps(_mm512_mul_ps(_mm512_cvtepi32_ps(vy), s), bias)));
+      if constexpr (kClamp) {  // onto the edge: then every probe lies in the image
+        const __m512i zero = _mm512_setzero_si512(), wm = _mm512_sub_epi32(vwidth, one),
+                      hm = _mm512_sub_epi32(vheight, one);
+        pux = _mm512_max_epi32(zero, _mm512_min_epi32(pux, wm));
+        puy = _mm512_max_epi32(zero, _mm512_min_epi32(puy, hm));
+        pvx = _mm512_max_epi32(zero, _mm512_min_epi32(pvx, wm));
+        pvy = _mm512_max_epi32(zero, _mm512_min_epi32(pvy, hm));
+      }
       const __mmask16 in_u =
           _mm512_mask_cmplt_epu32_mask(_mm512_cmplt_epu32_mask(pux, vwidth) & a, puy, vheight);
       const __mmask16 in_v =
@@ -312,7 +324,7 @@ inline __m256i LessU32(__m256i x, __m256i bound_minus_1) {
 
 /// TraverseAvx512 for AVX2 machines: kGroups vectors of 8 lanes, refill through a
 /// permutation table instead of expand, finished lanes recorded by a scalar loop.
-template <int kGroups>
+template <int kGroups, bool kClamp>
 void TraverseAvx2(const Node* nodes, const FrameView& f, int end, uint32_t* out) {
   const auto* nb = reinterpret_cast<const char*>(nodes);
   const auto* pb = reinterpret_cast<const int*>(f.probe);
@@ -381,8 +393,16 @@ void TraverseAvx2(const Node* nodes, const FrameView& f, int end, uint32_t* out)
         return _mm256_add_epi32(
             base, _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(_mm256_cvtepi32_ps(offset), s), bias)));
       };
-      const __m256i pux = probe(xb[g], ux), puy = probe(yb[g], uy);
-      const __m256i pvx = probe(xb[g], vx), pvy = probe(yb[g], vy);
+      __m256i pux = probe(xb[g], ux), puy = probe(yb[g], uy);
+      __m256i pvx = probe(xb[g], vx), pvy = probe(yb[g], vy);
+      if constexpr (kClamp) {  // onto the edge: then every probe lies in the image
+        const __m256i zero = _mm256_setzero_si256(), wm = _mm256_set1_epi32(f.width - 1),
+                      hm = _mm256_set1_epi32(f.height - 1);
+        pux = _mm256_max_epi32(zero, _mm256_min_epi32(pux, wm));
+        puy = _mm256_max_epi32(zero, _mm256_min_epi32(puy, hm));
+        pvx = _mm256_max_epi32(zero, _mm256_min_epi32(pvx, wm));
+        pvy = _mm256_max_epi32(zero, _mm256_min_epi32(pvy, hm));
+      }
       const __m256i in_u = _mm256_and_si256(_mm256_and_si256(LessU32(pux, wm1), LessU32(puy, hm1)), a);
       const __m256i in_v = _mm256_and_si256(_mm256_and_si256(LessU32(pvx, wm1), LessU32(pvy, hm1)), a);
       const __m256i iu = _mm256_add_epi32(_mm256_mullo_epi32(puy, vwidth), pux);
@@ -418,12 +438,19 @@ void TraverseAvx2(const Node* nodes, const FrameView& f, int end, uint32_t* out)
 #pragma GCC diagnostic pop
 #endif  // POSEFOREST_CLASSIFIER_AVX2
 
-template void TraversePortable<kPortableLanes>(const Node* nodes, const FrameView& f, int end, uint32_t* out);
+template void TraversePortable<kPortableLanes, false>(const Node* nodes, const FrameView& f, int end,
+                                                      uint32_t* out);
+template void TraversePortable<kPortableLanes, true>(const Node* nodes, const FrameView& f, int end,
+                                                     uint32_t* out);
 #ifdef POSEFOREST_CLASSIFIER_AVX512
-template void TraverseAvx512<kAvx512Groups>(const Node* nodes, const FrameView& f, int end, uint32_t* out);
+template void TraverseAvx512<kAvx512Groups, false>(const Node* nodes, const FrameView& f, int end,
+                                                   uint32_t* out);
+template void TraverseAvx512<kAvx512Groups, true>(const Node* nodes, const FrameView& f, int end,
+                                                  uint32_t* out);
 #endif
 #ifdef POSEFOREST_CLASSIFIER_AVX2
-template void TraverseAvx2<kAvx2Groups>(const Node* nodes, const FrameView& f, int end, uint32_t* out);
+template void TraverseAvx2<kAvx2Groups, false>(const Node* nodes, const FrameView& f, int end, uint32_t* out);
+template void TraverseAvx2<kAvx2Groups, true>(const Node* nodes, const FrameView& f, int end, uint32_t* out);
 #endif
 
 }  // namespace poseforest::runtime::detail

@@ -38,6 +38,9 @@ constexpr int kAvx512Groups = 2;
 struct FrameView {
   int width = 0, height = 0;
   uint16_t background_mm = 0;
+  /// Probes beyond the image read the pixel on its edge (core::ProbeEdge::kClamp) instead of
+  /// background_mm: the kernels' kClamp must equal it.
+  bool clamp = false;
   const uint16_t* probe = nullptr;
   const int32_t* xb = nullptr;
   const int32_t* yb = nullptr;
@@ -46,7 +49,9 @@ struct FrameView {
 
 /// Walks one tree for the first `end` pixels of `f` with kLanes traversals interleaved;
 /// writes pixel i's leaf index to out[i]. The root must be a split node. (kPortableLanes)
-template <int kLanes>
+/// kClamp: f.clamp (the forest's probe edge), a template argument so that the paper's rule
+/// pays nothing for the other.
+template <int kLanes, bool kClamp>
 void TraversePortable(const core::Node* nodes, const FrameView& f, int end, uint32_t* out);
 
 /// Sums leaf rows over trees and takes the argmax for `count` foreground pixels whose leaf
@@ -57,7 +62,7 @@ void CombinePortable(const core::Forest& forest, const uint32_t* leaves, size_t 
 
 #ifdef POSEFOREST_CLASSIFIER_AVX512
 /// TraversePortable (end <= kChunk) with kGroups vectors of 16 lanes interleaved (kAvx512Groups).
-template <int kGroups>
+template <int kGroups, bool kClamp>
 void TraverseAvx512(const core::Node* nodes, const FrameView& f, int end, uint32_t* out);
 
 /// CombinePortable for 16 < stride <= 32 (the 31-part taxonomy), AVX-512BW.
@@ -67,7 +72,7 @@ void CombineAvx512Stride32(const core::Forest& forest, const uint32_t* leaves, s
 
 #ifdef POSEFOREST_CLASSIFIER_AVX2
 /// TraverseAvx512 for AVX2 machines: kGroups vectors of 8 lanes (kAvx2Groups).
-template <int kGroups>
+template <int kGroups, bool kClamp>
 void TraverseAvx2(const core::Node* nodes, const FrameView& f, int end, uint32_t* out);
 #endif
 

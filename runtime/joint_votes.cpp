@@ -20,8 +20,8 @@ uint32_t LeafOf(const core::Tree& tree, const core::FeatureConstants& constants,
   for (;;) {
     const core::Node& node = tree.nodes[n];
     if (node.is_leaf()) return node.leaf_index();
-    const int32_t r = core::FeatureResponse(depth.data(), depth.width, depth.height, x, y, scale, node.offsets,
-                                            constants.background_mm);
+    const int32_t r = core::FeatureResponse(depth.data(), depth.width, depth.height, x, y, scale,
+                                            node.offsets, constants.background_mm, constants.edge);
     // As the classifier: left if f < threshold, else right.
     n = node.child + uint32_t(!(float(r) < node.threshold));
   }

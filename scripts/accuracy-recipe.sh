@@ -52,12 +52,20 @@ data=$(cd "${POSEFOREST_DATA_DIR:-$root/../shared/data}" 2>/dev/null && pwd) ||
 bin=$root/build/bin
 [[ -x "$bin/poseforest" ]] || { echo "accuracy-recipe: $bin/poseforest not built (run scripts/build.sh)" >&2; exit 1; }
 headings=${POSEFOREST_HEADINGS:-120}
+# The recipe keeps the paper's probe edge (a probe past the image's edge reads background) until
+# it is measured with the main job's (scripts/default-job.sh): POSEFOREST_PROBE_EDGE=clamp tries it,
+# into accuracy-N...-clamp.
+case ${POSEFOREST_PROBE_EDGE:-background} in
+  background) probe_edge=PROBE_EDGE_BACKGROUND ;;
+  clamp) probe_edge=PROBE_EDGE_CLAMP ;;
+  *) echo "accuracy-recipe: POSEFOREST_PROBE_EDGE must be background or clamp, got '$POSEFOREST_PROBE_EDGE'" >&2; exit 2 ;;
+esac
 [[ "$headings" =~ ^[1-9][0-9]*$ && "$headings" -le 180 ]] ||
   { echo "accuracy-recipe: POSEFOREST_HEADINGS must be a whole number of degrees, 1-180, got '$headings'" >&2; exit 2; }
 # accuracy-N, with -cC when the candidates are not the recipe's 500 and -hH when the headings are
 # not its 120, so that variations do not overwrite each other.
 out=${POSEFOREST_OUT:-$root/out}/accuracy-$per_tree$([[ "$candidate_features" == 500 ]] || echo "-c$candidate_features")
-out+=$([[ "$headings" == 120 ]] || echo "-h$headings")
+out+=$([[ "$headings" == 120 ]] || echo "-h$headings")$([[ "$probe_edge" == PROBE_EDGE_BACKGROUND ]] || echo "-clamp")
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
 start=$(date +%s)

@@ -56,8 +56,10 @@ int InspectCommand::Run() {
                 (*bytes)[10] | (*bytes)[11] << 8, bytes->size());
     std::printf("  trees %zu, max depth %u, parts %d, nodes %zu\n", f.trees.size(), f.max_depth(), f.num_parts,
                 f.total_nodes());
-    std::printf("  feature: background %u mm, offset unit %.6g pixel*m\n", f.constants.background_mm,
-                double(f.constants.offset_unit));
+    std::printf(
+        "  feature: background %u mm, offset unit %.6g pixel*m, probes past the image's edge read %s\n",
+        f.constants.background_mm, double(f.constants.offset_unit),
+        f.constants.edge == core::ProbeEdge::kClamp ? "the edge (PEDG)" : "the background");
     std::printf("  leaves: uint8 numerators summing to 255, %d bytes per leaf\n", stride);
     for (size_t t = 0; t < f.trees.size(); ++t) {
       const auto& tree = f.trees[t];

@@ -70,6 +70,9 @@ Status ValidateForest(const Forest& forest, const std::string& source) {
   // Sums of 255 over trees must fit the classifier's uint16 accumulators.
   if (forest.trees.size() > 256) return fail("forest has " + std::to_string(forest.trees.size()) + " trees (at most 256)");
   if (forest.constants.background_mm == 0) return fail("background depth constant is 0 mm");
+  if (forest.constants.edge != ProbeEdge::kBackground && forest.constants.edge != ProbeEdge::kClamp)
+    return fail("probe edge " + std::to_string(int(forest.constants.edge)) +
+                " is neither background nor clamp");
   if (!std::isfinite(forest.constants.offset_unit) || forest.constants.offset_unit <= 0 ||
       forest.constants.offset_unit > 64)
     return fail("offset unit " + std::to_string(forest.constants.offset_unit) + " is not in (0, 64] pixel*m");

@@ -189,15 +189,25 @@ void WriteTracking(Writer& w, const TrackingModel& model) {
 
 std::vector<uint8_t> SerializeForest(const Forest& forest) {
   Writer w;
-  const uint32_t section_count = 1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
-                                 (forest.fast_proposal_params ? 1 : 0) + 1 +
-                                 (forest.confidence_calibration ? 1 : 0) + (forest.offset_votes ? 1 : 0) +
-                                 (forest.tracking_model ? 1 : 0) +
-                                 (forest.tracking_model && forest.tracking_model->fit != TrackingFit::kGreedy ? 1 : 0) +
-                                 (forest.tracking_model && forest.tracking_model->seen ? 1 : 0);
+  const uint32_t section_count =
+      1 + uint32_t(forest.trees.size()) + (forest.proposal_params ? 1 : 0) +
+      (forest.fast_proposal_params ? 1 : 0) + 1 + (forest.confidence_calibration ? 1 : 0) +
+      (forest.offset_votes ? 1 : 0) + (forest.tracking_model ? 1 : 0) +
+      (forest.tracking_model && forest.tracking_model->fit != TrackingFit::kGreedy ? 1 : 0) +
+      (forest.tracking_model && forest.tracking_model->seen ? 1 : 0) +
+      (forest.constants.edge != ProbeEdge::kBackground ? 1 : 0);
   WriteHeader(w, section_count);
   WriteMeta(w, forest);
   for (size_t t = 0; t < forest.trees.size(); ++t) WriteTree(w, forest.trees[t], t);
+  // PEDG (1.9, required): the trees were trained with probes past the edge reading the edge; a
+  // reader that does not know it must refuse the file rather than evaluate the trees the paper's
+  // way. Not written for the paper's rule, so such files stay readable by 1.0-1.8 readers.
+  if (forest.constants.edge != ProbeEdge::kBackground) {
+    const size_t edge_at = BeginSection(w, kTagProbeEdge, kFlagRequired);
+    w.U32(uint32_t(forest.constants.edge));
+    w.U32(0);
+    EndSection(w, edge_at);
+  }
 
   // Optional sections: a 1.0 reader skips both and proposes joints with the paper's means; a
   // 1.1 reader reads JPAR (for both methods, its rule) and skips JPFC.

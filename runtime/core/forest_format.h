@@ -25,8 +25,11 @@ inline constexpr uint16_t kFormatMajor = 1;
 /// the kinematic fit); older readers skip it, and a JTRK without it was fitted on the greedy fit.
 /// 1.8 added the optional JSEE section (the tracking decision's seen model: a joint is tracked
 /// when the camera likely sees it); older readers skip it and track by P(within 0.1 m).
+/// 1.9 added the REQUIRED PEDG section (probes beyond the image's edge read the edge,
+/// ProbeEdge::kClamp; written only then): an older reader refuses such a forest, whose trees it
+/// would evaluate wrongly; a file without it probes as the paper does.
 /// Every file is written with the newest minor version, whichever optional sections it holds.
-inline constexpr uint16_t kFormatMinor = 8;
+inline constexpr uint16_t kFormatMinor = 9;
 
 /// Serializes a forest (which must pass ValidateForest) to the v1 byte layout.
 std::vector<uint8_t> SerializeForest(const Forest& forest);

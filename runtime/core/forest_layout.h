@@ -35,6 +35,9 @@ constexpr uint32_t kTagOffsetVotes = Tag("JVOT");      // offset votes (1.5)
 constexpr uint32_t kTagTracking = Tag("JTRK");         // learned tracking decision (1.6)
 constexpr uint32_t kTagTrackingFit = Tag("JTFT");      // the skeleton fit JTRK was fitted on (1.7)
 constexpr uint32_t kTagTrackingSeen = Tag("JSEE");     // the seen decision beside JTRK (1.8)
+constexpr uint32_t kTagProbeEdge = Tag("PEDG");        // probes past the edge read it (1.9, required)
+// PEDG: u32 edge (ProbeEdge: 1 = clamp; written only then), u32 reserved zero.
+constexpr uint32_t kProbeEdgeSize = 8;
 // JTFT: u32 fit (TrackingFit: 1 = kinematic; written only then), u32 reserved zero.
 constexpr uint32_t kTrackingFitSize = 8;
 // JTRK: u32 joints, u32 cues, u32 samples, joints x f32 intercept, joints x f32 slope, cues x f32.

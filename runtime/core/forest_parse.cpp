@@ -107,6 +107,7 @@ struct ParseState {
   const Loss& loss;
   uint32_t section_count = 0;
   bool have_meta = false, have_focal = false, have_calibration = false, have_votes = false, have_tracking = false;
+  bool have_edge = false;
   std::optional<TrackingFit> tracking_fit;  ///< JTFT, applied to the JTRK model after the loop
   std::optional<TrackingWeights> tracking_seen;  ///< JSEE, the JTRK model's seen decision after the loop
   uint32_t tree_count = 0, stride = 0;
@@ -375,6 +376,26 @@ Status ParseTrackingFit(Reader& p, const std::string& where, ParseState& st) {
   return Status::Ok();
 }
 
+/// PEDG (1.9): what a probe beyond the image's edge reads.
+Status ParseProbeEdge(Reader& p, const std::string& where, ParseState& st) {
+  const Loss& loss = st.loss;
+  if (st.have_edge) return loss(where + "second PEDG section");
+  if (!st.have_meta) return loss(where + "PEDG before META");
+  if (p.remaining() != kProbeEdgeSize)
+    return loss(where + "PEDG holds " + std::to_string(p.remaining()) + " bytes, expected " +
+                std::to_string(kProbeEdgeSize));
+  const uint32_t edge = p.U32();
+  const uint32_t reserved = p.U32();
+  if (edge != uint32_t(ProbeEdge::kBackground) && edge != uint32_t(ProbeEdge::kClamp))
+    return loss(where + "PEDG names probe edge " + std::to_string(edge) +
+                ", expected 0 (background) or 1 (clamp)");
+  if (reserved != 0)
+    return loss(where + "PEDG's reserved word is " + std::to_string(reserved) + ", expected 0");
+  st.forest.constants.edge = ProbeEdge(edge);
+  st.have_edge = true;
+  return Status::Ok();
+}
+
 }  // namespace
 
 Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& source) {
@@ -421,6 +442,8 @@ Result<Forest> ParseForest(std::span<const uint8_t> bytes, const std::string& so
       POSEFOREST_RETURN_IF_ERROR(ParseTrackingFit(p, where, st));
     } else if (tag == kTagTrackingSeen) {
       POSEFOREST_RETURN_IF_ERROR(ParseTrackingSeen(p, where, st));
+    } else if (tag == kTagProbeEdge) {
+      POSEFOREST_RETURN_IF_ERROR(ParseProbeEdge(p, where, st));
     } else if (flags & kFlagRequired) {
       return loss(where + "section '" + TagName(tag) + "' is required but unknown to this reader (format " +
                   std::to_string(major) + "." + std::to_string(minor) + "; a newer poseforest can read it)");

@@ -78,6 +78,28 @@ TEST_CASE("distributed forest is byte-identical to LocalTrainer with 1, 2, 3 and
   }
 }
 
+TEST_CASE(
+    "a job whose probes read the edge past it (probe_edge: PROBE_EDGE_CLAMP): the same forest with 3 workers",
+    "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText() + "probe_edge: PROBE_EDGE_CLAMP\n");
+  REQUIRE(job.params.constants.edge == core::ProbeEdge::kClamp);
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  auto parsed = core::ParseForest(reference, "reference");
+  REQUIRE(parsed.ok());
+  CHECK(parsed->constants.edge == core::ProbeEdge::kClamp);  // the forest records it (PEDG)
+  // Trained the paper's way the trees differ: the workers really probed past the edge.
+  CHECK(ReferenceBytes(ParseJob(TinyJobText())) != reference);
+  const uint32_t domain = Domain(29);
+  const std::string job_id = "t-identical-clamp";
+  ThreadWorkers workers(3, domain, job_id);
+  CoordinatorOptions o = Options(domain, 3);
+  o.job_id = job_id;
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  REQUIRE(forest.ok());
+  CHECK(core::SerializeForest(*forest) == reference);
+}
+
 TEST_CASE("a worker stopped mid-tree: its frames move to the others, same forest",
           "[distributed][integration]") {
   const Job job = ParseJob(TinyJobText());

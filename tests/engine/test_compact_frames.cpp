@@ -119,7 +119,9 @@ struct Fixture {
   core::FeatureConstants c;
   std::vector<core::DepthImage> full;  ///< per local frame
   engine::SampleSet set;
-  explicit Fixture(uint32_t seed, int frames, int pixels, bool mixed_sizes = false) {
+  explicit Fixture(uint32_t seed, int frames, int pixels, bool mixed_sizes = false,
+                   core::ProbeEdge edge = core::ProbeEdge::kBackground) {
+    c.edge = edge;
     std::mt19937 rng(seed);
     for (int i = 0; i < frames; ++i) {
       const int w = mixed_sizes && i % 2 ? kW + 13 : kW, h = mixed_sizes && i % 3 ? kH - 7 : kH;
@@ -143,6 +145,8 @@ struct Fixture {
 TEST_CASE("a compact frame reads as the full frame everywhere, off the frame too", "[training][compact]") {
   std::mt19937 rng(7);
   const uint16_t bg = GENERATE(uint16_t(10000), uint16_t(3000));
+  const core::ProbeEdge edge = GENERATE(core::ProbeEdge::kBackground, core::ProbeEdge::kClamp);
+  INFO("probe edge " << core::ProbeEdgeName(edge));
   for (int kind = 0; kind < 5; ++kind) {
     for (int rep = 0; rep < 4; ++rep) {
       const core::DepthImage d = MakeFrame(kind, rng, bg);
@@ -150,8 +154,14 @@ TEST_CASE("a compact frame reads as the full frame everywhere, off the frame too
       REQUIRE(cf.rows.size() == size_t(kH));
       for (int y = -3; y < kH + 3; ++y)
         for (int x = -3; x < kW + 3; ++x)
-          REQUIRE(cf.Probe(x, y, bg) == core::ProbeDepth(d.data(), kW, kH, x, y, bg));
-      for (int x : {-100000, -32768, 32767, 100000}) CHECK(cf.Probe(x, kH / 2, bg) == bg);
+          REQUIRE(cf.Probe(x, y, bg, edge) == core::ProbeDepth(d.data(), kW, kH, x, y, bg, edge));
+      // Far off the frame: the background, or the row's pixel on that edge.
+      for (int x : {-100000, -32768, 32767, 100000}) {
+        const int edge_x = x < 0 ? 0 : kW - 1;
+        CHECK(cf.Probe(x, kH / 2, bg, edge) ==
+              (edge == core::ProbeEdge::kClamp ? core::ProbeDepth(d.data(), kW, kH, edge_x, kH / 2, bg, edge)
+                                               : int32_t(bg)));
+      }
       // Spans are tight: their first and last pixels differ from background.
       for (const auto& r : cf.rows) {
         if (r.len == 0) continue;
@@ -165,7 +175,10 @@ TEST_CASE("a compact frame reads as the full frame everywhere, off the frame too
 
 TEST_CASE("compact responses equal core::FeatureResponse on the full frames", "[training][compact]") {
   const bool mixed = GENERATE(false, true);
-  const Fixture fx(11, 15, 120, mixed);
+  const core::ProbeEdge edge = GENERATE(core::ProbeEdge::kBackground, core::ProbeEdge::kClamp);
+  INFO("probe edge " << core::ProbeEdgeName(edge));
+  const Fixture fx(11, 15, 120, mixed, edge);
+  REQUIRE(fx.set.edge() == edge);
   REQUIRE(fx.set.uniform_size() == !mixed);
   REQUIRE(fx.set.num_samples() > 1000);
   std::mt19937 rng(3);
@@ -185,7 +198,9 @@ TEST_CASE("the histogram builder's kernels on compact frames equal the naive eva
           "[training][compact][histogram]") {
   const int thresholds = GENERATE(12, 50);
   const int reach = GENERATE(200, 3000, 32767);
-  Fixture fx(23, 20, 100);
+  const core::ProbeEdge edge = GENERATE(core::ProbeEdge::kBackground, core::ProbeEdge::kClamp);
+  INFO("probe edge " << core::ProbeEdgeName(edge));
+  Fixture fx(23, 20, 100, false, edge);
   engine::TrainParams p;
   p.seed = 5;
   p.thresholds_per_feature = thresholds;

@@ -286,8 +286,12 @@ TEST_CASE("optimized classifier equals the reference on random forests and image
   };
   const std::vector<Size> sizes = {{1, 1}, {1, 9}, {9, 1}, {2, 3}, {17, 13}, {64, 48}, {33, 201}, {160, 120}};
   uint64_t image_seed = 100;
+  // Both probe edges: the kernels' clamp (template) paths against the reference's ProbeDepth.
+  const core::ProbeEdge edge = GENERATE(core::ProbeEdge::kBackground, core::ProbeEdge::kClamp);
+  INFO("probe edge " << core::ProbeEdgeName(edge));
   for (const Case& c : cases) {
-    const Forest forest = testing::MakeRandomForest(c.spec);
+    Forest forest = testing::MakeRandomForest(c.spec);
+    forest.constants.edge = edge;
     for (const Size& s : sizes) {
       ++image_seed;
       ExpectMatches(forest, testing::MakeRandomDepth(image_seed, s.w, s.h), c.name);
@@ -309,7 +313,8 @@ TEST_CASE("a big frame with more foreground than one block, 2 threads", "[classi
   spec.num_trees = 3;
   spec.max_depth = 18;
   spec.nodes_per_tree = 30000;
-  const Forest forest = testing::MakeRandomForest(spec);
+  Forest forest = testing::MakeRandomForest(spec);
+  forest.constants.edge = GENERATE(core::ProbeEdge::kBackground, core::ProbeEdge::kClamp);
   ExpectMatches(forest, testing::MakePersonDepth(2.5, 320, 240), "person 320x240");
   ExpectMatches(forest, testing::MakeRandomDepth(77, 320, 240), "random 320x240");
 }

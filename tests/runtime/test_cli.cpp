@@ -360,7 +360,7 @@ TEST_CASE("inspect shows the offset votes (format 1.5, JVOT), or says there are 
   auto run = RunPoseforest("inspect " + votes);
   INFO(run.output);
   CHECK(run.exit_code == 0);
-  CHECK_THAT(run.output, Catch::Contains("format 1.8") &&
+  CHECK_THAT(run.output, Catch::Contains("format 1.9") &&
                              Catch::Contains("offset votes (JVOT): " + std::to_string(total) +
                                              " votes over 2 trees " + per_leaf +
                                              ", max offset 0.60 m, bandwidths 0.05..0.08 m, "
@@ -369,5 +369,14 @@ TEST_CASE("inspect shows the offset votes (format 1.5, JVOT), or says there are 
   INFO(none.output);
   CHECK(none.exit_code == 0);
   CHECK_THAT(none.output, Catch::Contains("offset votes: none"));
+  // The probe edge: the paper's unless the forest says otherwise (PEDG, format 1.9).
+  CHECK_THAT(none.output, Catch::Contains("probes past the image's edge read the background"));
+  forest.constants.edge = core::ProbeEdge::kClamp;
+  const std::string clamp = (dir / "clamp.pff").string();
+  REQUIRE(core::SaveForest(forest, clamp).ok());
+  auto edge = RunPoseforest("inspect " + clamp);
+  INFO(edge.output);
+  CHECK(edge.exit_code == 0);
+  CHECK_THAT(edge.output, Catch::Contains("probes past the image's edge read the edge (PEDG)"));
   fs::remove_all(dir);
 }

@@ -100,6 +100,35 @@ TEST_CASE("feature: probes off the image or on background read the constant", "[
   CHECK(core::FeatureResponse(img, 0, 0, up, c) == c.background_mm - 1000);  // off the top
 }
 
+TEST_CASE("feature: with ProbeEdge::kClamp a probe past the edge reads the pixel on the edge",
+          "[core][feature]") {
+  // Depth 1000 + 10 x + 100 y: every pixel its own value.
+  core::DepthImage img(8, 6, 0);
+  for (int y = 0; y < 6; ++y)
+    for (int x = 0; x < 8; ++x) img.at(x, y) = uint16_t(1000 + 10 * x + 100 * y);
+  img.at(7, 2) = 0;  // a hole on the right edge
+  core::FeatureConstants c;
+  c.edge = core::ProbeEdge::kClamp;
+  const uint16_t* d = img.data();
+  CHECK(core::ProbeDepth(d, 8, 6, 3, 4, c.background_mm, c.edge) == 1000 + 30 + 400);    // inside: as before
+  CHECK(core::ProbeDepth(d, 8, 6, 12, 1, c.background_mm, c.edge) == 1000 + 70 + 100);   // right: (7, 1)
+  CHECK(core::ProbeDepth(d, 8, 6, -5, 3, c.background_mm, c.edge) == 1000 + 0 + 300);    // left: (0, 3)
+  CHECK(core::ProbeDepth(d, 8, 6, 4, -100, c.background_mm, c.edge) == 1000 + 40);       // top: (4, 0)
+  CHECK(core::ProbeDepth(d, 8, 6, 99, 99, c.background_mm, c.edge) == 1000 + 70 + 500);  // a corner: (7, 5)
+  // The edge pixel is a hole: it reads as background does.
+  CHECK(core::ProbeDepth(d, 8, 6, 30, 2, c.background_mm, c.edge) == c.background_mm);
+  // The paper's rule on the same probes.
+  CHECK(core::ProbeDepth(d, 8, 6, 12, 1, c.background_mm, core::ProbeEdge::kBackground) == c.background_mm);
+  CHECK(core::ProbeDepth(d, 8, 6, 3, 4, c.background_mm, core::ProbeEdge::kBackground) == 1000 + 30 + 400);
+  // Through eq. 1: u two pixels right of a pixel on the right edge reads that pixel, so f = 0.
+  const int16_t one = int16_t(std::lround(1.0f / c.offset_unit));
+  core::FeatureOffsets f{int16_t(2 * one), 0, 0, 0};
+  img.at(7, 0) = 1000;  // (7, 0) at 1000 mm: one pixel per pixel*m there
+  CHECK(core::FeatureResponse(img, 7, 0, f, c) == 0);
+  c.edge = core::ProbeEdge::kBackground;
+  CHECK(core::FeatureResponse(img, 7, 0, f, c) == c.background_mm - 1000);
+}
+
 TEST_CASE("feature: offsets scale with 1/depth and round halves up", "[core][feature]") {
   CHECK(core::RoundOffset(0.49f) == 0);
   CHECK(core::RoundOffset(0.5f) == 1);

@@ -1,11 +1,11 @@
 // Forest file format v1: round trips, and hostile input (truncation and corruption at every byte
 // offset, with and without a repaired checksum) that must give errors, never crashes.
+#include <algorithm>
 #include <catch2/catch.hpp>
-
 #include <cmath>
 #include <cstring>
-#include <limits>
 #include <filesystem>
+#include <limits>
 
 #include "runtime/core/crc32.h"
 #include "runtime/core/forest_format.h"
@@ -28,7 +28,8 @@ testing::RandomForestSpec SmallSpec(uint64_t seed) {
 
 bool SameForest(const core::Forest& a, const core::Forest& b) {
   if (a.num_parts != b.num_parts || a.part_names != b.part_names || a.trees.size() != b.trees.size() ||
-      a.constants.background_mm != b.constants.background_mm || a.constants.offset_unit != b.constants.offset_unit)
+      a.constants.background_mm != b.constants.background_mm ||
+      a.constants.offset_unit != b.constants.offset_unit || a.constants.edge != b.constants.edge)
     return false;
   for (size_t t = 0; t < a.trees.size(); ++t) {
     const auto &x = a.trees[t], &y = b.trees[t];
@@ -115,7 +116,9 @@ TEST_CASE("TaxonomyDifference says how a forest's parts differ from the paper's 
 }
 
 TEST_CASE("truncation at every byte offset is an error, never a crash", "[format][hostile]") {
-  const auto bytes = core::SerializeForest(testing::MakeRandomForest(SmallSpec(11)));
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(11));
+  forest.constants.edge = GENERATE(core::ProbeEdge::kBackground, core::ProbeEdge::kClamp);  // PEDG too
+  const auto bytes = core::SerializeForest(forest);
   for (size_t len = 0; len < bytes.size(); ++len) {
     auto r = core::ParseForest(std::span(bytes.data(), len), "cut.pff");
     INFO("length " << len);
@@ -126,7 +129,9 @@ TEST_CASE("truncation at every byte offset is an error, never a crash", "[format
 }
 
 TEST_CASE("corruption of any single byte is detected", "[format][hostile]") {
-  const auto bytes = core::SerializeForest(testing::MakeRandomForest(SmallSpec(12)));
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(12));
+  forest.constants.edge = GENERATE(core::ProbeEdge::kBackground, core::ProbeEdge::kClamp);  // PEDG too
+  const auto bytes = core::SerializeForest(forest);
   for (size_t i = 0; i < bytes.size(); ++i) {
     for (uint8_t flip : {uint8_t(0x01), uint8_t(0x80), uint8_t(0xFF)}) {
       auto bad = bytes;
@@ -618,7 +623,7 @@ TEST_CASE(
   REQUIRE(core::ValidateForest(forest, "mem").ok());
   const auto bytes = core::SerializeForest(forest);
   CHECK(bytes[10] == core::kFormatMinor);
-  CHECK(core::kFormatMinor == 8);
+  CHECK(core::kFormatMinor == 9);
   // Head (16 + 16 x 4 bytes), calibration (3 x 8), per tree (8 + (L + 1) x 4 + V x 8), padding.
   size_t payload = 16 + 16 * 4 + 3 * 4 * 17;
   for (size_t t = 0; t < forest.trees.size(); ++t)
@@ -1151,4 +1156,81 @@ TEST_CASE("the tracking model's probability: sigmoid of intercept, slope on the 
   CHECK(m.Probability(core::kNumJoints, 0.7f, f) == 0);
   CHECK(std::string(core::TrackingFeatureName(core::kFeatDepthGap)) == "depth gap");
   CHECK(std::string(core::TrackingFeatureName(99)) == "?");
+}
+
+TEST_CASE("the probe edge (format 1.9, PEDG): a required section, written only for clamp", "[format]") {
+  core::Forest forest = testing::MakeRandomForest(SmallSpec(61));
+  REQUIRE(forest.constants.edge == core::ProbeEdge::kBackground);  // the default: what every older file means
+  const auto background = core::SerializeForest(forest);
+  forest.constants.edge = core::ProbeEdge::kClamp;
+  const auto clamp = core::SerializeForest(forest);
+  // One section more: 16 bytes of head, u32 edge 1 and u32 reserved 0, flagged required so that a
+  // reader before 1.9 refuses the trees it would evaluate wrongly.
+  CHECK(clamp.size() == background.size() + 16 + 8);
+  const auto at = std::search(clamp.begin(), clamp.end(), std::begin("PEDG"), std::begin("PEDG") + 4);
+  REQUIRE(at != clamp.end());
+  const auto word = [&](std::ptrdiff_t i) {
+    uint32_t v = 0;
+    for (int k = 0; k < 4; ++k) v |= uint32_t(at[i + k]) << (8 * k);
+    return v;
+  };
+  CHECK(word(4) == 1u);   // flags: required
+  CHECK(word(8) == 8u);   // payload size (low word)
+  CHECK(word(16) == 1u);  // edge: clamp
+  CHECK(word(20) == 0u);  // reserved
+  CHECK(std::search(background.begin(), background.end(), std::begin("PEDG"), std::begin("PEDG") + 4) ==
+        background.end());
+  for (const auto& [bytes, edge] :
+       {std::pair{clamp, core::ProbeEdge::kClamp}, std::pair{background, core::ProbeEdge::kBackground}}) {
+    auto parsed = core::ParseForest(bytes, "f.pff");
+    REQUIRE(parsed.ok());
+    CHECK(parsed->constants.edge == edge);
+    CHECK(core::SerializeForest(*parsed) == bytes);
+  }
+  // Through a file too.
+  const auto path = testing::ScratchDir("format-probe-edge") / "clamp.pff";
+  REQUIRE(core::SaveForest(forest, path.string()).ok());
+  auto loaded = core::LoadForest(path.string());
+  REQUIRE(loaded.ok());
+  CHECK(loaded->constants.edge == core::ProbeEdge::kClamp);
+  CHECK(std::string(core::ProbeEdgeName(core::ProbeEdge::kClamp)) == "clamp");
+  CHECK(std::string(core::ProbeEdgeName(core::ProbeEdge::kBackground)) == "background");
+}
+
+TEST_CASE("corrupt or repeated PEDG sections give errors naming the file and the section",
+          "[format][hostile]") {
+  const core::Forest forest = testing::MakeRandomForest(SmallSpec(62));
+  const auto plain = core::SerializeForest(forest);
+  auto payload = [](uint32_t edge, uint32_t reserved) {
+    PayloadBytes b;
+    b.U32(edge);
+    b.U32(reserved);
+    return b.out;
+  };
+  auto expect = [](const std::vector<uint8_t>& bytes, const std::string& text) {
+    auto r = core::ParseForest(bytes, "bad.pff");
+    REQUIRE_FALSE(r.ok());
+    INFO(r.status().ToString());
+    CHECK(r.status().code() == ErrorCode::kDataLoss);
+    CHECK_THAT(r.status().message(),
+               Catch::StartsWith("bad.pff: ") && Catch::Contains("PEDG") && Catch::Contains(text));
+  };
+  const auto good = payload(1, 0);
+  for (size_t n : {0, 4, 7})
+    expect(WithSection(plain, "PEDG", 1, {good.begin(), good.begin() + std::ptrdiff_t(n)}),
+           "PEDG holds " + std::to_string(n) + " bytes, expected 8");
+  auto longer = good;
+  longer.resize(12);
+  expect(WithSection(plain, "PEDG", 1, longer), "PEDG holds 12 bytes, expected 8");
+  expect(WithSection(plain, "PEDG", 1, payload(2, 0)), "probe edge 2, expected 0 (background) or 1 (clamp)");
+  expect(WithSection(plain, "PEDG", 1, payload(0xFFFFFFFFu, 0)), "probe edge 4294967295");
+  expect(WithSection(plain, "PEDG", 1, payload(1, 7)), "reserved word is 7");
+  expect(WithSection(WithSection(plain, "PEDG", 1, good), "PEDG", 1, good), "second PEDG section");
+  // Appended after the trees, it reads as the writer's.
+  auto ok = core::ParseForest(WithSection(plain, "PEDG", 1, good), "ok.pff");
+  REQUIRE(ok.ok());
+  CHECK(ok->constants.edge == core::ProbeEdge::kClamp);
+  auto zero = core::ParseForest(WithSection(plain, "PEDG", 1, payload(0, 0)), "zero.pff");
+  REQUIRE(zero.ok());
+  CHECK(zero->constants.edge == core::ProbeEdge::kBackground);
 }
