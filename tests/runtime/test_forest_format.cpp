@@ -270,6 +270,24 @@ struct PayloadBytes {
   }
 };
 
+// An 8-byte payload of two u32 words, the shape of JTFT and PEDG.
+std::vector<uint8_t> TwoWords(uint32_t first, uint32_t second) {
+  PayloadBytes b;
+  b.U32(first);
+  b.U32(second);
+  return b.out;
+}
+
+// Parsing `bytes` is data loss, with a message naming the file (bad.pff), the section `tag` and `text`.
+void ExpectLoss(const std::vector<uint8_t>& bytes, const std::string& tag, const std::string& text) {
+  auto r = core::ParseForest(bytes, "bad.pff");
+  REQUIRE_FALSE(r.ok());
+  INFO(r.status().ToString());
+  CHECK(r.status().code() == ErrorCode::kDataLoss);
+  CHECK_THAT(r.status().message(),
+             Catch::StartsWith("bad.pff: ") && Catch::Contains(tag) && Catch::Contains(text));
+}
+
 // A JPAR/JPFC payload: joint count, then (b, lambda, zeta) per joint.
 std::vector<uint8_t> ParamsPayload(const core::ProposalParams& params, uint32_t count = core::kNumJoints) {
   PayloadBytes b;
@@ -1005,19 +1023,9 @@ TEST_CASE("corrupt JTFT sections, or one without JTRK, give errors naming the fi
   const auto plain = core::SerializeForest(forest);
   forest.tracking_model = SomeTrackingModel();
   const auto with_model = core::SerializeForest(forest);
-  auto payload = [](uint32_t fit, uint32_t reserved) {
-    PayloadBytes b;
-    b.U32(fit);
-    b.U32(reserved);
-    return b.out;
-  };
+  const auto payload = TwoWords;
   auto expect = [](const std::vector<uint8_t>& bytes, const std::string& text) {
-    auto r = core::ParseForest(bytes, "bad.pff");
-    REQUIRE_FALSE(r.ok());
-    INFO(r.status().ToString());
-    CHECK(r.status().code() == ErrorCode::kDataLoss);
-    CHECK_THAT(r.status().message(), Catch::StartsWith("bad.pff: ") && Catch::Contains("JTFT") &&
-                                         Catch::Contains(text));
+    ExpectLoss(bytes, "JTFT", text);
   };
   const auto good = payload(1, 0);
   for (size_t n : {0, 4, 7})
@@ -1201,19 +1209,9 @@ TEST_CASE("corrupt or repeated PEDG sections give errors naming the file and the
           "[format][hostile]") {
   const core::Forest forest = testing::MakeRandomForest(SmallSpec(62));
   const auto plain = core::SerializeForest(forest);
-  auto payload = [](uint32_t edge, uint32_t reserved) {
-    PayloadBytes b;
-    b.U32(edge);
-    b.U32(reserved);
-    return b.out;
-  };
+  const auto payload = TwoWords;
   auto expect = [](const std::vector<uint8_t>& bytes, const std::string& text) {
-    auto r = core::ParseForest(bytes, "bad.pff");
-    REQUIRE_FALSE(r.ok());
-    INFO(r.status().ToString());
-    CHECK(r.status().code() == ErrorCode::kDataLoss);
-    CHECK_THAT(r.status().message(),
-               Catch::StartsWith("bad.pff: ") && Catch::Contains("PEDG") && Catch::Contains(text));
+    ExpectLoss(bytes, "PEDG", text);
   };
   const auto good = payload(1, 0);
   for (size_t n : {0, 4, 7})
