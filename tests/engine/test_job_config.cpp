@@ -41,6 +41,26 @@ TEST_CASE("a minimal job gets the paper's defaults", "[training][config]") {
   CHECK(p->source.kind == engine::SourceKind::kProcedural);
   CHECK(p->source.seed == 4);
   CHECK_FALSE(p->has_test_set);
+  CHECK(p->constants.edge == core::ProbeEdge::kBackground);  // the paper's probes
+}
+
+TEST_CASE("probe_edge: the paper's rule by default or named, the edge with PROBE_EDGE_CLAMP",
+          "[training][config]") {
+  const std::string src = " source { procedural { seed: 4 } }";
+  for (const auto& [field, edge] :
+       {std::pair{"", core::ProbeEdge::kBackground},
+        std::pair{"probe_edge: PROBE_EDGE_BACKGROUND", core::ProbeEdge::kBackground},
+        std::pair{"probe_edge: PROBE_EDGE_CLAMP", core::ProbeEdge::kClamp}}) {
+    INFO(field);
+    auto p = Parse(std::string("images_per_tree: 10 ") + field + src);
+    REQUIRE(p.ok());
+    CHECK(p->constants.edge == edge);
+  }
+  // A number no name has: the field and the names it takes.
+  CHECK_THAT(ErrorOf("images_per_tree: 10 probe_edge: 7" + src),
+             Catch::Contains("probe_edge = 7") && Catch::Contains("PROBE_EDGE_CLAMP"));
+  CHECK_THAT(ErrorOf("images_per_tree: 10 probe_edge: PROBE_EDGE_MIRROR" + src),
+             Catch::Contains("probe_edge"));
 }
 
 TEST_CASE("a full job parses every field", "[training][config]") {
