@@ -1,5 +1,5 @@
 #pragma once
-// Forest file format v1 (.pff, "poseforest forest"), minor version 8: reading and writing. The layout is
+// Forest file format v1 (.pff, "poseforest forest"), minor version 9: reading and writing. The layout is
 // documented in runtime/FORMAT.md; keep the two in step.
 
 #include <cstdint>
