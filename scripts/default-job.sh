@@ -27,8 +27,8 @@ candidate_features=1000
 # so a person cut by the frame goes on past it, where the paper's rule (PROBE_EDGE_BACKGROUND)
 # reads background there. With the main job (4,000 images per tree): real frames 82 -> 86 of 90
 # joints, hidden joints placed within 0.15 m 0.444 -> 0.526 facing the camera
-# (docs/training/probe-edge.md). scripts/accuracy-recipe.sh keeps the paper's rule until the
-# recipe is measured with it (POSEFOREST_PROBE_EDGE=clamp tries it).
+# (docs/training/probe-edge.md). scripts/accuracy-recipe.sh uses it too since 30 Nov 2026
+# (POSEFOREST_PROBE_EDGE=background there for the paper's rule).
 probe_edge=PROBE_EDGE_CLAMP
 write_default_job() {
   cat > "$1" <<JOB
