@@ -35,8 +35,8 @@
 # probe rule (add POSEFOREST_PROBE_EDGE=background to repeat it; the clamp is not measured there).
 #
 # Time and memory on two cores (engine): 8,000 x 500 52 min (beside light work) and 1.8 GiB;
-# 16,000 x 250 79 min; 16,000 x 500 about twice 8,000 x 500's training (docs/runtime/joints.md,
-# docs/training/realism.md).
+# 16,000 x 250 79 min; 16,000 x 500 85 min in all through the service (78 min of training:
+# docs/results/2026-11-30-recipe-probe-edge.md; docs/runtime/joints.md, docs/training/realism.md).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"

@@ -17,11 +17,10 @@
 # the camera").
 classic_test_fields="upper_body_share: 0 arm_pose_share: 0 projector_shadow: false min_range_m: 0 flying_pixels: 0 range_holes: 0 grazing_holes: 0 sensor: DEPTH_SENSOR_KINECT_V1 sitting_share: 0 leaning_share: 0"
 # Candidate features proposed per node (the paper: 2000); the recipe proposes 500
-# (scripts/accuracy-recipe.sh). The main job
-# (scripts/main-job.sh) sets candidate_features before calling write_default_job: training costs
-# one feature response per (candidate, training pixel), so fewer candidates buy more images in
-# the same time, and at the main job's size more images are worth more (docs/training/realism.md,
-# "Fewer candidates, more images").
+# (scripts/accuracy-recipe.sh). The main job (scripts/main-job.sh) sets candidate_features
+# before calling write_default_job: training costs one feature response per (candidate, training
+# pixel), so fewer candidates buy more images in the same time, and at the main job's size more
+# images are worth more (docs/training/realism.md, "Fewer candidates, more images").
 candidate_features=1000
 # What a depth probe past the image's edge reads (job.proto's probe_edge): the pixel on the edge,
 # so a person cut by the frame goes on past it, where the paper's rule (PROBE_EDGE_BACKGROUND)
