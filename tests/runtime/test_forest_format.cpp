@@ -288,6 +288,23 @@ void ExpectLoss(const std::vector<uint8_t>& bytes, const std::string& tag, const
              Catch::StartsWith("bad.pff: ") && Catch::Contains(tag) && Catch::Contains(text));
 }
 
+// The cases every 8-byte (value, reserved) section shares, JTFT and PEDG: appended to `base` with
+// `flags`, a payload cut to 0, 4 or 7 bytes or grown to 12, the value 2 or 0xFFFFFFFF (`what`
+// names it, `values` lists the allowed ones) and a non-zero reserved word are each data loss.
+void ExpectValueSectionErrors(const std::vector<uint8_t>& base, const char (&tag)[5], uint32_t flags,
+                              const std::string& what, const std::string& values) {
+  const auto good = TwoWords(1, 0);
+  for (size_t n : {0, 4, 7})
+    ExpectLoss(WithSection(base, tag, flags, {good.begin(), good.begin() + std::ptrdiff_t(n)}), tag,
+               std::string(tag) + " holds " + std::to_string(n) + " bytes, expected 8");
+  auto longer = good;
+  longer.resize(12);
+  ExpectLoss(WithSection(base, tag, flags, longer), tag, std::string(tag) + " holds 12 bytes, expected 8");
+  ExpectLoss(WithSection(base, tag, flags, TwoWords(2, 0)), tag, what + " 2, expected " + values);
+  ExpectLoss(WithSection(base, tag, flags, TwoWords(0xFFFFFFFFu, 0)), tag, what + " 4294967295");
+  ExpectLoss(WithSection(base, tag, flags, TwoWords(1, 7)), tag, "reserved word is 7");
+}
+
 // A JPAR/JPFC payload: joint count, then (b, lambda, zeta) per joint.
 std::vector<uint8_t> ParamsPayload(const core::ProposalParams& params, uint32_t count = core::kNumJoints) {
   PayloadBytes b;
@@ -1028,15 +1045,7 @@ TEST_CASE("corrupt JTFT sections, or one without JTRK, give errors naming the fi
     ExpectLoss(bytes, "JTFT", text);
   };
   const auto good = payload(1, 0);
-  for (size_t n : {0, 4, 7})
-    expect(WithSection(with_model, "JTFT", 0, {good.begin(), good.begin() + std::ptrdiff_t(n)}),
-           "JTFT holds " + std::to_string(n) + " bytes, expected 8");
-  auto longer = good;
-  longer.resize(12);
-  expect(WithSection(with_model, "JTFT", 0, longer), "JTFT holds 12 bytes, expected 8");
-  expect(WithSection(with_model, "JTFT", 0, payload(2, 0)), "skeleton fit 2, expected 0 (greedy) or 1 (kinematic)");
-  expect(WithSection(with_model, "JTFT", 0, payload(0xFFFFFFFFu, 0)), "skeleton fit 4294967295");
-  expect(WithSection(with_model, "JTFT", 0, payload(1, 7)), "reserved word is 7");
+  ExpectValueSectionErrors(with_model, "JTFT", 0, "skeleton fit", "0 (greedy) or 1 (kinematic)");
   const auto once = WithSection(with_model, "JTFT", 0, good);
   expect(WithSection(once, "JTFT", 0, good), "second JTFT section");
   // A fit for a tracking decision the file does not hold.
@@ -1214,15 +1223,7 @@ TEST_CASE("corrupt or repeated PEDG sections give errors naming the file and the
     ExpectLoss(bytes, "PEDG", text);
   };
   const auto good = payload(1, 0);
-  for (size_t n : {0, 4, 7})
-    expect(WithSection(plain, "PEDG", 1, {good.begin(), good.begin() + std::ptrdiff_t(n)}),
-           "PEDG holds " + std::to_string(n) + " bytes, expected 8");
-  auto longer = good;
-  longer.resize(12);
-  expect(WithSection(plain, "PEDG", 1, longer), "PEDG holds 12 bytes, expected 8");
-  expect(WithSection(plain, "PEDG", 1, payload(2, 0)), "probe edge 2, expected 0 (background) or 1 (clamp)");
-  expect(WithSection(plain, "PEDG", 1, payload(0xFFFFFFFFu, 0)), "probe edge 4294967295");
-  expect(WithSection(plain, "PEDG", 1, payload(1, 7)), "reserved word is 7");
+  ExpectValueSectionErrors(plain, "PEDG", 1, "probe edge", "0 (background) or 1 (clamp)");
   expect(WithSection(WithSection(plain, "PEDG", 1, good), "PEDG", 1, good), "second PEDG section");
   // Appended after the trees, it reads as the writer's.
   auto ok = core::ParseForest(WithSection(plain, "PEDG", 1, good), "ok.pff");
