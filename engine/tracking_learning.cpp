@@ -183,6 +183,8 @@ core::Result<core::TrackingModel> LearnTrackingModel(const core::Forest& forest,
     f.precision = t.tracked > 0 ? t.right / t.tracked : 0;
     f.untracked_hidden = t.untracked > 0 ? t.untracked_hidden / t.untracked : 0;
   };
+  rep.track_probability = options.skeleton.track_probability;
+  rep.seen_probability = options.skeleton.seen_probability;
   figures(rules, rep.rules);
   figures(within, rep.model);
   if (model.seen) figures(seen, rep.seen);

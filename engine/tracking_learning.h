@@ -48,6 +48,9 @@ struct TrackingLearningReport {
   };
   /// By the hand-set rules, by the model's P(within 0.1 m), and by its seen decision.
   Figures rules, model, seen;
+  /// The thresholds those figures were counted at: options.skeleton's track_probability and
+  /// seen_probability (the run-time defaults unless the caller changed them).
+  float track_probability = 0, seen_probability = 0;
   double seconds = 0;
 };
 

@@ -63,8 +63,10 @@ void PrintTracking(const core::TrackingModel& m, const engine::TrackingLearningR
     std::printf(" %s %.2f%s", core::TrackingFeatureName(k), double(m.shared[size_t(k)]),
                 k + 1 < core::kNumTrackingFeatures ? "," : "\n");
   if (m.seen) {
-    std::printf("seen decision (format 1.8): P(the camera sees the joint), the same form and samples; a joint is "
-                "tracked when it reaches 0.5\n  cues:");
+    std::printf(
+        "seen decision (format 1.8): P(the camera sees the joint), the same form and samples; a joint is "
+        "tracked when it reaches %.2g (`live --seen-probability`)\n  cues:",
+        double(rep.seen_probability));
     for (int k = 0; k < core::kNumTrackingFeatures; ++k)
       std::printf(" %s %.2f%s", core::TrackingFeatureName(k), double(m.seen->shared[size_t(k)]),
                   k + 1 < core::kNumTrackingFeatures ? "," : "\n");
@@ -75,8 +77,11 @@ void PrintTracking(const core::TrackingModel& m, const engine::TrackingLearningR
   };
   std::printf("on its fitting frames (the same positions; only the decision differs):\n");
   line("the hand-set rules:", rep.rules);
-  line("tracked when P(within 0.1 m) >= 0.5:", rep.model);
-  if (m.seen) line("tracked when P(seen) >= 0.5:", rep.seen);
+  char what[64];
+  std::snprintf(what, sizeof what, "tracked when P(within 0.1 m) >= %.2g:", double(rep.track_probability));
+  line(what, rep.model);
+  std::snprintf(what, sizeof what, "tracked when P(seen) >= %.2g:", double(rep.seen_probability));
+  if (m.seen) line(what, rep.seen);
   std::printf("learn-votes: wrote %s; tracking decision fitted in %.0f s\n", out.c_str(), rep.seconds);
 }
 

@@ -192,6 +192,9 @@ TEST_CASE("learn-votes: the votes place the joints of the frames they were learn
   INFO("untracked and hidden: seen " << trep.seen.untracked_hidden << ", within " << trep.model.untracked_hidden);
   CHECK(trep.seen.visible_within > 0);
   CHECK(trep.seen.untracked_hidden > trep.model.untracked_hidden);
+  // The figures are counted at the run-time thresholds, which the report names.
+  CHECK(trep.track_probability == runtime::SkeletonOptions{}.track_probability);
+  CHECK(trep.seen_probability == runtime::SkeletonOptions{}.seen_probability);
   CHECK(m1->fit == core::TrackingFit::kKinematic);  // unset: the run-time default, recorded
   to.threads = 2;
   auto m2 = engine::LearnTrackingModel(with, to);
@@ -356,6 +359,11 @@ TEST_CASE("poseforest learn-votes end to end: votes added, trees kept, inspect a
   INFO(only.output);
   REQUIRE(only.exit_code == 0);
   CHECK_THAT(only.output, Catch::Contains("tracking decision (kinematic fit, 5 validation frames"));
+  // Its in-sample lines name the thresholds they were counted at (0.2 for P(seen) since 29 Nov).
+  CHECK_THAT(only.output,
+             Catch::Contains("a joint is tracked when it reaches 0.2 (`live --seen-probability`)") &&
+                 Catch::Contains("tracked when P(seen) >= 0.2:") &&
+                 Catch::Contains("tracked when P(within 0.1 m) >= 0.5:"));
   CHECK_THAT(only.output, !Catch::Contains("training frames"));  // no votes learned again
   CHECK(core::ReadFileBytes(again).value() == core::ReadFileBytes(voted).value());
   auto no_votes = RunPoseforest("learn-votes --tracking-only --forest " + forest + " --job " + job + " --out " + again);
