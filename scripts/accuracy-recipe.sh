@@ -30,11 +30,13 @@
 #
 # POSEFOREST_HEADINGS=60 trains on people within +-60 degrees of facing the camera (the recipe's
 # default until 30 Nov 2026; its outputs go to accuracy-N-h60): for cameras that only see people
-# in front of them (desks, TVs). `POSEFOREST_HEADINGS=60 scripts/accuracy-recipe.sh 8000` (52 min)
-# gave 0.875 mAP facing the camera and 83 of 90 real joints, but 0.677 at +-120, with the paper's
-# probe rule (add POSEFOREST_PROBE_EDGE=background to repeat it; the clamp is not measured there).
+# in front of them (desks, TVs). `POSEFOREST_HEADINGS=60 scripts/accuracy-recipe.sh 8000` (45 min)
+# gives 0.871 mAP facing the camera and 81 of 90 real joints, but 0.673 at +-120
+# (docs/results/2026-12-01-recipe-h60-probe-edge.md; with the paper's probe rule,
+# POSEFOREST_PROBE_EDGE=background, 0.875, 83 and 0.677).
 #
-# Time and memory on two cores (engine): 8,000 x 500 52 min (beside light work) and 1.8 GiB;
+# Time and memory on two cores (engine): 8,000 x 500 45 min (1 Dec 2026, beside light work; 52 on
+# 29 Nov) and 1.8 GiB;
 # 16,000 x 250 79 min; 16,000 x 500 85 min in all through the service (78 min of training:
 # docs/results/2026-11-30-recipe-probe-edge.md; docs/runtime/joints.md, docs/training/realism.md).
 set -euo pipefail
