@@ -489,19 +489,45 @@ Result<PcdFrame> ParsePcdFrame(std::span<const uint8_t> b, const std::string& pa
   if (points >= 0 && points != width * height)
     return bad("PCD POINTS " + std::to_string(points) + " != WIDTH x HEIGHT");
   PcdFieldIndex fi;
-  int point_size = 0;
+  // Every field's SIZE is 1, 2, 4 or 8 bytes and its COUNT 1 to kMaxPcdCount (PCL's own types;
+  // a histogram field such as FPFH's has a COUNT of 33), so the byte offsets below stay inside a
+  // point of at most 64 KiB.
+  constexpr int kMaxPcdCount = 8192;
+  int point_size = 0, values_per_point = 0;
   for (size_t i = 0; i < fields.size(); ++i) {
+    if (sizes[i] != 1 && sizes[i] != 2 && sizes[i] != 4 && sizes[i] != 8)
+      return bad("PCD field '" + fields[i] + "' has SIZE " + std::to_string(sizes[i]) +
+                 " (1, 2, 4 or 8 bytes)");
+    if (counts[i] < 1 || counts[i] > kMaxPcdCount)
+      return bad("PCD field '" + fields[i] + "' has COUNT " + std::to_string(counts[i]) + " (1 to " +
+                 std::to_string(kMaxPcdCount) + ")");
+    if (point_size + sizes[i] * counts[i] > 65536) return bad("PCD points are larger than 64 KiB");
     const bool is_float = (sizes[i] == 4 || sizes[i] == 8) && types[i] == 'F' && counts[i] == 1;
     if (fields[i] == "z") fi.z = int(i), fi.z_offset = point_size, fi.z_size = sizes[i];
     if (fields[i] == "x" && is_float) fi.x = int(i), fi.x_offset = point_size, fi.x_size = sizes[i];
     if (fields[i] == "y" && is_float) fi.y = int(i), fi.y_offset = point_size, fi.y_size = sizes[i];
     point_size += sizes[i] * counts[i];
+    values_per_point += counts[i];
   }
   const int zi = fi.z;
   if (zi < 0 || (sizes[size_t(zi)] != 4 && sizes[size_t(zi)] != 8) || types[size_t(zi)] != 'F' ||
       counts[size_t(zi)] != 1)
     return Status(ErrorCode::kInvalidArgument,
                   path + ": PCD has no float32 or float64 'z' field (metres) to read depth from");
+  // The data must be able to hold every point before the image is allocated: a header of a few
+  // bytes may declare 16384 x 16384 points (half a GiB of depth).
+  if (data == "ascii" || data == "binary" || data == "binary_compressed") {
+    const uint64_t n = uint64_t(width) * uint64_t(height), left = b.size() - hd.pos;
+    // ascii: each value takes at least one character and one separator (the last none);
+    // binary_compressed: LZF gives at most 88 bytes per input byte (a 3-byte back-reference of
+    // 264), so the compressed data cannot be shorter than the points / 88.
+    const uint64_t need = data == "ascii"    ? n * uint64_t(values_per_point) * 2 - 1
+                          : data == "binary" ? n * uint64_t(point_size)
+                                             : 8 + n * uint64_t(point_size) / 88;
+    if (left < need)
+      return bad("PCD " + data + " data holds " + std::to_string(left) + " bytes, too few for " +
+                 std::to_string(n) + " points of " + std::to_string(point_size) + " bytes (truncated)");
+  }
   PcdFrame frame;
   frame.depth = core::DepthImage{int(width), int(height)};
   PcdXy xy;
@@ -567,16 +593,9 @@ Result<core::DepthImage> ReadDepthFile(const std::string& path, const FrameSourc
   core::DepthImage depth;
   static constexpr uint8_t kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
   if (bytes->size() >= 8 && std::memcmp(bytes->data(), kPng, 8) == 0) {
-    auto png = DecodePng(*bytes, path);
+    auto png = DecodeDepthPng(*bytes, path);
     if (!png.ok()) return png.status();
-    if (png->channels != 1 || png->bit_depth != 16)
-      return Status(ErrorCode::kInvalidArgument,
-                    path + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
-                        std::to_string(png->channels) + " channel(s) of " + std::to_string(png->bit_depth) +
-                        "-bit samples");
-    depth.width = png->width;
-    depth.height = png->height;
-    depth.pixels = std::move(png->samples16);
+    depth = std::move(*png);
   } else {
     const int w = RawWidth(options), h = RawHeight(options);
     const uint64_t expected = uint64_t(w) * uint64_t(h) * 2;

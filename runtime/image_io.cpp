@@ -85,9 +85,8 @@ void CheckEncodeArgs(int width, int height, int channels, size_t samples) {
                        "sample count != width * height * channels");
 }
 
-}  // namespace
-
-Result<PngImage> DecodePng(std::span<const uint8_t> bytes, const std::string& source) {
+/// DecodePng; `depth_only`: refuse anything but 16-bit greyscale from the header, undecoded.
+Result<PngImage> DecodePngImpl(std::span<const uint8_t> bytes, const std::string& source, bool depth_only) {
   if (bytes.size() < kPngSignature.size() ||
       !std::equal(kPngSignature.begin(), kPngSignature.end(), bytes.begin()))
     return DataLoss(source, "not a PNG file (bad signature)");
@@ -103,6 +102,16 @@ Result<PngImage> DecodePng(std::span<const uint8_t> bytes, const std::string& so
     return Status(ErrorCode::kInvalidArgument, source + ": image " + std::to_string(width) + "x" +
                                                    std::to_string(height) +
                                                    " is too large (limits: 32768 per side, 2^28 pixels)");
+  }
+  if (depth_only && (ihdr.color_type != SPNG_COLOR_TYPE_GRAYSCALE || ihdr.bit_depth != 16)) {
+    const int channels = ihdr.color_type == SPNG_COLOR_TYPE_TRUECOLOR         ? 3
+                         : ihdr.color_type == SPNG_COLOR_TYPE_GRAYSCALE_ALPHA ? 2
+                         : ihdr.color_type == SPNG_COLOR_TYPE_TRUECOLOR_ALPHA ? 4
+                                                                              : 1;
+    return Status(ErrorCode::kInvalidArgument,
+                  source + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
+                      std::to_string(channels) + " channel(s) of " + std::to_string(int(ihdr.bit_depth)) +
+                      "-bit samples" + (ihdr.color_type == SPNG_COLOR_TYPE_INDEXED ? " (a palette)" : ""));
   }
   if (ihdr.interlace_method != SPNG_INTERLACE_NONE) {
     return Status(ErrorCode::kUnimplemented,
@@ -160,6 +169,21 @@ Result<PngImage> DecodePng(std::span<const uint8_t> bytes, const std::string& so
   if (err != 0) return SpngError(source, "chunks after the image data", err);
   return img;
 }
+}  // namespace
+
+Result<PngImage> DecodePng(std::span<const uint8_t> bytes, const std::string& source) {
+  return DecodePngImpl(bytes, source, /*depth_only=*/false);
+}
+
+Result<core::DepthImage> DecodeDepthPng(std::span<const uint8_t> bytes, const std::string& source) {
+  auto png = DecodePngImpl(bytes, source, /*depth_only=*/true);
+  if (!png.ok()) return png.status();
+  core::DepthImage depth;
+  depth.width = png->width;
+  depth.height = png->height;
+  depth.pixels = std::move(png->samples16);
+  return depth;
+}
 
 std::vector<uint8_t> EncodePng8(int width, int height, int channels, std::span<const uint8_t> samples) {
   CheckEncodeArgs(width, height, channels, samples.size());
@@ -176,19 +200,7 @@ Result<core::DepthImage> ReadDepthImage(const std::string& path, int raw_width, 
   if (!bytes.ok()) return bytes.status();
   const std::vector<uint8_t>& b = *bytes;
   if (b.size() >= kPngSignature.size() && std::equal(kPngSignature.begin(), kPngSignature.end(), b.begin())) {
-    auto png = DecodePng(b, path);
-    if (!png.ok()) return png.status();
-    if (png->channels != 1 || png->bit_depth != 16) {
-      return Status(ErrorCode::kInvalidArgument,
-                    path + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
-                        std::to_string(png->channels) + " channel(s) of " + std::to_string(png->bit_depth) +
-                        "-bit samples");
-    }
-    core::DepthImage depth;
-    depth.width = png->width;
-    depth.height = png->height;
-    depth.pixels = std::move(png->samples16);
-    return depth;
+    return DecodeDepthPng(b, path);
   }
   if (raw_width <= 0 || raw_height <= 0) {
     return Status(ErrorCode::kInvalidArgument, path + ": raw depth size " + std::to_string(raw_width) + "x" +

@@ -26,6 +26,10 @@ struct PngImage {
 /// refused with a clear error). `source` names the file in errors. Palette indices beyond the
 /// palette read as black, and data after the last scanline is ignored (as libpng does).
 core::Result<PngImage> DecodePng(std::span<const uint8_t> bytes, const std::string& source);
+/// A depth PNG (16-bit greyscale, millimetres) from memory: any other colour type or bit depth
+/// is refused from its header, before the image is decoded (a 1-bit palette image of a few KiB
+/// would otherwise expand to up to 1 GiB of RGBA first).
+core::Result<core::DepthImage> DecodeDepthPng(std::span<const uint8_t> bytes, const std::string& source);
 /// Encodes `samples` (row-major, width*height*channels values) as a PNG (zlib-compressed).
 std::vector<uint8_t> EncodePng8(int width, int height, int channels, std::span<const uint8_t> samples);
 std::vector<uint8_t> EncodePng16(int width, int height, int channels, std::span<const uint16_t> samples);

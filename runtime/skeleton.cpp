@@ -236,6 +236,9 @@ struct PersonFit {
 
   /// The mask's depth at a pixel (nearest mask pixel within the margin), 0 = off it.
   int MaskDepthPx(const Eigen::Vector2f& pixel) const {
+    // A pixel far outside the image (a vote cast beyond the frame, or not finite) is off the
+    // mask; rounding it to int would overflow.
+    if (!(std::abs(pixel.x()) < 1e6f && std::abs(pixel.y()) < 1e6f)) return 0;
     const int px = int(std::lround(pixel.x())), py = int(std::lround(pixel.y()));
     int mask_depth = 0, best = 1 << 30;
     for (int dy = -m; dy <= m; ++dy)

@@ -129,6 +129,9 @@ e = error_of(lambda: five.joints(depth))
 check(isinstance(e, poseforest.Error) and "31-part taxonomy (this one has 5 parts)" in str(e), f"5-part joints: {e}")
 check(isinstance(error_of(lambda: forest.classify(depth.astype(np.float32))), TypeError), "float depth: TypeError")
 check(isinstance(error_of(lambda: forest.classify(depth[None])), ValueError), "3-D depth: ValueError")
+# A side above 32768 is refused, not cut to the C API's int (40000 would not wrap, 2^32 + 640 would).
+check(isinstance(error_of(lambda: forest.classify(np.zeros((1, 40000), dtype=np.uint16))), ValueError),
+      "a side above 32768: ValueError")
 check(isinstance(error_of(lambda: forest.joints(depth, method="x")), ValueError), "unknown method: ValueError")
 check(np.array_equal(forest.classify(np.asfortranarray(depth)), labels), "a Fortran-ordered array gives the same labels")
 

@@ -109,6 +109,18 @@ TEST_CASE("a forest loads from a file and from memory with the runtime's sizes a
   api::Forest moved = std::move(cpp);
   CHECK(moved.num_nodes() == forest.total_nodes());
   CHECK(cpp.handle() == nullptr);
+  // Classifying with the moved-from object throws the API's Error, not std::length_error from
+  // sizing its distributions by -1 parts.
+  const core::DepthImage d = testing::MakePersonDepth(2.5);
+  const api::DepthView view{d.pixels.data(), d.width, d.height};
+  for (const bool distributions : {false, true}) {
+    try {
+      (void)cpp.Classify(view, distributions);
+      FAIL("no exception");
+    } catch (const api::Error& e) {
+      CHECK(e.status() == PF_INVALID_ARGUMENT);
+    }
+  }
 }
 
 TEST_CASE("labels and distributions equal the runtime classifier's", "[api]") {

@@ -576,6 +576,48 @@ TEST_CASE(".pcd in all three encodings; truncated or corrupted files give errors
   fs::remove_all(dir);
 }
 
+TEST_CASE(
+    ".pcd: hostile headers (field sizes and counts, points the data cannot hold) are refused before any read",
+    "[frames][pcd][hostile]") {
+  auto parse = [](const std::string& fields, const std::string& size, const std::string& type,
+                  const std::string& count, int width, int height, const std::string& data,
+                  size_t data_bytes) {
+    std::string text = "VERSION 0.7\nFIELDS " + fields + "\nSIZE " + size + "\nTYPE " + type + "\nCOUNT " +
+                       count + "\nWIDTH " + std::to_string(width) + "\nHEIGHT " + std::to_string(height) +
+                       "\nDATA " + data + "\n";
+    std::vector<uint8_t> bytes(text.begin(), text.end());
+    bytes.resize(bytes.size() + data_bytes, uint8_t('1'));
+    return runtime::ParsePcdFrame(bytes, "h.pcd");
+  };
+  // Sizes that would put z 1 GiB past a 4-byte point, or wrap a field's start (they crashed).
+  auto huge = parse("a z b", "1073741824 4 -1073741824", "U F U", "1 1 1", 4, 4, "binary", 64);
+  REQUIRE_FALSE(huge.ok());
+  CHECK_THAT(huge.status().message(),
+             Catch::Contains("h.pcd: PCD field 'a' has SIZE 1073741824 (1, 2, 4 or 8 bytes)"));
+  auto wrap = parse("a z b", "-1000 4 1000", "U F U", "1 1 1", 4, 4, "binary_compressed", 64);
+  REQUIRE_FALSE(wrap.ok());
+  CHECK_THAT(wrap.status().message(), Catch::Contains("PCD field 'a' has SIZE -1000"));
+  auto negative = parse("a z", "4 4", "F F", "-3 1", 4, 4, "binary", 64);
+  REQUIRE_FALSE(negative.ok());
+  CHECK_THAT(negative.status().message(), Catch::Contains("PCD field 'a' has COUNT -3 (1 to 8192)"));
+  auto zero = parse("z", "4", "F", "0", 4, 4, "binary", 64);
+  REQUIRE_FALSE(zero.ok());
+  CHECK_THAT(zero.status().message(), Catch::Contains("has COUNT 0"));
+  // A FPFH-like histogram field (COUNT 33) beside z is a valid point of 136 bytes.
+  auto histogram = parse("z fpfh", "4 4", "F F", "1 33", 2, 2, "binary", 4 * 136);
+  CHECK(histogram.ok());
+  // 16384 x 16384 points declared by a header of a few bytes: refused for the missing data
+  // before the half-GiB image is allocated, in each encoding.
+  for (const std::string data : {"ascii", "binary", "binary_compressed"}) {
+    INFO(data);
+    auto big = parse("z", "4", "F", "1", 16384, 16384, data, 16);
+    REQUIRE_FALSE(big.ok());
+    CHECK_THAT(big.status().message(),
+               Catch::Contains("h.pcd: PCD " + data +
+                               " data holds 16 bytes, too few for 268435456 points of 4 bytes"));
+  }
+}
+
 TEST_CASE(".pcd: the cloud's own projection is fitted from its points and used as the frame's camera",
           "[frames][pcd]") {
   const auto dir = testing::ScratchDir("frames-pcd-projection");

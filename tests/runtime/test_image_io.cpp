@@ -572,6 +572,31 @@ TEST_CASE("ReadDepthImage errors name the file", "[image_io][depth]") {
   REQUIRE_FALSE(g.ok());
   CHECK_THAT(g.status().message(), Catch::Contains(grey8) && Catch::Contains("16-bit greyscale"));
 
+  // A 1-bit palette PNG with transparency of 16384 x 16384 pixels would decode to 1 GiB of RGBA:
+  // a depth reader refuses it from its header, before decoding (the message says what it is).
+  const auto z = ZlibStream(EncodePng8(3, 2, 1, std::vector<uint8_t>(6, 0)));
+  const auto bomb = Assemble({{"IHDR", Ihdr(16384, 16384, 1, 3)},
+                              {"PLTE", {0, 0, 0, 255, 255, 255}},
+                              {"tRNS", {0}},
+                              {"IDAT", z},
+                              {"IEND", {}}});
+  auto direct = DecodeDepthPng(bomb, "bomb.png");
+  REQUIRE_FALSE(direct.ok());
+  CHECK_THAT(
+      direct.status().message(),
+      Catch::Equals("bomb.png: a depth image must be a 16-bit greyscale PNG in millimetres; this one has 1 "
+                    "channel(s) of 1-bit samples (a palette)"));
+  const std::string bomb_path = (dir / "bomb.png").string();
+  WriteBytes(bomb_path, bomb);
+  auto read_bomb = ReadDepthImage(bomb_path);
+  REQUIRE_FALSE(read_bomb.ok());
+  CHECK_THAT(read_bomb.status().message(), Catch::Contains(bomb_path) && Catch::Contains("(a palette)"));
+  // A 16-bit greyscale PNG decodes as before.
+  auto depth16 =
+      DecodeDepthPng(EncodePng16(3, 2, 1, std::vector<uint16_t>{1, 2, 3, 400, 500, 65535}), "d.png");
+  REQUIRE(depth16.ok());
+  CHECK(depth16->pixels == std::vector<uint16_t>{1, 2, 3, 400, 500, 65535});
+
   // A corrupt PNG depth file names the file.
   auto png = EncodePng16(4, 4, 1, std::vector<uint16_t>(16, 1200));
   png[png.size() - 20] ^= 0x55;

@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <random>
 
 #include "runtime/core/forest_format.h"
@@ -302,6 +303,26 @@ TEST_CASE("skeletons: per person the best proposal on its mask; no invented join
   CHECK(skeletons[0].joints[kHead].confidence == Approx(core::FallbackConfidence(0.01f)));
   // No people, no skeletons.
   CHECK(runtime::BuildSkeletons(proposals, scene.masks, 0, scene.depth, cam, &cal, {}).empty());
+}
+
+TEST_CASE("skeletons: a proposal whose pixel is not finite or far outside the image is off every mask",
+          "[skeleton][hostile]") {
+  const auto cam = core::CameraIntrinsics::KinectV1();
+  Scene scene;
+  scene.Person(1, 0, 100, 150, 479, 2000);  // touches column 0, where a wrapped pixel would land
+  const float big = 0.01f * float(cam.fx * cam.fy);
+  for (const float x : {std::nanf(""), std::numeric_limits<float>::infinity(), -3e9f, 2147483648.0f}) {
+    INFO(x);
+    runtime::FrameProposals proposals{};
+    runtime::JointProposal head = At(cam, 60, 120, 2.04f, big);
+    head.pixel.x() = x;  // rounding it to int would overflow (or give column 0)
+    proposals[kHead] = {head};
+    runtime::SkeletonOptions opt;
+    const auto cal = RampCalibration();
+    const auto skeletons = runtime::BuildSkeletons(proposals, scene.masks, 1, scene.depth, cam, &cal, opt);
+    REQUIRE(skeletons.size() == 1);
+    CHECK_FALSE(skeletons[0].joints[kHead].found);
+  }
 }
 
 TEST_CASE("skeletons: no knees at the border that cuts an upper body, bone lengths, unbroken chains",

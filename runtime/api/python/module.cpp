@@ -28,6 +28,10 @@ py::array_t<uint16_t, py::array::c_style> DepthArray(const py::array& depth) {
 }
 
 DepthView View(const py::array_t<uint16_t, py::array::c_style>& a) {
+  // The C API takes int sizes of 1..32768: a larger dimension must not wrap into that range.
+  if (a.shape(0) > 32768 || a.shape(1) > 32768)
+    throw py::value_error("depth must be at most 32768 x 32768 pixels; got shape (" +
+                          std::to_string(a.shape(0)) + ", " + std::to_string(a.shape(1)) + ")");
   return {a.data(), int(a.shape(1)), int(a.shape(0))};
 }
 

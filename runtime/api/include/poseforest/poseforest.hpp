@@ -98,6 +98,9 @@ class Forest {
 
   /// Labels per pixel, and P(part | pixel) if `distributions` (see pf_classify).
   Classification Classify(DepthView depth, bool distributions = false, int num_threads = 0) const {
+    // A moved-from Forest has no parts to size the distributions by: Error, as every call on it.
+    if (forest_ == nullptr)
+      throw Error(PF_INVALID_ARGUMENT, "poseforest::api::Forest: no forest (moved from)");
     Classification c;
     c.width = depth.width;
     c.height = depth.height;
