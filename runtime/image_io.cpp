@@ -103,25 +103,21 @@ Result<PngImage> DecodePngImpl(std::span<const uint8_t> bytes, const std::string
                                                    std::to_string(height) +
                                                    " is too large (limits: 32768 per side, 2^28 pixels)");
   }
-  if (depth_only && (ihdr.color_type != SPNG_COLOR_TYPE_GRAYSCALE || ihdr.bit_depth != 16)) {
-    const int channels = ihdr.color_type == SPNG_COLOR_TYPE_TRUECOLOR         ? 3
-                         : ihdr.color_type == SPNG_COLOR_TYPE_GRAYSCALE_ALPHA ? 2
-                         : ihdr.color_type == SPNG_COLOR_TYPE_TRUECOLOR_ALPHA ? 4
-                                                                              : 1;
-    return Status(ErrorCode::kInvalidArgument,
-                  source + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
-                      std::to_string(channels) + " channel(s) of " + std::to_string(int(ihdr.bit_depth)) +
-                      "-bit samples" + (ihdr.color_type == SPNG_COLOR_TYPE_INDEXED ? " (a palette)" : ""));
-  }
-  if (ihdr.interlace_method != SPNG_INTERLACE_NONE) {
-    return Status(ErrorCode::kUnimplemented,
-                  source + ": interlaced (Adam7) PNG is not supported; re-save it non-interlaced");
-  }
   const int colour_type = ihdr.color_type, bit_depth = ihdr.bit_depth;
   const int channels_in = colour_type == SPNG_COLOR_TYPE_TRUECOLOR         ? 3
                           : colour_type == SPNG_COLOR_TYPE_GRAYSCALE_ALPHA ? 2
                           : colour_type == SPNG_COLOR_TYPE_TRUECOLOR_ALPHA ? 4
                                                                            : 1;
+  if (depth_only && (colour_type != SPNG_COLOR_TYPE_GRAYSCALE || bit_depth != 16)) {
+    return Status(ErrorCode::kInvalidArgument,
+                  source + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
+                      std::to_string(channels_in) + " channel(s) of " + std::to_string(bit_depth) +
+                      "-bit samples" + (colour_type == SPNG_COLOR_TYPE_INDEXED ? " (a palette)" : ""));
+  }
+  if (ihdr.interlace_method != SPNG_INTERLACE_NONE) {
+    return Status(ErrorCode::kUnimplemented,
+                  source + ": interlaced (Adam7) PNG is not supported; re-save it non-interlaced");
+  }
   const uint64_t rowbytes = (uint64_t(width) * uint64_t(channels_in) * uint64_t(bit_depth) + 7) / 8;
   if (uint64_t(height) * (rowbytes + 1) > uint64_t(bytes.size()) * kMaxDeflateRatio + 64) {
     return DataLoss(source, "the file (" + std::to_string(bytes.size()) + " bytes) is far too short for a " +
