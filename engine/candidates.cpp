@@ -28,6 +28,13 @@ std::vector<core::FeatureOffsets> DrawFeatures(const TrainParams& params, int tr
     out[k].vx = int16_t(rng.UniformIntIn(i + 2, -m, m));
     out[k].vy = int16_t(rng.UniformIntIn(i + 3, -m, m));
   }
+  // Which features probe against the pixel itself: draws of their own, after the offsets' 4n
+  // (a counter RNG: the offsets' draws stay where they were).
+  if (params.pixel_probe_share > 0) {
+    const uint64_t first = 4 * uint64_t(out.size());
+    for (size_t k = 0; k < out.size(); ++k)
+      if (rng.Uniform01(first + k) < params.pixel_probe_share) out[k].vx = out[k].vy = 0;
+  }
   return out;
 }
 

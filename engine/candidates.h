@@ -59,7 +59,9 @@ inline constexpr int PositionDepth(uint64_t p) {
 }
 
 /// The candidate features theta of the node at `position` in `tree`: u, v uniform in +-max
-/// offset per coordinate, in offset units.
+/// offset per coordinate, in offset units; with TrainParams::pixel_probe_share > 0, each feature
+/// with that probability has v = 0 (its u drawn as before), so a share of 0 draws the paper's
+/// features exactly as before the field existed.
 std::vector<core::FeatureOffsets> DrawFeatures(const TrainParams& params, int tree, uint64_t position);
 
 /// Whether a sample (by its global uid) belongs to the threshold reference subsample of a node

@@ -434,6 +434,9 @@ Result<TrainParams> ParamsFromConfig(const v1::TrainerConfig& c, const std::stri
       return Bad(source, "probe_edge", Str(int(c.probe_edge())),
                  "unknown: PROBE_EDGE_BACKGROUND (the paper's) or PROBE_EDGE_CLAMP");
   }
+  p.pixel_probe_share = c.has_pixel_probe_share() ? c.pixel_probe_share() : 0.0;
+  if (!std::isfinite(p.pixel_probe_share) || p.pixel_probe_share < 0 || p.pixel_probe_share > 1)
+    return Bad(source, "pixel_probe_share", Str(p.pixel_probe_share), "must be in 0..1");
   p.part_balance = c.has_part_balance() ? c.part_balance() : 1.0;
   if (!std::isfinite(p.part_balance) || p.part_balance < 0 || p.part_balance > 1)
     return Bad(source, "part_balance", Str(p.part_balance), "must be in 0..1");
@@ -516,8 +519,10 @@ std::string DescribeParams(const TrainParams& p) {
   s << p.num_trees << " trees, depth " << p.max_depth << ", " << p.images_per_tree << " images/tree x "
     << p.pixels_per_image << " pixels, " << p.candidate_features << " features x " << p.thresholds_per_feature
     << " thresholds, max offset " << p.max_probe_offset_pixel_m << " pixel*m"
-    << (p.constants.edge == core::ProbeEdge::kClamp ? " (probes past the edge read the edge)" : "")
-    << ", seed " << p.seed;
+    << (p.constants.edge == core::ProbeEdge::kClamp ? " (probes past the edge read the edge)" : "");
+  if (p.pixel_probe_share > 0)
+    s << ", " << p.pixel_probe_share * 100 << "% of the features against the pixel itself";
+  s << ", seed " << p.seed;
   return s.str();
 }
 

@@ -101,6 +101,8 @@ struct TrainParams {
   int threads = 0;         ///< 0 = all cores
   uint64_t threshold_reference_pixels = 500;
   double part_balance = 1.0;
+  /// Share of candidate features with v = 0 (job.proto pixel_probe_share); 0 = the paper's draw.
+  double pixel_probe_share = 0.0;
   uint64_t histogram_memory_bytes = uint64_t(1) << 30;
   /// Distributed service: nodes of at most this many samples (all shards) are trained whole by
   /// one worker (SubtreeTask); 0 = never. The forest does not depend on it.

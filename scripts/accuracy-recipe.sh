@@ -22,7 +22,7 @@
 # Needs a build (scripts/build.sh) and the shared data (POSEFOREST_DATA_DIR, default
 # ../shared/data). Outputs go to $POSEFOREST_OUT/accuracy-N (default ./out/accuracy-N; -cC added
 # when the candidates are not 500, -hH when the headings are not 120, -background with
-# POSEFOREST_PROBE_EDGE=background): job, forest,
+# POSEFOREST_PROBE_EDGE=background, -ppS with POSEFOREST_PIXEL_PROBE_SHARE=S other than 0.5): job, forest,
 # tuned forest, training/tuning/eval logs and PR curves. Extra training flags (for instance
 # `--local-workers 2` to train through the distributed service, same forest) come from
 # POSEFOREST_TRAIN_ARGS; through the service the recipe checkpoints every level into
@@ -68,6 +68,13 @@ case ${POSEFOREST_PROBE_EDGE:-clamp} in
   clamp) probe_edge=PROBE_EDGE_CLAMP ;;
   *) echo "accuracy-recipe: POSEFOREST_PROBE_EDGE must be background or clamp, got '$POSEFOREST_PROBE_EDGE'" >&2; exit 2 ;;
 esac
+# Half the candidate features compare a probe with the pixel itself (pixel_probe_share 0.5, as in
+# the main job, scripts/default-job.sh) since 1 Dec 2026 (docs/training/pixel-probe.md).
+# POSEFOREST_PIXEL_PROBE_SHARE=0 draws the paper's candidates, as every recipe before 1 Dec 2026
+# (into accuracy-N...-pp0).
+pixel_probe_share=${POSEFOREST_PIXEL_PROBE_SHARE:-0.5}
+[[ "$pixel_probe_share" =~ ^(0(\.[0-9]+)?|1(\.0*)?)$ ]] ||
+  { echo "accuracy-recipe: POSEFOREST_PIXEL_PROBE_SHARE must be a number in 0..1, got '$pixel_probe_share'" >&2; exit 2; }
 [[ "$headings" =~ ^[1-9][0-9]*$ && "$headings" -le 180 ]] ||
   { echo "accuracy-recipe: POSEFOREST_HEADINGS must be a whole number of degrees, 1-180, got '$headings'" >&2; exit 2; }
 # accuracy-N, with -cC when the candidates are not the recipe's 500, -hH when the headings are
@@ -75,6 +82,7 @@ esac
 # each other.
 out=${POSEFOREST_OUT:-$root/out}/accuracy-$per_tree$([[ "$candidate_features" == 500 ]] || echo "-c$candidate_features")
 out+=$([[ "$headings" == 120 ]] || echo "-h$headings")$([[ "$probe_edge" == PROBE_EDGE_CLAMP ]] || echo "-background")
+out+=$([[ "$pixel_probe_share" == 0.5 ]] || echo "-pp$pixel_probe_share")
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
 start=$(date +%s)

@@ -100,6 +100,33 @@ TEST_CASE(
   CHECK(core::SerializeForest(*forest) == reference);
 }
 
+TEST_CASE(
+    "a job with half its candidates probing against the pixel (pixel_probe_share): the same forest with 2 "
+    "workers",
+    "[distributed][integration]") {
+  const Job job = ParseJob(TinyJobText() + "pixel_probe_share: 0.5\n");
+  REQUIRE(job.params.pixel_probe_share == 0.5);
+  const std::vector<uint8_t> reference = ReferenceBytes(job);
+  // The workers drew the pixel-probe features too: the paper's draw gives other trees.
+  CHECK(ReferenceBytes(ParseJob(TinyJobText())) != reference);
+  auto parsed = core::ParseForest(reference, "reference");
+  REQUIRE(parsed.ok());
+  size_t pixel_probes = 0;
+  for (const auto& tree : parsed->trees)
+    for (const auto& node : tree.nodes)
+      pixel_probes += !node.is_leaf() && node.offsets.vx == 0 && node.offsets.vy == 0;
+  CHECK(pixel_probes > 0);  // the trees chose some
+  const uint32_t domain = Domain(31);
+  const std::string job_id = "t-identical-pixel-probe";
+  ThreadWorkers workers(2, domain, job_id);
+  CoordinatorOptions o = Options(domain, 2);
+  o.job_id = job_id;
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  REQUIRE(forest.ok());
+  CHECK(core::SerializeForest(*forest) == reference);
+}
+
 TEST_CASE("a worker stopped mid-tree: its frames move to the others, same forest",
           "[distributed][integration]") {
   const Job job = ParseJob(TinyJobText());

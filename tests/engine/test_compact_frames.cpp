@@ -109,6 +109,8 @@ std::vector<core::FeatureOffsets> Features(int n, int reach, std::mt19937& rng) 
   std::vector<core::FeatureOffsets> f;
   f.resize(size_t(n));
   for (auto& o : f) o = {int16_t(off(rng)), int16_t(off(rng)), int16_t(off(rng)), int16_t(off(rng))};
+  // Every fourth probes against the pixel itself (v = 0), as job.proto's pixel_probe_share draws.
+  for (size_t i = 3; i < f.size(); i += 4) f[i].vx = f[i].vy = 0;
   f[0] = {0, 0, 0, 0};
   if (n > 2) f[1] = {32767, -32768, -32768, 32767};
   return f;

@@ -2,6 +2,7 @@
 // ranges, ApplySplits, and the sibling histogram by subtraction.
 #include <algorithm>
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <map>
 
 #include "engine/candidates.h"
@@ -109,6 +110,34 @@ TEST_CASE("pixel sampling is deterministic, on the body, and balances parts", "[
                              [](uint8_t l) { return l < core::kNumParts; })));
 }
 
+TEST_CASE("pixel_probe_share: that share of the candidates has v = 0, the rest the paper's draw",
+          "[training][candidates]") {
+  engine::TrainParams p = SmallParams();
+  p.candidate_features = 2000;
+  const auto paper = engine::DrawFeatures(p, 1, 77);
+  size_t zero_v = 0;
+  for (const auto& f : paper) zero_v += f.vx == 0 && f.vy == 0;
+  CHECK(zero_v == 0);
+  for (const double share : {0.25, 0.5, 1.0}) {
+    INFO("share " << share);
+    p.pixel_probe_share = share;
+    const auto drawn = engine::DrawFeatures(p, 1, 77);
+    REQUIRE(drawn.size() == paper.size());
+    CHECK(drawn == engine::DrawFeatures(p, 1, 77));  // deterministic
+    CHECK(drawn != engine::DrawFeatures(p, 1, 78));  // keyed by the node
+    size_t pixel = 0, same = 0;
+    for (size_t k = 0; k < drawn.size(); ++k) {
+      CHECK(drawn[k].ux == paper[k].ux);  // u as the paper's draw
+      CHECK(drawn[k].uy == paper[k].uy);
+      if (drawn[k].vx == 0 && drawn[k].vy == 0) ++pixel;
+      same += drawn[k] == paper[k];
+    }
+    CHECK(pixel + same == drawn.size());  // each is the paper's feature or its pixel-probe form
+    const double expected = share * double(drawn.size());
+    CHECK(std::abs(double(pixel) - expected) < 4 * std::sqrt(expected * (1 - share)) + 1);
+  }
+}
+
 TEST_CASE("histogram builder equals a naive evaluator, for any thread count", "[training][histogram]") {
   // 12 / 50 thresholds: vector kernels with 16 / 64 cut slots; 100: the scalar path. A large
   // reference size makes the range pass cover whole nodes (sample-major kernel).
@@ -117,6 +146,7 @@ TEST_CASE("histogram builder equals a naive evaluator, for any thread count", "[
   engine::TrainParams p = SmallParams();
   p.thresholds_per_feature = thresholds;
   p.threshold_reference_pixels = reference;
+  p.pixel_probe_share = GENERATE(0.0, 0.5);  // half the candidates against the pixel itself
   const engine::SampleSet set = MakeSamples(p, 0, 4);
   std::vector<engine::NodePlan> plans{PlanFor(p, set, 0)};
   engine::HistogramBuilder b1(p.constants, 1), b2(p.constants, 2);

@@ -63,6 +63,23 @@ TEST_CASE("probe_edge: the paper's rule by default or named, the edge with PROBE
              Catch::Contains("probe_edge"));
 }
 
+TEST_CASE("pixel_probe_share: 0 (the paper's draw) by default, 0..1", "[training][config]") {
+  const std::string src = " source { procedural { seed: 4 } }";
+  auto p = Parse("images_per_tree: 10" + src);
+  REQUIRE(p.ok());
+  CHECK(p->pixel_probe_share == 0.0);
+  CHECK_THAT(engine::DescribeParams(*p), !Catch::Contains("pixel itself"));
+  p = Parse("images_per_tree: 10 pixel_probe_share: 0.5" + src);
+  REQUIRE(p.ok());
+  CHECK(p->pixel_probe_share == 0.5);
+  CHECK_THAT(engine::DescribeParams(*p), Catch::Contains("50% of the features against the pixel itself"));
+  for (const char* bad : {"-0.1", "1.5", "nan", "inf"}) {
+    INFO(bad);
+    CHECK_THAT(ErrorOf(std::string("images_per_tree: 10 pixel_probe_share: ") + bad + src),
+               Catch::Contains("pixel_probe_share") && Catch::Contains("must be in 0..1"));
+  }
+}
+
 TEST_CASE("a full job parses every field", "[training][config]") {
   auto p = Parse(R"(
     seed: 42 num_trees: 2 max_depth: 12 images_per_tree: 100 pixels_per_image: 500
