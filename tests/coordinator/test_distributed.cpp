@@ -50,6 +50,18 @@ CoordinatorOptions Options(uint32_t domain, int min_workers) {
   if (!std::getenv("POSEFOREST_TEST_VERBOSE")) o.log = [](const std::string&) {};
   return o;
 }
+
+/// The forest `job` trains through the service with `n` workers on threads, serialized.
+std::vector<uint8_t> ServiceBytes(const Job& job, int n, uint32_t domain_offset, const std::string& job_id) {
+  const uint32_t domain = Domain(domain_offset);
+  ThreadWorkers workers(n, domain, job_id);
+  CoordinatorOptions o = Options(domain, n);
+  o.job_id = job_id;
+  DistCoordinator coordinator(job.config, job.params, o);
+  auto forest = coordinator.Train();
+  REQUIRE(forest.ok());
+  return core::SerializeForest(*forest);
+}
 }  // namespace
 
 TEST_CASE("distributed forest is byte-identical to LocalTrainer with 1, 2, 3 and 5 workers",
@@ -89,15 +101,7 @@ TEST_CASE(
   CHECK(parsed->constants.edge == core::ProbeEdge::kClamp);  // the forest records it (PEDG)
   // Trained the paper's way the trees differ: the workers really probed past the edge.
   CHECK(ReferenceBytes(ParseJob(TinyJobText())) != reference);
-  const uint32_t domain = Domain(29);
-  const std::string job_id = "t-identical-clamp";
-  ThreadWorkers workers(3, domain, job_id);
-  CoordinatorOptions o = Options(domain, 3);
-  o.job_id = job_id;
-  DistCoordinator coordinator(job.config, job.params, o);
-  auto forest = coordinator.Train();
-  REQUIRE(forest.ok());
-  CHECK(core::SerializeForest(*forest) == reference);
+  CHECK(ServiceBytes(job, 3, 29, "t-identical-clamp") == reference);
 }
 
 TEST_CASE(
@@ -116,15 +120,7 @@ TEST_CASE(
     for (const auto& node : tree.nodes)
       pixel_probes += !node.is_leaf() && node.offsets.vx == 0 && node.offsets.vy == 0;
   CHECK(pixel_probes > 0);  // the trees chose some
-  const uint32_t domain = Domain(31);
-  const std::string job_id = "t-identical-pixel-probe";
-  ThreadWorkers workers(2, domain, job_id);
-  CoordinatorOptions o = Options(domain, 2);
-  o.job_id = job_id;
-  DistCoordinator coordinator(job.config, job.params, o);
-  auto forest = coordinator.Train();
-  REQUIRE(forest.ok());
-  CHECK(core::SerializeForest(*forest) == reference);
+  CHECK(ServiceBytes(job, 2, 31, "t-identical-pixel-probe") == reference);
 }
 
 TEST_CASE("a worker stopped mid-tree: its frames move to the others, same forest",
