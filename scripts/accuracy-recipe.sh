@@ -31,8 +31,9 @@
 # POSEFOREST_HEADINGS=60 trains on people within +-60 degrees of facing the camera (the recipe's
 # default until 30 Nov 2026; its outputs go to accuracy-N-h60): for cameras that only see people
 # in front of them (desks, TVs). `POSEFOREST_HEADINGS=60 scripts/accuracy-recipe.sh 8000` (45 min)
-# gives 0.871 mAP facing the camera and 81 of 90 real joints, but 0.673 at +-120
-# (docs/results/2026-12-01-recipe-h60-probe-edge.md; with the paper's probe rule,
+# gives 0.891 mAP facing the camera and 83 of 90 real joints, but 0.708 at +-120, with the pixel
+# probes (docs/results/2026-12-01-pixel-probe.md; before them 0.871, 81 and 0.673,
+# docs/results/2026-12-01-recipe-h60-probe-edge.md; with the paper's probe rule,
 # POSEFOREST_PROBE_EDGE=background, 0.875, 83 and 0.677).
 #
 # Time and memory on two cores (engine): 8,000 x 500 45 min (1 Dec 2026, beside light work; 52 on
