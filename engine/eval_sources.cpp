@@ -68,14 +68,15 @@ class DatasetEvalSource final : public EvalFrameSource {
       const std::string path = DatasetFramePath(spec_.folder, "mask", file, "png");
       auto bytes = core::ReadFileBytes(path);
       if (!bytes.ok()) return bytes.status();
-      auto png = runtime::DecodePng(*bytes, path);
-      if (!png.ok()) return png.status();
-      if (png->bit_depth != 8 || png->channels != 1 || png->width != out.depth.width ||
-          png->height != out.depth.height)
+      // 8-bit greyscale only, refused from the header before decoding (runtime/image_io.h).
+      auto mask = runtime::DecodeLabelPng(*bytes, path);
+      if (!mask.ok()) return mask.status();
+      if (mask->width != out.depth.width || mask->height != out.depth.height)
         return Status(ErrorCode::kDataLoss,
-                      path + ": a person mask must be 8-bit greyscale of the depth's size");
-      out.person_masks = core::LabelImage(png->width, png->height);
-      out.person_masks.pixels = std::move(png->samples8);
+                      path + ": a person mask must have its depth image's size; it is " +
+                          std::to_string(mask->width) + "x" + std::to_string(mask->height) + ", the depth " +
+                          std::to_string(out.depth.width) + "x" + std::to_string(out.depth.height));
+      out.person_masks = std::move(*mask);
     }
     return out;
   }

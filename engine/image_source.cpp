@@ -365,18 +365,14 @@ Result<LabelledFrame> ReadDatasetFrame(const std::string& folder, uint64_t index
   if (!depth.ok()) return depth.status();
   auto bytes = core::ReadFileBytes(label_path);
   if (!bytes.ok()) return bytes.status();
-  auto png = runtime::DecodePng(*bytes, label_path);
-  if (!png.ok()) return png.status();
-  if (png->bit_depth != 8 || png->channels != 1)
-    return Status(ErrorCode::kInvalidArgument, label_path + ": labels must be 8-bit greyscale (got " +
-                                                   std::to_string(png->bit_depth) + "-bit, " +
-                                                   std::to_string(png->channels) + " channels)");
-  if (png->width != depth->width || png->height != depth->height)
+  // 8-bit greyscale only, refused from the header before decoding (runtime/image_io.h).
+  auto labels = runtime::DecodeLabelPng(*bytes, label_path);
+  if (!labels.ok()) return labels.status();
+  if (labels->width != depth->width || labels->height != depth->height)
     return Status(ErrorCode::kInvalidArgument, label_path + ": size differs from " + depth_path);
   LabelledFrame frame;
   frame.depth = std::move(*depth);
-  frame.labels = core::LabelImage(png->width, png->height);
-  frame.labels.pixels = std::move(png->samples8);
+  frame.labels = std::move(*labels);
   for (size_t i = 0; i < frame.labels.pixels.size(); ++i) {
     const uint8_t l = frame.labels.pixels[i];
     if (l >= core::kNumParts && l != core::kBackgroundLabel)

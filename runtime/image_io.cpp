@@ -85,8 +85,12 @@ void CheckEncodeArgs(int width, int height, int channels, size_t samples) {
                        "sample count != width * height * channels");
 }
 
-/// DecodePng; `depth_only`: refuse anything but 16-bit greyscale from the header, undecoded.
-Result<PngImage> DecodePngImpl(std::span<const uint8_t> bytes, const std::string& source, bool depth_only) {
+/// What a caller accepts, checked from the header before anything is decoded.
+enum class PngKind { kAny, kDepth, kLabels };
+
+/// DecodePng; a `kind` other than kAny refuses anything but its colour type and bit depth from
+/// the header, undecoded.
+Result<PngImage> DecodePngImpl(std::span<const uint8_t> bytes, const std::string& source, PngKind kind) {
   if (bytes.size() < kPngSignature.size() ||
       !std::equal(kPngSignature.begin(), kPngSignature.end(), bytes.begin()))
     return DataLoss(source, "not a PNG file (bad signature)");
@@ -108,11 +112,15 @@ Result<PngImage> DecodePngImpl(std::span<const uint8_t> bytes, const std::string
                           : colour_type == SPNG_COLOR_TYPE_GRAYSCALE_ALPHA ? 2
                           : colour_type == SPNG_COLOR_TYPE_TRUECOLOR_ALPHA ? 4
                                                                            : 1;
-  if (depth_only && (colour_type != SPNG_COLOR_TYPE_GRAYSCALE || bit_depth != 16)) {
-    return Status(ErrorCode::kInvalidArgument,
-                  source + ": a depth image must be a 16-bit greyscale PNG in millimetres; this one has " +
-                      std::to_string(channels_in) + " channel(s) of " + std::to_string(bit_depth) +
-                      "-bit samples" + (colour_type == SPNG_COLOR_TYPE_INDEXED ? " (a palette)" : ""));
+  const int wanted_depth = kind == PngKind::kDepth ? 16 : kind == PngKind::kLabels ? 8 : 0;
+  if (wanted_depth != 0 && (colour_type != SPNG_COLOR_TYPE_GRAYSCALE || bit_depth != wanted_depth)) {
+    return Status(
+        ErrorCode::kInvalidArgument,
+        source +
+            (kind == PngKind::kDepth ? ": a depth image must be a 16-bit greyscale PNG in millimetres"
+                                     : ": a label image must be an 8-bit greyscale PNG of raw values") +
+            "; this one has " + std::to_string(channels_in) + " channel(s) of " + std::to_string(bit_depth) +
+            "-bit samples" + (colour_type == SPNG_COLOR_TYPE_INDEXED ? " (a palette)" : ""));
   }
   if (ihdr.interlace_method != SPNG_INTERLACE_NONE) {
     return Status(ErrorCode::kUnimplemented,
@@ -168,11 +176,19 @@ Result<PngImage> DecodePngImpl(std::span<const uint8_t> bytes, const std::string
 }  // namespace
 
 Result<PngImage> DecodePng(std::span<const uint8_t> bytes, const std::string& source) {
-  return DecodePngImpl(bytes, source, /*depth_only=*/false);
+  return DecodePngImpl(bytes, source, PngKind::kAny);
+}
+
+Result<core::LabelImage> DecodeLabelPng(std::span<const uint8_t> bytes, const std::string& source) {
+  auto png = DecodePngImpl(bytes, source, PngKind::kLabels);
+  if (!png.ok()) return png.status();
+  core::LabelImage labels(png->width, png->height);
+  labels.pixels = std::move(png->samples8);
+  return labels;
 }
 
 Result<core::DepthImage> DecodeDepthPng(std::span<const uint8_t> bytes, const std::string& source) {
-  auto png = DecodePngImpl(bytes, source, /*depth_only=*/true);
+  auto png = DecodePngImpl(bytes, source, PngKind::kDepth);
   if (!png.ok()) return png.status();
   core::DepthImage depth;
   depth.width = png->width;

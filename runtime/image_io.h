@@ -30,6 +30,9 @@ core::Result<PngImage> DecodePng(std::span<const uint8_t> bytes, const std::stri
 /// is refused from its header, before the image is decoded (a 1-bit palette image of a few KiB
 /// would otherwise expand to up to 1 GiB of RGBA first).
 core::Result<core::DepthImage> DecodeDepthPng(std::span<const uint8_t> bytes, const std::string& source);
+/// A label or person-mask PNG (8-bit greyscale of raw values) from memory: any other colour type
+/// or bit depth is refused from its header, before the image is decoded, as DecodeDepthPng does.
+core::Result<core::LabelImage> DecodeLabelPng(std::span<const uint8_t> bytes, const std::string& source);
 /// Encodes `samples` (row-major, width*height*channels values) as a PNG (zlib-compressed).
 std::vector<uint8_t> EncodePng8(int width, int height, int channels, std::span<const uint8_t> samples);
 std::vector<uint8_t> EncodePng16(int width, int height, int channels, std::span<const uint16_t> samples);

@@ -9,11 +9,13 @@
 #include <cstdlib>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "renderer/synthetic_source.h"
 #include "runtime/camera_model.h"
 #include "runtime/classifier.h"
 #include "runtime/core/forest_format.h"
+#include "runtime/image_io.h"
 #include "tests/support/paths.h"
 #include "tests/support/process.h"
 
@@ -197,6 +199,36 @@ TEST_CASE("eval on a cluttered render folder reports segmentation IoU and mAP cl
   CHECK_THAT(on.output, Catch::Contains("has no ground-truth person masks"));
   auto bad = RunPoseforest("eval --forest " + forest + " --test-set " + set.string() + " --segment maybe");
   CHECK(bad.exit_code == 2);
+  // A mask or label file of another PNG type is refused from its header, naming the file and
+  // what it is, before anything is decoded (runtime::DecodeLabelPng).
+  for (const char* stem : {"mask", "labels"}) {
+    const fs::path hostile = dir / (std::string("hostile-") + stem);
+    fs::copy(set, hostile, fs::copy_options::recursive);
+    const fs::path file = hostile / (std::string(stem) + "_000000.png");
+    const auto rgb = runtime::EncodePng8(640, 480, 3, std::vector<uint8_t>(size_t(640) * 480 * 3, 1));
+    std::ofstream(file, std::ios::binary)
+        .write(reinterpret_cast<const char*>(rgb.data()), std::streamsize(rgb.size()));
+    auto refused =
+        RunPoseforest("eval --forest " + forest + " --test-set " + hostile.string() + " --images 1");
+    INFO(refused.output);
+    CHECK(refused.exit_code != 0);
+    CHECK_THAT(refused.output,
+               Catch::Contains(file.string() + ": a label image must be an 8-bit greyscale PNG of "
+                                               "raw values; this one has 3 channel(s) of 8-bit samples"));
+  }
+  {  // A mask of another size than its depth image.
+    const fs::path small = dir / "small-mask";
+    fs::copy(set, small, fs::copy_options::recursive);
+    const auto grey = runtime::EncodePng8(320, 240, 1, std::vector<uint8_t>(size_t(320) * 240, 0));
+    std::ofstream(small / "mask_000000.png", std::ios::binary)
+        .write(reinterpret_cast<const char*>(grey.data()), std::streamsize(grey.size()));
+    auto refused = RunPoseforest("eval --forest " + forest + " --test-set " + small.string() + " --images 1");
+    INFO(refused.output);
+    CHECK(refused.exit_code != 0);
+    CHECK_THAT(refused.output,
+               Catch::Contains("mask_000000.png: a person mask must have its depth image's size; "
+                               "it is 320x240, the depth 640x480"));
+  }
   // A broken camera.txt is refused naming the file.
   std::ofstream(set / "camera.txt") << "kinect 640 x480\n";
   auto broken = RunPoseforest("eval --forest " + forest + " --test-set " + set.string());

@@ -597,6 +597,33 @@ TEST_CASE("ReadDepthImage errors name the file", "[image_io][depth]") {
   REQUIRE(depth16.ok());
   CHECK(depth16->pixels == std::vector<uint16_t>{1, 2, 3, 400, 500, 65535});
 
+  // Label and mask PNGs: 8-bit greyscale only, refused from the header the same way.
+  auto labels = DecodeLabelPng(EncodePng8(3, 2, 1, std::vector<uint8_t>{0, 1, 30, 255, 7, 9}), "l.png");
+  REQUIRE(labels.ok());
+  CHECK(labels->width == 3);
+  CHECK(labels->height == 2);
+  CHECK(labels->pixels == std::vector<uint8_t>{0, 1, 30, 255, 7, 9});
+  auto label_bomb = DecodeLabelPng(bomb, "bomb.png");
+  REQUIRE_FALSE(label_bomb.ok());
+  CHECK(label_bomb.status().code() == ErrorCode::kInvalidArgument);
+  CHECK_THAT(
+      label_bomb.status().message(),
+      Catch::Equals("bomb.png: a label image must be an 8-bit greyscale PNG of raw values; this one has 1 "
+                    "channel(s) of 1-bit samples (a palette)"));
+  auto label16 = DecodeLabelPng(EncodePng16(2, 2, 1, std::vector<uint16_t>(4, 3)), "l16.png");
+  REQUIRE_FALSE(label16.ok());
+  CHECK_THAT(label16.status().message(), Catch::Contains("this one has 1 channel(s) of 16-bit samples"));
+  auto label_rgb = DecodeLabelPng(EncodePng8(2, 2, 3, std::vector<uint8_t>(12, 3)), "rgb.png");
+  REQUIRE_FALSE(label_rgb.ok());
+  CHECK_THAT(label_rgb.status().message(), Catch::Contains("this one has 3 channel(s) of 8-bit samples"));
+  // A corrupt label PNG gives libspng's DataLoss, naming the file.
+  auto corrupt = EncodePng8(4, 4, 1, std::vector<uint8_t>(16, 2));
+  corrupt[corrupt.size() - 20] ^= 0x55;
+  auto corrupt_labels = DecodeLabelPng(corrupt, "c.png");
+  REQUIRE_FALSE(corrupt_labels.ok());
+  CHECK(corrupt_labels.status().code() == ErrorCode::kDataLoss);
+  CHECK_THAT(corrupt_labels.status().message(), Catch::StartsWith("c.png: "));
+
   // A corrupt PNG depth file names the file.
   auto png = EncodePng16(4, 4, 1, std::vector<uint16_t>(16, 1200));
   png[png.size() - 20] ^= 0x55;
