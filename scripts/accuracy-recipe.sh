@@ -8,10 +8,11 @@
 #
 # Default (no arguments, since 30 Nov 2026): 16,000 images per tree (48,000 images, 3 trees) and
 # 500 candidate features per node, on people turned up to +-120 degrees (the paper's training
-# set), depth probes past the image's edge reading the edge as the main job's do: 0.772 mAP on
-# 5,000 held-out +-120 frames, 0.842 on people facing the camera, 81 of 90 real joints
-# (docs/results/2026-11-30-recipe-probe-edge.md). 85 min on 2 cores through the service
-# (POSEFOREST_TRAIN_ARGS="--local-workers 2").
+# set), depth probes past the image's edge reading the edge and half the candidates probing
+# against the pixel itself, as the main job's do: 0.815 mAP on 5,000 held-out +-120 frames,
+# 0.872 on people facing the camera, 84 of 90 real joints
+# (docs/results/2026-12-01-recipe-16000-pixel-probe.md). 85 min on 2 cores through the service
+# (POSEFOREST_TRAIN_ARGS="--local-workers 2"; docs/results/2026-11-30-recipe-probe-edge.md).
 # With IMAGES_PER_TREE alone the candidates keep the earlier recipes' cost, images x candidates
 # = 4 million, at most 1,000: 4,000 images take 1,000, 8,000 take 500, 16,000 take 250, as in
 # the earlier results' commands (those before 30 Nov 2026 trained on +-60 degrees unless they
